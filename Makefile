@@ -1,0 +1,26 @@
+# Two entry points (see README):  make demo  |  make test
+# Each sets everything up first (libLLVM, .venv, the package) and is safe to repeat.
+VENV := .venv
+BIN := $(VENV)/bin
+PYTEST_ARGS ?=
+
+.PHONY: setup demo test test-all bench clean
+
+setup:
+	bash scripts/setup.sh
+
+demo: setup
+	$(BIN)/mitsuba-veg demo --out out/demo
+
+test: setup
+	$(BIN)/python -m pytest -m "not slow" -q $(PYTEST_ARGS)
+
+test-all: setup
+	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+bench: setup
+	$(BIN)/python benchmarks/photon_throughput.py
+	$(BIN)/python benchmarks/photon_vs_path.py
+
+clean:
+	rm -rf out build *.egg-info .pytest_cache

@@ -1,0 +1,19 @@
+"""mitsuba-veg: grow vegetation from light and render it spectrally with Mitsuba 3.
+
+Importing the package selects a spectral Mitsuba variant (``cuda_ad_spectral`` when CUDA works,
+else ``llvm_ad_spectral``) unless one is already set, and registers the package's plugins with
+Mitsuba (integrator ``veg_photon_irradiance``, emitter ``veg_sky``).
+"""
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from .variant import select_variant as _select_variant, variant  # noqa: E402
+
+_select_variant()
+
+from . import errors  # noqa: E402,F401
+from . import integrators  # noqa: E402,F401  (registers the Mitsuba plugins)
+from . import light  # noqa: E402,F401
+
+__all__ = ["__version__", "variant", "errors", "integrators", "light"]

@@ -1,0 +1,56 @@
+"""Errors raised at the package's boundaries.
+
+Every message names what is wrong (file, field, value), the allowed range and the fix, so that a
+user never has to read a traceback from inside a kernel.
+"""
+from __future__ import annotations
+
+
+class MitsubaVegError(Exception):
+    """Base class of all mitsuba-veg errors."""
+
+
+class VariantError(MitsubaVegError, RuntimeError):
+    """The active Mitsuba variant cannot be used (e.g. an RGB variant)."""
+
+
+class ParameterError(MitsubaVegError, ValueError):
+    """A parameter or scenario field has a value outside its allowed range."""
+
+    def __init__(self, field: str, value, allowed: str, fix: str | None = None,
+                 source: str | None = None):
+        self.field, self.value, self.allowed, self.fix, self.source = field, value, allowed, fix, source
+        where = f"{source}: " if source else ""
+        msg = f"{where}{field} = {value!r} is invalid (allowed: {allowed})"
+        if fix:
+            msg += f". Fix: {fix}"
+        super().__init__(msg)
+
+
+class SceneError(MitsubaVegError, ValueError):
+    """A scene lacks something a computation needs (a shape id, an emitter, a file ...)."""
+
+
+def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=False,
+                fix: str | None = None, source: str | None = None):
+    """Raise :class:`ParameterError` unless ``lo <= value <= hi`` (bounds optional/open).
+
+    NaN is always rejected. Returns ``value`` so that it can be used inline.
+    """
+    import math
+
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(field, value, "a number", fix, source) from None
+    lo_s = "-inf" if lo is None else repr(lo)
+    hi_s = "inf" if hi is None else repr(hi)
+    allowed = f"{'(' if lo_open else '['}{lo_s}, {hi_s}{')' if hi_open else ']'}"
+    bad = math.isnan(v)
+    if lo is not None:
+        bad |= v <= lo if lo_open else v < lo
+    if hi is not None:
+        bad |= v >= hi if hi_open else v > hi
+    if bad:
+        raise ParameterError(field, value, allowed, fix, source)
+    return value

@@ -1,0 +1,16 @@
+"""Light: sun position, daylight spectra (sun + sky emitters) and the photon-irradiance pass.
+
+- :func:`photon_irradiance` traces photons from a scene's emitters and returns per-triangle
+  incident irradiance [W m-2] per band, split direct / indirect (paper 000 §3.4).
+- :func:`sun_position` gives the solar azimuth/elevation [deg] (NREL SPA).
+- :func:`daylight` gives Mitsuba emitter dicts for sun and sky with spectra over 300-4000 nm.
+"""
+from __future__ import annotations
+
+from .photon import photon_irradiance, PhotonIrradianceResult, BANDS, band_range
+from .sun_position import sun_position, sun_direction
+from .daylight import daylight
+from . import sky  # noqa: F401  (registers the `veg_sky` emitter)
+
+__all__ = ["photon_irradiance", "PhotonIrradianceResult", "BANDS", "band_range",
+           "sun_position", "sun_direction", "daylight"]

@@ -1,0 +1,2 @@
+def daylight(*a, **k):  # placeholder, replaced by the daylight model
+    raise NotImplementedError
