@@ -1,1 +1,431 @@
-"""placeholder"""
+"""The ``veg_sky`` emitter: a separable clear-sky environment emitter, L(w, lambda) = S(lambda) f(w).
+
+``S`` is a spectrum (property ``radiance``, W m-2 sr-1 nm-1: the radiance of a *uniform* sky with
+the same horizontal irradiance, i.e. DHI/pi) and ``f`` a relative radiance distribution over the
+upper hemisphere, zero below the horizon, normalised so that
+
+    integral over the upper hemisphere of f(w) cos(theta) dw = pi,
+
+hence the horizontal diffuse irradiance of the emitter is exactly pi * S(lambda) (= the SPCTRAL2
+DHI when built by :func:`mitsuba_veg.light.daylight`). ``f`` has the Perez et al. (1993) form
+
+    f ~ (1 + a exp(b / cos theta)) (1 + c exp(d gamma) + e cos^2 gamma)
+
+(theta: zenith angle of w, gamma: angle between w and the sun) with coefficients from the Perez
+all-weather model (sky clearness epsilon, brightness delta), or the CIE standard clear skies
+(types 12 and 13, written in the same form), or a uniform sky.
+
+Directions are importance-sampled from a piecewise-constant table of f over a latitude-longitude
+grid of the upper hemisphere (cells uniform in cos(theta) and azimuth inside, so that the pdf is
+constant per cell in solid angle); weights are exact (L / pdf with the analytic f).
+
+Frame (project convention): +y up, +x east, +z south; the grid's azimuth is clockwise from north
+(-z). The plugin takes no ``to_world``.
+
+Properties
+----------
+radiance      spectrum S [W m-2 sr-1 nm-1] (explicit ``regular``/``uniform``/... spectrum; a
+              plain float becomes a *flat* (``uniform``) spectrum, not a D65 one); or
+irradiance    spectrum E (horizontal diffuse irradiance [W m-2 nm-1]); S = E/pi.
+sun_direction vector towards the sun (need not be normalised); must be above the horizon for
+              ``perez`` (its zenith angle enters the coefficients). Default: zenith.
+distribution  ``perez`` (default when perez_epsilon is given), ``cie_clear`` (CIE type 12,
+              the default otherwise), ``cie_turbid`` (type 13), ``uniform`` or ``custom``.
+perez_epsilon, perez_delta   Perez sky clearness (>= 1) and brightness (>= 0).
+a, b, c, d, e coefficients for ``custom``.
+resolution    rows of the sampling table over 0-90 deg zenith (default 128; 4x as many columns).
+
+Note: Mitsuba's scene does not call ``set_scene`` on Python emitters (it is not part of the
+Python trampoline in 3.9.1). Call :func:`attach_scene` (or ``emitter.set_scene(scene)``) after
+loading a scene before using ``sample_ray``; until then the scene is assumed to fit in the unit
+sphere at the origin. ``sample_direction`` does not need it.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..errors import ParameterError, SceneError
+
+__all__ = ["VegSky", "perez_coefficients", "cie_coefficients", "sky_coefficients",
+           "relative_radiance", "attach_scene", "PEREZ_1993"]
+
+#: Perez, Seals & Michalsky (1993), Solar Energy 50(3) 235-245, Table 1: for each of the 8 sky
+#: clearness bins, the coefficients (x1, x2, x3, x4) of a, b, c, d, e with
+#: x = x1 + x2 Z + delta (x3 + x4 Z)  (Z = solar zenith angle [rad]).
+PEREZ_1993 = np.array([
+    ((1.3525, -0.2576, -0.269, -1.4366),
+     (-0.767, 0.0007, 1.2734, -0.1233),
+     (2.8, 0.6004, 1.2375, 1),
+     (1.8734, 0.6297, 0.9738, 0.2809),
+     (0.0356, -0.1246, -0.5718, 0.9938)),
+    ((-1.2219, -0.773, 1.4148, 1.1016),
+     (-0.2054, 0.0367, -3.9128, 0.9156),
+     (6.975, 0.1774, 6.4477, -0.1239),
+     (-1.5798, -0.5081, -1.7812, 0.108),
+     (0.2624, 0.0672, -0.219, -0.4285)),
+    ((-1.1, -0.2515, 0.8952, 0.0156),
+     (0.2782, -0.1812, -4.5, 1.1766),
+     (24.7219, -13.0812, -37.7, 34.8438),
+     (-5, 1.5218, 3.9229, -2.6204),
+     (-0.0156, 0.1597, 0.4199, -0.5562)),
+    ((-0.5484, -0.6654, -0.2672, 0.7117),
+     (0.7234, -0.6219, -5.6812, 2.6297),
+     (33.3389, -18.3, -62.25, 52.0781),
+     (-3.5, 0.0016, 1.1477, 0.1062),
+     (0.4659, -0.3296, -0.0876, -0.0329)),
+    ((-0.6, -0.3566, -2.5, 2.325),
+     (0.2937, 0.0496, -5.6812, 1.8415),
+     (21, -4.7656, -21.5906, 7.2492),
+     (-3.5, -0.1554, 1.4062, 0.3988),
+     (0.0032, 0.0766, -0.0656, -0.1294)),
+    ((-1.0156, -0.367, 1.0078, 1.4051),
+     (0.2875, -0.5328, -3.85, 3.375),
+     (14, -0.9999, -7.1406, 7.5469),
+     (-3.4, -0.1078, -1.075, 1.5702),
+     (-0.0672, 0.4016, 0.3017, -0.4844)),
+    ((-1, 0.0211, 0.5025, -0.5119),
+     (-0.3, 0.1922, 0.7023, -1.6317),
+     (19, -5, 1.2438, -1.9094),
+     (-4, 0.025, 0.3844, 0.2656),
+     (1.0468, -0.3788, -2.4517, 1.4656)),
+    ((-1.05, 0.0289, 0.426, 0.359),
+     (-0.325, 0.1156, 0.7781, 0.0025),
+     (31.0625, -14.5, -46.1148, 55.375),
+     (-7.2312, 0.405, 13.35, 0.6234),
+     (1.5, -0.6426, 1.8564, 0.5636)),
+])
+#: upper edges of the first 7 clearness bins (the 8th is open)
+PEREZ_EPSILON_EDGES = (1.065, 1.23, 1.5, 1.95, 2.8, 4.5, 6.2)
+
+#: CIE S 011/E:2003 standard general skies used here: type -> (a, b, c, d, e)
+_CIE = {12: (-1.0, -0.32, 10.0, -3.0, 0.45),   # clear, low luminance turbidity
+        13: (-1.0, -0.32, 16.0, -3.0, 0.30)}   # clear, polluted atmosphere
+
+
+def perez_coefficients(epsilon: float, delta: float, sun_zenith: float):
+    """Perez (1993) all-weather coefficients (a, b, c, d, e); ``sun_zenith`` in radians."""
+    if not (epsilon >= 1.0) or not math.isfinite(epsilon):
+        raise ParameterError("perez_epsilon", epsilon, "[1, inf)",
+                             "sky clearness is ((DHI+DNI)/DHI + 1.041 Z^3)/(1 + 1.041 Z^3) >= 1")
+    if not (delta >= 0.0) or not math.isfinite(delta):
+        raise ParameterError("perez_delta", delta, "[0, inf)", "sky brightness DHI*m/E0 >= 0")
+    k = int(np.searchsorted(PEREZ_EPSILON_EDGES, epsilon, side="right"))
+    z = float(sun_zenith)
+    if 1.065 < epsilon < 2.8:  # as Radiance's gendaylit: avoid unphysical skies at low delta
+        delta = max(delta, 0.2)
+    x = PEREZ_1993[k]
+    a, b, c, d, e = (x[:, 0] + x[:, 1] * z + delta * (x[:, 2] + x[:, 3] * z)).tolist()
+    if k == 0:  # first bin: special forms of c and d
+        c = math.exp((delta * (x[2, 0] + x[2, 1] * z)) ** x[2, 2]) - x[2, 3]
+        d = -math.exp(delta * (x[3, 0] + x[3, 1] * z)) + x[3, 2] + delta * x[3, 3]
+    return (a, b, c, d, e)
+
+
+def cie_coefficients(sky_type: int = 12):
+    """CIE standard sky ``sky_type`` (12 or 13) rewritten in the Perez form (a, b, c, d, e).
+
+    CIE: phi(Z) f(chi) with f = 1 + c (exp(d chi) - exp(d pi/2)) + e cos^2 chi; dividing f by
+    k = 1 - c exp(d pi/2) gives 1 + (c/k) exp(d chi) + (e/k) cos^2 chi (the scale is irrelevant
+    after normalisation).
+    """
+    if sky_type not in _CIE:
+        raise ParameterError("cie sky type", sky_type, "12 (clear) or 13 (turbid)")
+    a, b, c, d, e = _CIE[sky_type]
+    k = 1.0 - c * math.exp(d * math.pi / 2)
+    return (a, b, c / k, d, e / k)
+
+
+def sky_coefficients(distribution: str, sun_zenith: float = 0.0, *, epsilon=None, delta=None,
+                     custom=None):
+    """Perez-form coefficients for a distribution name (see module docstring)."""
+    if distribution == "perez":
+        if epsilon is None or delta is None:
+            raise ParameterError("perez_epsilon/perez_delta", (epsilon, delta), "two numbers",
+                                 "give both (see daylight.perez_sky_parameters)")
+        return perez_coefficients(float(epsilon), float(delta), sun_zenith)
+    if distribution == "cie_clear":
+        return cie_coefficients(12)
+    if distribution == "cie_turbid":
+        return cie_coefficients(13)
+    if distribution == "uniform":
+        return (0.0, 0.0, 0.0, 0.0, 0.0)
+    if distribution == "custom":
+        if custom is None or len(custom) != 5:
+            raise ParameterError("a..e", custom, "five numbers", "give a, b, c, d and e")
+        return tuple(float(v) for v in custom)
+    raise ParameterError("distribution", distribution,
+                         "'perez', 'cie_clear', 'cie_turbid', 'uniform', 'custom'")
+
+
+def relative_radiance(cos_theta, cos_gamma, coeffs):
+    """Unnormalised Perez-form radiance (numpy, float64); 0 at and below the horizon."""
+    a, b, c, d, e = coeffs
+    ct = np.asarray(cos_theta, dtype=float)
+    cg = np.clip(np.asarray(cos_gamma, dtype=float), -1.0, 1.0)
+    grad = 1.0 + a * np.exp(b / np.maximum(ct, 0.01))
+    ind = 1.0 + c * np.exp(d * np.arccos(cg)) + e * cg * cg
+    return np.where(ct > 0.0, np.maximum(grad * ind, 0.0), 0.0)
+
+
+def _direction(cos_t, phi):
+    """Project frame direction from cos(zenith) and azimuth (clockwise from north = -z)."""
+    s = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    return np.sin(phi) * s, cos_t, -np.cos(phi) * s
+
+
+def _normalisation(sun, coeffs, n_theta=768):
+    """pi / integral over the upper hemisphere of l cos(theta) dw (midpoint rule in theta, phi)."""
+    th = (np.arange(n_theta) + 0.5) * (0.5 * math.pi / n_theta)
+    ph = (np.arange(4 * n_theta) + 0.5) * (2 * math.pi / (4 * n_theta))
+    ct, st = np.cos(th)[:, None], np.sin(th)[:, None]
+    x, y, z = _direction(ct, ph[None, :])
+    l = relative_radiance(ct, x * sun[0] + y * sun[1] + z * sun[2], coeffs)
+    integral = float(np.sum(l * ct * st)) * (0.5 * math.pi / n_theta) * (2 * math.pi / (4 * n_theta))
+    if not integral > 0.0:
+        raise ParameterError("sky distribution", coeffs, "a radiance > 0 somewhere above the "
+                             "horizon", "check the Perez/CIE coefficients")
+    return math.pi / integral
+
+
+def _sampling_table(sun, coeffs, norm, rows, sub=3):
+    """Cell edges and per-cell mean of f (sub x sub samples per cell), float64."""
+    cols = 4 * rows
+    th_e = np.linspace(0.0, 0.5 * math.pi, rows + 1)
+    cos_e = np.cos(th_e)
+    cos_e[-1] = 0.0
+    # sub-samples uniform in cos(theta) and phi inside each cell (the in-cell sampling density)
+    u = (np.arange(sub) + 0.5) / sub
+    ct = (cos_e[:-1, None] + (cos_e[1:, None] - cos_e[:-1, None]) * u[None, :]).reshape(-1)
+    ph = ((np.arange(cols)[:, None] + u[None, :]) * (2 * math.pi / cols)).reshape(-1)
+    x, y, z = _direction(ct[:, None], ph[None, :])
+    f = norm * relative_radiance(ct[:, None], x * sun[0] + y * sun[1] + z * sun[2], coeffs)
+    fbar = f.reshape(rows, sub, cols, sub).mean(axis=(1, 3))
+    fbar = np.maximum(fbar, 1e-3 * float(fbar.mean()))   # keep every cell samplable
+    omega = ((cos_e[:-1] - cos_e[1:]) * (2 * math.pi / cols))[:, None]
+    pdf = fbar / float(np.sum(fbar * omega))              # per-cell pdf in solid angle
+    pmf = pdf * omega
+    return cos_e, pdf.reshape(-1), pmf.reshape(-1)
+
+
+def _opaque(v):
+    x = mi.Float(float(v))
+    dr.make_opaque(x)
+    return x
+
+
+class VegSky(mi.Emitter):
+    """Separable clear-sky environment emitter (see module docstring)."""
+
+    def __init__(self, props: mi.Properties):
+        mi.Emitter.__init__(self, props)
+        self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.SpatiallyVarying
+
+        has_r, has_e = props.has_property("radiance"), props.has_property("irradiance")
+        if has_r == has_e:
+            raise ParameterError("veg_sky radiance/irradiance", "both" if has_r else "neither",
+                                 "exactly one of them",
+                                 "give 'radiance' (= DHI/pi, W m-2 sr-1 nm-1) as a regular "
+                                 "spectrum, or 'irradiance' (= DHI, W m-2 nm-1)")
+        key = "radiance" if has_r else "irradiance"
+        spec = props[key]
+        if isinstance(spec, (int, float)):
+            spec = mi.load_dict({"type": "uniform", "value": float(spec)})
+        if not isinstance(spec, mi.Texture):
+            raise ParameterError(f"veg_sky {key}", spec, "a spectrum (e.g. {'type': 'regular', "
+                                 "...}) or a number")
+        self.m_radiance = spec
+        self.m_scale = 1.0 if has_r else 1.0 / math.pi
+
+        sun = np.array(props.get("sun_direction", [0.0, 1.0, 0.0]), dtype=float).reshape(-1)
+        if sun.shape != (3,) or not np.all(np.isfinite(sun)) or np.linalg.norm(sun) == 0:
+            raise ParameterError("veg_sky sun_direction", sun.tolist(), "a non-zero 3-vector "
+                                 "towards the sun")
+        sun = sun / np.linalg.norm(sun)
+        has_perez = props.has_property("perez_epsilon")
+        dist = props.get("distribution", "perez" if has_perez else "cie_clear")
+        custom = None
+        if dist == "custom":
+            custom = [props.get(k, None) for k in "abcde"]
+            if any(v is None for v in custom):
+                raise ParameterError("veg_sky a..e", custom, "five numbers for 'custom'")
+        eps = props.get("perez_epsilon", None)
+        delta = props.get("perez_delta", None)
+        if dist == "perez" and sun[1] <= 0.0:
+            raise ParameterError("veg_sky sun_direction", sun.tolist(), "above the horizon "
+                                 "(y > 0) for the Perez sky", "use another distribution or "
+                                 "no sky at night")
+        zenith = math.acos(min(1.0, max(-1.0, float(sun[1]))))
+        coeffs = sky_coefficients(dist, zenith, epsilon=eps, delta=delta, custom=custom)
+        rows = int(props.get("resolution", 128))
+        if not 4 <= rows <= 2048:
+            raise ParameterError("veg_sky resolution", rows, "[4, 2048]", "use 64-256")
+
+        self.distribution, self.coefficients, self.sun = dist, tuple(coeffs), sun
+        self.rows, self.cols = rows, 4 * rows
+        self.norm = _normalisation(sun, coeffs)
+        cos_e, pdf, pmf = _sampling_table(sun, coeffs, self.norm, rows)
+        self.m_cos_edges = mi.Float(cos_e)
+        self.m_cell_pdf = mi.Float(pdf)
+        self.m_distr = mi.DiscreteDistribution(mi.Float(pmf))
+        self.m_coef = [_opaque(v) for v in coeffs]
+        self.m_norm = _opaque(self.norm * self.m_scale)
+        self.m_sun = mi.Vector3f(*[float(v) for v in sun])
+        dr.make_opaque(self.m_sun)
+        self.m_center = mi.Point3f(0.0, 0.0, 0.0)
+        self.m_radius = _opaque(1.0)
+        dr.make_opaque(self.m_center)
+
+    # ------------------------------------------------------------------ helpers
+    def _f(self, d, active=True):
+        """Relative radiance f(d) times S's scale (normalised: int f cos = pi)."""
+        a, b, c, dd, e = self.m_coef
+        cos_t = d.y
+        cos_g = dr.clip(dr.dot(d, self.m_sun), -1.0, 1.0)
+        grad = 1.0 + a * dr.exp(b / dr.maximum(cos_t, 0.01))
+        ind = 1.0 + c * dr.exp(dd * dr.safe_acos(cos_g)) + e * cos_g * cos_g
+        f = dr.maximum(grad * ind, 0.0) * self.m_norm
+        return dr.select(active & (cos_t > 0.0), f, 0.0)
+
+    def _spectrum(self, wavelengths, active=True):
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.wavelengths = wavelengths
+        return self.m_radiance.eval(si, active)
+
+    def _cell_index(self, d):
+        cos_t = dr.clip(d.y, 0.0, 1.0)
+        theta = dr.safe_acos(cos_t)
+        row = mi.UInt32(dr.clip(mi.Int32(theta * (2.0 * self.rows / math.pi)), 0, self.rows - 1))
+        phi = dr.atan2(d.x, -d.z)
+        phi = dr.select(phi < 0.0, phi + 2.0 * math.pi, phi)
+        col = mi.UInt32(dr.clip(mi.Int32(phi * (self.cols / (2.0 * math.pi))), 0, self.cols - 1))
+        return row, col, phi, theta
+
+    def _pdf(self, d, active=True):
+        row, col, _, _ = self._cell_index(d)
+        up = active & (d.y > 0.0)
+        pdf = dr.gather(mi.Float, self.m_cell_pdf, row * self.cols + col, up)
+        return dr.select(up, pdf, 0.0)
+
+    def _sample(self, sample, active=True):
+        """Direction towards the sky, its pdf [sr-1] and uv."""
+        idx, ux, _ = self.m_distr.sample_reuse_pmf(sample.x, active)
+        row, col = idx // self.cols, idx % self.cols
+        phi = (mi.Float(col) + ux) * (2.0 * math.pi / self.cols)
+        c0 = dr.gather(mi.Float, self.m_cos_edges, row, active)
+        c1 = dr.gather(mi.Float, self.m_cos_edges, row + 1, active)
+        cos_t = dr.lerp(c0, c1, sample.y)
+        sin_t = dr.safe_sqrt(1.0 - cos_t * cos_t)
+        sp, cp = dr.sincos(phi)
+        d = mi.Vector3f(sp * sin_t, cos_t, -cp * sin_t)
+        # look the pdf up from the direction (not the sampled cell): identical except for
+        # directions within float rounding of a cell edge, and then equal to pdf_direction()
+        pdf = self._pdf(d, active)
+        uv = mi.Point2f(phi * (0.5 / math.pi), dr.safe_acos(cos_t) * (2.0 / math.pi))
+        return d, dr.select(active, pdf, 0.0), uv
+
+    # ------------------------------------------------------------------ Emitter interface
+    def set_scene(self, scene):
+        """Learn the scene's bounding sphere (for sample_ray); not called by Mitsuba itself."""
+        bbox = scene.bbox()
+        if bbox.valid():
+            bs = bbox.bounding_sphere()
+            center, radius = [float(v) for v in bs.center], float(bs.radius)
+            radius = max(1e-4, radius * (1.0 + 1e-4))
+        else:
+            center, radius = [0.0, 0.0, 0.0], 1e-4
+        self.m_center = mi.Point3f(*center)
+        self.m_radius = _opaque(radius)
+        dr.make_opaque(self.m_center)
+
+    def eval(self, si, active=True):
+        d = -si.wi
+        return self._spectrum(si.wavelengths, active) * self._f(d, active)
+
+    def eval_direction(self, it, ds, active=True):
+        return self._spectrum(it.wavelengths, active) * self._f(ds.d, active)
+
+    def sample_direction(self, it, sample, active=True):
+        d, pdf, uv = self._sample(sample, active)
+        active = active & (pdf > 0.0)
+        radius = dr.maximum(self.m_radius, dr.norm(it.p - self.m_center))
+        dist = 2.0 * radius
+        ds = dr.zeros(mi.DirectionSample3f)
+        ds.p = it.p + d * dist
+        ds.n = -d
+        ds.uv = uv
+        ds.time = it.time
+        ds.pdf = dr.select(active, pdf, 0.0)
+        ds.delta = mi.Bool(False)
+        ds.emitter = mi.EmitterPtr(self)
+        ds.d = d
+        ds.dist = dist
+        weight = self._spectrum(it.wavelengths, active) * (
+            self._f(d, active) / dr.select(active, pdf, 1.0))
+        return ds, dr.select(active, weight, 0.0)
+
+    def pdf_direction(self, it, ds, active=True):
+        return self._pdf(ds.d, active)
+
+    def sample_wavelengths(self, si, sample, active=True):
+        wav, w = self.m_radiance.sample_spectrum(si, mi.sample_shifted(sample), active)
+        return wav, w * self._f(-si.wi, active)
+
+    def pdf_wavelengths(self, wavelengths, active=True):
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.wavelengths = wavelengths
+        return self.m_radiance.pdf_spectrum(si, active)
+
+    def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
+        offset = mi.warp.square_to_uniform_disk_concentric(sample2)
+        d, pdf, _ = self._sample(sample3, active)
+        active = active & (pdf > 0.0)
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.time = time
+        wav, wweight = self.m_radiance.sample_spectrum(
+            si, mi.sample_shifted(wavelength_sample), active)
+        perp = mi.Frame3f(d).to_world(mi.Vector3f(offset.x, offset.y, 0.0))
+        origin = self.m_center + (perp + d) * self.m_radius
+        r2 = self.m_radius * self.m_radius
+        weight = wweight * (self._f(d, active) * (math.pi * r2) / dr.select(active, pdf, 1.0))
+        ray = mi.Ray3f(origin, -d, time, wav)
+        return ray, dr.select(active, weight, 0.0)
+
+    def sample_position(self, time, sample, active=True):
+        raise NotImplementedError("veg_sky is an infinite emitter: it has no positions to sample")
+
+    def pdf_position(self, ps, active=True):
+        raise NotImplementedError("veg_sky is an infinite emitter: it has no positions to sample")
+
+    def bbox(self):
+        return mi.ScalarBoundingBox3f()
+
+    def traverse(self, callback):
+        callback.put("radiance", self.m_radiance, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys=[]):
+        pass
+
+    def to_string(self):
+        return (f"VegSky[distribution={self.distribution}, coefficients="
+                f"{tuple(round(c, 4) for c in self.coefficients)}, sun_direction="
+                f"{self.sun.round(4).tolist()}, resolution={self.rows}x{self.cols}, "
+                f"radiance={self.m_radiance}]")
+
+
+def attach_scene(scene) -> int:
+    """Call ``set_scene(scene)`` on every :class:`VegSky` of a loaded scene; return how many."""
+    if not isinstance(scene, mi.Scene):
+        raise SceneError(f"attach_scene needs a loaded mitsuba Scene, got {type(scene).__name__}")
+    n = 0
+    for em in scene.emitters():
+        if isinstance(em, VegSky):
+            em.set_scene(scene)
+            n += 1
+    return n
+
+
+mi.register_emitter("veg_sky", lambda props: VegSky(props))

@@ -1,0 +1,206 @@
+"""Independent references for the photon pass and the small scenes used to validate it.
+
+- :func:`grid_mesh` / :func:`box_mesh`: meshes built in memory (no files), with ids.
+- :func:`roof_wall_scene`: ground + roof slab + wall, sun + uniform sky, spectrally flat.
+- :func:`path_reference`: per-triangle irradiance from Mitsuba's own ``path`` integrator with one
+  ``irradiancemeter`` per triangle (each selected triangle becomes its own mesh carrying the
+  sensor, so the geometry is unchanged), plus the direct irradiance of delta emitters
+  (directional suns) added by shadow rays, because an irradiancemeter never samples a delta
+  emitter at its own surface.
+
+The reference handles spectrally flat scenes (``uniform`` emitter spectra and reflectances): the
+irradiancemeter film records luminance, which for a flat spectrum equals the value per nm, and
+the band irradiance is that value times the band width.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from mitsuba_veg.errors import SceneError
+
+
+def make_mesh(name: str, vertices, faces, albedo: float | None = None, bsdf=None) -> mi.Mesh:
+    """A Mitsuba mesh from numpy arrays (vertices (n,3) [m], faces (m,3) int).
+
+    ``albedo`` gives it a diffuse BSDF with a uniform (spectrally flat) reflectance; ``bsdf``
+    any Mitsuba BSDF dict or object.
+    """
+    v = np.asarray(vertices, dtype=np.float32)
+    f = np.asarray(faces, dtype=np.uint32)
+    props = mi.Properties()
+    if albedo is not None:
+        bsdf = {"type": "diffuse", "reflectance": {"type": "uniform", "value": float(albedo)}}
+    if bsdf is not None:
+        props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
+    mesh = mi.Mesh(name, len(v), len(f), props=props)
+    p = mi.traverse(mesh)
+    p["vertex_positions"] = mi.Float(v.ravel())
+    p["faces"] = mi.UInt32(f.ravel())
+    p.update()
+    return mesh
+
+
+def grid_mesh(nx: int, nz: int, x=(-1.0, 1.0), z=(-1.0, 1.0), y=0.0, height=None, up=True):
+    """Vertices/faces of a grid in the x-z plane at height ``y`` (normals +y when ``up``).
+
+    ``height(X, Z)`` may add relief [m]. Returns (vertices, faces).
+    """
+    xs = np.linspace(x[0], x[1], nx + 1)
+    zs = np.linspace(z[0], z[1], nz + 1)
+    X, Z = np.meshgrid(xs, zs)
+    Y = np.full_like(X, y) if height is None else y + height(X, Z)
+    V = np.stack([X.ravel(), Y.ravel(), Z.ravel()], 1)
+    a = (np.arange(nz)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
+    # (a, a+nx+1, a+1): with x right and z towards the viewer this winds so the normal is +y
+    F = np.concatenate([np.stack([a, a + nx + 1, a + 1], 1),
+                        np.stack([a + 1, a + nx + 1, a + nx + 2], 1)])
+    if not up:
+        F = F[:, ::-1]
+    return V, F
+
+
+def box_mesh(lo, hi):
+    """Vertices/faces of an axis-aligned box with outward normals (12 triangles)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    c = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    V = lo + c * (hi - lo)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    F = []
+    for a, b, cc, d in quads:
+        F += [[a, b, cc], [a, cc, d]]
+    F = np.array(F)
+    # orient outwards
+    cen = V.mean(0)
+    for i, (a, b, cc) in enumerate(F):
+        n = np.cross(V[b] - V[a], V[cc] - V[a])
+        if np.dot(n, (V[a] + V[b] + V[cc]) / 3 - cen) < 0:
+            F[i] = [a, cc, b]
+    return V, F
+
+
+def sun_vector(elevation_deg: float, azimuth_deg: float = 180.0) -> np.ndarray:
+    """Unit vector towards the sun (+y up, +x east, +z south; azimuth clockwise from north)."""
+    e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
+    return np.array([math.sin(a) * math.cos(e), math.sin(e), -math.cos(a) * math.cos(e)])
+
+
+def roof_wall_scene(sun_elevation=50.0, sun_azimuth=180.0, sun_irradiance=1.0, sky_radiance=0.05,
+                    ground_albedo=0.3, roof_albedo=0.5, wall_albedo=0.5, n=12):
+    """Scene dict: 2 m x 2 m ground grid, a roof slab over its north half, a wall at the north.
+
+    Emitters: a ``directional`` sun [W m-2 nm-1, uniform spectrum] and a ``constant`` sky
+    [W m-2 sr-1 nm-1]. Returns the dict for ``mi.load_dict(d, optimize=False)``; meshes are
+    given as ``mi.Mesh`` objects with ids ground/roof/wall.
+    """
+    gv, gf = grid_mesh(n, n)
+    rv, rf = box_mesh((-1.0, 0.6, -1.0), (1.0, 0.66, 0.0))
+    wv, wf = box_mesh((-1.0, 0.0, -1.3), (1.0, 0.6, -1.0))
+    sun = sun_vector(sun_elevation, sun_azimuth)
+    d = {"type": "scene",
+         "ground": make_mesh("ground", gv, gf, ground_albedo),
+         "roof": make_mesh("roof", rv, rf, roof_albedo),
+         "wall": make_mesh("wall", wv, wf, wall_albedo)}
+    if sun_irradiance > 0:
+        d["sun"] = {"type": "directional", "id": "sun", "direction": (-sun).tolist(),
+                    "irradiance": {"type": "uniform", "value": float(sun_irradiance)}}
+    if sky_radiance > 0:
+        d["sky"] = {"type": "constant", "id": "sky",
+                    "radiance": {"type": "uniform", "value": float(sky_radiance)}}
+    return d
+
+
+def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
+                   max_depth: int = 16, band=(360.0, 830.0), seed: int = 0):
+    """Per-triangle front irradiance [W m-2] of ``shape_id`` by Mitsuba's path tracer.
+
+    Each triangle in ``triangles`` is cut out of its mesh into its own mesh carrying an
+    ``irradiancemeter``; the scene is otherwise identical. The direct irradiance of delta
+    emitters is added with shadow rays. Spectrally flat scenes only (see module docstring).
+    Returns (irradiance, std_error) arrays.
+    """
+    import time as _t
+
+    key = None
+    for k, v in scene_dict.items():
+        if isinstance(v, mi.Mesh) and v.id() == shape_id:
+            key = k
+    if key is None:
+        raise SceneError(f"path_reference: no in-memory mesh with id '{shape_id}' in the scene "
+                         "dict (build meshes with mitsuba_veg.light.validation.make_mesh)")
+    mesh = scene_dict[key]
+    V = np.asarray(mesh.vertex_positions_buffer()).reshape(-1, 3)
+    F = np.asarray(mesh.faces_buffer()).reshape(-1, 3)
+    tris = [int(t) for t in triangles]
+    keep = np.ones(len(F), bool)
+    keep[tris] = False
+    d = {k: v for k, v in scene_dict.items() if k != key}
+    d[key] = make_mesh(shape_id, V, F[keep], bsdf=mesh.bsdf())
+    for t in tris:
+        props = mi.Properties()
+        props["bsdf"] = mesh.bsdf()
+        props["sensor"] = mi.load_dict({
+            "type": "irradiancemeter",
+            "film": {"type": "hdrfilm", "width": 1, "height": 1, "pixel_format": "luminance",
+                     "rfilter": {"type": "box"}}})
+        m = mi.Mesh(f"{shape_id}__ref{t}", 3, 1, props=props)
+        p = mi.traverse(m)
+        p["vertex_positions"] = mi.Float(V[F[t]].astype(np.float32).ravel())
+        p["faces"] = mi.UInt32([0, 1, 2])
+        p.update()
+        d[f"{key}__ref{t}"] = m
+    scene = mi.load_dict(d, optimize=False)
+    integrator = mi.load_dict({"type": "path", "max_depth": int(max_depth), "hide_emitters": False})
+    by_shape = {}
+    for s in scene.sensors():
+        sh = s.get_shape() if hasattr(s, "get_shape") else s.shape()
+        by_shape[sh.id()] = s
+    width = float(band[1] - band[0])
+    out = np.zeros(len(tris))
+    err = np.zeros(len(tris))
+    batches = 4
+    for j, t in enumerate(tris):
+        sensor = by_shape[f"{shape_id}__ref{t}"]
+        vals = []
+        for b in range(batches):
+            img = mi.render(scene, sensor=sensor, integrator=integrator,
+                            spp=max(1, spp // batches), seed=seed * 7919 + t * batches + b)
+            vals.append(float(np.asarray(img).ravel()[0]))
+        out[j] = np.mean(vals) * width
+        err[j] = np.std(vals, ddof=1) / math.sqrt(batches) * width
+    # direct light of delta-direction emitters, which the irradiancemeter never samples
+    out += _delta_direct(scene, F[tris], V, width)
+    return out, err
+
+
+def _delta_direct(scene: mi.Scene, faces, V, width, samples_per_tri: int = 4096):
+    """Direct irradiance [W m-2] of directional emitters on triangles, with shadow rays."""
+    faces = np.asarray(faces)
+    res = np.zeros(len(faces))
+    emitters = [e for e in scene.emitters()
+                if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)]
+    if not emitters:
+        return res
+    rng = np.random.default_rng(1)
+    for i, f in enumerate(faces):
+        p0, p1, p2 = V[f[0]], V[f[1]], V[f[2]]
+        n = np.cross(p1 - p0, p2 - p0)
+        n /= np.linalg.norm(n)
+        u = rng.random((samples_per_tri, 2))
+        flip = u.sum(1) > 1
+        u[flip] = 1 - u[flip]
+        pts = p0 + u[:, :1] * (p1 - p0) + u[:, 1:] * (p2 - p0)
+        for e in emitters:
+            it = dr.zeros(mi.Interaction3f, samples_per_tri)
+            it.p = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
+            it.wavelengths = mi.Spectrum(550.0)
+            ds, w = e.sample_direction(it, mi.Point2f(0.5, 0.5))
+            cos = ds.d.x * float(n[0]) + ds.d.y * float(n[1]) + ds.d.z * float(n[2])
+            ray = mi.Ray3f(it.p + mi.Vector3f(*[float(c) * 1e-4 for c in n]), ds.d)
+            vis = ~scene.ray_test(ray)
+            val = dr.select(vis & (cos > 0), w[0] * cos, 0.0)
+            res[i] += float(np.asarray(val).mean()) * width
+    return res

@@ -1,0 +1,123 @@
+"""Environmental fitness, growth and germination of moss, paper 000 §3.6 (eqs 3.17-3.20, 3.24).
+
+Pure, vectorised functions: NumPy in -> NumPy out (Python numbers give NumPy float64), Dr.Jit in
+-> Dr.Jit out, differentiable with Dr.Jit (the power of eq 3.19 has a finite derivative at
+s = 1/2). NaN inputs propagate to NaN. The moss population (G_moss of eq 3.21, death, gemmae,
+spores, falling propagules) is not here.
+
+Note on eq 3.19 as printed: ``g`` lies in ``[1/2 - (1/2)^n, 1/2 + (1/2)^n]``, which is [0, 1]
+only for n = 1. For n = 0.5 (nrh of Bryum argenteum and Hypnum plumaeforme) g reaches
+1/2 + sqrt(1/2) = 1.207 at the centre of the range and -0.207 far outside it. This module keeps the
+printed formula (see docs/deviations.md).
+"""
+from __future__ import annotations
+
+import math
+
+from ..errors import ParameterError
+from ..soil import _abs, _exp, _finish, _is_dr, _prep, _safe_power, _where
+from .species import Species, get_species
+
+__all__ = ["s", "fitness", "daily_fitness", "daily_growth", "germination_value", "germinates",
+           "SPORE_L0", "SPORE_L1", "GEMMA_L0", "GEMMA_L1", "GERMINATION_WINDOW"]
+
+#: Germination windows of eq 3.24 [days since the propagule was made] (paper 000 §3.6).
+SPORE_L0, SPORE_L1 = 60.0, 365.0
+GEMMA_L0, GEMMA_L1 = -60.0, 60.0
+GERMINATION_WINDOW = {"spore": (SPORE_L0, SPORE_L1), "gemma": (GEMMA_L0, GEMMA_L1)}
+
+_FOUR_LN2 = 4.0 * math.log(2.0)
+
+
+def _check_window(x0, x1, n=None):
+    """Reject scalar windows with x1 <= x0 or n <= 0 (arrays are not checked)."""
+    def scalar(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+    if scalar(x0) and scalar(x1) and not x0 < x1:
+        raise ParameterError("x0", x0, f"< x1 = {x1!r}", "the range needs x0 < x1")
+    if n is not None and scalar(n) and not n > 0:
+        raise ParameterError("n", n, "(0, 1] (table 3.7)", "the tolerance must be > 0")
+
+
+def s(x, x0, x1):
+    """Suitability of x for the range [x0, x1], eq (3.18) [-]::
+
+        s = exp{ -4 ln 2 / (x1 - x0)^2 * (x - (x1 + x0)/2)^2 }
+
+    A Gaussian with its maximum 1 at the centre and s = 1/2 at x0 and x1 (the paper's "log" is the
+    natural logarithm: only then is s(x0) = 1/2). x, x0, x1 in the unit of the factor.
+    """
+    _check_window(x0, x1)
+    x, x0, x1 = _prep(x, x0, x1)
+    d = x - 0.5 * (x0 + x1)
+    w = x1 - x0
+    return _finish(_exp(-_FOUR_LN2 * d * d / (w * w)))
+
+
+def fitness(x, x0, x1, n):
+    """Fitness g of one growth factor, eq (3.19) [-]::
+
+        g = 1/2 + (s - 1/2)^n   if s > 1/2
+        g = 1/2 - (1/2 - s)^n   otherwise,       s = s(x, x0, x1) of eq 3.18
+
+    n in (0, 1] is the tolerance (n = 1: g = s). g = 1/2 at x0 and x1; g is symmetric about the
+    centre and monotone on each side. As printed, g(centre) = 1/2 + (1/2)^n (1 for n = 1, 1.207 for
+    n = 0.5) and g >= 1/2 - (1/2)^n.
+    """
+    _check_window(x0, x1, n)
+    x, x0, x1, n = _prep(x, x0, x1, n)
+    sv = s(x, x0, x1)
+    d = sv - 0.5
+    p = _safe_power(_abs(d), n)
+    return _finish(_where(d > 0.0, 0.5 + p, 0.5 - p))
+
+
+def daily_fitness(species, Ts, rhs, S):
+    """Daily environmental fitness G, eq (3.17) [-]::
+
+        G = g(Ts, T0, T1, nT) * g(rhs, rh0, rh1, nrh) * g(S, S0, S1, nS)
+
+    species a :class:`Species` or a key of ``SPECIES``; Ts surface temperature [K], rhs surface
+    relative humidity [-], S daily-mean insolation [W m-2] (per moss, vectorised).
+    """
+    sp = get_species(species)
+    Ts, rhs, S = _prep(Ts, rhs, S)
+    return _finish(fitness(Ts, sp.T0, sp.T1, sp.nT) * fitness(rhs, sp.rh0, sp.rh1, sp.nrh)
+                   * fitness(S, sp.S0, sp.S1, sp.nS))
+
+
+def daily_growth(species, G):
+    """Daily growth D, eq (3.20): ``D = alpha_g (G - tau_g)`` [-] (negative = decline).
+
+    The total growth since germination is ``G_moss = sum of D`` (eq 3.21); a moss dies when
+    ``G_moss < tau_d`` while declining (D < 0).
+    """
+    sp = get_species(species)
+    (G,) = _prep(G)
+    return _finish(sp.alpha_g * (G - sp.tau_g))
+
+
+def _window(kind):
+    try:
+        return GERMINATION_WINDOW[str(kind)]
+    except KeyError:
+        raise ParameterError("kind", kind, "'spore' or 'gemma'",
+                             "name the propagule kind of eq 3.24") from None
+
+
+def germination_value(G, L, kind):
+    """Germination test value of eq (3.24): ``G * g(L, L0, L1, 1)`` [-].
+
+    G daily fitness (eq 3.17), L days since the propagule was made [day], kind ``"spore"``
+    (L0, L1 = 60, 365) or ``"gemma"`` (L0, L1 = -60, 60). A propagule germinates when the value
+    exceeds the species' ``tau_b`` (:func:`germinates`).
+    """
+    L0, L1 = _window(kind)
+    G, L = _prep(G, L)
+    return _finish(G * fitness(L, L0, L1, 1.0))
+
+
+def germinates(species, G, L, kind):
+    """Germination mask of eq (3.24): ``G * g(L, L0, L1, 1) > tau_b`` (bool / Dr.Jit Bool)."""
+    sp = get_species(species)
+    return germination_value(G, L, kind) > sp.tau_b

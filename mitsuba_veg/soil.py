@@ -1,0 +1,500 @@
+"""Soil surface model of paper 000 §3.5 (daily means): Ts and rhs of a soil element.
+
+One function per equation of the paper (eqs 3.2-3.16, table 3.4, tables 3.5/3.6 constants); the
+docstrings give the equation number and SI units in brackets. Every function is vectorised and
+works on NumPy arrays (or Python numbers, which give NumPy float64 results) *and* on Dr.Jit
+arrays (``mi.Float`` = ``drjit.llvm.ad.Float``, ``Float64``, CUDA types ...): the result is of
+the kind given, so the whole model can be differentiated with Dr.Jit. No Python loop runs over
+elements.
+
+Daily order (§3.7), implemented by :func:`surface_state`::
+
+    R (3.2-3.4) -> C_H (3.5, given by the caller) -> theta and beta (3.8-3.10)
+      -> Ts = T + deltaT (3.11-3.13, 3.15) -> iota*E (3.14) -> rhs (3.16)
+
+and the water balance of the day by :func:`bucket_step` (3.6-3.8) with ``E = iotaE / iota``.
+Reading of the paper's order: theta of day *i* is the water left at the end of day *i-1*
+(``theta = O_{i-1}/h``), from which beta, Ts, iotaE and rhs of day *i* follow; then
+``O_i = O_{i-1} - (86400 E_i - P_i)`` (clamped to ``[0, O_SAT]``) is the state for day *i+1*.
+
+Where the paper is ambiguous or dimensionally wrong this module follows the physically consistent
+reading; each such choice is listed in ``docs/deviations.md``:
+
+- eq 3.15 uses the exact derivative of eqs 3.12-3.13 (the printed leading 6.1078 must be e_SAT);
+- eq 3.9 clamps ``theta_SAT - theta`` at 0 (saturated soil: F = 0, beta = 1);
+- eq 3.10: ``D_ATM`` is a diffusivity [m2 s-1] (printed m-2 s-1), F(theta) a length [m];
+- eq 3.6: the bucket cannot hold less than 0 mm (evaporation beyond the stored water is dropped
+  and reported as ``deficit``), and overflow above ``O_SAT`` runs off.
+
+NaN policy: NaN inputs propagate to NaN outputs (nothing is silently clamped away: the clamps
+are written so that a NaN operand stays NaN). Invalid *categorical* input (a geology code other
+than 0, 1, 2) raises :class:`~mitsuba_veg.errors.ParameterError`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import drjit as dr
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = [
+    # constants
+    "SIGMA", "P_ATM", "ALBEDO", "D_ATM", "LATENT_HEAT", "RHO_AIR", "CP_RHO",
+    "C_H_MIN", "C_H_MAX", "SECONDS_PER_DAY", "H_WALL", "H_MAX",
+    "HUMUS", "SAND", "ASPHALT", "GEOLOGY", "GeologyParams", "geology_code", "geology_parameters",
+    # equations
+    "cloud_factor", "sky_longwave", "net_radiation", "transfer_coefficient",
+    "soil_depth", "bucket_capacity", "water_content", "bucket_step", "BucketStep", "SoilState",
+    "evaporation_F", "evaporation_efficiency", "e_sat", "q_sat", "dq_sat_dT",
+    "surface_temperature_offset", "latent_heat_flux", "evaporation_rate", "surface_humidity",
+    "surface_state", "SurfaceState",
+]
+
+# ------------------------------------------------------------------------------------------
+# Constants (paper 000, tables 3.5 and 3.6 and §3.5.2, values as printed)
+# ------------------------------------------------------------------------------------------
+SIGMA = 5.67e-8          #: Stefan-Boltzmann constant [W m-2 K-4]
+P_ATM = 1013.0           #: air pressure p [hPa]
+ALBEDO = 0.2             #: surface albedo ``ref`` [-]
+D_ATM = 2.54e-5          #: molecular diffusivity of water vapour at 20 C [m2 s-1] (printed m-2 s-1)
+LATENT_HEAT = 2.543e6    #: latent heat of vaporisation iota [J kg-1] (as printed; see deviations)
+RHO_AIR = 1.19           #: air density rho [kg m-3]
+CP_RHO = 1.21e3          #: volumetric heat capacity of air c_P*rho [J K-1 m-3]
+C_H_MIN = 0.0015         #: bulk transfer coefficient over bare soil [-] (eq 3.5)
+C_H_MAX = 0.0030         #: bulk transfer coefficient under dense moss [-] (eq 3.5)
+SECONDS_PER_DAY = 86400.0  #: [s day-1] (eq 3.6: 24 x 60 x 60)
+H_WALL = 1.0             #: soil depth used where no soil lies below along y (walls) [mm]
+H_MAX = 1000.0           #: soil depths above this are capped [mm]
+
+_LN10 = math.log(10.0)
+_MAGNUS_A = 7.5          # eq 3.12: 10^(7.5 t / (t + 237.3)), t [C]; T - 35.85 = t + 237.3
+_MAGNUS_B = 237.3        # [K]
+_E0 = 6.1078             # e_SAT at 0 C [hPa]
+
+
+# ------------------------------------------------------------------------------------------
+# Geology (paper 000, table 3.4)
+# ------------------------------------------------------------------------------------------
+class GeologyParams(NamedTuple):
+    """Parameters of one geology (table 3.4): F(theta) = F1 (theta_SAT - theta)^F2 [m]."""
+    name: str
+    F1: float         #: [m]  (so that F is a length; see eq 3.10)
+    F2: float         #: [-]
+    theta_sat: float  #: saturated volumetric water content [m3 m-3]
+
+
+HUMUS, SAND, ASPHALT = 0, 1, 2
+#: Table 3.4, keyed by geology code (0 humus, 1 sand, 2 asphalt). Humus and sand from the paper's
+#: ref. [13]; the asphalt values are the paper's own assumption.
+GEOLOGY: dict[int, GeologyParams] = {
+    HUMUS: GeologyParams("humus", 2.16e2, 10.0, 0.490),
+    SAND: GeologyParams("sand", 8.32e5, 16.6, 0.392),
+    ASPHALT: GeologyParams("asphalt", 7.25e7, 19.4, 0.012),
+}
+_GEO_NAMES = {p.name: code for code, p in GEOLOGY.items()}
+_GEO_COLS = {f: np.array([getattr(GEOLOGY[c], f) for c in sorted(GEOLOGY)], dtype=np.float64)
+             for f in ("F1", "F2", "theta_sat")}
+
+
+def geology_code(name: str) -> int:
+    """Geology code of a name (``"humus"`` -> 0, ``"sand"`` -> 1, ``"asphalt"`` -> 2)."""
+    try:
+        return _GEO_NAMES[str(name).strip().lower()]
+    except KeyError:
+        raise ParameterError("geology", name, "one of " + ", ".join(_GEO_NAMES),
+                             "use one of the geologies of table 3.4") from None
+
+
+# ------------------------------------------------------------------------------------------
+# Backend dispatch: NumPy or Dr.Jit, decided by the inputs
+# ------------------------------------------------------------------------------------------
+def _is_dr(x) -> bool:
+    return dr.is_array_v(x)
+
+
+def _dr_type(*xs):
+    """The Dr.Jit floating-point array type among ``xs`` (first one found), else None."""
+    for x in xs:
+        if _is_dr(x):
+            t = type(x)
+            return t if dr.is_float_v(t) else dr.float32_array_t(t)
+    return None
+
+
+def _prep(*xs):
+    """Bring the inputs onto one backend.
+
+    With any Dr.Jit input, NumPy arrays are converted to that Dr.Jit type (Python numbers stay
+    numbers, Dr.Jit broadcasts them); otherwise everything becomes a float64 NumPy array.
+    """
+    t = _dr_type(*xs)
+    if t is None:
+        return tuple(np.asarray(x, dtype=np.float64) for x in xs)
+    out = []
+    for x in xs:
+        if _is_dr(x) or isinstance(x, (int, float)):
+            out.append(x)
+        else:
+            a = np.asarray(x, dtype=np.float64)
+            out.append(float(a) if a.ndim == 0 else t(a.ravel()))
+    return tuple(out)
+
+
+def _finish(x):
+    """NumPy 0-d arrays -> NumPy scalars; everything else unchanged."""
+    if isinstance(x, np.ndarray) and x.ndim == 0:
+        return x[()]
+    return x
+
+
+def _exp(x):
+    return dr.exp(x) if _is_dr(x) else np.exp(x)
+
+
+def _log(x):
+    return dr.log(x) if _is_dr(x) else np.log(x)
+
+
+def _abs(x):
+    return dr.abs(x) if _is_dr(x) else np.abs(x)
+
+
+def _where(cond, a, b):
+    if _is_dr(cond) or _is_dr(a) or _is_dr(b):
+        return dr.select(cond, a, b)
+    return np.where(cond, a, b)
+
+
+def _maximum(a, b):
+    """max(a, b) that keeps a NaN in ``a`` (``a < b`` is False for NaN)."""
+    return _where(a < b, b, a)
+
+
+def _minimum(a, b):
+    """min(a, b) that keeps a NaN in ``a``."""
+    return _where(a > b, b, a)
+
+
+def _power(x, y):
+    if _is_dr(x) or _is_dr(y):
+        return dr.power(x, y)
+    return np.power(x, y)
+
+
+def _safe_power(base, expo):
+    """``base**expo`` for ``base >= 0`` with a finite derivative at 0 (double-``where``).
+
+    ``0**expo = 0``; NaN in ``base`` stays NaN. Negative bases must be clamped by the caller.
+    """
+    zero = base == 0
+    safe = _where(zero, 1.0, base)
+    return _where(zero, 0.0, _power(safe, expo))
+
+
+def _as_codes(geology) -> np.ndarray:
+    """Validate geology codes (read back to NumPy) and return them as an int array."""
+    g = np.asarray(geology)
+    if g.dtype.kind == "f":
+        if not np.all(np.isfinite(g)) or not np.all(g == np.round(g)):
+            raise ParameterError("geology", geology, "integer codes 0 (humus), 1 (sand), 2 (asphalt)",
+                                 "pass integer geology codes (table 3.4)")
+        g = g.astype(np.int64)
+    elif g.dtype.kind not in "iu":
+        raise ParameterError("geology", geology, "integer codes 0 (humus), 1 (sand), 2 (asphalt)",
+                             "pass integer geology codes or use geology_code(name)")
+    bad = (g < 0) | (g > 2)
+    if np.any(bad):
+        raise ParameterError("geology", g[bad].ravel()[:5].tolist() if g.ndim else int(g),
+                             "integer codes 0 (humus), 1 (sand), 2 (asphalt)",
+                             "fix the geology codes (table 3.4)")
+    return g
+
+
+def geology_parameters(geology, *like):
+    """Per-element ``(F1, F2, theta_SAT)`` of table 3.4 for geology codes ``geology``.
+
+    The arrays are NumPy float64, or of the Dr.Jit type of the first Dr.Jit array among ``like``
+    (or of ``geology``), gathered from the 3-entry table. Invalid codes raise ParameterError
+    (a Dr.Jit ``geology`` is read back for this check).
+    """
+    codes = _as_codes(geology)
+    t = _dr_type(*like, geology)
+    if t is None:
+        return tuple(_GEO_COLS[f][codes] for f in ("F1", "F2", "theta_sat"))
+    u = dr.uint32_array_t(t)
+    idx = u(geology) if _is_dr(geology) else u(np.asarray(codes, dtype=np.uint32).ravel())
+    return tuple(dr.gather(t, t(_GEO_COLS[f]), idx) for f in ("F1", "F2", "theta_sat"))
+
+
+# ------------------------------------------------------------------------------------------
+# §3.5.1 Heat energy R
+# ------------------------------------------------------------------------------------------
+def cloud_factor(A):
+    """Cloud-effect coefficient C, eq (3.2): ``C = 0.826A^3 - 1.234A^2 + 1.135A + 0.298``.
+
+    A = N/N0 is the sunshine ratio [-] (sunshine hours / possible sunshine hours).
+    C(0) = 0.298 (overcast), C(1) = 1.025 (clear). Returns C [-].
+    """
+    (A,) = _prep(A)
+    return _finish(((0.826 * A - 1.234) * A + 1.135) * A + 0.298)
+
+
+def sky_longwave(T, C):
+    """Downward longwave radiation from the sky, eq (3.3): ``L = sigma T^4 (1 - 0.26 C)``.
+
+    T air temperature [K], C cloud factor of eq 3.2 [-]. Returns L [W m-2].
+    """
+    T, C = _prep(T, C)
+    return _finish(SIGMA * T**4 * (1.0 - 0.26 * C))
+
+
+def net_radiation(S, L, ref=ALBEDO):
+    """Heat energy at the surface, eq (3.4): ``R = (1 - ref) S + L``.
+
+    S daily-mean insolation [W m-2], L sky longwave [W m-2], ref albedo [-]. Returns R [W m-2].
+    """
+    S, L = _prep(S, L)
+    return _finish((1.0 - ref) * S + L)
+
+
+# ------------------------------------------------------------------------------------------
+# §3.5.2 Bulk transfer coefficient and moss density
+# ------------------------------------------------------------------------------------------
+def transfer_coefficient(m, M=1.0, C_H_min=C_H_MIN, C_H_max=C_H_MAX):
+    """Bulk transfer coefficient, eq (3.5): ``C_H = C_Hmin + (C_Hmax - C_Hmin) m / M``.
+
+    m moss within a fixed range of the soil element, M the most moss that fit there (or pass a
+    coverage fraction as ``m`` with ``M = 1``) [-]. ``m/M`` is clamped to [0, 1] (NaN kept).
+    Returns C_H [-] in [0.0015, 0.0030].
+    """
+    m, M = _prep(m, M)
+    f = _minimum(_maximum(m / M, 0.0), 1.0)
+    return _finish(C_H_min + (C_H_max - C_H_min) * f)
+
+
+# ------------------------------------------------------------------------------------------
+# §3.5.3 Bucket model, theta and beta
+# ------------------------------------------------------------------------------------------
+def soil_depth(h):
+    """Soil depth h used by the bucket model, §3.5.3 [mm].
+
+    ``h`` is the soil thickness along y [mm]; where there is none (``h <= 0``, walls) the paper
+    uses 1 mm, and depths above 1000 mm are capped at 1000 mm. NaN stays NaN.
+    """
+    (h,) = _prep(h)
+    return _finish(_where(h <= 0.0, H_WALL, _minimum(h, H_MAX)))
+
+
+def bucket_capacity(h, geology):
+    """Bucket capacity, eq (3.7): ``O_SAT = h theta_SAT`` [mm] (h [mm], theta_SAT [m3 m-3])."""
+    (h,) = _prep(h)
+    _, _, ts = geology_parameters(geology, h)
+    return _finish(h * ts)
+
+
+def water_content(O, h):
+    """Volumetric soil water content, eq (3.8): ``theta = O / h`` [m3 m-3] (O, h in [mm])."""
+    O, h = _prep(O, h)
+    return _finish(O / h)
+
+
+class BucketStep(NamedTuple):
+    """Result of one day of the bucket model (all per soil element)."""
+    O: Any        #: water stored at the end of the day [mm]
+    theta: Any    #: volumetric water content O/h [m3 m-3]
+    runoff: Any   #: water above O_SAT that ran off [mm]
+    deficit: Any  #: evaporation demand that found no water (bucket empty) [mm]
+
+
+def bucket_step(O, E, P, h, geology):
+    """One day of the bucket model, eqs (3.6)-(3.8).
+
+    ``O_i = O_{i-1} - (86400 E_i - P_i)`` with overflow above ``O_SAT = h theta_SAT`` (eq 3.7)
+    running off, and ``theta = O_i / h`` (eq 3.8).
+
+    O water stored at the end of the previous day [mm]; E evaporation rate of the day
+    [kg m-2 s-1 = mm s-1] (``E = iotaE / iota``, :func:`evaporation_rate`; negative = dew);
+    P precipitation of the day [mm]; h soil depth [mm] (see :func:`soil_depth`); geology codes.
+    Not in the paper: the store cannot go below 0 mm; the missing water is returned as
+    ``deficit`` (see docs/deviations.md). Returns :class:`BucketStep`.
+    """
+    O, E, P, h = _prep(O, E, P, h)
+    _, _, ts = geology_parameters(geology, O, E, P, h)
+    o_sat = h * ts
+    raw = O - (SECONDS_PER_DAY * E - P)
+    runoff = _maximum(raw - o_sat, 0.0)
+    deficit = _maximum(-raw, 0.0)
+    new = _minimum(_maximum(raw, 0.0), o_sat)
+    return BucketStep(_finish(new), _finish(new / h), _finish(runoff), _finish(deficit))
+
+
+@dataclass
+class SoilState:
+    """Water state of soil elements for the bucket model (eqs 3.6-3.8).
+
+    ``O`` water stored [mm], ``h`` soil depth [mm] (already through :func:`soil_depth`),
+    ``geology`` codes (0 humus, 1 sand, 2 asphalt). Arrays may be NumPy or Dr.Jit.
+    """
+    O: Any
+    h: Any
+    geology: Any
+
+    @classmethod
+    def saturated(cls, h, geology) -> "SoilState":
+        """A state with every bucket full (``O = O_SAT``); ``h`` is passed through soil_depth."""
+        h = soil_depth(h)
+        return cls(bucket_capacity(h, geology), h, geology)
+
+    @property
+    def theta(self):
+        """Volumetric water content theta = O/h [m3 m-3] (eq 3.8)."""
+        return water_content(self.O, self.h)
+
+    @property
+    def capacity(self):
+        """O_SAT = h theta_SAT [mm] (eq 3.7)."""
+        return bucket_capacity(self.h, self.geology)
+
+    def step(self, E, P) -> tuple["SoilState", BucketStep]:
+        """Advance one day with evaporation rate E [mm s-1] and rain P [mm] (eq 3.6)."""
+        r = bucket_step(self.O, E, P, self.h, self.geology)
+        return SoilState(r.O, self.h, self.geology), r
+
+
+def evaporation_F(theta, geology):
+    """Soil evaporation function, eq (3.9): ``F(theta) = F1 (theta_SAT - theta)^F2`` [m].
+
+    F is a length (a soil surface resistance times D_ATM): ``F / D_ATM`` [s m-1] is the soil
+    resistance to vapour transfer. ``theta_SAT - theta`` is clamped at 0, so a saturated (or
+    over-saturated) soil has F = 0 (the printed power of a negative base is NaN). theta [m3 m-3].
+    """
+    (theta,) = _prep(theta)
+    F1, F2, ts = geology_parameters(geology, theta)
+    base = _maximum(ts - theta, 0.0)
+    return _finish(F1 * _safe_power(base, F2))
+
+
+def evaporation_efficiency(theta, C_H, U, geology):
+    """Evaporation efficiency, eq (3.10): ``beta = (1 + C_H U F(theta) / D_ATM)^-1`` [-].
+
+    theta [m3 m-3], C_H [-], U wind speed [m s-1]; F [m] from eq 3.9, D_ATM [m2 s-1]:
+    ``C_H U F / D_ATM`` = soil resistance / aerodynamic resistance, dimensionless.
+    """
+    theta, C_H, U = _prep(theta, C_H, U)
+    F = evaporation_F(theta, geology)
+    return _finish(1.0 / (1.0 + C_H * U * F / D_ATM))
+
+
+# ------------------------------------------------------------------------------------------
+# §3.5.4 Saturation humidity, surface temperature, latent heat, surface humidity
+# ------------------------------------------------------------------------------------------
+def e_sat(T):
+    """Saturation vapour pressure, eq (3.12): ``6.1078 x 10^(7.5 (T-273.15)/(T-35.85))`` [hPa].
+
+    T [K]. e_sat(273.15) = 6.1078 hPa.
+    """
+    (T,) = _prep(T)
+    return _finish(_E0 * _exp(_LN10 * _MAGNUS_A * (T - 273.15) / (T - 35.85)))
+
+
+def q_sat(T, p=P_ATM):
+    """Saturation specific humidity, eq (3.13):
+    ``q_SAT = (0.622 e_SAT/p) / (1 - 0.378 e_SAT/p)`` [kg kg-1]; T [K], p [hPa]."""
+    (T,) = _prep(T)
+    e = e_sat(T)
+    return _finish((0.622 * e / p) / (1.0 - 0.378 * e / p))
+
+
+def dq_sat_dT(T, p=P_ATM):
+    """Slope of the saturation specific humidity, eq (3.15): ``Delta = dq_SAT/dT`` [K-1].
+
+    The exact derivative of eqs 3.12-3.13::
+
+        Delta = e_SAT(T) ln(10) 7.5 * 237.3 / (T - 35.85)^2  *  0.622 p / (p - 0.378 e_SAT)^2
+
+    The printed eq 3.15 has the constant 6.1078 where e_SAT(T) belongs, and a Clausius-Clapeyron
+    factor (2500 - 2.4t)/(0.4615 (273.15 + t)^2) that differs from the derivative of eq 3.12 by
+    about 0.1 %; see docs/deviations.md. T [K], p [hPa].
+    """
+    (T,) = _prep(T)
+    e = e_sat(T)
+    de_dT = e * (_LN10 * _MAGNUS_A * _MAGNUS_B) / (T - 35.85) ** 2
+    return _finish(de_dT * 0.622 * p / (p - 0.378 * e) ** 2)
+
+
+def surface_temperature_offset(R, T, rh, U, beta, C_H):
+    """Surface minus air temperature, eq (3.11) [K]::
+
+        deltaT = Ts - T = [R - sigma T^4 - iota rho beta C_H U q_SAT (1 - rh)]
+                          / [4 sigma T^3 + c_P rho C_H U + iota rho beta C_H U Delta]
+
+    R [W m-2], T [K], rh [-], U [m s-1], beta [-], C_H [-]. Numerator [W m-2], denominator
+    [W m-2 K-1] (linearised energy balance R = sigma Ts^4 + H + iotaE).
+    """
+    R, T, rh, U, beta, C_H = _prep(R, T, rh, U, beta, C_H)
+    k = LATENT_HEAT * RHO_AIR * beta * C_H * U
+    num = R - SIGMA * T**4 - k * q_sat(T) * (1.0 - rh)
+    den = 4.0 * SIGMA * T**3 + CP_RHO * C_H * U + k * dq_sat_dT(T)
+    return _finish(num / den)
+
+
+def latent_heat_flux(T, rh, U, beta, C_H, dT):
+    """Latent heat flux, eq (3.14): ``iotaE = iota rho beta C_H U {q_SAT (1 - rh) + Delta dT}``.
+
+    T [K], rh [-], U [m s-1], beta [-], C_H [-], dT = Ts - T [K]. Returns iotaE [W m-2]
+    (negative = dew).
+    """
+    T, rh, U, beta, C_H, dT = _prep(T, rh, U, beta, C_H, dT)
+    return _finish(LATENT_HEAT * RHO_AIR * beta * C_H * U * (q_sat(T) * (1.0 - rh) + dq_sat_dT(T) * dT))
+
+
+def evaporation_rate(lE):
+    """Evaporation rate ``E = iotaE / iota`` [kg m-2 s-1 = mm s-1] for eq 3.6; iotaE [W m-2]."""
+    (lE,) = _prep(lE)
+    return _finish(lE / LATENT_HEAT)
+
+
+def surface_humidity(T, rh, beta, dT):
+    """Surface relative humidity, eq (3.16): ``rhs = beta + rh q_SAT (1 - beta)/(q_SAT + Delta dT)``.
+
+    T [K], rh [-], beta [-], dT [K]. Returns rhs [-]; ``q_SAT + Delta dT`` is the linearised
+    q_SAT(Ts). As printed, the value can exceed 1 (surface colder than the air's dew point) and
+    the linearisation breaks down for very cold surfaces (dT -> -q_SAT/Delta, about -15 K at
+    288 K, makes the denominator 0).
+    """
+    T, rh, beta, dT = _prep(T, rh, beta, dT)
+    q = q_sat(T)
+    return _finish(beta + rh * q * (1.0 - beta) / (q + dq_sat_dT(T) * dT))
+
+
+class SurfaceState(NamedTuple):
+    """Daily-mean soil surface state returned by :func:`surface_state`."""
+    Ts: Any    #: surface temperature [K]
+    rhs: Any   #: surface relative humidity [-]
+    lE: Any    #: latent heat flux iotaE [W m-2]
+    beta: Any  #: evaporation efficiency [-]
+
+
+def surface_state(S, T, rh, U, A, theta, geology, C_H) -> SurfaceState:
+    """Soil surface state of one day, §3.5 in the order of §3.7 (eqs 3.2-3.16).
+
+    S insolation [W m-2], T air temperature [K], rh relative humidity [-], U wind speed [m s-1],
+    A = N/N0 sunshine ratio [-], theta volumetric water content [m3 m-3] (from the bucket model),
+    geology codes (0 humus, 1 sand, 2 asphalt), C_H bulk transfer coefficient [-] (eq 3.5).
+    All arguments broadcast; NumPy in -> NumPy out, Dr.Jit in -> Dr.Jit out.
+
+    Order: R (3.2-3.4) -> C_H (given) -> beta(theta) (3.9-3.10) -> deltaT, Ts (3.11)
+    -> iotaE (3.14) -> rhs (3.16). Returns :class:`SurfaceState` ``(Ts, rhs, lE, beta)``;
+    the evaporation rate for :func:`bucket_step` is ``evaporation_rate(lE)``.
+    """
+    S, T, rh, U, A, theta, C_H = _prep(S, T, rh, U, A, theta, C_H)
+    R = net_radiation(S, sky_longwave(T, cloud_factor(A)))
+    beta = evaporation_efficiency(theta, C_H, U, geology)
+    dT = surface_temperature_offset(R, T, rh, U, beta, C_H)
+    lE = latent_heat_flux(T, rh, U, beta, C_H, dT)
+    rhs = surface_humidity(T, rh, beta, dT)
+    return SurfaceState(_finish(T + dT), _finish(rhs), _finish(lE), _finish(beta))

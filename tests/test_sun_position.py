@@ -1,0 +1,295 @@
+"""Tests of mitsuba_veg.light.sun_position (NREL SPA, scene-frame sun directions).
+
+The module is pure numpy. It is imported through the package when that works; if the package
+cannot be imported (e.g. Mitsuba or another module is unavailable), the two pure-python files it
+needs are loaded on their own under a private package name, so these tests never depend on
+Mitsuba.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import importlib
+import importlib.util
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+
+def _load_sun_position():
+    try:
+        # `mitsuba_veg.light` re-exports the *function* `sun_position`, which shadows the
+        # submodule as an attribute: use import_module to get the module itself.
+        sp = importlib.import_module("mitsuba_veg.light.sun_position")
+        errors = importlib.import_module("mitsuba_veg.errors")
+        return sp, errors.ParameterError
+    except Exception:  # noqa: BLE001 - any failure of the package import: go standalone
+        pass
+    root = Path(__file__).resolve().parents[1] / "mitsuba_veg"
+    name = "_mitsuba_veg_standalone"
+    for pkg, path in ((name, root), (f"{name}.light", root / "light")):
+        mod = types.ModuleType(pkg)
+        mod.__path__ = [str(path)]
+        sys.modules.setdefault(pkg, mod)
+
+    def load(modname, path):
+        if modname in sys.modules and hasattr(sys.modules[modname], "__file__"):
+            return sys.modules[modname]
+        spec = importlib.util.spec_from_file_location(modname, path)
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = mod
+        spec.loader.exec_module(mod)
+        return mod
+
+    errors = load(f"{name}.errors", root / "errors.py")
+    sp = load(f"{name}.light.sun_position", root / "light" / "sun_position.py")
+    return sp, errors.ParameterError
+
+
+sp, ParameterError = _load_sun_position()
+
+
+def _wrap180(a):
+    return (np.asarray(a) + 180.0) % 360.0 - 180.0
+
+
+# ------------------------------------------------------------------------------------------
+# NREL report worked example (Reda & Andreas, NREL/TP-560-34302, Table A5.1)
+# ------------------------------------------------------------------------------------------
+NREL = dict(latitude=39.742476, longitude=-105.1786, elevation=1830.14, pressure=820.0,
+            temperature=11.0, delta_t=67.0)
+NREL_WHEN = dt.datetime(2003, 10, 17, 12, 30, 30, tzinfo=dt.timezone(dt.timedelta(hours=-7)))
+
+
+def _nrel(when=NREL_WHEN, **kw):
+    args = dict(NREL)
+    lat, lon = args.pop("latitude"), args.pop("longitude")
+    args.update(kw)
+    return sp.sun_position(lat, lon, when, **args)
+
+
+def test_nrel_report_example():
+    az, el = _nrel()
+    assert isinstance(az, float) and isinstance(el, float)
+    assert abs((90.0 - el) - 50.11162) < 1e-4       # topocentric zenith angle theta [deg]
+    assert abs(az - 194.34024) < 1e-4               # topocentric azimuth Phi [deg]
+
+
+def test_nrel_report_intermediate_values():
+    eph = sp.sun_ephemeris(NREL["latitude"], NREL["longitude"], NREL_WHEN,
+                           elevation=NREL["elevation"], pressure=NREL["pressure"],
+                           temperature=NREL["temperature"], delta_t=NREL["delta_t"])
+    assert abs(sp.julian_day(NREL_WHEN) - 2452930.312847) < 1e-6
+    assert abs(eph.earth_sun_distance - 0.9965422974) < 1e-9        # R [AU]
+    assert abs(eph.declination - (-9.316179)) < 1e-6                # delta' [deg]
+    assert abs(eph.hour_angle - 11.10629) < 5e-5                    # H' [deg]
+    assert abs(eph.elevation_geometric - 39.872046) < 1e-6          # e0 [deg]
+    assert abs(eph.elevation - 39.888378) < 1e-6                    # e [deg]
+    assert abs(eph.zenith - 50.11162) < 1e-5
+
+
+@pytest.mark.parametrize("when", [
+    NREL_WHEN,
+    dt.datetime(2003, 10, 17, 19, 30, 30),                           # naive = UTC
+    np.datetime64("2003-10-17T19:30:30"),
+    "2003-10-17T12:30:30-07:00",
+    "2003-10-17T19:30:30Z",
+    "2003-10-17 19:30:30",
+])
+def test_time_input_forms(when):
+    az, el = _nrel(when)
+    assert abs(az - 194.34024) < 1e-4 and abs(90 - el - 50.11162) < 1e-4
+
+
+def test_refraction_switch():
+    az, el = _nrel()
+    az0, el0 = _nrel(refraction=False)
+    assert az == az0
+    assert abs((el - el0) - 0.016332) < 1e-6        # Delta e of the report (eq. 42)
+    # At night (geometric elevation < -0.83337 deg) no correction is applied.
+    night = np.datetime64("2003-10-18T07:30:00")
+    assert _nrel(night)[1] == _nrel(night, refraction=False)[1] < -10
+
+
+# ------------------------------------------------------------------------------------------
+# Against pvlib's SPA (test reference only; the module itself does not use pvlib)
+# ------------------------------------------------------------------------------------------
+def _random_cases(n=4000, seed=20240601):
+    rng = np.random.default_rng(seed)
+    t0 = np.datetime64("1950-01-01T00:00:00", "us").astype(np.int64)
+    t1 = np.datetime64("2101-01-01T00:00:00", "us").astype(np.int64)
+    us = rng.integers(t0, t1, n)
+    return dict(us=us, when=us.astype("datetime64[us]"), lat=rng.uniform(-80, 80, n),
+                lon=rng.uniform(-180, 180, n), elev=rng.uniform(0, 4000, n),
+                pres=rng.uniform(600, 1050, n), temp=rng.uniform(-30, 40, n))
+
+
+def test_against_pvlib_spa():
+    pspa = pytest.importorskip("pvlib.spa")
+    c = _random_cases()
+    delta_t = sp.default_delta_t(c["when"])
+    az, el = sp.sun_position(c["lat"], c["lon"], c["when"], elevation=c["elev"],
+                             pressure=c["pres"], temperature=c["temp"])
+    ref = pspa.solar_position_numpy(c["us"] / 1e6, c["lat"], c["lon"], c["elev"], c["pres"],
+                                    c["temp"], delta_t, 0.5667, 1)
+    _, _, e_ref, e0_ref, phi_ref, _ = ref
+    up = e_ref > -1.0
+    assert up.sum() > 1000
+    err_el = np.abs(el - e_ref)[up].max()
+    high = e_ref > 1.0
+    err_az = np.abs(_wrap180(az - phi_ref))[high].max()
+    assert err_el < 0.05 and err_az < 0.05
+    # In fact the two implementations agree to rounding level.
+    assert err_el < 1e-5 and err_az < 1e-4, (err_el, err_az)
+    az0, el0 = sp.sun_position(c["lat"], c["lon"], c["when"], elevation=c["elev"],
+                               refraction=False)
+    assert np.abs(el0 - e0_ref).max() < 1e-5
+
+
+def test_default_delta_t_matches_espenak_meeus():
+    pspa = pytest.importorskip("pvlib.spa")
+    c = _random_cases(500)
+    years = c["when"].astype("datetime64[Y]").astype(int) + 1970
+    months = c["when"].astype("datetime64[M]").astype(int) % 12 + 1
+    np.testing.assert_allclose(sp.default_delta_t(c["when"]),
+                               pspa.calculate_deltat(years, months), atol=1e-9)
+
+
+def test_default_delta_t_values():
+    # Espenak & Meeus value for 1985-02 (as in pvlib's test-suite) and rough observed values.
+    assert abs(sp.default_delta_t("1985-02-15") - 54.413442486) < 1e-6
+    assert abs(sp.default_delta_t("1950-07-01") - 29.1) < 1.0
+    assert abs(sp.default_delta_t("2000-01-01") - 63.8) < 1.0
+    assert 60 < sp.default_delta_t("2100-01-01") < 250
+
+
+# ------------------------------------------------------------------------------------------
+# Vectorisation and conventions
+# ------------------------------------------------------------------------------------------
+def test_broadcasting_and_scalars():
+    times = np.arange("2024-06-21T00", "2024-06-22T00", np.timedelta64(3, "h"),
+                      dtype="datetime64[h]")                                  # (8,)
+    lats = np.array([[-45.0], [0.0], [52.0]])                                  # (3, 1)
+    az, el = sp.sun_position(lats, 5.0, times)
+    assert az.shape == el.shape == (3, 8)
+    for i, lat in enumerate(lats[:, 0]):
+        for j, t in enumerate(times):
+            a, e = sp.sun_position(float(lat), 5.0, t)
+            assert a == pytest.approx(az[i, j], abs=1e-9)
+            assert e == pytest.approx(el[i, j], abs=1e-9)
+    # Lists of datetimes / strings work like arrays.
+    lst = [dt.datetime(2024, 6, 21, 12, tzinfo=dt.timezone.utc), "2024-06-21T14:00:00+02:00"]
+    az2, el2 = sp.sun_position(52.0, 5.0, lst)
+    assert az2.shape == (2,) and az2[0] == pytest.approx(az2[1], abs=1e-12)
+
+
+def test_azimuth_convention():
+    # Equinox at the equator, Greenwich: sun rises in the east, culminates near the zenith,
+    # sets in the west; at 52 N it culminates in the south.
+    az_morning, el_morning = sp.sun_position(0.0, 0.0, "2024-03-20T08:00:00Z")
+    az_evening, _ = sp.sun_position(0.0, 0.0, "2024-03-20T16:00:00Z")
+    assert abs(az_morning - 90.0) < 2.0 and 25 < el_morning < 35
+    assert abs(az_evening - 270.0) < 2.0
+    az_noon, el_noon = sp.sun_position(52.0, 0.0, "2024-03-20T12:07:00Z")
+    assert abs(az_noon - 180.0) < 1.0 and abs(el_noon - 38.0) < 1.0
+    az_s, _ = sp.sun_position(-52.0, 0.0, "2024-03-20T12:07:00Z")
+    assert abs(_wrap180(az_s)) < 1.0                      # southern hemisphere: north
+
+
+# ------------------------------------------------------------------------------------------
+# sun_direction / direction_to_angles
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("az, el, expected", [
+    (180.0, 0.0, (0.0, 0.0, 1.0)),     # south = +z
+    (0.0, 0.0, (0.0, 0.0, -1.0)),      # north = -z
+    (90.0, 0.0, (1.0, 0.0, 0.0)),      # east = +x
+    (270.0, 0.0, (-1.0, 0.0, 0.0)),    # west = -x
+    (123.0, 90.0, (0.0, 1.0, 0.0)),    # zenith = +y
+    (135.0, 45.0, (0.5, np.sqrt(0.5), 0.5)),
+])
+def test_sun_direction_known(az, el, expected):
+    d = sp.sun_direction(az, el)
+    assert d.shape == (3,)
+    np.testing.assert_allclose(d, expected, atol=1e-12)
+
+
+def test_frame_is_right_handed():
+    x = sp.sun_direction(90.0, 0.0)
+    y = sp.sun_direction(0.0, 90.0)
+    z = sp.sun_direction(180.0, 0.0)
+    np.testing.assert_allclose(np.cross(x, y), z, atol=1e-12)
+
+
+def test_direction_round_trip_and_shapes():
+    rng = np.random.default_rng(3)
+    az = rng.uniform(0, 360, (4, 5))
+    el = rng.uniform(-89, 89, (4, 5))
+    d = sp.sun_direction(az, el)
+    assert d.shape == (4, 5, 3)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=-1), 1.0, atol=1e-12)
+    az2, el2 = sp.direction_to_angles(3.0 * d)            # need not be normalised
+    assert az2.shape == el2.shape == (4, 5)
+    np.testing.assert_allclose(_wrap180(az2 - az), 0.0, atol=1e-9)
+    np.testing.assert_allclose(el2, el, atol=1e-9)
+    assert sp.sun_direction(np.array([0.0, 90.0]), 10.0).shape == (2, 3)
+    a, e = sp.direction_to_angles([0.0, 0.0, 1.0])
+    assert (a, e) == (pytest.approx(180.0), pytest.approx(0.0))
+    assert sp.direction_to_angles([0.0, 2.0, 0.0]) == (0.0, 90.0)
+
+
+def test_direction_of_computed_sun():
+    az, el = _nrel()
+    d = sp.sun_direction(az, el)
+    assert d[1] > 0 and d[2] > 0          # above the horizon, to the south (+z) of Golden, CO
+    a, e = sp.direction_to_angles(d)
+    assert a == pytest.approx(az, abs=1e-9) and e == pytest.approx(el, abs=1e-9)
+
+
+# ------------------------------------------------------------------------------------------
+# Errors
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kw, field", [
+    (dict(latitude=95.0), "latitude"),
+    (dict(latitude=np.nan), "latitude"),
+    (dict(longitude=-200.0), "longitude"),
+    (dict(pressure=-1.0), "pressure"),
+    (dict(temperature=-300.0), "temperature"),
+    (dict(delta_t=1e5), "delta_t"),
+])
+def test_bad_parameters(kw, field):
+    args = dict(latitude=45.0, longitude=5.0, when="2024-06-21T12:00:00Z")
+    args.update(kw)
+    with pytest.raises(ParameterError) as exc:
+        sp.sun_position(args.pop("latitude"), args.pop("longitude"), args.pop("when"), **args)
+    assert exc.value.field == field
+    assert "allowed" in str(exc.value)
+
+
+def test_bad_array_element_is_named():
+    with pytest.raises(ParameterError) as exc:
+        sp.sun_position(np.array([10.0, 20.0, 95.0]), 0.0, "2024-06-21T12:00:00Z")
+    assert exc.value.field == "latitude[2]" and exc.value.value == 95.0
+
+
+@pytest.mark.parametrize("when", [
+    "not a date", 2452930.3, dt.date(2024, 6, 21), np.datetime64("NaT"),
+    [np.datetime64("2024-01-01"), np.datetime64("NaT")], np.array([1.0, 2.0]),
+    "9999-01-01T00:00:00",
+])
+def test_bad_times(when):
+    with pytest.raises(ParameterError) as exc:
+        sp.sun_position(45.0, 5.0, when)
+    assert exc.value.field == "when"
+
+
+def test_bad_shapes_and_directions():
+    with pytest.raises(ParameterError):
+        sp.sun_position(np.zeros(3), np.zeros(4), "2024-06-21T12:00:00Z")
+    with pytest.raises(ParameterError):
+        sp.sun_direction(0.0, 95.0)
+    with pytest.raises(ParameterError):
+        sp.direction_to_angles([0.0, 0.0, 0.0])
+    with pytest.raises(ParameterError):
+        sp.direction_to_angles([1.0, 0.0])
