@@ -68,6 +68,7 @@ DEFAULT_BANDS = ("total", "par", "red", "far_red")
 COMPONENTS = ("direct", "indirect", "total")
 SIDES = ("front", "back")
 _SLOTS = 4  # wavelengths carried by one Mitsuba spectral sample
+_UInt64 = dr.cuda.ad.UInt64 if mi.variant().startswith("cuda") else dr.llvm.ad.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
 DEFAULT_BATCH = 1 << 22
 
@@ -609,7 +610,15 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         ray = mi.Ray3f(o, d, time, wav)
 
         n_el = index.n_elements
-        acc = dr.zeros(mi.Float, n_el * 2 * 2 * _SLOTS)
+        # Fixed-point accumulation: integer atomics are associative, so the result does not
+        # depend on the order in which threads add (float atomics would differ in the last bits
+        # from run to run, and a resumed simulation must be bit-identical). A photon's power is
+        # quantised to 2^-40 of the largest initial power (per slot); 2^22 photons x 2^40 fits in
+        # 64 bits with room to spare.
+        dr.eval(throughput, ray)
+        pmax = max(_scalar(dr.max(throughput[k])) for k in range(_SLOTS))
+        scale = float(2.0 ** 40 / pmax) if pmax > 0 else 1.0
+        acc = dr.zeros(_UInt64, n_el * 2 * 2 * _SLOTS)
         lookup = index.lookup
         refl_arr = None if refl is None else mi.Float(np.ascontiguousarray(refl, np.float32).ravel())
         esc = dr.zeros(mi.Spectrum, n)
@@ -621,7 +630,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
         throughput_left, rays_lane, esc, absd = self._loop(
             scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, lookup,
-            refl_arr, one_hit)
+            refl_arr, one_hit, dr.opaque(mi.Float, scale))
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
         # one would re-run the loop for each)
         dr.eval(acc, throughput_left, rays_lane, esc, absd, emitted)
@@ -630,12 +639,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         bk[1] = [_scalar(dr.sum(esc[k])) for k in range(_SLOTS)]
         bk[2] = [_scalar(dr.sum(absd[k])) for k in range(_SLOTS)]
         bk[3] = [_scalar(dr.sum(throughput_left[k])) for k in range(_SLOTS)]
-        acc_np = np.asarray(acc, dtype=np.float64).reshape(n_el, 2, 2, _SLOTS)
+        acc_np = (np.asarray(acc, dtype=np.uint64).astype(np.float64) / scale).reshape(
+            n_el, 2, 2, _SLOTS)
         return acc_np, bk, int(_scalar(dr.sum(mi.Float(rays_lane))))
 
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
-              lookup, refl_arr, one_hit):
+              lookup, refl_arr, one_hit, scale):
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
         while dr.hint(active, label="veg_photon_irradiance"):
@@ -655,7 +665,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             side = dr.select(back, mi.UInt32(1), mi.UInt32(0))
             base = ((elem * 2 + comp) * 2 + side) * _SLOTS
             for k in range(_SLOTS):
-                dr.scatter_add(acc, throughput[k], base + k, hit)
+                q_k = _UInt64(dr.round(throughput[k] * scale))
+                dr.scatter_add(acc, q_k, base + k, hit)
 
             if one_hit:
                 active = mi.Bool(False)

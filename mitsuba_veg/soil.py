@@ -128,15 +128,17 @@ def _dr_type(*xs):
 def _prep(*xs):
     """Bring the inputs onto one backend.
 
-    With any Dr.Jit input, NumPy arrays are converted to that Dr.Jit type (Python numbers stay
-    numbers, Dr.Jit broadcasts them); otherwise everything becomes a float64 NumPy array.
+    With any Dr.Jit input, NumPy arrays are converted to that Dr.Jit type and NumPy scalars to
+    Python floats (Dr.Jit broadcasts them; a NumPy scalar on the left of a Dr.Jit array would
+    turn the result into a NumPy array); otherwise everything becomes a float64 NumPy array.
+    Composite functions pass their sub-results through here again before combining them.
     """
     t = _dr_type(*xs)
     if t is None:
         return tuple(np.asarray(x, dtype=np.float64) for x in xs)
     out = []
     for x in xs:
-        if _is_dr(x) or isinstance(x, (int, float)):
+        if _is_dr(x) or type(x) in (int, float):
             out.append(x)
         else:
             a = np.asarray(x, dtype=np.float64)
@@ -151,12 +153,20 @@ def _finish(x):
     return x
 
 
+# Dr.Jit's transcendental functions do not reliably propagate NaN: on width-1 arrays, fused into
+# a kernel with other work, exp2(10 * log2(NaN)) gave -1.1e10 (Float) or 2.2e307 (Float64), and
+# power(NaN, Float(10)) gave -1.8e38 (Dr.Jit 1.5.0, LLVM). The NaN policy of this module is made
+# explicit with a select.
+def _nan_keep(x, r):
+    return dr.select(dr.isnan(x), x, r)
+
+
 def _exp(x):
-    return dr.exp(x) if _is_dr(x) else np.exp(x)
+    return _nan_keep(x, dr.exp(x)) if _is_dr(x) else np.exp(x)
 
 
 def _log(x):
-    return dr.log(x) if _is_dr(x) else np.log(x)
+    return _nan_keep(x, dr.log(x)) if _is_dr(x) else np.log(x)
 
 
 def _abs(x):
@@ -180,8 +190,12 @@ def _minimum(a, b):
 
 
 def _power(x, y):
+    """x**y for x >= 0 (or NaN); NaN in x or y gives NaN on both backends."""
     if _is_dr(x) or _is_dr(y):
-        return dr.power(x, y)
+        r = dr.power(x, y)
+        if _is_dr(y) or (isinstance(y, float) and math.isnan(y)):
+            r = _nan_keep(y, r)
+        return _nan_keep(x, r) if _is_dr(x) else r
     return np.power(x, y)
 
 
@@ -293,6 +307,7 @@ def bucket_capacity(h, geology):
     """Bucket capacity, eq (3.7): ``O_SAT = h theta_SAT`` [mm] (h [mm], theta_SAT [m3 m-3])."""
     (h,) = _prep(h)
     _, _, ts = geology_parameters(geology, h)
+    h, ts = _prep(h, ts)
     return _finish(h * ts)
 
 
@@ -324,6 +339,7 @@ def bucket_step(O, E, P, h, geology):
     """
     O, E, P, h = _prep(O, E, P, h)
     _, _, ts = geology_parameters(geology, O, E, P, h)
+    O, E, P, h, ts = _prep(O, E, P, h, ts)
     o_sat = h * ts
     raw = O - (SECONDS_PER_DAY * E - P)
     runoff = _maximum(raw - o_sat, 0.0)
@@ -374,6 +390,7 @@ def evaporation_F(theta, geology):
     """
     (theta,) = _prep(theta)
     F1, F2, ts = geology_parameters(geology, theta)
+    theta, F1, F2, ts = _prep(theta, F1, F2, ts)
     base = _maximum(ts - theta, 0.0)
     return _finish(F1 * _safe_power(base, F2))
 
@@ -384,8 +401,8 @@ def evaporation_efficiency(theta, C_H, U, geology):
     theta [m3 m-3], C_H [-], U wind speed [m s-1]; F [m] from eq 3.9, D_ATM [m2 s-1]:
     ``C_H U F / D_ATM`` = soil resistance / aerodynamic resistance, dimensionless.
     """
-    theta, C_H, U = _prep(theta, C_H, U)
     F = evaporation_F(theta, geology)
+    C_H, U, F = _prep(C_H, U, F)
     return _finish(1.0 / (1.0 + C_H * U * F / D_ATM))
 
 
@@ -435,10 +452,10 @@ def surface_temperature_offset(R, T, rh, U, beta, C_H):
     R [W m-2], T [K], rh [-], U [m s-1], beta [-], C_H [-]. Numerator [W m-2], denominator
     [W m-2 K-1] (linearised energy balance R = sigma Ts^4 + H + iotaE).
     """
-    R, T, rh, U, beta, C_H = _prep(R, T, rh, U, beta, C_H)
+    R, T, rh, U, beta, C_H, q, D = _prep(R, T, rh, U, beta, C_H, q_sat(T), dq_sat_dT(T))
     k = LATENT_HEAT * RHO_AIR * beta * C_H * U
-    num = R - SIGMA * T**4 - k * q_sat(T) * (1.0 - rh)
-    den = 4.0 * SIGMA * T**3 + CP_RHO * C_H * U + k * dq_sat_dT(T)
+    num = R - SIGMA * T**4 - k * q * (1.0 - rh)
+    den = 4.0 * SIGMA * T**3 + CP_RHO * C_H * U + k * D
     return _finish(num / den)
 
 
@@ -448,8 +465,8 @@ def latent_heat_flux(T, rh, U, beta, C_H, dT):
     T [K], rh [-], U [m s-1], beta [-], C_H [-], dT = Ts - T [K]. Returns iotaE [W m-2]
     (negative = dew).
     """
-    T, rh, U, beta, C_H, dT = _prep(T, rh, U, beta, C_H, dT)
-    return _finish(LATENT_HEAT * RHO_AIR * beta * C_H * U * (q_sat(T) * (1.0 - rh) + dq_sat_dT(T) * dT))
+    rh, U, beta, C_H, dT, q, D = _prep(rh, U, beta, C_H, dT, q_sat(T), dq_sat_dT(T))
+    return _finish(LATENT_HEAT * RHO_AIR * beta * C_H * U * (q * (1.0 - rh) + D * dT))
 
 
 def evaporation_rate(lE):
@@ -466,9 +483,8 @@ def surface_humidity(T, rh, beta, dT):
     the linearisation breaks down for very cold surfaces (dT -> -q_SAT/Delta, about -15 K at
     288 K, makes the denominator 0).
     """
-    T, rh, beta, dT = _prep(T, rh, beta, dT)
-    q = q_sat(T)
-    return _finish(beta + rh * q * (1.0 - beta) / (q + dq_sat_dT(T) * dT))
+    rh, beta, dT, q, D = _prep(rh, beta, dT, q_sat(T), dq_sat_dT(T))
+    return _finish(beta + rh * q * (1.0 - beta) / (q + D * dT))
 
 
 class SurfaceState(NamedTuple):
@@ -497,4 +513,7 @@ def surface_state(S, T, rh, U, A, theta, geology, C_H) -> SurfaceState:
     dT = surface_temperature_offset(R, T, rh, U, beta, C_H)
     lE = latent_heat_flux(T, rh, U, beta, C_H, dT)
     rhs = surface_humidity(T, rh, beta, dT)
+    T, dT, rhs, lE, beta = _prep(T, dT, rhs, lE, beta)
+    if _is_dr(dT) and not _is_dr(beta):  # beta depends on theta, C_H, U only: same kind as Ts
+        beta = type(dT)(beta)
     return SurfaceState(_finish(T + dT), _finish(rhs), _finish(lE), _finish(beta))

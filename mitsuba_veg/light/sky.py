@@ -100,6 +100,9 @@ PEREZ_1993 = np.array([
 ])
 #: upper edges of the first 7 clearness bins (the 8th is open)
 PEREZ_EPSILON_EDGES = (1.065, 1.23, 1.5, 1.95, 2.8, 4.5, 6.2)
+#: range of the model's data (Perez 1993; clamped to it as in Radiance's gendaylit)
+PEREZ_EPSILON_MAX = 12.01
+PEREZ_DELTA_RANGE = (0.01, 0.6)
 
 #: CIE S 011/E:2003 standard general skies used here: type -> (a, b, c, d, e)
 _CIE = {12: (-1.0, -0.32, 10.0, -3.0, 0.45),   # clear, low luminance turbidity
@@ -113,6 +116,9 @@ def perez_coefficients(epsilon: float, delta: float, sun_zenith: float):
                              "sky clearness is ((DHI+DNI)/DHI + 1.041 Z^3)/(1 + 1.041 Z^3) >= 1")
     if not (delta >= 0.0) or not math.isfinite(delta):
         raise ParameterError("perez_delta", delta, "[0, inf)", "sky brightness DHI*m/E0 >= 0")
+    # the model's validity range, as Radiance's gendaylit clamps it
+    epsilon = min(float(epsilon), PEREZ_EPSILON_MAX)
+    delta = min(max(float(delta), PEREZ_DELTA_RANGE[0]), PEREZ_DELTA_RANGE[1])
     k = int(np.searchsorted(PEREZ_EPSILON_EDGES, epsilon, side="right"))
     z = float(sun_zenith)
     if 1.065 < epsilon < 2.8:  # as Radiance's gendaylit: avoid unphysical skies at low delta
@@ -122,7 +128,7 @@ def perez_coefficients(epsilon: float, delta: float, sun_zenith: float):
     if k == 0:  # first bin: special forms of c and d
         c = math.exp((delta * (x[2, 0] + x[2, 1] * z)) ** x[2, 2]) - x[2, 3]
         d = -math.exp(delta * (x[3, 0] + x[3, 1] * z)) + x[3, 2] + delta * x[3, 3]
-    return (a, b, c, d, e)
+    return tuple(float(v) for v in (a, b, c, d, e))
 
 
 def cie_coefficients(sky_type: int = 12):
@@ -224,7 +230,7 @@ class VegSky(mi.Emitter):
         mi.Emitter.__init__(self, props)
         self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.SpatiallyVarying
 
-        has_r, has_e = props.has_property("radiance"), props.has_property("irradiance")
+        has_r, has_e = "radiance" in props, "irradiance" in props
         if has_r == has_e:
             raise ParameterError("veg_sky radiance/irradiance", "both" if has_r else "neither",
                                  "exactly one of them",
@@ -245,7 +251,7 @@ class VegSky(mi.Emitter):
             raise ParameterError("veg_sky sun_direction", sun.tolist(), "a non-zero 3-vector "
                                  "towards the sun")
         sun = sun / np.linalg.norm(sun)
-        has_perez = props.has_property("perez_epsilon")
+        has_perez = "perez_epsilon" in props
         dist = props.get("distribution", "perez" if has_perez else "cie_clear")
         custom = None
         if dist == "custom":

@@ -138,7 +138,8 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     keep = np.ones(len(F), bool)
     keep[tris] = False
     d = {k: v for k, v in scene_dict.items() if k != key}
-    d[key] = make_mesh(shape_id, V, F[keep], bsdf=mesh.bsdf())
+    if keep.any():  # (a mesh with no faces left would be an empty shape)
+        d[key] = make_mesh(shape_id, V, F[keep], bsdf=mesh.bsdf())
     for t in tris:
         props = mi.Properties()
         props["bsdf"] = mesh.bsdf()

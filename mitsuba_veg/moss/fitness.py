@@ -65,8 +65,7 @@ def fitness(x, x0, x1, n):
     n = 0.5) and g >= 1/2 - (1/2)^n.
     """
     _check_window(x0, x1, n)
-    x, x0, x1, n = _prep(x, x0, x1, n)
-    sv = s(x, x0, x1)
+    sv, n = _prep(s(x, x0, x1), n)
     d = sv - 0.5
     p = _safe_power(_abs(d), n)
     return _finish(_where(d > 0.0, 0.5 + p, 0.5 - p))
@@ -81,9 +80,9 @@ def daily_fitness(species, Ts, rhs, S):
     relative humidity [-], S daily-mean insolation [W m-2] (per moss, vectorised).
     """
     sp = get_species(species)
-    Ts, rhs, S = _prep(Ts, rhs, S)
-    return _finish(fitness(Ts, sp.T0, sp.T1, sp.nT) * fitness(rhs, sp.rh0, sp.rh1, sp.nrh)
-                   * fitness(S, sp.S0, sp.S1, sp.nS))
+    gT, grh, gS = _prep(fitness(Ts, sp.T0, sp.T1, sp.nT), fitness(rhs, sp.rh0, sp.rh1, sp.nrh),
+                        fitness(S, sp.S0, sp.S1, sp.nS))
+    return _finish(gT * grh * gS)
 
 
 def daily_growth(species, G):
@@ -113,8 +112,8 @@ def germination_value(G, L, kind):
     exceeds the species' ``tau_b`` (:func:`germinates`).
     """
     L0, L1 = _window(kind)
-    G, L = _prep(G, L)
-    return _finish(G * fitness(L, L0, L1, 1.0))
+    G, gL = _prep(G, fitness(L, L0, L1, 1.0))
+    return _finish(G * gL)
 
 
 def germinates(species, G, L, kind):
