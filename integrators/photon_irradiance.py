@@ -68,7 +68,7 @@ DEFAULT_BANDS = ("total", "par", "red", "far_red")
 COMPONENTS = ("direct", "indirect", "total")
 SIDES = ("front", "back")
 _SLOTS = 4  # wavelengths carried by one Mitsuba spectral sample
-_UInt64 = dr.cuda.ad.UInt64 if mi.variant().startswith("cuda") else dr.llvm.ad.UInt64
+_UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
 DEFAULT_BATCH = 1 << 22
 

@@ -26,6 +26,10 @@ reading; each such choice is listed in ``docs/deviations.md``:
 - eq 3.6: the bucket cannot hold less than 0 mm (evaporation beyond the stored water is dropped
   and reported as ``deficit``), and overflow above ``O_SAT`` runs off.
 
+Kept as printed but documented there as pitfalls: denser moss (larger C_H, eq 3.5) *raises*
+evaporation; iota = 2.543e6 J/kg looks like a transposed 2.453e6; eq 3.16 blows up for
+deltaT <= -q_SAT/Delta (about -15 K); asphalt (table 3.4) has beta = 1 at any theta.
+
 NaN policy: NaN inputs propagate to NaN outputs (nothing is silently clamped away: the clamps
 are written so that a NaN operand stays NaN). Invalid *categorical* input (a geology code other
 than 0, 1, 2) raises :class:`~mitsuba_veg.errors.ParameterError`.

@@ -1,4 +1,4 @@
-"""The ``veg_sky`` emitter: a separable clear-sky environment emitter, L(w, lambda) = S(lambda) f(w).
+"""The ``veg_sky`` emitter: a separable clear-sky environment emitter, L(w, lam) = S(lam) f(w).
 
 ``S`` is a spectrum (property ``radiance``, W m-2 sr-1 nm-1: the radiance of a *uniform* sky with
 the same horizontal irradiance, i.e. DHI/pi) and ``f`` a relative radiance distribution over the
@@ -189,8 +189,9 @@ def _normalisation(sun, coeffs, n_theta=768):
     ph = (np.arange(4 * n_theta) + 0.5) * (2 * math.pi / (4 * n_theta))
     ct, st = np.cos(th)[:, None], np.sin(th)[:, None]
     x, y, z = _direction(ct, ph[None, :])
-    l = relative_radiance(ct, x * sun[0] + y * sun[1] + z * sun[2], coeffs)
-    integral = float(np.sum(l * ct * st)) * (0.5 * math.pi / n_theta) * (2 * math.pi / (4 * n_theta))
+    rad = relative_radiance(ct, x * sun[0] + y * sun[1] + z * sun[2], coeffs)
+    cell = (0.5 * math.pi / n_theta) * (2 * math.pi / (4 * n_theta))
+    integral = float(np.sum(rad * ct * st)) * cell
     if not integral > 0.0:
         raise ParameterError("sky distribution", coeffs, "a radiance > 0 somewhere above the "
                              "horizon", "check the Perez/CIE coefficients")
@@ -412,7 +413,7 @@ class VegSky(mi.Emitter):
     def traverse(self, callback):
         callback.put("radiance", self.m_radiance, mi.ParamFlags.Differentiable)
 
-    def parameters_changed(self, keys=[]):
+    def parameters_changed(self, keys=None):
         pass
 
     def to_string(self):

@@ -15,8 +15,8 @@ from __future__ import annotations
 import math
 
 from ..errors import ParameterError
-from ..soil import _abs, _exp, _finish, _is_dr, _prep, _safe_power, _where
-from .species import Species, get_species
+from ..soil import _abs, _exp, _finish, _prep, _safe_power, _where
+from .species import get_species
 
 __all__ = ["s", "fitness", "daily_fitness", "daily_growth", "germination_value", "germinates",
            "SPORE_L0", "SPORE_L1", "GEMMA_L0", "GEMMA_L1", "GERMINATION_WINDOW"]
