@@ -117,6 +117,7 @@ class SceneIndex:
     lookup: mi.UInt32            # registry id of a shape -> its offset
     aim_bbox: mi.ScalarBoundingBox3f  # geometry that photons are aimed at
     n_elements: int = 0
+    geometry: dict = field(default_factory=dict)  # shape id -> (vertices, faces) of meshes
 
     @staticmethod
     def build(scene: mi.Scene) -> "SceneIndex":
@@ -124,7 +125,7 @@ class SceneIndex:
         if len(shapes) == 0:
             raise SceneError("the scene has no shapes: photons would have nothing to hit")
         reg = np.asarray(dr.reinterpret_array(mi.UInt32, scene.shapes_dr()), dtype=np.int64)
-        counts, areas, normals, cents, ids = [], [], [], [], []
+        counts, areas, normals, cents, ids, geometry = [], [], [], [], [], {}
         bbox = mi.ScalarBoundingBox3f()
         for sh in shapes:
             ids.append(sh.id())
@@ -138,6 +139,7 @@ class SceneIndex:
                 areas.append(0.5 * ln)
                 normals.append(cr / np.maximum(ln, 1e-30)[:, None])
                 cents.append((p0 + p1 + p2) / 3.0)
+                geometry[sh.id()] = (v, f)
             else:
                 counts.append(1)
                 areas.append(np.array([float(dr.ravel(sh.surface_area())[0])]))
@@ -155,7 +157,8 @@ class SceneIndex:
         lookup = np.zeros(int(reg.max()) + 1, dtype=np.uint32)
         lookup[reg] = offsets
         return SceneIndex(ids, offsets, counts, np.concatenate(areas), np.concatenate(normals),
-                          np.concatenate(cents), mi.UInt32(lookup), bbox, int(counts.sum()))
+                          np.concatenate(cents), mi.UInt32(lookup), bbox, int(counts.sum()),
+                          geometry)
 
     def shape_slice(self, shape_id: str) -> slice:
         if shape_id not in self.shape_ids:
@@ -252,6 +255,15 @@ class PhotonIrradianceResult:
         lam = 0.5 * (lo + hi) * 1e-9
         quanta_per_joule = lam / (6.62607015e-34 * 2.99792458e8) / 6.02214076e23 * 1e6
         return self.irradiance(shape_id, band, component, side, emitter) * quanta_per_joule
+
+    def red_far_red(self, shape_id: str, component="total", side="front", emitter=None,
+                    red="red", far_red="far_red") -> np.ndarray:
+        """Red:far-red ratio per triangle as plants sense it: a ratio of photon fluxes
+        (655-665 nm over 725-735 nm by default); NaN where no far-red arrives."""
+        r = self.photon_flux_density(shape_id, red, component, side, emitter)
+        fr = self.photon_flux_density(shape_id, far_red, component, side, emitter)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(fr > 0, r / np.where(fr > 0, fr, 1.0), np.nan)
 
     def total_flux(self, band="total") -> float:
         """Power that hit any element, both sides, all components [W]."""
@@ -587,12 +599,15 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(stream, n)
         idx = dr.arange(mi.UInt32, n)
-        # stratified band wavelengths: one stratum per photon, slots decorrelated by rotation
-        u = (mi.Float(idx) + sampler.next_1d()) * dr.opaque(mi.Float, 1.0 / n)
+        # Band wavelengths from a randomly shifted Weyl (golden-ratio) sequence over the photon
+        # index, in exact 32-bit fixed point: evenly spread over each band (low variance), each
+        # photon's wavelength uniform (unbiased), and, unlike index-ordered strata, not
+        # correlated with the jittered-grid origin strata (which also follow the index).
+        shifts = np.random.default_rng(stream).integers(0, 2**32, size=_SLOTS, dtype=np.uint64)
         lam, widths = [], []
         for k, (lo, hi) in enumerate(slot_ranges):
-            uk = u + 0.6180339887 * k
-            uk = uk - dr.floor(uk)
+            bits = idx * dr.opaque(mi.UInt32, 2654435769) + dr.opaque(mi.UInt32, int(shifts[k]))
+            uk = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
             lam.append(dr.opaque(mi.Float, lo) + dr.opaque(mi.Float, hi - lo) * uk)
             widths.append(hi - lo)
         wav = mi.Spectrum(*lam)

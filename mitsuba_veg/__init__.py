@@ -15,5 +15,7 @@ _select_variant()
 from . import errors  # noqa: E402,F401
 from . import integrators  # noqa: E402,F401  (registers the Mitsuba plugins)
 from . import light  # noqa: E402,F401
+from . import moss, scenario, soil, terrain  # noqa: E402,F401
 
-__all__ = ["__version__", "variant", "errors", "integrators", "light"]
+__all__ = ["__version__", "variant", "errors", "integrators", "light", "moss", "scenario", "soil",
+           "terrain"]

@@ -8,9 +8,10 @@
 from __future__ import annotations
 
 from .photon import photon_irradiance, PhotonIrradianceResult, BANDS, band_range
-from .sun_position import sun_position, sun_direction
-from .daylight import daylight
+from .sun_position import sun_position, sun_direction, direction_to_angles, sun_ephemeris
+from .daylight import daylight, daylight_from_angles, clear_sky_spectra
 from . import sky  # noqa: F401  (registers the `veg_sky` emitter)
 
 __all__ = ["photon_irradiance", "PhotonIrradianceResult", "BANDS", "band_range",
-           "sun_position", "sun_direction", "daylight"]
+           "sun_position", "sun_direction", "direction_to_angles", "sun_ephemeris", "daylight",
+           "daylight_from_angles", "clear_sky_spectra"]

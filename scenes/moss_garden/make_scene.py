@@ -209,8 +209,12 @@ SCENE_XML = """<?xml version="1.0" encoding="utf-8"?>
         </spectrum>
     </emitter>
 
-    <!-- Uniform sky: radiance in W m-2 sr-1 nm-1 (horizontal irradiance = pi * radiance). -->
-    <emitter type="constant" id="sky">
+    <!-- Uniform sky over the upper hemisphere only (mitsuba-veg's `veg_sky`, registered by
+         `import mitsuba_veg`): radiance in W m-2 sr-1 nm-1, horizontal irradiance = pi *
+         radiance. Mitsuba's `constant` would also light the roof's underside from below the
+         horizon, which in a real garden is ground, not sky. -->
+    <emitter type="veg_sky" id="sky">
+        <string name="distribution" value="uniform"/>
         <spectrum name="radiance" type="uniform">
             <float name="value" value="{sky:g}"/>
         </spectrum>

@@ -1,0 +1,125 @@
+"""Pictures people would rather look at than read: false-colour maps of per-triangle values.
+
+Maps are drawn from above (plan view): x to the right (east), north (-z) up, one colour per
+triangle, with a colour bar in the quantity's units.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+
+def _mpl():
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    return plt
+
+
+#: face groups by dominant normal direction: name, normal axis, sign, projected axes, labels
+_VIEWS = [
+    ("upward faces, seen from above", 1, +1, (0, 2), (1, -1), ("x (east) [m]", "-z (north) [m]")),
+    ("downward faces, seen from above through the shape", 1, -1, (0, 2), (1, -1),
+     ("x (east) [m]", "-z (north) [m]")),
+    ("south-facing faces (+z), seen from the south", 2, +1, (0, 1), (1, 1),
+     ("x (east) [m]", "y (up) [m]")),
+    ("north-facing faces (-z), seen from the south through the shape", 2, -1, (0, 1), (1, 1),
+     ("x (east) [m]", "y (up) [m]")),
+    ("east-facing faces (+x), seen from the east", 0, +1, (2, 1), (-1, 1),
+     ("-z (north) [m]", "y (up) [m]")),
+    ("west-facing faces (-x), seen from the east through the shape", 0, -1, (2, 1), (-1, 1),
+     ("-z (north) [m]", "y (up) [m]")),
+]
+
+
+def plan_map(ax, vertices, faces, values, *, title="", label="", cmap="inferno", vmin=None,
+             vmax=None, log=False, axes=(0, 2), signs=(1, -1),
+             axis_labels=("x (east) [m]", "-z (north) [m]")):
+    """Draw per-triangle ``values`` on ``ax`` projected on two world axes (default: plan view,
+    x east to the right, north up)."""
+    from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.tri import Triangulation
+
+    v = np.asarray(vertices)
+    tri = Triangulation(signs[0] * v[:, axes[0]], signs[1] * v[:, axes[1]], np.asarray(faces))
+    vals = np.asarray(values, dtype=float)
+    finite = vals[np.isfinite(vals)]
+    if log:
+        pos = finite[finite > 0]
+        lo = vmin if vmin is not None else (pos.min() if pos.size else 1e-3)
+        hi = vmax if vmax is not None else (pos.max() if pos.size else 1.0)
+        norm = LogNorm(vmin=lo, vmax=max(hi, lo * 1.0001))
+        vals = np.where(vals > 0, vals, lo)
+    else:
+        lo = vmin if vmin is not None else (finite.min() if finite.size else 0.0)
+        hi = vmax if vmax is not None else (finite.max() if finite.size else 1.0)
+        norm = Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1e-9)
+    pc = ax.tripcolor(tri, facecolors=vals, cmap=cmap, norm=norm, edgecolors="face",
+                      linewidth=0.2)
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel(axis_labels[0])
+    ax.set_ylabel(axis_labels[1])
+    cb = ax.figure.colorbar(pc, ax=ax, shrink=0.85)
+    cb.set_label(label)
+    return pc
+
+
+def irradiance_figure(result, shape_id: str, path, title: str | None = None) -> str:
+    """PNG of the front irradiance of ``shape_id``: total, direct, indirect and (if traced) the
+    red:far-red photon ratio, one row per group of faces that share a facing direction (up,
+    down, south ...), each drawn in the projection that shows it. Written atomically."""
+    plt = _mpl()
+    result.index.shape_slice(shape_id)  # clear error for an unknown id
+    band = "total" if "total" in result.bands else result.bands[0]
+    verts, faces = result_geometry(result, shape_id)
+    v = np.asarray(verts)
+    nrm = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    area = 0.5 * np.linalg.norm(nrm, axis=1)
+    dom = np.argmax(np.abs(nrm), axis=1)
+    sign = np.sign(nrm[np.arange(len(nrm)), dom])
+    rows = []
+    for name, ax_i, sg, axes, signs, labels in _VIEWS:
+        sel = (dom == ax_i) & (sign == sg)
+        if sel.any() and area[sel].sum() >= 0.05 * area.sum():
+            rows.append((name, sel, axes, signs, labels))
+    has_rfr = "red" in result.bands and "far_red" in result.bands
+    cols = [("total", f"{band} irradiance, all light"), ("direct", "direct (first hit)"),
+            ("indirect", "indirect (own scale)")] + ([("rfr", "red : far-red (photons)")]
+                                                      if has_rfr else [])
+    fig, axs = plt.subplots(len(rows), len(cols), figsize=(4.4 * len(cols), 3.9 * len(rows)),
+                            constrained_layout=True, squeeze=False)
+    data = {c: (result.red_far_red(shape_id) if c == "rfr" else
+                result.irradiance(shape_id, band, c)) for c, _ in cols}
+    vmax = float(np.nanmax(data["total"])) if data["total"].size else 1.0
+    for r, (name, sel, axes, signs, labels) in enumerate(rows):
+        f = faces[sel]
+        for c, (comp, t) in enumerate(cols):
+            vals = data[comp][sel]
+            kw = dict(axes=axes, signs=signs, axis_labels=labels)
+            if comp == "rfr":
+                top = float(np.nanmax(vals)) if np.isfinite(vals).any() else 1.3
+                plan_map(axs[r, c], v, f, vals, title=t, label="R:FR", cmap="RdYlGn", vmin=0.0,
+                         vmax=max(1.3, top), **kw)
+            else:
+                top = vmax if comp != "indirect" else float(np.nanmax(vals))
+                plan_map(axs[r, c], v, f, vals, title=t, label="W m$^{-2}$", vmin=0.0,
+                         vmax=top if top > 0 else 1.0, **kw)
+        axs[r, 0].annotate(name, (0, 1.2), xycoords="axes fraction", fontsize=10,
+                           fontweight="bold")
+    fig.suptitle(title or f"'{shape_id}': irradiance on the front of each triangle - "
+                 f"{result.photons.sum():,d} photons", fontsize=11)
+    tmp = f"{path}.tmp.png"
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return str(path)
+
+
+def result_geometry(result, shape_id: str):
+    """(vertices, faces) of a shape of the scene a result was traced on."""
+    geo = getattr(result.index, "geometry", {}).get(shape_id)
+    if geo is None:
+        raise ValueError(f"no mesh geometry stored for '{shape_id}'")
+    return geo
