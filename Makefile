@@ -13,10 +13,10 @@ demo: setup
 	$(BIN)/mitsuba-veg demo --out out/demo
 
 test: setup
-	$(BIN)/python -m pytest -m "not slow" -q $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -m "not slow" -q --nbmake tests notebooks $(PYTEST_ARGS)
 
 test-all: setup
-	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q --nbmake tests notebooks $(PYTEST_ARGS)
 
 bench: setup
 	$(BIN)/python benchmarks/photon_throughput.py

@@ -14,7 +14,17 @@ import sys
 import time
 from pathlib import Path
 
-DEFAULT_SCENARIO = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
+def _default_scenario() -> Path:
+    """The shipped moss garden: from the source tree, else from the installed package data."""
+    here = Path(__file__).resolve().parent
+    for p in (here.parent / "scenes", here / "scenes"):
+        if (p / "moss_garden" / "scenario.toml").exists():
+            return p / "moss_garden" / "scenario.toml"
+    raise SystemExit("mitsuba-veg: the shipped scenes are missing from this installation; "
+                     "pass a scenario file explicitly")
+
+
+DEFAULT_SCENARIO = None  # resolved lazily by _default_scenario()
 #: a spring morning: the sun (~50 deg, south-east) leaves the back floor in the roof's shade
 DEMO_WHEN = "2026-04-20T10:00:00+09:00"
 
@@ -168,7 +178,7 @@ def _cmd_demo(a) -> int:
     out = Path(a.out)
     print(f"mitsuba-veg demo: light study of the moss garden (paper 000 test scene) under "
           f"daylight on {DEMO_WHEN} -> {out}/")
-    s = run_irradiance(DEFAULT_SCENARIO, out, photons=a.photons, when=DEMO_WHEN,
+    s = run_irradiance(_default_scenario(), out, photons=a.photons, when=DEMO_WHEN,
                        progress=not a.quiet)
     _report(s)
     return 0
