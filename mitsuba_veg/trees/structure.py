@@ -1,0 +1,231 @@
+"""The tree structure shared by every tree model (growth 001, non-growth 002, Weber-Penn 004).
+
+A tree is a set of straight branch *segments* stored as a structure of arrays (NumPy), so models
+and the renderer work on whole arrays, never on Python objects per branch:
+
+- ``start``, ``end`` (n, 3) [m]: segment end points (+y up);
+- ``radius_start``, ``radius_end`` (n,) [m]: radii at both ends (pipe model, taper ...);
+- ``parent`` (n,) int: index of the parent segment, -1 for a root; parents come before their
+  children (topological order), which lets subtree sums run as one reverse pass;
+- ``level`` (n,) int: branching order (0 = trunk);
+- ``alive`` (n,) bool: dead branches are kept (to report them) but not drawn;
+- ``kind`` (n,) int8: 0 normal branch, 1 knot (paper 004), 2 sprouted knot;
+- ``leaves``: a :class:`Leaves` set (positions, normals, sizes, the segment each hangs on, and
+  free per-leaf attributes such as autumn state).
+
+Models add their own per-segment arrays in ``attrs`` (e.g. received light).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError
+
+NORMAL, KNOT, SPROUTED_KNOT = 0, 1, 2
+
+
+@dataclass
+class Leaves:
+    """Leaves of a tree: one row per leaf."""
+
+    position: np.ndarray                    # (m, 3) [m] leaf centre
+    normal: np.ndarray                      # (m, 3) unit blade normal
+    size: np.ndarray                        # (m,) [m] blade length
+    segment: np.ndarray                     # (m,) int: segment the leaf hangs on
+    up: np.ndarray | None = None            # (m, 3) unit blade axis (petiole -> tip)
+    attrs: dict = field(default_factory=dict)
+
+    @staticmethod
+    def empty() -> "Leaves":
+        return Leaves(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64))
+
+    def __len__(self) -> int:
+        return len(self.size)
+
+    def subset(self, mask) -> "Leaves":
+        mask = np.asarray(mask)
+        return Leaves(self.position[mask], self.normal[mask], self.size[mask], self.segment[mask],
+                      None if self.up is None else self.up[mask],
+                      {k: np.asarray(v)[mask] for k, v in self.attrs.items()})
+
+
+@dataclass
+class Tree:
+    """A tree as arrays of straight segments (see module docstring)."""
+
+    start: np.ndarray
+    end: np.ndarray
+    radius_start: np.ndarray
+    radius_end: np.ndarray
+    parent: np.ndarray
+    level: np.ndarray
+    alive: np.ndarray | None = None
+    kind: np.ndarray | None = None
+    leaves: Leaves | None = None
+    attrs: dict = field(default_factory=dict)
+    name: str = "tree"
+
+    def __post_init__(self):
+        self.start = np.asarray(self.start, dtype=np.float64).reshape(-1, 3)
+        self.end = np.asarray(self.end, dtype=np.float64).reshape(-1, 3)
+        n = len(self.start)
+        self.radius_start = np.asarray(self.radius_start, dtype=np.float64).reshape(n)
+        self.radius_end = np.asarray(self.radius_end, dtype=np.float64).reshape(n)
+        self.parent = np.asarray(self.parent, dtype=np.int64).reshape(n)
+        self.level = np.asarray(self.level, dtype=np.int64).reshape(n)
+        self.alive = np.ones(n, bool) if self.alive is None else np.asarray(self.alive, bool)
+        self.kind = np.zeros(n, np.int8) if self.kind is None else np.asarray(self.kind, np.int8)
+        if self.leaves is None:
+            self.leaves = Leaves.empty()
+        if len(self.end) != n:
+            raise ParameterError("Tree.end", f"{len(self.end)} rows", f"{n} rows (as start)")
+        if n and np.any(self.parent >= np.arange(n)):
+            raise ParameterError("Tree.parent", "a parent after its child",
+                                 "parent[i] < i (parents first) or -1 for roots")
+
+    # ---- structure ---------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.start)
+
+    @property
+    def length(self) -> np.ndarray:
+        """Segment lengths [m]."""
+        return np.linalg.norm(self.end - self.start, axis=1)
+
+    @property
+    def direction(self) -> np.ndarray:
+        d = self.end - self.start
+        return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+
+    def children_count(self) -> np.ndarray:
+        c = np.zeros(len(self), np.int64)
+        np.add.at(c, self.parent[self.parent >= 0], 1)
+        return c
+
+    def subtree_sum(self, values) -> np.ndarray:
+        """Sum of ``values`` over each segment's subtree (itself included): one reverse pass."""
+        acc = np.array(values, dtype=np.float64, copy=True)
+        for i in range(len(self) - 1, 0, -1):  # vectorising this needs levels; n is small
+            p = self.parent[i]
+            if p >= 0:
+                acc[p] += acc[i]
+        return acc
+
+    def subtree_mask(self, root: int) -> np.ndarray:
+        """Boolean mask of the segments in ``root``'s subtree (itself included)."""
+        m = np.zeros(len(self), bool)
+        m[root] = True
+        for i in range(root + 1, len(self)):
+            p = self.parent[i]
+            if p >= 0 and m[p]:
+                m[i] = True
+        return m
+
+    def translated(self, offset) -> "Tree":
+        o = np.asarray(offset, float)
+        lv = self.leaves
+        leaves = Leaves(lv.position + o, lv.normal, lv.size, lv.segment, lv.up, dict(lv.attrs))
+        return Tree(self.start + o, self.end + o, self.radius_start, self.radius_end, self.parent,
+                    self.level, self.alive.copy(), self.kind.copy(), leaves, dict(self.attrs),
+                    self.name)
+
+    # ---- metrics -----------------------------------------------------------------------------
+    def metrics(self) -> dict:
+        """Shape numbers: height [m], crown centroid (x, y, z) [m], crown radius [m] (mean
+        horizontal distance of the leaves from the crown axis), branch and leaf counts."""
+        live = self.alive
+        base = self.start[0] if len(self) else np.zeros(3)
+        pts = self.leaves.position if len(self.leaves) else (self.end[live] if live.any()
+                                                              else self.end)
+        if len(pts) == 0:
+            pts = np.zeros((1, 3))
+        top = max(float(self.end[live, 1].max()) if live.any() else base[1],
+                  float(pts[:, 1].max()))
+        cen = pts.mean(axis=0)
+        rad = float(np.mean(np.hypot(pts[:, 0] - cen[0], pts[:, 2] - cen[2])))
+        return {"height": top - float(base[1]), "crown_centroid": cen.tolist(),
+                "crown_radius": rad, "live_branches": int(live.sum()),
+                "dead_branches": int((~live).sum()), "leaves": int(len(self.leaves)),
+                "base": base.tolist()}
+
+    # ---- geometry ----------------------------------------------------------------------------
+    def to_mesh(self, sides: int = 8, leaves: bool = True, min_radius: float = 0.0):
+        """A ``trimesh.Trimesh`` of the live branches (tapered tubes, ``sides`` corners) plus,
+        when ``leaves``, one quad per leaf (two triangles). Face attribute ``part`` (in
+        ``mesh.metadata``): 0 bark, 1 leaf."""
+        import trimesh
+
+        bark_v, bark_f = tube_mesh(self.start[self.alive], self.end[self.alive],
+                                   np.maximum(self.radius_start[self.alive], min_radius),
+                                   np.maximum(self.radius_end[self.alive], min_radius), sides)
+        verts, faces, part = [bark_v], [bark_f], [np.zeros(len(bark_f), np.int8)]
+        if leaves and len(self.leaves):
+            lv, lf = leaf_quads(self.leaves)
+            faces.append(lf + len(bark_v))
+            verts.append(lv)
+            part.append(np.ones(len(lf), np.int8))
+        mesh = trimesh.Trimesh(np.concatenate(verts), np.concatenate(faces), process=False)
+        mesh.metadata["part"] = np.concatenate(part)
+        return mesh
+
+    def export(self, path, **kw) -> str:
+        """Write the mesh to PLY / OBJ / GLB (by extension)."""
+        path = str(path)
+        ext = path.rsplit(".", 1)[-1].lower()
+        if ext not in ("ply", "obj", "glb", "gltf", "stl"):
+            raise ParameterError("path", path, "a .ply, .obj, .glb, .gltf or .stl file name")
+        self.to_mesh(**kw).export(path)
+        return path
+
+
+def _frames(d):
+    """Two unit vectors perpendicular to each row of unit vectors ``d``."""
+    a = np.where(np.abs(d[:, 1:2]) < 0.9, np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    u = np.cross(d, a)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(d, u)
+    return u, v
+
+
+def tube_mesh(start, end, r0, r1, sides=8):
+    """Vertices/faces of open tapered tubes, one per segment (vectorised over segments)."""
+    start, end = np.asarray(start, float), np.asarray(end, float)
+    n = len(start)
+    if n == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    d = end - start
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+    u, v = _frames(d)
+    ang = 2 * np.pi * np.arange(sides) / sides
+    ring = np.cos(ang)[None, :, None] * u[:, None, :] + np.sin(ang)[None, :, None] * v[:, None, :]
+    bottom = start[:, None, :] + np.asarray(r0)[:, None, None] * ring
+    top = end[:, None, :] + np.asarray(r1)[:, None, None] * ring
+    verts = np.concatenate([bottom, top], axis=1).reshape(-1, 3)
+    k = np.arange(sides)
+    k1 = (k + 1) % sides
+    quad = np.stack([np.stack([k, k1, sides + k1], 1), np.stack([k, sides + k1, sides + k], 1)],
+                    1).reshape(-1, 3)
+    faces = (quad[None, :, :] + (2 * sides * np.arange(n))[:, None, None]).reshape(-1, 3)
+    return verts, faces
+
+
+def leaf_quads(leaves: Leaves):
+    """Vertices/faces of one quad (blade length x 0.6 width) per leaf."""
+    n = len(leaves)
+    nrm = leaves.normal / np.maximum(np.linalg.norm(leaves.normal, axis=1, keepdims=True), 1e-30)
+    if leaves.up is not None:
+        up = leaves.up - (leaves.up * nrm).sum(1, keepdims=True) * nrm
+        up /= np.maximum(np.linalg.norm(up, axis=1, keepdims=True), 1e-30)
+    else:
+        up, _ = _frames(nrm)
+    side = np.cross(nrm, up)
+    h = 0.5 * leaves.size[:, None]
+    w = 0.3 * leaves.size[:, None]
+    c = leaves.position
+    verts = np.stack([c - h * up - w * side, c - h * up + w * side, c + h * up + w * side,
+                      c + h * up - w * side], 1).reshape(-1, 3)
+    base = 4 * np.arange(n)[:, None]
+    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=1).reshape(-1, 3)
+    return verts, faces
