@@ -246,6 +246,16 @@ class PhotonIrradianceResult:
         sl = self.index.shape_slice(shape_id)
         return self.flux_of(shape_id, band, component, side, emitter) / self.index.areas[sl]
 
+    def element_irradiance(self, band="total", component="total", side="front",
+                           emitter=None) -> np.ndarray:
+        """Irradiance of every element of the scene (all shapes, in index order) [W m-2]."""
+        if component not in COMPONENTS:
+            raise ParameterError("component", component, f"one of {COMPONENTS}")
+        f = self.flux[self._emitters(emitter)].sum(axis=0)[..., self._band(band)]
+        f = f.sum(axis=1) if component == "total" else f[:, COMPONENTS.index(component)]
+        f = f.sum(axis=1) if side == "both" else f[:, SIDES.index(side)]
+        return f / np.maximum(self.index.areas, 1e-30)
+
     def photon_flux_density(self, shape_id: str, band="par", component="total", side="front",
                             emitter=None) -> np.ndarray:
         """Photon flux density [umol m-2 s-1] per triangle, converting each band's energy at its

@@ -15,7 +15,9 @@ _select_variant()
 from . import errors  # noqa: E402,F401
 from . import integrators  # noqa: E402,F401  (registers the Mitsuba plugins)
 from . import light  # noqa: E402,F401
-from . import moss, scenario, soil, terrain  # noqa: E402,F401
+from . import climate, moss, scenario, soil, terrain  # noqa: E402,F401
+from . import trees  # noqa: E402,F401
+from .simulation import run  # noqa: E402,F401
 
-__all__ = ["__version__", "variant", "errors", "integrators", "light", "moss", "scenario", "soil",
-           "terrain"]
+__all__ = ["__version__", "variant", "errors", "integrators", "light", "climate", "moss",
+           "scenario", "soil", "terrain", "trees", "run"]

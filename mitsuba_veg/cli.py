@@ -174,6 +174,26 @@ def _report(s: dict) -> None:
     print(f"  {Path(s['files']['npz']).parent / 'summary.json'}")
 
 
+def _cmd_run(a) -> int:
+    from .simulation import run
+    out = Path(a.out)
+    s = run(a.scenario, out=out, days=a.days, overrides=a.set or (), resume=not a.fresh,
+            progress=not a.quiet)
+    f = s["final"]
+    print(f"{s['days']} days: {f['moss_alive']} moss alive, covered {f['covered_area_m2']:.4f} m2"
+          + "".join(f"; {k} {v['covered_area_m2']:.4f} m2" for k, v in f["regions"].items()))
+    t = s["timings_s"]["per_day"]
+    print(f"per day: light {t['light']:.3f} s, soil {t['soil']:.4f} s, moss {t['moss']:.4f} s")
+    print("wrote:")
+    print(f"  {out / 'summary.json'}")
+    for k in ("animation",):
+        if k in s.get("files", {}):
+            print(f"  {s['files'][k]}")
+    print(f"  {out / 'maps'}/day_*.png")
+    print(f"  {out / 'checkpoint.npz'}")
+    return 0
+
+
 def _cmd_demo(a) -> int:
     out = Path(a.out)
     print(f"mitsuba-veg demo: light study of the moss garden (paper 000 test scene) under "
@@ -194,6 +214,16 @@ def main(argv=None) -> int:
     d.add_argument("--photons", type=int, default=4_000_000)
     d.add_argument("--quiet", action="store_true")
     d.set_defaults(func=_cmd_demo)
+    r = sub.add_parser("run", help="run a moss scenario day by day (paper 000)")
+    r.add_argument("scenario", help="scenario TOML, e.g. scenes/moss_garden/scenario.toml")
+    r.add_argument("--out", default="out/run")
+    r.add_argument("--days", type=int, help="simulated days (default: the scenario's)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a scenario field, e.g. --set light.indirect=false")
+    r.add_argument("--fresh", action="store_true",
+                   help="ignore a checkpoint in --out and start from day 1")
+    r.add_argument("--quiet", action="store_true")
+    r.set_defaults(func=_cmd_run)
     p = sub.add_parser("irradiance", help="photon pass: irradiance per triangle (npz + PNG)")
     p.add_argument("scene", help="Mitsuba XML scene or scenario TOML")
     p.add_argument("--photons", type=int)

@@ -1,0 +1,119 @@
+"""Autumn logical time τ per leaf from cumulative insolation (paper 003 §3.3), stages, leaf fall.
+
+Paper 003: τ = f1(cumulative insolation) = f2(t, x, y, z); τ is mapped onto Ishikura's 7 stages.
+The paper gives no f1. We use (parameters :class:`AutumnParams`):
+
+    τ_raw,i(d) = ξ_i [ (1 − β) H_i(d) / H_full + β (d − d0 + 1) / D_full ]
+    τ_i(d)     = clip(τ_raw,i(d), 0, 1),      stage = 1 + 6 τ
+
+- H_i(d): insolation of leaf i summed from the onset day d0 (abscission layer formed: sugar is
+  trapped in the leaf; the paper treats temperature and water as threshold conditions only)
+  through day d [MJ m-2]; H_full: the insolation that takes a leaf from green to all red.
+- β: the share of pure aging with time since onset (a shaded leaf still colours, later);
+  β = 0 is the paper's pure insolation model.
+- ξ_i: per-leaf log-normal rate factor (median 1, log-sd ``rate_sigma``): the paper's future
+  work, the non-deterministic factors (abscission-layer growth, sugar export) that make one tree's
+  leaves colour unevenly.
+- Leaf fall (optional, the paper's other future work): leaf i falls on the first day its τ_raw
+  reaches φ_i = ``fall_tau`` · exp(``fall_sigma`` · N(0, 1)).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, check_range
+
+from .pigments import pigments_at_stage, stage_from_tau, vary_pigments
+
+
+@dataclass(frozen=True)
+class AutumnParams:
+    insolation_full: float = 250.0   # H_full [MJ m-2]
+    time_weight: float = 0.2         # β [-]
+    days_full: float = 60.0          # D_full [days]
+    onset_day: int = 0               # d0: day index of the insolation result
+    rate_sigma: float = 0.15         # log-sd of ξ
+    pigment_sigma: float = 0.1       # log-sd of per-leaf pigment variation
+    fall: bool = False
+    fall_tau: float = 1.25           # median τ_raw at which a leaf falls
+    fall_sigma: float = 0.1
+
+    def validate(self) -> "AutumnParams":
+        check_range("insolation_full", self.insolation_full, 0.0, 1e5, lo_open=True,
+                    fix="cumulative insolation in MJ m-2 that turns a leaf all red (~100-1000)")
+        check_range("time_weight", self.time_weight, 0.0, 1.0)
+        check_range("days_full", self.days_full, 0.0, 1000.0, lo_open=True)
+        check_range("onset_day", self.onset_day, 0, 100000)
+        check_range("rate_sigma", self.rate_sigma, 0.0, 2.0)
+        check_range("pigment_sigma", self.pigment_sigma, 0.0, 2.0)
+        check_range("fall_tau", self.fall_tau, 0.0, 100.0, lo_open=True)
+        check_range("fall_sigma", self.fall_sigma, 0.0, 2.0)
+        return self
+
+
+@dataclass
+class AutumnState:
+    """Per-leaf autumn state over the days of an insolation result."""
+
+    tau_raw: np.ndarray      # (n, days) unclipped logical time
+    rate: np.ndarray         # (n,) ξ
+    fall_threshold: np.ndarray  # (n,) φ (inf without leaf fall)
+    params: AutumnParams
+
+    def tau(self, day: int = -1) -> np.ndarray:
+        """τ ∈ [0, 1] per leaf at the end of ``day`` (default: the last day)."""
+        return np.clip(self.tau_raw[:, day], 0.0, 1.0)
+
+    def stage(self, day: int = -1) -> np.ndarray:
+        """Continuous Ishikura stage (1..7) per leaf."""
+        return stage_from_tau(self.tau(day))
+
+    def fallen(self, day: int = -1) -> np.ndarray:
+        """Boolean per leaf: has it fallen by the end of ``day``?"""
+        return self.tau_raw[:, day] >= self.fall_threshold
+
+    def fall_day(self) -> np.ndarray:
+        """Day index on which each leaf fell (-1: still on the tree)."""
+        f = self.tau_raw >= self.fall_threshold[:, None]
+        return np.where(f.any(axis=1), f.argmax(axis=1), -1)
+
+    def pigments(self, day: int = -1, seed=0) -> dict:
+        """Per-leaf pigment contents [µg cm-2] at ``day`` with per-leaf random variation."""
+        p = pigments_at_stage(self.stage(day))
+        if self.params.pigment_sigma > 0:
+            p = vary_pigments(p, np.random.default_rng(seed), self.params.pigment_sigma)
+        return p
+
+
+def autumn_time(daily_insolation, params: AutumnParams = AutumnParams(), seed=0) -> AutumnState:
+    """τ per leaf and day from daily insolation (n_leaves, days) [MJ m-2] (module docstring).
+
+    ``daily_insolation`` may also be an :class:`~mitsuba_veg.foliage.insolation.
+    InsolationResult`.
+    """
+    params = params.validate()
+    daily = getattr(daily_insolation, "daily", daily_insolation)
+    daily = np.asarray(daily, float)
+    if daily.ndim != 2:
+        raise ParameterError("daily_insolation", daily.shape, "(n_leaves, days)")
+    if (daily < 0).any() or not np.isfinite(daily).all():
+        raise ParameterError("daily_insolation", "negative or non-finite values",
+                             "finite values >= 0 [MJ m-2]")
+    n, nd = daily.shape
+    rng = np.random.default_rng(seed)
+    rate = np.exp(params.rate_sigma * rng.standard_normal(n))
+    fall_thr = (params.fall_tau * np.exp(params.fall_sigma * rng.standard_normal(n))
+                if params.fall else np.full(n, np.inf))
+    d = np.arange(nd)
+    after = d >= params.onset_day
+    H = np.cumsum(np.where(after[None, :], daily, 0.0), axis=1)
+    t = np.where(after, d - params.onset_day + 1, 0).astype(float)
+    raw = rate[:, None] * ((1 - params.time_weight) * H / params.insolation_full
+                           + params.time_weight * t[None, :] / params.days_full)
+    return AutumnState(raw, rate, fall_thr, params)
+
+
+def params_dict(p: AutumnParams) -> dict:
+    return asdict(p)

@@ -1,0 +1,128 @@
+"""Leaf geometry for Mitsuba: trees' leaves and branches as meshes, random leaf clouds, test trees.
+
+- :func:`leaves_mesh_arrays` / :func:`tree_mesh_arrays`: vertices and faces of leaf quads and
+  bark tubes (via :mod:`mitsuba_veg.trees.structure`), two triangles per leaf, leaf ``i`` owning
+  triangles ``2i`` and ``2i + 1``.
+- :func:`random_leaf_cloud`: leaves scattered uniformly in a box with isotropic ("spherical")
+  normals, for Beer–Lambert checks (G = 0.5).
+- :func:`sphere_crown_tree`: a simple test tree (trunk, a few branches, a spherical crown of
+  leaves); the growth and Weber–Penn models give real ones.
+- :func:`class_meshes`: split leaves into classes (e.g. autumn stages) so each class gets its
+  own ``veg_leaf`` BSDF in a scene.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, check_range
+from mitsuba_veg.trees.structure import Leaves, Tree, leaf_quads, tube_mesh
+
+#: a leaf quad is size x (2 * 0.3 size) (mitsuba_veg.trees.structure.leaf_quads)
+LEAF_AREA_FACTOR = 0.6
+
+
+def leaf_area(leaves: Leaves) -> np.ndarray:
+    """One-sided area of each leaf quad [m2]."""
+    return LEAF_AREA_FACTOR * np.asarray(leaves.size, float) ** 2
+
+
+def random_unit_vectors(n: int, rng) -> np.ndarray:
+    v = rng.standard_normal((n, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def random_leaf_cloud(lai: float, box_min, box_max, leaf_size: float = 0.05, seed=0,
+                      normals: str = "spherical") -> Leaves:
+    """Leaves with uniformly random centres in a box and random orientations such that the
+    one-sided leaf area per horizontal ground area of the box is ``lai``.
+
+    normals: "spherical" (isotropic: G = 0.5 for every direction), "horizontal" (G = |cos θ|).
+    """
+    check_range("lai", lai, 0.0, 50.0, lo_open=True)
+    check_range("leaf_size", leaf_size, 0.0, 10.0, lo_open=True)
+    lo, hi = np.asarray(box_min, float), np.asarray(box_max, float)
+    if lo.shape != (3,) or hi.shape != (3,) or (hi <= lo).any():
+        raise ParameterError("box", (box_min, box_max), "min < max in x, y, z")
+    ground = (hi[0] - lo[0]) * (hi[2] - lo[2])
+    n = int(round(lai * ground / (LEAF_AREA_FACTOR * leaf_size ** 2)))
+    rng = np.random.default_rng(seed)
+    pos = lo + rng.random((n, 3)) * (hi - lo)
+    if normals == "spherical":
+        nrm = random_unit_vectors(n, rng)
+    elif normals == "horizontal":
+        nrm = np.tile([0.0, 1.0, 0.0], (n, 1))
+    else:
+        raise ParameterError("normals", normals, "'spherical' or 'horizontal'")
+    up = np.cross(nrm, random_unit_vectors(n, rng))
+    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    return Leaves(pos, nrm, np.full(n, float(leaf_size)), np.full(n, -1, np.int64), up)
+
+
+def sphere_crown_tree(n_leaves: int = 2000, crown_radius: float = 1.5, crown_height: float = 3.0,
+                      trunk_radius: float = 0.08, leaf_size: float = 0.08, seed=0,
+                      branches: int = 12) -> Tree:
+    """A test tree: a vertical trunk to the crown centre, ``branches`` straight branches out to
+    the crown surface, and ``n_leaves`` leaves uniformly in the crown sphere (random normals
+    tilted upwards: normal·up >= 0), each hanging on its nearest branch."""
+    check_range("n_leaves", n_leaves, 0, 10_000_000)
+    rng = np.random.default_rng(seed)
+    c = np.array([0.0, crown_height, 0.0])
+    starts = [np.zeros(3)]
+    ends = [c.copy()]
+    dirs = random_unit_vectors(branches, rng)
+    dirs[:, 1] = np.abs(dirs[:, 1]) * 0.6 + 0.2
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    for d in dirs:
+        starts.append(c.copy())
+        ends.append(c + 0.85 * crown_radius * d)
+    starts, ends = np.array(starts), np.array(ends)
+    nseg = len(starts)
+    r0 = np.r_[trunk_radius, np.full(branches, trunk_radius * 0.4)]
+    r1 = np.r_[trunk_radius * 0.7, np.full(branches, trunk_radius * 0.1)]
+    parent = np.r_[-1, np.zeros(branches, np.int64)]
+    level = np.r_[0, np.ones(branches, np.int64)]
+    # leaves uniform in the ball
+    u = rng.random(n_leaves) ** (1 / 3)
+    pos = c + crown_radius * u[:, None] * random_unit_vectors(n_leaves, rng)
+    nrm = random_unit_vectors(n_leaves, rng)
+    nrm[:, 1] = np.abs(nrm[:, 1])
+    up = np.cross(nrm, random_unit_vectors(n_leaves, rng))
+    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    # nearest branch (by distance to segment end)
+    d2 = ((pos[:, None, :] - ends[None, 1:, :]) ** 2).sum(-1) if branches else None
+    seg = (1 + np.argmin(d2, axis=1)) if branches else np.zeros(n_leaves, np.int64)
+    leaves = Leaves(pos, nrm, np.full(n_leaves, float(leaf_size)), seg.astype(np.int64), up)
+    return Tree(starts, ends, r0, r1, parent, level, leaves=leaves, name="sphere_crown")
+
+
+def leaves_mesh_arrays(leaves: Leaves):
+    """(vertices, faces) of the leaf quads: leaf i owns triangles 2i, 2i + 1."""
+    if len(leaves) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return leaf_quads(leaves)
+
+
+def bark_mesh_arrays(tree: Tree, sides: int = 6):
+    """(vertices, faces) of the live branches as tapered tubes."""
+    a = tree.alive
+    return tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], sides)
+
+
+def class_meshes(leaves: Leaves, classes) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Split leaves by integer class: ``{class: (vertices, faces, leaf_indices)}``."""
+    classes = np.asarray(classes)
+    if classes.shape != (len(leaves),):
+        raise ParameterError("classes", classes.shape, f"one class per leaf ({len(leaves)},)")
+    out = {}
+    for k in np.unique(classes):
+        idx = np.flatnonzero(classes == k)
+        v, f = leaves_mesh_arrays(leaves.subset(classes == k))
+        out[int(k)] = (v, f, idx)
+    return out
+
+
+def mesh(name: str, vertices, faces, bsdf=None):
+    """A Mitsuba mesh with id ``name`` (``bsdf``: a dict or BSDF object, optional)."""
+    from mitsuba_veg.light.validation import make_mesh
+
+    return make_mesh(name, vertices, faces, bsdf=bsdf)

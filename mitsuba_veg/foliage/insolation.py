@@ -1,0 +1,392 @@
+"""Sun path and insolation per leaf with ray-traced shadows (paper 003 §3.2).
+
+Paper 003 computes the sun's path from almanac formulas and the insolation of a leaf as
+I (L·S) for leaf normal L, unit sun vector S and beam intensity I, summed over time:
+cumulative insolation Σ_i I (L·S_i); leaves shaded by other leaves or branches receive less.
+
+Here:
+
+- :func:`sun_path` samples the sun every ``step_hours`` (mid-interval times, local standard time)
+  over ``days`` days with the NREL SPA (:func:`mitsuba_veg.light.sun_position`, more accurate
+  than the paper's almanac formulas; same horizontal frame), and gives the clear-sky broadband
+  (300-4000 nm) direct-normal irradiance I(t) and diffuse horizontal irradiance from SPCTRAL2
+  with the package's default atmosphere (:mod:`mitsuba_veg.light.daylight`), or a constant I.
+- :func:`leaf_insolation` traces one shadow ray from every leaf centre towards the sun at every
+  daytime step: all leaves × all steps in one Dr.Jit kernel per ≤ 8M rays
+  (``scene.ray_test`` against the tree's leaf quads, bark tubes and any obstacles), and sums
+  I |L·S| per leaf per day. A leaf is a thin blade lit on either face, hence |L·S| (the paper's
+  L·S with the blade's sunlit face; ``two_sided=False`` keeps max(L·S, 0)).
+  Occluding leaves are opaque (as in the paper) unless ``leaf_transmittance`` > 0: then each
+  leaf crossed passes that fraction (up to ``max_layers`` leaves; bark and obstacles block).
+- ``sky=True`` adds diffuse skylight: DHI(t) × the leaf's sky view factor V (an isotropic sky,
+  both faces: V = (1/π) ∫_upper vis(ω) |ω·L| dω, 1 for an unobstructed leaf of any tilt),
+  estimated once per leaf with ``sky_rays`` stratified shadow rays.
+
+Units: irradiance W m-2, insolation MJ m-2 (per unit one-sided leaf area).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import time as _time
+from dataclasses import dataclass, field
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+import mitsuba_veg  # noqa: F401  (spectral variant before any Mitsuba type is used)
+from mitsuba_veg.errors import ParameterError, check_range
+
+
+# --------------------------------------------------------------------------------------------
+# Sun path
+# --------------------------------------------------------------------------------------------
+@dataclass
+class SunPath:
+    """The sun at regular steps (daytime only): times, angles, direction, irradiances."""
+
+    times: np.ndarray        # datetime64[s] UTC, mid-step
+    day: np.ndarray          # (h,) int: day index from the start (local dates)
+    azimuth: np.ndarray      # [deg] clockwise from north
+    elevation: np.ndarray    # [deg]
+    direction: np.ndarray    # (h, 3) unit vector towards the sun (+x east, +y up, +z south)
+    dni: np.ndarray          # (h,) direct normal irradiance [W m-2]
+    dhi: np.ndarray          # (h,) diffuse horizontal irradiance [W m-2]
+    step_hours: float
+    days: int
+    settings: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.dni)
+
+
+def clear_sky_broadband(elevation_deg, day_of_year, atmosphere=None):
+    """Broadband (300-4000 nm) clear-sky DNI and DHI [W m-2] for arrays of sun elevations,
+    SPCTRAL2 with the package's default atmosphere (vectorised call of pvlib's spectrl2)."""
+    from pvlib.atmosphere import get_relative_airmass
+    from pvlib.spectrum import spectrl2
+
+    from mitsuba_veg.light.daylight import DEFAULT_ATMOSPHERE
+
+    atm = atmosphere or DEFAULT_ATMOSPHERE
+    el = np.atleast_1d(np.asarray(elevation_deg, float))
+    doy = np.broadcast_to(np.asarray(day_of_year, int), el.shape)
+    dni = np.zeros(el.shape)
+    dhi = np.zeros(el.shape)
+    up = el > 0.5
+    if up.any():
+        z = 90.0 - el[up]
+        am = get_relative_airmass(z, model="kastenyoung1989")
+        res = spectrl2(apparent_zenith=z, aoi=z, surface_tilt=np.zeros_like(z),
+                       ground_albedo=atm.ground_albedo, surface_pressure=atm.pressure,
+                       relative_airmass=am, precipitable_water=atm.precipitable_water,
+                       ozone=atm.ozone, aerosol_turbidity_500nm=atm.aerosol_turbidity,
+                       dayofyear=np.asarray(doy[up], float),
+                       scattering_albedo_400nm=atm.aerosol_single_scattering_albedo,
+                       alpha=atm.angstrom_alpha, aerosol_asymmetry_factor=atm.aerosol_asymmetry)
+        wl = np.asarray(res["wavelength"], float)
+        dni[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dni"])), 0, None), wl, axis=0)
+        dhi[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dhi"])), 0, None), wl, axis=0)
+    return dni, dhi
+
+
+def _start_date(start) -> _dt.date:
+    if isinstance(start, _dt.datetime):
+        return start.date()
+    if isinstance(start, _dt.date):
+        return start
+    try:
+        return _dt.date.fromisoformat(str(start)[:10])
+    except ValueError:
+        raise ParameterError("start", start, "a date 'YYYY-MM-DD'", "e.g. start='2026-10-01'") \
+            from None
+
+
+def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 60,
+             step_hours: float = 1.0, utc_offset_hours: float | None = None,
+             intensity="clear_sky", min_elevation: float = 0.0) -> SunPath:
+    """The sun every ``step_hours`` from local midnight of ``start`` for ``days`` days.
+
+    utc_offset_hours: local standard time offset (default: round(longitude / 15)).
+    intensity: "clear_sky" (SPCTRAL2 broadband DNI/DHI) or a number: constant beam I [W m-2]
+    (the paper's I), with DHI 0. Steps with the sun at or below ``min_elevation`` are dropped.
+    """
+    from mitsuba_veg.light.sun_position import sun_direction, sun_position
+
+    check_range("latitude", latitude, -90.0, 90.0)
+    check_range("longitude", longitude, -180.0, 180.0)
+    check_range("days", days, 1, 3660)
+    check_range("step_hours", step_hours, 1 / 60, 24.0)
+    if abs(24.0 / step_hours - round(24.0 / step_hours)) > 1e-9:
+        raise ParameterError("step_hours", step_hours, "a divisor of 24 h", "e.g. 1, 0.5, 2")
+    d0 = _start_date(start)
+    off = round(longitude / 15.0) if utc_offset_hours is None else float(utc_offset_hours)
+    per_day = int(round(24.0 / step_hours))
+    n = int(days) * per_day
+    mid_s = ((np.arange(n) + 0.5) * step_hours * 3600.0 - off * 3600.0).round().astype(np.int64)
+    t0 = np.datetime64(d0.isoformat(), "s")
+    times = t0 + mid_s.astype("timedelta64[s]")
+    day = np.arange(n) // per_day
+    az, el = sun_position(latitude, longitude, times)
+    az, el = np.asarray(az, float), np.asarray(el, float)
+    keep = el > min_elevation
+    doy = np.array([(d0 + _dt.timedelta(days=int(k))).timetuple().tm_yday for k in range(days)])
+    if isinstance(intensity, str):
+        if intensity != "clear_sky":
+            raise ParameterError("intensity", intensity, "'clear_sky' or a number [W m-2]")
+        dni, dhi = clear_sky_broadband(el[keep], doy[day[keep]])
+    else:
+        check_range("intensity", intensity, 0.0, 2000.0)
+        dni = np.full(int(keep.sum()), float(intensity))
+        dhi = np.zeros(int(keep.sum()))
+    return SunPath(times[keep], day[keep], az[keep], el[keep],
+                   np.asarray(sun_direction(az[keep], el[keep]), float).reshape(-1, 3),
+                   dni, dhi, float(step_hours), int(days),
+                   dict(latitude=latitude, longitude=longitude, start=d0.isoformat(),
+                        utc_offset_hours=off, intensity=intensity))
+
+
+# --------------------------------------------------------------------------------------------
+# Shadow scene
+# --------------------------------------------------------------------------------------------
+def shadow_scene(tree_or_leaves, obstacles=(), bark: bool = True, bark_sides: int = 6):
+    """A Mitsuba scene of a tree's leaves (shape id ``leaves``), bark (``bark``) and obstacles
+    (``obstacle0``...; each a ``(vertices, faces)`` pair or an ``mi.Mesh``), for shadow rays."""
+    import mitsuba as mi
+
+    from mitsuba_veg.trees.structure import Leaves, Tree
+
+    from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
+
+    if isinstance(tree_or_leaves, Tree):
+        tree, leaves = tree_or_leaves, tree_or_leaves.leaves
+    elif isinstance(tree_or_leaves, Leaves):
+        tree, leaves = None, tree_or_leaves
+    else:
+        raise ParameterError("tree_or_leaves", type(tree_or_leaves).__name__,
+                             "a mitsuba_veg.trees.Tree or Leaves")
+    d = {"type": "scene"}
+    v, f = leaves_mesh_arrays(leaves)
+    if len(f):
+        d["leaves"] = mesh("leaves", v, f)
+    if bark and tree is not None and tree.alive.any():
+        bv, bf = bark_mesh_arrays(tree, bark_sides)
+        d["bark"] = mesh("bark", bv, bf)
+    for i, ob in enumerate(obstacles or ()):
+        if isinstance(ob, mi.Mesh):
+            d[f"obstacle{i}"] = ob
+        else:
+            ov, of = ob
+            d[f"obstacle{i}"] = mesh(f"obstacle{i}", ov, of)
+    return mi.load_dict(d, optimize=False), leaves
+
+
+def _leaf_shape_id(scene):
+    import drjit as dr
+    import mitsuba as mi
+
+    for sh in scene.shapes():
+        if sh.id() == "leaves":
+            return int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sh)))[0])
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# Insolation
+# --------------------------------------------------------------------------------------------
+@dataclass
+class InsolationResult:
+    """Per-leaf insolation over a sun path."""
+
+    daily: np.ndarray          # (n_leaves, days) insolation per day [MJ m-2]
+    beam_daily: np.ndarray     # (n_leaves, days) direct-beam part [MJ m-2]
+    sunlit_fraction: np.ndarray  # (n_leaves,) fraction of daytime steps with the sun visible
+    sky_view: np.ndarray | None  # (n_leaves,) sky view factor (None without sky)
+    open_daily: np.ndarray     # (days,) beam + sky on an unshaded horizontal leaf [MJ m-2]
+    rays: int
+    seconds: float
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def cumulative(self) -> np.ndarray:
+        """Cumulative insolation per leaf over the whole path [MJ m-2]."""
+        return self.daily.sum(axis=1)
+
+    def cumulative_by_day(self) -> np.ndarray:
+        """(n_leaves, days) running sum of the daily insolation [MJ m-2]."""
+        return np.cumsum(self.daily, axis=1)
+
+
+def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
+                             two_sided: bool = True, obstacles=()) -> np.ndarray:
+    """I |L·S| [W m-2] per leaf for one sun direction (towards the sun), 0 where shaded."""
+    import mitsuba as mi
+
+    scene, leaves = (scene_or_tree if isinstance(scene_or_tree, tuple)
+                     else shadow_scene(scene_or_tree, obstacles))
+    s = np.asarray(sun_vector, float).reshape(1, 3)
+    s = s / np.linalg.norm(s)
+    path = SunPath(np.array([np.datetime64("2000-01-01T12:00:00")]), np.zeros(1, int),
+                   np.zeros(1), np.array([45.0]), s, np.array([float(intensity)]), np.zeros(1),
+                   1.0, 1)
+    res = leaf_insolation((scene, leaves), path, two_sided=two_sided)
+    _ = mi
+    return res.beam_daily[:, 0] * 1e6 / 3600.0
+
+
+def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bool = True,
+                    shadows: bool = True, leaf_transmittance: float = 0.0, max_layers: int = 8,
+                    sky: bool = False, sky_rays: int = 64, bark: bool = True,
+                    batch: int = 1 << 23, seed: int = 0) -> InsolationResult:
+    """Daily insolation per leaf over ``path`` with ray-traced shadows (module docstring).
+
+    tree_or_scene: a :class:`~mitsuba_veg.trees.Tree` (its leaves and live branches are the
+    occluders, plus ``obstacles``), :class:`~mitsuba_veg.trees.Leaves`, or a ``(scene, leaves)``
+    pair from :func:`shadow_scene`.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    check_range("leaf_transmittance", leaf_transmittance, 0.0, 1.0, hi_open=True)
+    check_range("max_layers", max_layers, 1, 1000)
+    check_range("sky_rays", sky_rays, 1, 100000)
+    t0 = _time.perf_counter()
+    if isinstance(tree_or_scene, tuple):
+        scene, leaves = tree_or_scene
+    else:
+        scene, leaves = shadow_scene(tree_or_scene, obstacles, bark=bark)
+    n, h, nd = len(leaves), len(path), int(path.days)
+    if n == 0:
+        raise ParameterError("leaves", 0, "at least one leaf")
+    P = np.asarray(leaves.position, np.float64)
+    N = np.asarray(leaves.normal, np.float64)
+    N = N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-30)
+    eps = 1e-3 * float(np.median(leaves.size)) + 1e-6
+    P_dr = [mi.Float(P[:, k].astype(np.float32)) for k in range(3)]
+    N_dr = [mi.Float(N[:, k].astype(np.float32)) for k in range(3)]
+    S_dr = [mi.Float(path.direction[:, k].astype(np.float32)) for k in range(3)]
+    # energy per step [MJ m-2] = W m-2 * step seconds / 1e6
+    E_dr = mi.Float((path.dni * path.step_hours * 3600.0 / 1e6).astype(np.float32))
+    D_dr = mi.UInt32(path.day.astype(np.uint32))
+    leaf_sid = _leaf_shape_id(scene)
+
+    daily = np.zeros((n, nd))
+    visible_steps = np.zeros(n)
+    rays = 0
+    leaves_per_batch = max(1, batch // max(h, 1))
+    for l0 in range(0, n, leaves_per_batch):
+        l1 = min(n, l0 + leaves_per_batch)
+        m = (l1 - l0) * h
+        idx = dr.arange(mi.UInt32, m)
+        hh = dr.opaque(mi.UInt32, h)
+        li = idx // hh
+        ti = idx - li * hh
+        p = mi.Point3f(*[dr.gather(mi.Float, P_dr[k], li + l0) for k in range(3)])
+        nr = mi.Vector3f(*[dr.gather(mi.Float, N_dr[k], li + l0) for k in range(3)])
+        s = mi.Vector3f(*[dr.gather(mi.Float, S_dr[k], ti) for k in range(3)])
+        e = dr.gather(mi.Float, E_dr, ti)
+        c = dr.dot(nr, s)
+        sign = dr.select(c >= 0, 1.0, -1.0)
+        o = p + nr * (sign * dr.opaque(mi.Float, eps))
+        cosw = dr.abs(c) if two_sided else dr.maximum(c, 0.0)
+        lit = cosw > 0
+        vis = mi.Float(1.0)
+        if shadows:
+            ray = mi.Ray3f(o, s)
+            if leaf_transmittance <= 0.0:
+                blocked = scene.ray_test(ray, lit)
+                vis = dr.select(blocked, 0.0, 1.0)
+            else:
+                vis = _transmitted(scene, ray, lit, leaf_sid, leaf_transmittance, max_layers)
+        val = e * cosw * vis
+        acc = dr.zeros(mi.Float, (l1 - l0) * nd)
+        dr.scatter_add(acc, val, li * dr.opaque(mi.UInt32, nd) + dr.gather(mi.UInt32, D_dr, ti))
+        vcount = dr.zeros(mi.Float, l1 - l0)
+        dr.scatter_add(vcount, dr.select(lit & (vis > 0), 1.0, 0.0), li)
+        dr.eval(acc, vcount)
+        daily[l0:l1] = np.asarray(acc, np.float64).reshape(l1 - l0, nd)
+        visible_steps[l0:l1] = np.asarray(vcount, np.float64)
+        rays += m
+    beam_daily = daily.copy()
+    sky_view = None
+    if sky:
+        sky_view = sky_view_factor((scene, leaves), rays=sky_rays, seed=seed)
+        rays += n * sky_rays
+        dhi_day = np.bincount(path.day, path.dhi * path.step_hours * 3600.0 / 1e6, minlength=nd)
+        daily = daily + sky_view[:, None] * dhi_day[None, :]
+    up = path.direction[:, 1]
+    open_daily = np.bincount(path.day, (path.dni * np.maximum(up, 0) + (path.dhi if sky else 0))
+                             * path.step_hours * 3600.0 / 1e6, minlength=nd)
+    return InsolationResult(daily, beam_daily, visible_steps / max(h, 1), sky_view, open_daily,
+                            int(rays), _time.perf_counter() - t0,
+                            dict(path.settings, two_sided=two_sided, shadows=shadows,
+                                 leaf_transmittance=leaf_transmittance, sky=sky,
+                                 steps=h, leaves=n, days=nd))
+
+
+def _transmitted(scene, ray, active, leaf_sid, t_leaf, max_layers):
+    """Fraction of a shadow ray passing leaves (each passes t_leaf); bark/obstacles block."""
+    import drjit as dr
+    import mitsuba as mi
+
+    sid_leaf = mi.UInt32(leaf_sid if leaf_sid is not None else 0xFFFFFFFF)
+    return _transmit_loop(scene, mi.Ray3f(ray), mi.Bool(active), sid_leaf,
+                          dr.opaque(mi.Float, t_leaf), dr.opaque(mi.UInt32, max_layers))
+
+
+@dr.syntax
+def _transmit_loop(scene, ray, active, sid_leaf, t_leaf, max_layers):
+    vis = mi.Float(1.0)
+    k = mi.UInt32(0)
+    while active:
+        pi = scene.ray_intersect_preliminary(ray, active=active)
+        hit = active & pi.is_valid()
+        sid = dr.reinterpret_array(mi.UInt32, pi.shape)
+        is_leaf = sid == sid_leaf
+        vis = dr.select(hit, dr.select(is_leaf, vis * t_leaf, 0.0), vis)
+        k += 1
+        ray.o = ray.o + ray.d * (pi.t * 1.0001 + 1e-6)
+        active = hit & is_leaf & (k < max_layers) & (vis > 0)
+    return vis
+
+
+def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
+    """Per-leaf view factor of an isotropic sky, both faces: V = (1/π) ∫_upper vis |ω·L| dω
+    (1 for an unobstructed leaf of any tilt), by ``rays`` stratified uniform-hemisphere shadow
+    rays per leaf."""
+    import drjit as dr
+    import mitsuba as mi
+
+    if isinstance(tree_or_scene, tuple):
+        scene, leaves = tree_or_scene
+    else:
+        scene, leaves = shadow_scene(tree_or_scene)
+    n = len(leaves)
+    P = np.asarray(leaves.position, np.float32)
+    N = np.asarray(leaves.normal, np.float64)
+    N = (N / np.linalg.norm(N, axis=1, keepdims=True)).astype(np.float32)
+    eps = 1e-3 * float(np.median(leaves.size)) + 1e-6
+    m = int(np.ceil(np.sqrt(rays)))
+    k = m * m
+    idx = dr.arange(mi.UInt32, n * k)
+    li = idx // k
+    j = idx - li * k
+    rng = np.random.default_rng(seed)
+    jit = mi.Float(rng.random(n * k).astype(np.float32))
+    jit2 = mi.Float(rng.random(n * k).astype(np.float32))
+    u = (mi.Float(j % m) + jit) / m
+    v = (mi.Float(j // m) + jit2) / m
+    # uniform upper hemisphere around +y: pdf 1/(2π)
+    cos_t = u
+    sin_t = dr.safe_sqrt(1 - cos_t * cos_t)
+    phi = 2 * dr.pi * v
+    w = mi.Vector3f(sin_t * dr.cos(phi), cos_t, sin_t * dr.sin(phi))
+    p = mi.Point3f(*[dr.gather(mi.Float, mi.Float(P[:, q]), li) for q in range(3)])
+    nr = mi.Vector3f(*[dr.gather(mi.Float, mi.Float(N[:, q]), li) for q in range(3)])
+    c = dr.dot(nr, w)
+    o = p + nr * (dr.select(c >= 0, 1.0, -1.0) * eps)
+    blocked = scene.ray_test(mi.Ray3f(o, w))
+    val = dr.select(blocked, 0.0, dr.abs(c)) * (2.0 / k)
+    acc = dr.zeros(mi.Float, n)
+    dr.scatter_add(acc, val, li)
+    return np.asarray(acc, np.float64)

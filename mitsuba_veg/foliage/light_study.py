@@ -1,0 +1,418 @@
+"""Spectral light studies: PAR, red, far-red and red:far-red under trees, per ground triangle and
+per leaf (``mitsuba-veg light-study``).
+
+:func:`run_light_study` takes a scenario TOML, a Mitsuba XML scene, a loaded ``mi.Scene``, a
+:class:`~mitsuba_veg.trees.Tree`, or ``"sphere-tree"`` (a built-in test tree), traces one photon
+pass (:func:`mitsuba_veg.light.photon_irradiance`, bands total / PAR / red / far-red, direct +
+indirect) and writes into ``out_dir``:
+
+- ``light_maps.png``: plan-view maps of the ground: PPFD (PAR photons), red and far-red
+  irradiance, and the red:far-red photon ratio, each with a colour bar;
+- ``light_study.npz``: per ground triangle ``ground/par_W_m2`` ... ``ground/rfr``, geometry,
+  and per leaf ``leaves/*`` (when the scene has leaves);
+- ``leaves.csv``: one row per leaf: position, PAR [W m-2 and µmol m-2 s-1], red, far-red [W m-2],
+  R:FR (light arriving on both faces per unit one-sided leaf area);
+- ``summary.json``: settings, open-sky reference, means, fractions of open light, timings.
+
+Leaves are meshes whose shape id starts with ``leaves`` and whose triangles come in pairs
+(one quad per leaf, as :func:`mitsuba_veg.trees.structure.leaf_quads` makes them); in trees built
+here they carry the ``veg_leaf`` BSDF with PROSPECT-D spectra of their autumn stage.
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, SceneError, check_range
+
+BANDS = ("total", "par", "red", "far_red")
+DEFAULT_WHEN = "2026-07-15T12:00:00+09:00"
+_H, _C, _NA = 6.62607015e-34, 2.99792458e8, 6.02214076e23
+
+
+def _umol_per_joule(lo_nm, hi_nm):
+    lam = 0.5 * (lo_nm + hi_nm) * 1e-9
+    return lam / (_H * _C) / _NA * 1e6
+
+
+# --------------------------------------------------------------------------------------------
+# Scenes from trees
+# --------------------------------------------------------------------------------------------
+def stage_classes(tau, n_classes: int = 7) -> np.ndarray:
+    """Integer class per leaf from τ (n_classes bins over [0, 1])."""
+    t = np.clip(np.asarray(tau, float), 0.0, 1.0)
+    return np.minimum((t * n_classes).astype(int), n_classes - 1)
+
+
+def tree_scene(tree, *, emitters: dict, tau=None, n_classes: int = 7, ground=True,
+               ground_extent: float | None = None, ground_resolution: int = 60,
+               ground_albedo: float = 0.15, bark_albedo: float = 0.2, obstacles=(),
+               traits=None):
+    """A Mitsuba scene of a tree over a square ground grid (id ``ground``): bark (``bark``),
+    leaves in ``n_classes`` autumn classes (ids ``leaves_k``, ``veg_leaf`` BSDF with the
+    PROSPECT-D spectra of the class's mean τ; all green when ``tau`` is None) and ``emitters``
+    (e.g. :func:`mitsuba_veg.light.daylight_from_angles`). Returns ``(scene, leaf_map)`` with
+    ``leaf_map = {shape_id: leaf indices}`` (leaf ``idx[j]`` owns triangles 2j, 2j + 1)."""
+    import mitsuba as mi
+
+    from mitsuba_veg.light.validation import grid_mesh
+
+    from .bsdf import leaf_bsdf_dict
+    from .canopy import bark_mesh_arrays, class_meshes, mesh
+    from .pigments import LeafTraits
+    from .spectra import leaf_spectra
+
+    if not emitters:
+        raise SceneError("no emitters (is the sun below the horizon at that time?)")
+    leaves = tree.leaves if hasattr(tree, "leaves") else tree
+    n = len(leaves)
+    tau = np.zeros(n) if tau is None else np.asarray(tau, float)
+    if tau.shape != (n,):
+        raise ParameterError("tau", tau.shape, f"one value per leaf ({n},)")
+    cls = stage_classes(tau, n_classes)
+    d = {"type": "scene", **emitters}
+    leaf_map = {}
+    traits = traits or LeafTraits()
+    for k, (v, f, idx) in class_meshes(leaves, cls).items():
+        spec = leaf_spectra(tau=float(tau[idx].mean()), traits=traits)
+        sid = f"leaves_{k}"
+        d[sid] = mesh(sid, v, f, bsdf=leaf_bsdf_dict(spec))
+        leaf_map[sid] = idx
+    if hasattr(tree, "alive") and tree.alive.any():
+        bv, bf = bark_mesh_arrays(tree)
+        d["bark"] = mesh("bark", bv, bf, bsdf={"type": "diffuse", "reflectance": {
+            "type": "uniform", "value": float(bark_albedo)}})
+    if ground:
+        pos = leaves.position if n else np.zeros((1, 3))
+        cx, cz = float(np.mean(pos[:, 0])), float(np.mean(pos[:, 2]))
+        if ground_extent is None:
+            r = float(np.max(np.abs(pos[:, [0, 2]] - [cx, cz]))) if n else 1.0
+            ground_extent = 4.0 * max(r, 0.5)
+        h = ground_extent / 2
+        gv, gf = grid_mesh(ground_resolution, ground_resolution, x=(cx - h, cx + h),
+                           z=(cz - h, cz + h))
+        d["ground"] = mesh("ground", gv, gf, bsdf={"type": "diffuse", "reflectance": {
+            "type": "uniform", "value": float(ground_albedo)}})
+    for i, ob in enumerate(obstacles or ()):
+        d[f"obstacle{i}"] = ob if isinstance(ob, mi.Mesh) else mesh(f"obstacle{i}", *ob)
+    return mi.load_dict(d, optimize=False), leaf_map
+
+
+def leaf_values(result, leaf_map: dict | None = None, n_leaves: int | None = None) -> dict:
+    """Per-leaf light from a photon pass: both faces' incident power per one-sided leaf area.
+
+    Returns ``{"par_W_m2", "ppfd", "red_W_m2", "far_red_W_m2", "rfr", "front_par_W_m2",
+    "back_par_W_m2"}`` arrays (one value per leaf, leaf order of ``leaf_map``'s indices, or
+    concatenated shape order when ``leaf_map`` is None)."""
+    ids = [s for s in result.index.shape_ids if s and s.startswith("leaves")]
+    if not ids:
+        return {}
+    if leaf_map is None:
+        leaf_map, off = {}, 0
+        for s in ids:
+            sl = result.index.shape_slice(s)
+            m = (sl.stop - sl.start) // 2
+            leaf_map[s] = np.arange(off, off + m)
+            off += m
+    n = n_leaves if n_leaves is not None else int(sum(len(v) for v in leaf_map.values()))
+    out = {k: np.full(n, np.nan) for k in ("par_W_m2", "red_W_m2", "far_red_W_m2",
+                                            "front_par_W_m2", "back_par_W_m2", "area_m2")}
+    for s, idx in leaf_map.items():
+        sl = result.index.shape_slice(s)
+        area = result.index.areas[sl].reshape(-1, 2).sum(1)
+        out["area_m2"][idx] = area
+        for b, key in (("par", "par_W_m2"), ("red", "red_W_m2"), ("far_red", "far_red_W_m2")):
+            f = result.flux_of(s, b, side="both").reshape(-1, 2).sum(1)
+            out[key][idx] = f / area
+        for side in ("front", "back"):
+            f = result.flux_of(s, "par", side=side).reshape(-1, 2).sum(1)
+            out[f"{side}_par_W_m2"][idx] = f / area
+    out["ppfd"] = out["par_W_m2"] * _umol_per_joule(400, 700)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out["rfr"] = np.where(out["far_red_W_m2"] > 0, out["red_W_m2"] * _umol_per_joule(655, 665)
+                              / (out["far_red_W_m2"] * _umol_per_joule(725, 735)), np.nan)
+    return out
+
+
+def open_reference(azimuth: float, elevation: float, day_of_year: int = 172) -> dict:
+    """Light on open flat ground from the daylight spectra (SPCTRAL2 beam + sky)."""
+    from mitsuba_veg.light.daylight import (band_irradiance, clear_sky_spectra, photon_flux,
+                                            red_far_red_ratio)
+
+    wl, dni, dhi = clear_sky_spectra(elevation, day_of_year=day_of_year)
+    ghi = dni * np.sin(np.radians(elevation)) + dhi
+    return {"par_W_m2": band_irradiance(wl, ghi, 400, 700),
+            "ppfd": photon_flux(wl, ghi, 400, 700),
+            "red_W_m2": band_irradiance(wl, ghi, 655, 665),
+            "far_red_W_m2": band_irradiance(wl, ghi, 725, 735),
+            "rfr": red_far_red_ratio(wl, ghi)}
+
+
+# --------------------------------------------------------------------------------------------
+# The study
+# --------------------------------------------------------------------------------------------
+def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_leaves):
+    """-> (scene, leaf_map, info dict)"""
+    import mitsuba as mi
+
+    from mitsuba_veg.light.daylight import _day_of_year, daylight_from_angles
+    from mitsuba_veg.light.sun_position import sun_position
+    from mitsuba_veg.trees.structure import Tree
+
+    info: dict = {}
+    obj = scene_or_scenario
+    if isinstance(obj, str) and obj == "sphere-tree":
+        from .canopy import sphere_crown_tree
+        obj = sphere_crown_tree(tree_leaves, seed=0)
+        info["scene"] = f"built-in sphere-crown test tree ({tree_leaves} leaves)"
+    if isinstance(obj, Tree):
+        when = when or DEFAULT_WHEN
+        lat = 35.0 if latitude is None else latitude
+        lon = 139.0 if longitude is None else longitude
+        az, el = (float(np.asarray(x)) for x in sun_position(lat, lon, when))
+        if el <= 0:
+            raise ParameterError("when", when, "a time with the sun above the horizon")
+        doy = _day_of_year(when)
+        em = daylight_from_angles(az, el, day_of_year=doy)
+        scene, leaf_map = tree_scene(obj, emitters=em, tau=tau)
+        info["_tree"] = obj
+        info.setdefault("scene", f"tree '{obj.name}' ({len(obj.leaves)} leaves)")
+        info.update(when=when, latitude=lat, longitude=lon, sun_azimuth=az, sun_elevation=el,
+                    open=open_reference(az, el, doy))
+        return scene, leaf_map, info
+    if isinstance(obj, mi.Scene):
+        info["scene"] = "mi.Scene"
+        return obj, None, info
+    p = Path(obj)
+    if not p.exists():
+        raise ParameterError("SCENE", str(p), "an existing .toml scenario or .xml scene, or "
+                             "'sphere-tree'", "check the path")
+    info["scene"] = str(p)
+    if p.suffix.lower() == ".toml":
+        from mitsuba_veg.scenario import load_scenario
+        ov = list(overrides or ())
+        if when is not None:
+            ov.append(f'light.when="{when}"')
+        scn = load_scenario(p, ov)
+        scene = scn.load_scene()
+        w = scn.get("light.when")
+        if w is not None:
+            lat, lon = scn.get("site.latitude"), scn.get("site.longitude")
+            az, el = (float(np.asarray(x)) for x in sun_position(lat, lon, w))
+            info.update(when=w, latitude=lat, longitude=lon, sun_azimuth=az, sun_elevation=el,
+                        open=open_reference(az, el, _day_of_year(w)))
+        info["ground"] = scn.get("terrain.ground", "ground")
+        return scene, None, info
+    if when is not None:
+        raise SystemExit("--when needs a scenario (.toml) with a [site], or a tree")
+    return mi.load_file(str(p), optimize=False), None, info
+
+
+def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, seed: int = 0,
+                    max_depth: int = 8, indirect: bool = True, when=None, latitude=None,
+                    longitude=None, ground: str | None = None, overrides=(), tau=None,
+                    tree_leaves: int = 3000, progress: bool = False) -> dict:
+    """Run a spectral light study and write its files (module docstring). Returns the summary.
+
+    scene_or_scenario: scenario ``.toml`` / scene ``.xml`` path, ``mi.Scene``, ``Tree``, or
+    ``"sphere-tree"``. Trees get daylight (SPCTRAL2 sun + Perez sky) at ``when`` (ISO, default
+    mid-July noon) for ``latitude``/``longitude`` (default 35 N, 139 E) and a ground grid;
+    ``tau`` gives per-leaf autumn time for their spectra (default green).
+    """
+    from mitsuba_veg.light import photon_irradiance
+
+    check_range("photons", photons, 1, 10**10)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    scene, leaf_map, info = _load(scene_or_scenario, when, latitude, longitude, overrides, tau,
+                                  tree_leaves)
+    t_load = time.perf_counter() - t0
+    res = photon_irradiance(scene, photons=int(photons), seed=int(seed),
+                            max_depth=int(max_depth), bands=BANDS, indirect=bool(indirect),
+                            progress=progress)
+    gid = ground or info.get("ground") or "ground"
+    if gid not in res.index.shape_ids:
+        raise SceneError(f"no ground shape '{gid}' in the scene (shapes: "
+                         f"{res.index.shape_ids}); pass ground=... / --ground ID")
+    sl = res.index.shape_slice(gid)
+    area = res.index.areas[sl]
+    g = {"par_W_m2": res.irradiance(gid, "par"), "red_W_m2": res.irradiance(gid, "red"),
+         "far_red_W_m2": res.irradiance(gid, "far_red"),
+         "ppfd": res.photon_flux_density(gid, "par"), "rfr": res.red_far_red(gid)}
+    lv = leaf_values(res, leaf_map)
+
+    def amean(x, w):
+        m = np.isfinite(x)
+        return float((x[m] * w[m]).sum() / w[m].sum()) if m.any() else None
+
+    ground_sum = {k: amean(v, area) for k, v in g.items() if k != "rfr"}
+    rf = res.photon_flux_density(gid, "red") * area
+    ff = res.photon_flux_density(gid, "far_red") * area
+    ground_sum["rfr"] = float(rf.sum() / ff.sum()) if ff.sum() > 0 else None
+    ground_sum.update(area_m2=float(area.sum()), triangles=int(len(area)),
+                      ppfd_min=float(np.nanmin(g["ppfd"])), ppfd_max=float(np.nanmax(g["ppfd"])),
+                      rfr_min=float(np.nanmin(g["rfr"])), rfr_max=float(np.nanmax(g["rfr"])))
+    if "open" in info:
+        o = info["open"]
+        ground_sum["ppfd_fraction_of_open"] = ground_sum["ppfd"] / o["ppfd"]
+        ground_sum["ppfd_min_fraction_of_open"] = ground_sum["ppfd_min"] / o["ppfd"]
+
+    # files
+    verts, faces = res.index.geometry[gid]
+    npz = {f"ground/{k}": v for k, v in g.items()}
+    npz.update({"ground/vertices": verts, "ground/faces": faces, "ground/area_m2": area,
+                "ground/centroid_m": res.index.centroids[sl]})
+    npz.update({f"leaves/{k}": v for k, v in lv.items()})
+    tmp = out / "light_study.tmp.npz"
+    np.savez_compressed(tmp, **npz)
+    os.replace(tmp, out / "light_study.npz")
+    files = {"npz": str(out / "light_study.npz")}
+    files["png"] = light_maps_figure(verts, faces, g, out / "light_maps.png",
+                                     title=_title(info, res))
+    leaf_sum = {}
+    if lv:
+        files["leaves_csv"] = _write_leaves_csv(out / "leaves.csv", lv, leaf_map,
+                                                info.get("_tree"))
+        leaf_sum = {"leaves": int(np.isfinite(lv["par_W_m2"]).sum()),
+                    "ppfd_mean": float(np.nanmean(lv["ppfd"])),
+                    "ppfd_p10": float(np.nanpercentile(lv["ppfd"], 10)),
+                    "ppfd_p90": float(np.nanpercentile(lv["ppfd"], 90)),
+                    "rfr_mean": float(np.nanmean(lv["rfr"])),
+                    "rfr_min": float(np.nanmin(lv["rfr"]))}
+    from mitsuba_veg.cli import versions
+    summary = {"command": "light-study", **{k: v for k, v in info.items() if k != "_tree"},
+               "settings": {"photons": int(photons), "seed": int(seed), "max_depth": int(max_depth),
+                            "indirect": bool(indirect), "bands_nm": dict(zip(res.bands,
+                                                                             res.band_ranges))},
+               "ground_id": gid, "ground": ground_sum, "leaves": leaf_sum,
+               "timings_s": {"load": t_load, "photon_pass": res.seconds,
+                             "total": time.perf_counter() - t0},
+               "photons_per_s": float(res.photons.sum() / max(res.seconds, 1e-9)),
+               "units": {"par_W_m2": "W m-2 (400-700 nm)", "ppfd": "umol m-2 s-1",
+                         "red_W_m2": "W m-2 (655-665 nm)", "far_red_W_m2": "W m-2 (725-735 nm)",
+                         "rfr": "photon ratio red:far-red"},
+               "files": files, "versions": versions()}
+    tmpj = out / "summary.json.tmp"
+    tmpj.write_text(json.dumps(summary, indent=2, default=_jsonable))
+    os.replace(tmpj, out / "summary.json")
+    files["summary"] = str(out / "summary.json")
+    return summary
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return str(x)
+
+
+def _title(info, res):
+    t = f"light study: {info.get('scene', '')}"
+    if "when" in info:
+        t += (f" | {info['when']} | sun az {info['sun_azimuth']:.0f} deg, el "
+              f"{info['sun_elevation']:.0f} deg")
+    return t + f" | {int(res.photons.sum()):,d} photons"
+
+
+def _write_leaves_csv(path, lv, leaf_map, src):
+    pos = None
+    if src is not None and hasattr(src, "leaves"):
+        pos = src.leaves.position
+    cols = ["par_W_m2", "ppfd", "red_W_m2", "far_red_W_m2", "rfr", "front_par_W_m2",
+            "back_par_W_m2", "area_m2"]
+    n = len(lv["par_W_m2"])
+    with open(str(path) + ".tmp", "w") as fh:
+        fh.write("leaf," + ("x_m,y_m,z_m," if pos is not None else "") + ",".join(cols) + "\n")
+        for i in range(n):
+            row = [str(i)]
+            if pos is not None:
+                row += [f"{pos[i, 0]:.4f}", f"{pos[i, 1]:.4f}", f"{pos[i, 2]:.4f}"]
+            row += [f"{lv[c][i]:.6g}" for c in cols]
+            fh.write(",".join(row) + "\n")
+    os.replace(str(path) + ".tmp", path)
+    return str(path)
+
+
+def light_maps_figure(vertices, faces, values: dict, path, title: str = "") -> str:
+    """2 x 2 plan-view maps (PPFD, red, far-red, R:FR) with colour bars."""
+    from mitsuba_veg.plots import _mpl, plan_map
+
+    plt = _mpl()
+    fig, axs = plt.subplots(2, 2, figsize=(11, 9.2), constrained_layout=True)
+    ppfd = values["ppfd"]
+    plan_map(axs[0, 0], vertices, faces, ppfd, title="PAR photon flux density (400-700 nm)",
+             label="PPFD [µmol m$^{-2}$ s$^{-1}$]", cmap="viridis", vmin=0.0)
+    plan_map(axs[0, 1], vertices, faces, values["red_W_m2"], title="red irradiance (655-665 nm)",
+             label="W m$^{-2}$", cmap="inferno", vmin=0.0)
+    plan_map(axs[1, 0], vertices, faces, values["far_red_W_m2"],
+             title="far-red irradiance (725-735 nm)", label="W m$^{-2}$", cmap="inferno",
+             vmin=0.0)
+    rfr = values["rfr"]
+    top = float(np.nanmax(rfr)) if np.isfinite(rfr).any() else 1.3
+    plan_map(axs[1, 1], vertices, faces, rfr, title="red : far-red (photon ratio)",
+             label="R:FR", cmap="RdYlGn", vmin=0.0, vmax=max(1.3, top))
+    fig.suptitle(title, fontsize=10)
+    tmp = f"{path}.tmp.png"
+    fig.savefig(tmp, dpi=90)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return str(path)
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def add_parser(subparsers):
+    """Add ``light-study`` to an argparse subparsers object (``mitsuba_veg.cli``)."""
+    p = subparsers.add_parser(
+        "light-study", help="spectral light study: PAR, red, far-red, R:FR maps under trees",
+        description="Photon pass with PAR/red/far-red bands: ground maps (PNG + npz), per-leaf "
+                    "values (CSV) and summary.json. SCENE: scenario .toml, scene .xml, or "
+                    "'sphere-tree' (built-in test tree under daylight).")
+    p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
+    p.add_argument("--photons", type=int, default=2_000_000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-depth", type=int, default=8)
+    p.add_argument("--no-indirect", action="store_true", help="first hits only")
+    p.add_argument("--when", help="ISO date-time (scenario or tree): daylight at that time")
+    p.add_argument("--latitude", type=float, help="tree scenes: site latitude [deg]")
+    p.add_argument("--longitude", type=float, help="tree scenes: site longitude [deg]")
+    p.add_argument("--ground", help="shape id of the ground (default: scenario's or 'ground')")
+    p.add_argument("--leaves", type=int, default=3000, help="'sphere-tree': number of leaves")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a scenario field")
+    p.add_argument("--out", default="out/light_study")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_cmd)
+    return p
+
+
+def _cmd(a) -> int:
+    import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
+
+    s = run_light_study(a.scene, a.out, photons=a.photons, seed=a.seed, max_depth=a.max_depth,
+                        indirect=not a.no_indirect, when=a.when, latitude=a.latitude,
+                        longitude=a.longitude, ground=a.ground, overrides=a.set or (),
+                        tree_leaves=a.leaves, progress=not a.quiet)
+    g = s["ground"]
+    print(f"light study: {s['scene']}: photon pass {s['timings_s']['photon_pass']:.2f} s")
+    line = f"  ground '{s['ground_id']}': mean PPFD {g['ppfd']:.1f} umol m-2 s-1"
+    if g.get("rfr") is not None:
+        line += f", R:FR {g['rfr']:.3f} (min {g['rfr_min']:.3f})"
+    if "ppfd_fraction_of_open" in g:
+        line += f", {100 * g['ppfd_fraction_of_open']:.1f} % of open PPFD"
+    print(line)
+    if s["leaves"]:
+        lv = s["leaves"]
+        print(f"  {lv['leaves']} leaves: PPFD mean {lv['ppfd_mean']:.1f} (p10 {lv['ppfd_p10']:.1f},"
+              f" p90 {lv['ppfd_p90']:.1f}), R:FR mean {lv['rfr_mean']:.3f}")
+    print("wrote:")
+    for k, v in s["files"].items():
+        print(f"  {v}")
+    return 0

@@ -1,0 +1,132 @@
+"""Leaf spectra from pigments (PROSPECT-D) and their use: Mitsuba spectra, colours, band values.
+
+``leaf_spectra(...)`` is the public entry point (re-exported as
+``mitsuba_veg.foliage.leaf_spectra``).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError
+
+from .pigments import LeafTraits, pigments_at_stage, stage_from_tau
+from .prospect import prospect_d
+
+#: Mitsuba's spectral range starts at 360 nm, PROSPECT-D at 400 nm: below 400 nm the 400 nm
+#: value is held constant (leaves absorb strongly in the UV-A too; documented in docs/foliage.md)
+MITSUBA_MIN_NM = 360.0
+
+
+class LeafSpectra(NamedTuple):
+    """Directional-hemispherical leaf reflectance and transmittance (PROSPECT-D)."""
+
+    wavelength: np.ndarray   # [nm], 400-2500 by 1 nm
+    reflectance: np.ndarray  # (..., n_wl)
+    transmittance: np.ndarray
+    pigments: dict           # inputs used: Cab, Car, Anth [µg cm-2], N, Cw, Cm, Cbrown
+
+    @property
+    def absorptance(self) -> np.ndarray:
+        return 1.0 - self.reflectance - self.transmittance
+
+    def at(self, wavelength_nm) -> tuple[np.ndarray, np.ndarray]:
+        """(R, T) interpolated at wavelength(s) [nm] (last axis)."""
+        wl = np.atleast_1d(np.asarray(wavelength_nm, float))
+        if (wl < 400).any() or (wl > 2500).any():
+            raise ParameterError("wavelength_nm", wl.tolist(), "[400, 2500] nm")
+        R = np.apply_along_axis(lambda r: np.interp(wl, self.wavelength, r), -1,
+                                self.reflectance)
+        T = np.apply_along_axis(lambda t: np.interp(wl, self.wavelength, t), -1,
+                                self.transmittance)
+        return R, T
+
+    def band_mean(self, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+        """(R, T) averaged (flat weight) over [lo, hi] nm."""
+        m = (self.wavelength >= lo) & (self.wavelength <= hi)
+        if not m.any():
+            raise ParameterError("band", (lo, hi), "a range inside 400-2500 nm")
+        return self.reflectance[..., m].mean(-1), self.transmittance[..., m].mean(-1)
+
+
+def leaf_spectra(tau=None, *, stage=None, Cab=None, Car=None, Anth=None,
+                 traits: LeafTraits = LeafTraits(), table=None) -> LeafSpectra:
+    """Leaf reflectance and transmittance spectra, 400-2500 nm (PROSPECT-D, Féret et al. 2017).
+
+    Give either autumn logical time ``tau`` ∈ [0, 1], or an Ishikura ``stage`` ∈ [1, 7], or the
+    pigment contents ``Cab``, ``Car``, ``Anth`` [µg cm-2] directly (any of them overrides the
+    stage table's value). Arrays broadcast: m values give (m, 2101) spectra. ``traits`` holds
+    the leaf structure N, water Cw [cm], dry matter Cm [g cm-2] and brown pigments.
+
+    >>> s = leaf_spectra(tau=0.0)          # a green maple leaf (stage 1)
+    >>> R, T = s.at([660, 730])            # red, far-red
+    """
+    if tau is not None and stage is not None:
+        raise ParameterError("tau/stage", (tau, stage), "one of them", "give tau or stage")
+    if tau is not None:
+        stage = stage_from_tau(tau)
+    if stage is None and (Cab is None or Car is None or Anth is None):
+        stage = 1.0
+    pig = pigments_at_stage(stage, table) if stage is not None else {}
+    if Cab is not None:
+        pig["Cab"] = np.asarray(Cab, float)
+    if Car is not None:
+        pig["Car"] = np.asarray(Car, float)
+    if Anth is not None:
+        pig["Anth"] = np.asarray(Anth, float)
+    wl, R, T = prospect_d(N=traits.N, Cab=pig["Cab"], Car=pig["Car"], Anth=pig["Anth"],
+                          Cbrown=traits.Cbrown, Cw=traits.Cw, Cm=traits.Cm)
+    pig = dict(pig, N=traits.N, Cw=traits.Cw, Cm=traits.Cm, Cbrown=traits.Cbrown)
+    return LeafSpectra(wl, R, T, pig)
+
+
+def mitsuba_spectrum(wavelength, values, lo: float = MITSUBA_MIN_NM) -> dict:
+    """A Mitsuba ``regular`` spectrum dict from a spectrum on a regular 1-nm grid; extended
+    down to ``lo`` nm by holding the first value (Mitsuba samples 360-830 nm)."""
+    wl = np.asarray(wavelength, float)
+    v = np.asarray(values, float).ravel()
+    if wl.ndim != 1 or len(wl) != len(v):
+        raise ParameterError("values", np.shape(values), f"one value per wavelength ({len(wl)})")
+    step = float(wl[1] - wl[0])
+    if lo < wl[0]:
+        n_ext = int(round((wl[0] - lo) / step))
+        v = np.concatenate([np.full(n_ext, v[0]), v])
+        start = wl[0] - n_ext * step
+    else:
+        start = wl[0]
+    return {"type": "regular", "wavelength_min": float(start), "wavelength_max": float(wl[-1]),
+            "values": ", ".join(f"{x:.6g}" for x in v)}
+
+
+# --------------------------------------------------------------------------------------------
+# Colour (for pictures): reflectance under D65 -> sRGB
+# --------------------------------------------------------------------------------------------
+_CMF_CACHE: dict = {}
+
+
+def _cmfs(wl: np.ndarray):
+    key = (float(wl[0]), float(wl[-1]), len(wl))
+    if key not in _CMF_CACHE:
+        import colour
+        cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+        d65 = colour.SDS_ILLUMINANTS["D65"]
+        xyz = np.stack([np.interp(wl, cmfs.wavelengths, cmfs.values[:, i], left=0, right=0)
+                        for i in range(3)], 1)
+        s = np.interp(wl, d65.wavelengths, d65.values, left=0, right=0)
+        w = xyz * s[:, None]
+        w /= w[:, 1].sum()
+        _CMF_CACHE[key] = w
+    return _CMF_CACHE[key]
+
+
+def spectrum_to_srgb(wavelength, spectra, exposure: float = 1.0) -> np.ndarray:
+    """sRGB (gamma-encoded, 0-1) of reflectance/transmittance spectra (..., n_wl) lit by D65,
+    times ``exposure`` before encoding (leaves reflect only 5-15 % in the visible)."""
+    wl = np.asarray(wavelength, float)
+    w = _cmfs(wl)
+    XYZ = np.asarray(spectra, float) @ w * exposure
+    M = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560],
+                  [0.0556434, -0.2040259, 1.0572252]])
+    rgb = np.clip(XYZ @ M.T, 0.0, 1.0)
+    return np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)

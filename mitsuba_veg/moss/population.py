@@ -1,0 +1,225 @@
+"""The moss population: fixed-capacity Dr.Jit arrays and the daily life cycle (paper 000 §3.6).
+
+Every individual is a slot of a structure of arrays of ``capacity`` entries (16,384 in the paper;
+1,000,000 and more work the same way):
+
+    state    0 free, 1 propagule (a gemma or spore waiting to germinate), 2 moss
+    species  index into the run's species list
+    kind     0 gemma, 1 spore (what the individual came from)
+    elem     global element (triangle) index in the photon pass's SceneIndex
+    pos, nrm position [m] on the surface and the surface's unit normal
+    growth   G_moss, total growth since germination (eq 3.21) [-]
+    age      L, days since the propagule was made (eq 3.24) [day]
+    gemmae   how many multiples of 0.5 of G_moss have already produced a gemma
+
+The day's order is the paper's (§3.3): 1 germination, 2 growth and death, 3 gemmae, 4 spores.
+Each step is a handful of whole-array Dr.Jit operations; no Python loop runs per moss.
+Free slots are reused: new individuals take the lowest free slots (``dr.compress``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .fitness import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
+from .species import Species
+
+FREE, PROPAGULE, MOSS = 0, 1, 2
+GEMMA, SPORE = 0, 1
+#: G_moss step that releases one gemma (paper 000 §3.6: "every +0.5")
+GEMMA_STEP = 0.5
+#: G_moss from which a growing moss releases spores (paper 000 §3.6)
+SPORE_THRESHOLD = 2.0
+
+_FIELDS = ("state", "species", "kind", "elem", "growth", "age", "gemmae")
+
+
+@dataclass
+class DayEvents:
+    """Counts of what happened in one day (Python ints, for the run's summary)."""
+
+    germinated: int = 0
+    died: int = 0
+    expired: int = 0
+    gemma_parents: int = 0
+    spore_parents: int = 0
+
+
+class SpeciesTable:
+    """Per-species parameters as small Dr.Jit arrays, gathered per individual."""
+
+    NAMES = ("T0", "T1", "nT", "rh0", "rh1", "nrh", "S0", "S1", "nS", "alpha_g", "tau_g",
+             "tau_b", "tau_d")
+
+    def __init__(self, species: list[Species], priority=None):
+        self.species = list(species)
+        self.names = [getattr(s, "name", f"species{i}") for i, s in enumerate(self.species)]
+        for n in self.NAMES:
+            setattr(self, n, mi.Float([float(getattr(s, n)) for s in self.species]))
+        pr = priority if priority is not None else [0.0] * len(self.species)
+        self.priority = mi.Float([float(p) for p in pr])
+
+    def get(self, name: str, idx: mi.UInt32) -> mi.Float:
+        return dr.gather(mi.Float, getattr(self, name), idx)
+
+    def fitness(self, idx: mi.UInt32, Ts, rhs, S) -> mi.Float:
+        """Daily fitness G of eq 3.17 for individuals of species ``idx``."""
+        g = self.get
+        gT = fitness(Ts, g("T0", idx), g("T1", idx), g("nT", idx))
+        grh = fitness(rhs, g("rh0", idx), g("rh1", idx), g("nrh", idx))
+        gS = fitness(S, g("S0", idx), g("S1", idx), g("nS", idx))
+        return gT * grh * gS
+
+
+class MossPopulation:
+    """Structure of arrays of ``capacity`` slots (see module docstring)."""
+
+    def __init__(self, capacity: int, species: SpeciesTable):
+        self.capacity = int(capacity)
+        self.table = species
+        c = self.capacity
+        self.state = dr.zeros(mi.UInt32, c)
+        self.species = dr.zeros(mi.UInt32, c)
+        self.kind = dr.zeros(mi.UInt32, c)
+        self.elem = dr.zeros(mi.UInt32, c)
+        self.pos = dr.zeros(mi.Point3f, c)
+        self.nrm = dr.zeros(mi.Vector3f, c)
+        self.growth = dr.zeros(mi.Float, c)
+        self.age = dr.zeros(mi.Float, c)
+        self.gemmae = dr.zeros(mi.UInt32, c)
+        self.overflow = 0  # individuals that found no free slot, over the whole run
+
+    # ---- bookkeeping ------------------------------------------------------------------------
+    @property
+    def moss(self) -> mi.Bool:
+        return self.state == MOSS
+
+    @property
+    def propagule(self) -> mi.Bool:
+        return self.state == PROPAGULE
+
+    def count(self, state=MOSS) -> int:
+        return int(dr.count(self.state == state)[0]) if dr.width(self.state) else 0
+
+    def count_by_species(self, state=MOSS) -> list[int]:
+        n = len(self.table.species)
+        counts = dr.zeros(mi.UInt32, n)
+        dr.scatter_add(counts, mi.UInt32(1), self.species, self.state == state)
+        return [int(v) for v in np.asarray(counts)]
+
+    def to_numpy(self) -> dict:
+        """All state as NumPy arrays (checkpoints, outputs)."""
+        d = {k: np.asarray(getattr(self, k)) for k in _FIELDS}
+        d["pos"] = np.stack([np.asarray(c) for c in (self.pos.x, self.pos.y, self.pos.z)], 1)
+        d["nrm"] = np.stack([np.asarray(c) for c in (self.nrm.x, self.nrm.y, self.nrm.z)], 1)
+        d["overflow"] = np.array(self.overflow)
+        return d
+
+    def load_numpy(self, d: dict) -> None:
+        if len(d["state"]) != self.capacity:
+            raise ValueError(f"checkpoint capacity {len(d['state'])} != run capacity "
+                             f"{self.capacity}")
+        for k in _FIELDS:
+            t = mi.Float if k in ("growth", "age") else mi.UInt32
+            setattr(self, k, t(np.asarray(d[k])))
+        self.pos = mi.Point3f(*[mi.Float(np.ascontiguousarray(d["pos"][:, k])) for k in range(3)])
+        self.nrm = mi.Vector3f(*[mi.Float(np.ascontiguousarray(d["nrm"][:, k])) for k in range(3)])
+        self.overflow = int(d["overflow"])
+
+    # ---- adding individuals -----------------------------------------------------------------
+    def add(self, state, species, kind, elem, pos, nrm, growth) -> mi.UInt32:
+        """Put new individuals (Dr.Jit arrays of equal width n) into the lowest free slots.
+
+        Returns the slots used (width = number placed); individuals beyond the free capacity
+        are dropped and counted in ``overflow``.
+        """
+        n = dr.width(elem)
+        if n == 0:
+            return mi.UInt32()
+        free = dr.compress(self.state == FREE)
+        k = min(n, dr.width(free))
+        self.overflow += n - k
+        if k == 0:
+            return mi.UInt32()
+        src = dr.arange(mi.UInt32, k)
+        slots = dr.gather(mi.UInt32, free, src)
+
+        def put(target, value, t):
+            v = value if dr.width(value) == k else dr.gather(t, value, src)
+            dr.scatter(target, v, slots)
+
+        put(self.state, state if dr.is_array_v(state) else dr.full(mi.UInt32, state, n),
+            mi.UInt32)
+        put(self.species, species, mi.UInt32)
+        put(self.kind, kind if dr.is_array_v(kind) else dr.full(mi.UInt32, kind, n), mi.UInt32)
+        put(self.elem, elem, mi.UInt32)
+        put(self.growth, growth if dr.is_array_v(growth) else dr.full(mi.Float, growth, n),
+            mi.Float)
+        put(self.age, dr.zeros(mi.Float, n), mi.Float)
+        put(self.gemmae, dr.zeros(mi.UInt32, n), mi.UInt32)
+        for target, value in ((self.pos, pos), (self.nrm, nrm)):
+            for c in range(3):
+                put(target[c], value[c], mi.Float)
+        # a moss placed with some growth has already passed its gemma thresholds
+        g = dr.gather(mi.Float, self.growth, slots)
+        dr.scatter(self.gemmae, mi.UInt32(dr.floor(dr.maximum(g, 0.0) / GEMMA_STEP)), slots)
+        dr.eval(self.state, self.species, self.kind, self.elem, self.growth, self.age,
+                self.gemmae, self.pos, self.nrm)
+        return slots
+
+    def remove(self, mask: mi.Bool) -> None:
+        self.state = dr.select(mask, mi.UInt32(FREE), self.state)
+
+    # ---- the daily life cycle ---------------------------------------------------------------
+    def live_day(self, S, Ts, rhs, interior: mi.Bool):
+        """Steps 1-2 of the day (germination, growth and death) and the parents of step 3-4.
+
+        S, Ts, rhs: per-element arrays (mi.Float over all elements) of the day's insolation
+        [W m-2], surface temperature [K] and surface humidity [-]; interior: per-slot mask of moss
+        inside a dense clump (no gemmae). Returns (gemma_parents, spore_parents, DayEvents)
+        with the parent masks as Dr.Jit Bool arrays over the slots.
+        """
+        t = self.table
+        alive = self.state != FREE
+        e = self.elem
+        G = t.fitness(self.species, dr.gather(mi.Float, Ts, e, alive),
+                      dr.gather(mi.Float, rhs, e, alive), dr.gather(mi.Float, S, e, alive))
+        # 1. germination (eq 3.24): G g(L, L0, L1, 1) > tau_b
+        prop = self.state == PROPAGULE
+        self.age = dr.select(prop, self.age + 1.0, self.age)
+        spore = self.kind == SPORE
+        L0 = dr.select(spore, SPORE_L0, GEMMA_L0)
+        L1 = dr.select(spore, SPORE_L1, GEMMA_L1)
+        germ = prop & (G * fitness(self.age, L0, L1, 1.0) > t.get("tau_b", self.species))
+        # a propagule past its window can no longer germinate: its slot is freed
+        expired = prop & ~germ & (self.age > L1)
+        self.state = dr.select(germ, mi.UInt32(MOSS), self.state)
+        self.growth = dr.select(germ, 0.0, self.growth)
+        self.gemmae = dr.select(germ, mi.UInt32(0), self.gemmae)
+        self.state = dr.select(expired, mi.UInt32(FREE), self.state)
+        # 2. growth (eqs 3.20-3.21) and death: G_moss < tau_d while declining
+        moss = self.state == MOSS
+        D = t.get("alpha_g", self.species) * (G - t.get("tau_g", self.species))
+        growth = dr.select(moss, self.growth + D, self.growth)
+        died = moss & (growth < t.get("tau_d", self.species)) & (D < 0)
+        self.growth = growth
+        self.state = dr.select(died, mi.UInt32(FREE), self.state)
+        live = moss & ~died
+        # 3. gemmae: one per +0.5 of G_moss, only from the surface of a clump (eq 3.22)
+        steps = mi.UInt32(dr.floor(dr.maximum(growth, 0.0) / GEMMA_STEP))
+        gemma = live & (steps > self.gemmae) & ~interior
+        # inside a clump the counter moves on without a gemma (the paper: they grow, no gemmae)
+        self.gemmae = dr.select(live & (steps > self.gemmae), steps, self.gemmae)
+        # 4. spores: G_moss >= 2.0 and growing (eq 3.23)
+        spores = live & (growth >= SPORE_THRESHOLD) & (D > 0)
+        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores)
+        ev = DayEvents(germinated=_count(germ), died=_count(died), expired=_count(expired),
+                       gemma_parents=_count(gemma), spore_parents=_count(spores))
+        return gemma, spores, ev
+
+
+def _count(mask) -> int:
+    return int(np.asarray(dr.count(mask)).ravel()[0]) if dr.width(mask) else 0

@@ -1,0 +1,95 @@
+"""Gemmae and spores: where they are released and where they land (paper 000 §3.3, §3.6).
+
+- gemma (eq 3.22): B = M + k I, I a uniform random unit vector, k a fixed distance [m];
+- spore (eq 3.23): Q = M + l I_N, I_N a random unit vector at an angle φ to the parent's surface
+  normal N with 0° < φ < 45° or 135° < φ < 180° (either cone, uniform in solid angle), l fixed;
+- a propagule released in the air falls (−y) until it touches a polygon or another moss
+  (another moss sits on a polygon: landing in its cell is a conflict, see below); a propagule
+  that touches nothing, or lands on the back of a polygon, is removed;
+- a propagule landing where an individual already is: the higher priority survives, priority =
+  species priority + G_moss (a propagule has G_moss = 0); ties keep the one that was there. Among
+  propagules landing in one empty cell the same day, the highest species priority, then the
+  lowest parent slot, wins (deterministic).
+
+The release point is reached along a ray from the parent: if that ray meets a surface before the
+distance k (or l), the propagule stops there (it cannot pass through walls). All of it is a few
+ray casts for the whole day's propagules at once.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .population import FREE, MossPopulation
+
+
+def uniform_sphere(u: mi.Point2f) -> mi.Vector3f:
+    return mi.warp.square_to_uniform_sphere(u)
+
+
+def spore_direction(nrm: mi.Vector3f, u: mi.Point2f, side: mi.Float) -> mi.Vector3f:
+    """Unit vectors at an angle < 45° to ``nrm`` (side >= 0.5) or > 135° (side < 0.5), uniform
+    in solid angle within the cone (eq 3.23)."""
+    cos45 = float(np.cos(np.radians(45.0)))
+    local = mi.warp.square_to_uniform_cone(u, cos45)
+    n = dr.select(side < 0.5, -nrm, nrm)
+    return mi.Frame3f(n).to_world(local)
+
+
+def land(scene: mi.Scene, lookup: mi.UInt32, origin: mi.Point3f, direction: mi.Vector3f,
+         distance: float, active: mi.Bool):
+    """Move propagules from ``origin`` along ``direction`` by ``distance`` [m] (stopping at the
+    first surface), then let them fall along -y. Returns (landed, elem, pos, nrm): landed is False
+    for those that hit nothing or the back of a polygon."""
+    ray = mi.Ray3f(origin, direction, distance)
+    si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal, coherent=False, active=active)
+    stopped = active & si.is_valid()
+    front1 = dr.dot(si.n, direction) < 0
+    release = dr.select(stopped, si.p, origin + direction * distance)
+    # falling: straight down from the release point
+    down = mi.Vector3f(0.0, -1.0, 0.0)
+    fall = active & ~stopped
+    si2 = scene.ray_intersect(mi.Ray3f(release, down), ray_flags=mi.RayFlags.Minimal,
+                              coherent=False, active=fall)
+    hit2 = fall & si2.is_valid()
+    front2 = dr.dot(si2.n, down) < 0
+    landed = (stopped & front1) | (hit2 & front2)
+    p = dr.select(stopped, si.p, si2.p)
+    n = dr.select(stopped, si.n, si2.n)
+    shape = dr.select(stopped, dr.reinterpret_array(mi.UInt32, si.shape),
+                      dr.reinterpret_array(mi.UInt32, si2.shape))
+    prim = dr.select(stopped, si.prim_index, si2.prim_index)
+    elem = dr.gather(mi.UInt32, lookup, shape, landed) + prim
+    # lift the point off the surface a little so later rays do not start inside it
+    return landed, elem, mi.Point3f(p + n * 1e-4), mi.Vector3f(n)
+
+
+def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt32,
+           new_order: mi.UInt32, landed: mi.Bool):
+    """Resolve where propagules may stay (one individual per cell, priority rule above).
+
+    Returns (keep mask over the new propagules, mask of existing slots that lose their cell).
+    """
+    n = dr.width(landed)
+    cells = grid.index(new_pos)
+    # among the newcomers of one cell: highest species priority, then lowest order
+    pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
+    rank = mi.UInt32(dr.clip(1000.0 - pri_new * 10.0, 0.0, 2000.0))  # higher priority first
+    key = (rank << 21) | dr.minimum(new_order, mi.UInt32((1 << 21) - 1))
+    best = dr.full(mi.UInt32, 0xFFFFFFFF, grid.n_cells)
+    dr.scatter_reduce(dr.ReduceOp.Min, best, key, cells, landed)
+    first = landed & (dr.gather(mi.UInt32, best, cells, landed) == key)
+    # against the individual already there
+    occ = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity), pop.state != FREE)
+    there = dr.gather(mi.UInt32, occ, cells, first)
+    has = first & (there > 0)
+    slot = dr.select(has, there - 1, 0)
+    pri_old = dr.gather(mi.Float, pop.table.priority, dr.gather(mi.UInt32, pop.species, slot, has),
+                        has) + dr.gather(mi.Float, pop.growth, slot, has)
+    wins = ~has | (pri_new > pri_old)
+    keep = first & wins
+    evict = dr.zeros(mi.Bool, pop.capacity)
+    dr.scatter(evict, True, slot, has & wins)
+    _ = n
+    return keep, evict

@@ -1,0 +1,467 @@
+"""Tree growth in its light environment (paper 001: Yoshizawa 2007, after Kanamaru & Chiba).
+
+Model (every step vectorised over all growing tips of all trees):
+
+- **Branching** (§2.1): one vertical branch to start; every live tip branch splits into two
+  children each generation: one continues the parent axis (length L_t), one is a lateral at the
+  branch angle θ, rotated about the parent axis by the phyllotaxis divergence (5/8 of a turn by
+  default) from the previous lateral of that axis. The main-axis child keeps the parent's
+  ``level``; a lateral is one level higher.
+- **Pipe model** (§2.2): cross-section areas add up, so a segment's radius is
+  ``tip_radius x sqrt(live tips it carries)``.
+- **Leaf spheres** (§2.3.1): the leaves of a tip branch are a sphere of radius R at its tip.
+  Received light and light vector per sphere (eqs 2.3, 2.4) from an H x V sky with C1 above and
+  C2 below the horizon, attenuated by α per other leaf sphere passed, obstacles reflecting
+  C2 x env (see :mod:`mitsuba_veg.trees.leaflight`, :mod:`mitsuba_veg.trees.environment`).
+- **Each generation**: light at all tip spheres → tips with received light < T_D die and fall
+  (eq 2.6), parents whose children all died fall too (§2.3.5) → surviving tips branch: if
+  red/far-red < T_r/fr (eq 2.5, received light with α_r and α_fr) the main-axis child is
+  L_t + L_ts long and the lateral L_l − L_ls (shade avoidance, §2.3.4); both children are
+  turned towards the tip's light vector by the fraction H of the angle between them
+  (phototropism, §2.3.3). After the last generation one more light pass culls the new tips.
+
+Lengths are in model units (the paper's table 3.1 values); ``unit`` [m] converts them to the
+scene: positions, scene meshes and the returned trees are in metres (+y up).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, fields
+from fractions import Fraction
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, check_range
+
+from .structure import Leaves, Tree
+
+#: paper symbols of the parameters (table 3.1)
+PAPER_SYMBOLS = {
+    "branch_angle": "θ", "main_length": "L_t", "lateral_length": "L_l", "phototropism": "H",
+    "light_ratio": "C", "leaf_radius": "R", "alpha": "α_l", "alpha_red": "α_r",
+    "alpha_far_red": "α_fr", "death_threshold": "T_D", "shade_main_extension": "L_ts",
+    "shade_lateral_reduction": "L_ls", "shade_threshold": "T_r/fr", "phyllotaxis": "Div",
+    "sky_h": "H (sky)", "sky_v": "V (sky)",
+}
+
+
+def _fraction(v, field_name="phyllotaxis") -> float:
+    if isinstance(v, str):
+        try:
+            v = float(Fraction(v.strip()))
+        except (ValueError, ZeroDivisionError):
+            raise ParameterError(field_name, v, "a fraction of a turn like '5/8' or 0.625",
+                                 "use p/q with 0 < p/q < 1") from None
+    check_range(field_name, v, 0.0, 1.0, lo_open=True, hi_open=True,
+                fix="a fraction of a turn such as 1/2, 1/3, 2/5, 3/8, 5/8, 5/13")
+    return float(v)
+
+
+@dataclass
+class GrowthParams:
+    """Parameters of the growth model. Defaults = paper 001 table 3.1.
+
+    Lengths (``main_length``, ``lateral_length``, ``leaf_radius``, ``shade_*``, ``tip_radius``,
+    ``leaf_size``) are in model units; ``unit`` is the size of one unit in metres.
+    """
+
+    branch_angle: float = 60.0            # θ [deg]
+    main_length: float = 4.0              # L_t [unit]
+    lateral_length: float = 8.0           # L_l [unit]
+    phototropism: float = 0.4             # H [-] 0 = none, 1 = along the light vector
+    light_ratio: float = 1.5              # C = C1/C2 [-] (3/2)
+    leaf_radius: float = 4.0              # R [unit]
+    alpha: float = 0.3                    # α_l: light transmitted per leaf sphere passed [-]
+    alpha_red: float = 0.3                # α_r [-]
+    alpha_far_red: float = 0.7            # α_fr [-]
+    death_threshold: float = 0.2          # T_D [-] (received light, eq 2.3)
+    shade_main_extension: float = 4.0     # L_ts [unit]
+    shade_lateral_reduction: float = 4.0  # L_ls [unit]
+    shade_threshold: float = 0.5          # T_r/fr [-]
+    phyllotaxis: float | str = 0.625      # Div [turn] (5/8)
+    sky_h: int = 10                       # sky cells in longitude
+    sky_v: int = 10                       # sky cells in latitude (even)
+    unit: float = 0.25                    # [m] per model unit
+    tip_radius: float = 0.06              # [unit] radius of a tip branch (pipe model base)
+    leaves_per_sphere: int = 12           # leaf blades drawn in each leaf sphere (mesh only)
+    leaf_size: float = 0.5                # [unit] blade length
+    random_phase: bool = True             # random initial phyllotaxis azimuth per tree (seeded)
+    ray_cutoff: float = 1e-3              # stop a ray when every band is attenuated below this
+    engine: str = "auto"                  # "mitsuba" | "analytic" | "auto" (faster of the two)
+
+    def __post_init__(self):
+        self.validate()
+
+    def validate(self, source: str | None = None) -> "GrowthParams":
+        def c(name, lo=None, hi=None, **kw):
+            check_range(name, getattr(self, name), lo, hi, source=source, **kw)
+        c("branch_angle", 0.0, 180.0, lo_open=True, hi_open=True)
+        c("main_length", 0.0, None, lo_open=True)
+        c("lateral_length", 0.0, None)
+        c("phototropism", 0.0, 1.0)
+        c("light_ratio", 0.0, None, lo_open=True)
+        c("leaf_radius", 0.0, None, lo_open=True)
+        for a in ("alpha", "alpha_red", "alpha_far_red"):
+            c(a, 0.0, 1.0)
+        c("death_threshold", 0.0, 1.0)
+        c("shade_main_extension", 0.0, None)
+        c("shade_lateral_reduction", 0.0, None)
+        c("shade_threshold", 0.0, None)
+        self.phyllotaxis = _fraction(self.phyllotaxis)
+        for name in ("sky_h", "sky_v"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < 2:
+                raise ParameterError(name, v, "an integer >= 2", "e.g. 10", source)
+            setattr(self, name, int(v))
+        if self.sky_v % 2:
+            raise ParameterError("sky_v", self.sky_v, "an even integer (half of the cells above "
+                                 "the horizon)", "e.g. 10", source)
+        c("unit", 0.0, None, lo_open=True)
+        c("tip_radius", 0.0, None, lo_open=True)
+        if int(self.leaves_per_sphere) != self.leaves_per_sphere or self.leaves_per_sphere < 0:
+            raise ParameterError("leaves_per_sphere", self.leaves_per_sphere, "an integer >= 0",
+                                 source=source)
+        self.leaves_per_sphere = int(self.leaves_per_sphere)
+        c("leaf_size", 0.0, None, lo_open=True)
+        c("ray_cutoff", 0.0, 1.0, lo_open=True, hi_open=True)
+        if self.engine not in ("auto", "mitsuba", "analytic"):
+            raise ParameterError("engine", self.engine, "'auto', 'mitsuba' or 'analytic'",
+                                 source=source)
+        return self
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str | None = None) -> "GrowthParams":
+        """From a dict (e.g. a TOML section); unknown keys are an error naming the allowed ones."""
+        names = {f.name for f in fields(cls)}
+        bad = [k for k in d if k not in names]
+        if bad:
+            raise ParameterError(bad[0], d[bad[0]], f"one of {sorted(names)}",
+                                 "check the spelling", source)
+        try:
+            return cls(**d)
+        except ParameterError as e:
+            e.source = source
+            raise ParameterError(e.field, e.value, e.allowed, e.fix, source) from None
+
+    def replace(self, **kw) -> "GrowthParams":
+        d = asdict(self)
+        d.update(kw)
+        return GrowthParams(**d)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+# --------------------------------------------------------------------------------------------
+# small vector helpers (row-wise)
+# --------------------------------------------------------------------------------------------
+def _norm(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30)
+
+
+def _rotate(v, axis, angle):
+    """Rodrigues: rotate rows of v about unit rows of axis by angle (rad, per row)."""
+    c = np.cos(angle)[:, None]
+    s = np.sin(angle)[:, None]
+    return v * c + np.cross(axis, v) * s + axis * (axis * v).sum(1, keepdims=True) * (1 - c)
+
+
+def _turn_towards(d, u, target, frac):
+    """Rotate unit rows d (and their frame vectors u) towards unit rows target by frac of the
+    angle between them."""
+    ax = np.cross(d, target)
+    s = np.linalg.norm(ax, axis=1)
+    ang = np.arctan2(s, (d * target).sum(1)) * frac
+    ok = s > 1e-9
+    if not ok.any():
+        return d, u
+    ax = ax[ok] / s[ok, None]
+    d2, u2 = d.copy(), u.copy()
+    d2[ok] = _norm(_rotate(d[ok], ax, ang[ok]))
+    u2[ok] = _rotate(u[ok], ax, ang[ok])
+    u2 = _norm(u2 - (u2 * d2).sum(1, keepdims=True) * d2)
+    return d2, u2
+
+
+# --------------------------------------------------------------------------------------------
+# the grower
+# --------------------------------------------------------------------------------------------
+class _Forest:
+    """Segments of all trees in one structure of arrays (append-only, parents first)."""
+
+    def __init__(self, p: GrowthParams, positions, seed):
+        self.p = p
+        n = len(positions)
+        self.n_trees = n
+        L = p.main_length * p.unit
+        base = np.asarray(positions, float)
+        up = np.tile([0.0, 1.0, 0.0], (n, 1))
+        self.start = [base]
+        self.end = [base + L * up]
+        self.parent = [np.full(n, -1)]
+        self.level = [np.zeros(n, np.int64)]
+        self.tree = [np.arange(n)]
+        self.gen = [np.zeros(n, np.int64)]
+        self.alive = np.ones(n, bool)
+        self.kind = [np.zeros(n, np.int64)]        # 0 trunk/main-axis child, 1 lateral
+        phase = np.zeros(n)
+        if p.random_phase:
+            phase = np.array([np.random.default_rng([seed, i]).uniform(0, 2 * math.pi)
+                              for i in range(n)])
+        self.tip = np.arange(n)                    # segment index of each growing tip
+        self.tip_dir = up.copy()
+        self.tip_u = np.stack([np.cos(phase), np.zeros(n), np.sin(phase)], 1)
+        self.nseg = n
+        self.children_alive = np.zeros(n, np.int64)
+
+    def arrays(self):
+        return (np.concatenate(self.start), np.concatenate(self.end),
+                np.concatenate(self.parent), np.concatenate(self.level),
+                np.concatenate(self.tree), np.concatenate(self.gen), np.concatenate(self.kind))
+
+    def tip_positions(self):
+        return np.concatenate(self.end)[self.tip] if len(self.tip) else np.zeros((0, 3))
+
+    def kill(self, segs):
+        """Tips ``segs`` die; parents whose children all died fall too."""
+        parent = np.concatenate(self.parent)
+        dead = np.asarray(segs, np.int64)
+        while len(dead):
+            self.alive[dead] = False
+            par = parent[dead]
+            par = par[par >= 0]
+            if not len(par):
+                break
+            np.subtract.at(self.children_alive, par, 1)
+            par = np.unique(par)
+            dead = par[(self.children_alive[par] <= 0) & self.alive[par]]
+
+    def branch(self, light, gen):
+        """Children of the surviving tips (light: LeafLight of the tips, in tip order)."""
+        p = self.p
+        n = len(self.tip)
+        if n == 0:
+            return
+        ends = np.concatenate(self.end)[self.tip]
+        lev = np.concatenate(self.level)[self.tip]
+        tree = np.concatenate(self.tree)[self.tip]
+        d, u = self.tip_dir, self.tip_u
+        shade = light.ratio("red", "far_red") < p.shade_threshold
+        lm = np.where(shade, p.main_length + p.shade_main_extension, p.main_length)
+        ll = np.where(shade, p.lateral_length - p.shade_lateral_reduction, p.lateral_length)
+        ll = np.maximum(ll, 0.0)
+        th = math.radians(p.branch_angle)
+        div = 2 * math.pi * p.phyllotaxis
+        # lateral in the plane (d, u); the main child's frame turns by the divergence
+        dl = math.cos(th) * d + math.sin(th) * u
+        ul = -math.sin(th) * d + math.cos(th) * u
+        ul = _rotate(ul, dl, np.full(n, div))
+        um = _rotate(u, d, np.full(n, div))
+        dm = d.copy()
+        if p.phototropism > 0:
+            v = light.vector
+            dm, um = _turn_towards(dm, um, v, p.phototropism)
+            dl, ul = _turn_towards(dl, ul, v, p.phototropism)
+        has_lat = ll > 1e-9
+        L = p.unit
+        # new segments: all main children, then the laterals that have a length
+        new_start = np.concatenate([ends, ends[has_lat]])
+        new_end = np.concatenate([ends + dm * (lm * L)[:, None],
+                                  ends[has_lat] + dl[has_lat] * (ll[has_lat] * L)[:, None]])
+        par = np.concatenate([self.tip, self.tip[has_lat]])
+        k = len(new_start)
+        self.start.append(new_start)
+        self.end.append(new_end)
+        self.parent.append(par)
+        self.level.append(np.concatenate([lev, lev[has_lat] + 1]))
+        self.tree.append(np.concatenate([tree, tree[has_lat]]))
+        self.gen.append(np.full(k, gen))
+        self.kind.append(np.concatenate([np.zeros(n, np.int64), np.ones(has_lat.sum(), np.int64)]))
+        self.alive = np.concatenate([self.alive, np.ones(k, bool)])
+        self.children_alive = np.concatenate([self.children_alive, np.zeros(k, np.int64)])
+        np.add.at(self.children_alive, par, 1)
+        new = self.nseg + np.arange(k)
+        self.nseg += k
+        self.tip = new
+        self.tip_dir = np.concatenate([dm, dl[has_lat]])
+        self.tip_u = np.concatenate([um, ul[has_lat]])
+
+
+def _auto_engine(n_spheres: int, engine: str) -> str:
+    if engine != "auto":
+        return engine
+    # measured on a 2-core machine (benchmarks/trees_growth.py): the all-pairs Dr.Jit test does
+    # ~1e9 ray-sphere tests/s, Mitsuba's ellipsoid BVH ~2.7e6 casts/s at ~5-10 casts per ray
+    return "analytic" if n_spheres <= 2500 else "mitsuba"
+
+
+def _light(forest, p, sky, env, alphas, engine):
+    from .leaflight import leaf_sphere_light
+    pos = forest.tip_positions()
+    return leaf_sphere_light(pos, p.leaf_radius * p.unit, sky, alphas, env,
+                             _auto_engine(len(pos), engine), p.ray_cutoff)
+
+
+def grow_forest(positions, params: GrowthParams | None = None, generations: int = 10,
+                scene=None, seed: int = 0, progress: bool = False, engine: str | None = None,
+                history: list | None = None) -> list[Tree]:
+    """Grow trees at ``positions`` together, so that they shade each other (paper 001 §3.3).
+
+    positions: (n, 3) [m] tree bases, or (n, 2) (x, z) pairs placed on the scene's terrain
+    (``y`` from the obstacles below, else the ground at y = 0). scene: None (open sky all round,
+    the paper's ideal environment), an :class:`~mitsuba_veg.trees.environment.Environment`, a
+    Mitsuba scene (its meshes are obstacles), a trimesh or (vertices, faces) pairs.
+    Returns one :class:`~mitsuba_veg.trees.structure.Tree` per position (dead branches kept with
+    ``alive = False``), with the per-leaf-sphere light in ``tree.attrs``.
+    """
+    from .environment import Environment
+    from .leaflight import Sky
+
+    p = GrowthParams() if params is None else params
+    if not isinstance(p, GrowthParams):
+        p = GrowthParams.from_dict(dict(p))
+    p.validate()
+    if isinstance(generations, bool) or int(generations) != generations or generations < 0:
+        raise ParameterError("generations", generations, "an integer >= 0", "e.g. 10 (G)")
+    generations = int(generations)
+    engine = engine or p.engine
+    env = Environment.coerce(scene)
+    pos = np.asarray(positions, float)
+    if pos.ndim == 1:
+        pos = pos[None]
+    if pos.ndim != 2 or pos.shape[1] not in (2, 3) or len(pos) == 0:
+        raise ParameterError("positions", np.asarray(positions).tolist()[:4],
+                             "a list of (x, y, z) or (x, z) points [m]")
+    if pos.shape[1] == 2:
+        y = env.height_at(pos[:, 0], pos[:, 1]) if env is not None else np.zeros(len(pos))
+        pos = np.stack([pos[:, 0], y, pos[:, 1]], 1)
+    if not np.all(np.isfinite(pos)):
+        raise ParameterError("positions", pos.tolist()[:4], "finite coordinates [m]")
+    sky = Sky(p.sky_h, p.sky_v, p.light_ratio)
+    alphas = {"light": p.alpha, "red": p.alpha_red, "far_red": p.alpha_far_red}
+    if env is not None:
+        env.reflected_light(sky)           # once, before growth (the paper's generation 0)
+    forest = _Forest(p, pos, seed)
+    hist = [] if history is None else history
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=generations + 1, desc=f"growing {len(pos)} tree(s)", unit="gen")
+    light = None
+    for g in range(generations + 1):
+        t0 = time.perf_counter()
+        light = _light(forest, p, sky, env, alphas, engine)
+        dead = light.received["light"] < p.death_threshold
+        n_tips = len(forest.tip)
+        forest.kill(forest.tip[dead])
+        keep = ~dead
+        forest.tip = forest.tip[keep]
+        forest.tip_dir = forest.tip_dir[keep]
+        forest.tip_u = forest.tip_u[keep]
+        light = _subset_light(light, keep)
+        if g < generations:
+            forest.branch(light, g + 1)
+        hist.append({"generation": g, "tips": int(n_tips), "died": int(dead.sum()),
+                     "rays": light.rays, "casts": light.casts, "engine": light.stats.get("engine"),
+                     "light_s": light.seconds, "seconds": time.perf_counter() - t0})
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(tips=n_tips)
+    if bar is not None:
+        bar.close()
+    return _to_trees(forest, light, p, seed, hist)
+
+
+def _subset_light(light, keep):
+    from .leaflight import LeafLight
+    return LeafLight({b: v[keep] for b, v in light.received.items()}, light.vector[keep],
+                     light.rays, light.casts, light.seconds, light.spheres_passed, light.stats)
+
+
+def grow(params: GrowthParams | None = None, generations: int = 10, position=(0.0, 0.0, 0.0),
+         scene=None, seed: int = 0, progress: bool = False, engine: str | None = None) -> Tree:
+    """Grow one tree at ``position`` [m] (see :func:`grow_forest`)."""
+    return grow_forest([position], params, generations, scene, seed, progress, engine)[0]
+
+
+def branching(params: GrowthParams | None = None, generations: int = 10,
+              position=(0.0, 0.0, 0.0), seed: int = 0) -> Tree:
+    """The pure branching model (no light: no death, no phototropism, no shade avoidance):
+    the paper's H = 0 shape, used as the sample tree of paper 002."""
+    from .leaflight import LeafLight
+    p = (GrowthParams() if params is None else params).replace(phototropism=0.0)
+    forest = _Forest(p, np.asarray(position, float)[None], seed)
+    for g in range(int(generations)):
+        n = len(forest.tip)
+        fake = LeafLight({"light": np.ones(n), "red": np.ones(n), "far_red": np.ones(n)},
+                         np.tile([0.0, 1.0, 0.0], (n, 1)))
+        forest.branch(fake, g + 1)
+    n = len(forest.tip)
+    fake = LeafLight({"light": np.ones(n), "red": np.ones(n), "far_red": np.ones(n)},
+                     np.tile([0.0, 1.0, 0.0], (n, 1)))
+    return _to_trees(forest, fake, p, seed, [])[0]
+
+
+def _to_trees(forest, light, p, seed, hist) -> list[Tree]:
+    start, end, parent, level, tree_of, gen, kind = forest.arrays()
+    alive = forest.alive
+    n = len(start)
+    # pipe model: live tips per segment (one reverse pass: parents come first)
+    tips = np.zeros(n)
+    tips[forest.tip] = 1.0
+    acc = tips.copy()
+    for g in range(int(gen.max()), 0, -1):          # children are one generation younger
+        idx = np.nonzero(gen == g)[0]
+        np.add.at(acc, parent[idx], acc[idx])
+    r = p.tip_radius * p.unit * np.sqrt(np.maximum(acc, 1.0))
+    R = p.leaf_radius * p.unit
+    trees = []
+    tip_tree = tree_of[forest.tip]
+    for t in range(forest.n_trees):
+        idx = np.nonzero(tree_of == t)[0]
+        remap = np.full(n, -1)
+        remap[idx] = np.arange(len(idx))
+        par = parent[idx]
+        par = np.where(par >= 0, remap[np.maximum(par, 0)], -1)
+        sel = tip_tree == t
+        tip_seg_global = forest.tip[sel]
+        centers = end[tip_seg_global]
+        rng = np.random.default_rng([seed, t, 7])
+        leaves = _leaf_blades(centers, remap[tip_seg_global], R, p, rng)
+        tr = Tree(start[idx], end[idx], r[idx], r[idx], par, level[idx], alive[idx].copy(),
+                  None, leaves, name=f"tree{t}")
+        tr.attrs.update({
+            "model": "growth_001",
+            "leaf_sphere_center": centers,
+            "leaf_sphere_radius": R,
+            "leaf_sphere_segment": remap[tip_seg_global],
+            "light": light.received["light"][sel],
+            "red_far_red": light.ratio("red", "far_red")[sel],
+            "light_vector": light.vector[sel],
+            "generation": gen[idx],
+            "lateral": kind[idx].astype(bool),
+            "params": p.to_dict(),
+            "history": hist,
+            "seed": seed,
+        })
+        trees.append(tr)
+    return trees
+
+
+def _leaf_blades(centers, segs, R, p, rng) -> Leaves:
+    k = p.leaves_per_sphere
+    m = len(centers)
+    if k == 0 or m == 0:
+        return Leaves.empty()
+    n = m * k
+    d = rng.normal(size=(n, 3))
+    d = _norm(d)
+    rad = R * rng.random(n) ** (1 / 3)
+    pos = np.repeat(centers, k, 0) + d * rad[:, None]
+    nrm = rng.normal(size=(n, 3))
+    nrm[:, 1] = np.abs(nrm[:, 1]) + 1.0
+    nrm = _norm(nrm)
+    up = _norm(np.cross(nrm, rng.normal(size=(n, 3))))
+    return Leaves(pos, nrm, np.full(n, p.leaf_size * p.unit), np.repeat(segs, k), up,
+                  {"sphere": np.repeat(np.arange(m), k)})

@@ -1,0 +1,210 @@
+"""Moss life cycle (paper 000 §3.6) on hand-made states: germination, growth, death, gemmae,
+spores, landing of propagules, occupancy conflicts, clumps, slot reuse."""
+import math
+
+import numpy as np
+import pytest
+
+import mitsuba_veg  # noqa: F401
+import mitsuba as mi
+import drjit as dr
+
+from mitsuba_veg.moss import SPECIES
+from mitsuba_veg.moss.fitness import fitness as g_fn
+from mitsuba_veg.moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation,
+                                         SpeciesTable)
+from mitsuba_veg.moss.propagules import land, settle, spore_direction
+from mitsuba_veg.moss.spatial import CellGrid, per_element_count
+from mitsuba_veg.integrators.photon_irradiance import SceneIndex
+from mitsuba_veg.light import validation as V
+
+BRYUM = SPECIES["bryum_argenteum"]   # alpha_g 0.3, tau_g 0.1, tau_b 0.4, tau_d 0.1
+POLY = SPECIES["polytrichum"]
+
+
+def pop_with(n_slots=8, species=(BRYUM,), priority=None):
+    return MossPopulation(n_slots, SpeciesTable(list(species), priority))
+
+
+def add(pop, state, growth, elem=0, pos=(0, 0, 0), kind=GEMMA, species=0):
+    n = 1
+    return pop.add(state, mi.UInt32([species]), kind, mi.UInt32([elem]),
+                   mi.Point3f(*[mi.Float([float(c)]) for c in pos]),
+                   mi.Vector3f(mi.Float([0.0]), mi.Float([1.0]), mi.Float([0.0])),
+                   mi.Float([float(growth)]) if n else growth)
+
+
+def env(S, Ts, rhs, n=1):
+    f = lambda v: mi.Float(np.full(n, v, np.float32))  # noqa: E731
+    return f(S), f(Ts), f(rhs)
+
+
+def G_of(sp, S, Ts, rhs):
+    return (g_fn(Ts, sp.T0, sp.T1, sp.nT) * g_fn(rhs, sp.rh0, sp.rh1, sp.nrh)
+            * g_fn(S, sp.S0, sp.S1, sp.nS))
+
+
+def state(pop):
+    return np.asarray(pop.state)
+
+
+def test_growth_and_death_by_hand():
+    """G = 0 (far too much light): D = 0.3 (0 - 0.1) = -0.03 per day; G_moss 0.15 -> 0.12
+    (alive) -> 0.09 < tau_d = 0.1 while declining -> dead."""
+    pop = pop_with()
+    add(pop, MOSS, 0.15)
+    S, Ts, rhs = env(1e4, 288.15, 1.0)
+    no = mi.Bool(np.zeros(8, bool))
+    pop.live_day(S, Ts, rhs, no)
+    assert state(pop)[0] == MOSS
+    assert np.asarray(pop.growth)[0] == pytest.approx(0.12, abs=1e-6)
+    _, _, ev = pop.live_day(S, Ts, rhs, no)
+    assert state(pop)[0] == FREE and ev.died == 1
+
+
+def test_good_day_grows_by_eq_3_20():
+    pop = pop_with()
+    add(pop, MOSS, 0.3)
+    S, Ts, rhs = 30.0, 286.65, 1.0  # centre of Bryum's S and T ranges, rh inside
+    G = float(G_of(BRYUM, S, Ts, rhs))
+    pop.live_day(*env(S, Ts, rhs), mi.Bool(np.zeros(8, bool)))
+    assert np.asarray(pop.growth)[0] == pytest.approx(0.3 + 0.3 * (G - 0.1), abs=1e-5)
+
+
+def test_germination_rule_eq_3_24():
+    """A gemma germinates when G g(L, -60, 60, 1) > tau_b; a spore needs L near its window."""
+    S, Ts, rhs = 30.0, 286.65, 1.0
+    G = float(G_of(BRYUM, S, Ts, rhs))
+    pop = pop_with()
+    add(pop, PROPAGULE, 0.0, kind=GEMMA)
+    add(pop, PROPAGULE, 0.0, kind=SPORE)
+    _, _, ev = pop.live_day(*env(S, Ts, rhs), mi.Bool(np.zeros(8, bool)))
+    # day 1: L = 1
+    expect_gemma = G * float(g_fn(1.0, -60.0, 60.0, 1.0)) > BRYUM.tau_b
+    expect_spore = G * float(g_fn(1.0, 60.0, 365.0, 1.0)) > BRYUM.tau_b
+    assert expect_gemma and not expect_spore  # the test means something
+    assert state(pop)[0] == MOSS and state(pop)[1] == PROPAGULE
+    assert ev.germinated == 1
+    # the spore germinates once L is well inside its window (L = 200)
+    pop.age = dr.select(dr.arange(mi.UInt32, 8) == 1, 199.0, pop.age)
+    pop.live_day(*env(S, Ts, rhs), mi.Bool(np.zeros(8, bool)))
+    assert state(pop)[1] == MOSS
+    # a propagule in a hopeless place never germinates and is freed after its window
+    pop2 = pop_with()
+    add(pop2, PROPAGULE, 0.0, kind=GEMMA)
+    for _ in range(61):
+        pop2.live_day(*env(1e4, 288.15, 1.0), mi.Bool(np.zeros(8, bool)))
+    assert state(pop2)[0] == FREE
+
+
+def test_gemmae_every_half_and_spores_from_two():
+    pop = pop_with()
+    add(pop, MOSS, 0.45)     # will cross 0.5
+    add(pop, MOSS, 2.1)      # growing above 2: spores (and crosses 2.5? no: 2.1 + D < 2.5)
+    add(pop, MOSS, 0.45)     # crosses 0.5 but is inside a clump
+    interior = mi.Bool([False, False, True] + [False] * 5)
+    gemma, spores, ev = pop.live_day(*env(30.0, 286.65, 1.0, 1), interior)
+    gm, sp = np.asarray(gemma), np.asarray(spores)
+    assert gm.tolist()[:3] == [True, False, False]
+    assert sp.tolist()[:3] == [False, True, False]
+    # the interior moss's counter moved on: leaving the clump later (a declining day, no new
+    # threshold crossed) gives no late gemma for the 0.5 it passed inside
+    assert np.asarray(pop.gemmae)[2] == 1
+    gemma, _, _ = pop.live_day(*env(1e4, 288.15, 1.0, 1), mi.Bool(np.zeros(8, bool)))
+    assert not np.asarray(gemma)[2]
+    # a declining moss above 2 makes no spores
+    pop3 = pop_with()
+    add(pop3, MOSS, 2.5)
+    _, spores, _ = pop3.live_day(*env(1e4, 288.15, 1.0), mi.Bool(np.zeros(8, bool)))
+    assert not np.asarray(spores)[0]
+
+
+def test_free_slots_are_reused_and_overflow_counted():
+    pop = pop_with(n_slots=4)
+    for _ in range(4):
+        add(pop, MOSS, 0.15)
+    assert pop.count(MOSS) == 4
+    add(pop, MOSS, 0.15)
+    assert pop.overflow == 1
+    pop.remove(mi.Bool([False, True, False, False]))
+    slots = add(pop, PROPAGULE, 0.0)
+    assert np.asarray(slots).tolist() == [1]
+
+
+def test_spore_directions_lie_in_the_45_degree_cones():
+    n = 20000
+    rng = np.random.default_rng(0)
+    nrm = mi.Vector3f(0.0, 0.6, 0.8)
+    u = mi.Point2f(mi.Float(rng.random(n).astype(np.float32)),
+                   mi.Float(rng.random(n).astype(np.float32)))
+    side = mi.Float(rng.random(n).astype(np.float32))
+    d = spore_direction(nrm, u, side)
+    cos = np.asarray(d.x) * 0 + np.asarray(d.y) * 0.6 + np.asarray(d.z) * 0.8
+    ang = np.degrees(np.arccos(np.clip(cos, -1, 1)))
+    assert np.all((ang < 45.0 + 1e-3) | (ang > 135.0 - 1e-3))
+    assert 0.45 < np.mean(ang < 45) < 0.55       # both cones used
+    assert ang[ang < 45].max() > 40              # the whole cone, not a line
+
+
+def plane_scene():
+    gv, gf = V.grid_mesh(4, 4)
+    rv, rf = V.box_mesh((-0.5, 0.5, -0.5), (0.5, 0.55, 0.5))
+    d = {"type": "scene", "ground": V.make_mesh("ground", gv, gf, 0.2),
+         "roof": V.make_mesh("roof", rv, rf, 0.3)}
+    # a one-sided sheet facing down at y = 0.3 over x in [0.6, 0.9]: its top is a back face
+    sv, sf = V.grid_mesh(1, 1, x=(0.6, 0.9), z=(-0.2, 0.2), y=0.3, up=False)
+    d["sheet"] = V.make_mesh("sheet", sv, sf, 0.2)
+    scene = mi.load_dict(d, optimize=False)
+    return scene, SceneIndex.build(scene)
+
+
+def test_propagules_land_fall_or_vanish():
+    scene, idx = plane_scene()
+    P = lambda *pts: mi.Point3f(*[mi.Float([p[k] for p in pts]) for k in range(3)])  # noqa
+    D = lambda *ds: mi.Vector3f(*[mi.Float([d[k] for d in ds]) for k in range(3)])  # noqa
+    origin = P((-0.8, 0.01, 0.0), (-0.8, 0.3, 0.0), (0.0, 0.6, 0.0), (0.75, 0.5, 0.0),
+               (-0.8, 0.3, 0.0), (-0.8, 0.01, 0.98))
+    direction = D((1, 0, 0), (0, 1, 0), (0, 1, 0), (0, 1, 0), (0, 0, 1), (0, 0, 1))
+    landed, elem, p, n = land(scene, idx.lookup, origin, direction, 0.05, mi.Bool(True))
+    landed = np.asarray(landed)
+    y = np.asarray(p.y)
+    gsl, rsl = idx.shape_slice("ground"), idx.shape_slice("roof")
+    e = np.asarray(elem)
+    # 0: sideways 5 cm, then falls 1 cm onto the ground
+    assert landed[0] and gsl.start <= e[0] < gsl.stop and abs(y[0]) < 1e-3
+    # 1: released at 0.35 m, falls onto the ground
+    assert landed[1] and abs(y[1]) < 1e-3
+    # 2: above the roof slab, falls onto its top
+    assert landed[2] and rsl.start <= e[2] < rsl.stop and y[2] == pytest.approx(0.55, abs=1e-3)
+    # 3: falls onto the back of the one-sided sheet: removed
+    assert not landed[3]
+    # 5: leaves the ground's edge (z > 1) and falls into nothing: removed
+    assert not landed[5]
+
+
+def test_occupancy_conflicts_and_priorities():
+    grid = CellGrid((-1, -1, -1), (1, 1, 1), 0.01)
+    pop = pop_with(n_slots=8, species=(BRYUM, POLY), priority=[0.0, 5.0])
+    add(pop, MOSS, 0.3, pos=(0.0, 0.0, 0.0), species=0)       # established Bryum at the origin
+    add(pop, PROPAGULE, 0.0, pos=(0.2, 0.0, 0.0), species=0)  # a waiting Bryum gemma
+    pts = mi.Point3f(mi.Float([0.001, 0.002, 0.2005, 0.5, 0.5005]), mi.Float([0.0] * 5),
+                     mi.Float([0.0] * 5))
+    species = mi.UInt32([0, 0, 1, 0, 0])
+    keep, evict = settle(pop, grid, pts, species, dr.arange(mi.UInt32, 5), mi.Bool(True))
+    keep = np.asarray(keep).tolist()
+    # 0, 1: Bryum gemmae on the established moss: it keeps its spot (0.3 > 0)
+    # 2: a Polytrichum (priority 5) on the waiting Bryum gemma (0): it takes the spot
+    # 3, 4: two newcomers in one empty cell: exactly one (the first) stays
+    assert keep == [False, False, True, True, False]
+    assert np.asarray(evict).tolist()[:2] == [False, True]
+
+
+def test_clump_interior_by_neighbour_count():
+    grid = CellGrid((-1, -1, -1), (1, 1, 1), 0.01)
+    xs, zs = np.meshgrid(np.arange(-2, 3) * 0.01 + 0.005, np.arange(-2, 3) * 0.01 + 0.005)
+    p = mi.Point3f(mi.Float(xs.ravel()), mi.Float(np.full(25, 0.001)), mi.Float(zs.ravel()))
+    flags = grid.occupancy(p, dr.arange(mi.UInt32, 25), mi.Bool(True))
+    count = np.asarray(grid.neighbour_count(flags, p, mi.Bool(True))).reshape(5, 5)
+    assert count[2, 2] == 8 and count[0, 0] == 3 and count[0, 2] == 5
+    assert np.asarray(per_element_count(mi.UInt32([0, 2, 2]), mi.Bool(True), 3)).tolist() == \
+        [1, 0, 2]
