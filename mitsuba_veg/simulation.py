@@ -308,12 +308,19 @@ class MossSimulation:
     def moss(self, day: int, S, Ts, rhs):
         pop, grid, cfg = self.pop, self.grid, self.moss_cfg
         f = lambda a: mi.Float(np.asarray(a, np.float32))  # noqa: E731
-        moss_flags = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity), pop.moss)
-        interior = pop.moss & (grid.neighbour_count(moss_flags, pop.pos, pop.moss)
-                               >= int(cfg["clump_neighbours"]))
-        gemma, spores, ev = pop.live_day(f(S), f(Ts), f(rhs), interior)
+        cand, spores, ev = pop.live_day(f(S), f(Ts), f(rhs))
+        # only moss on the surface of a clump release gemmae: test the day's candidates only
+        c_idx = dr.compress(cand)
+        g_idx = c_idx
+        if dr.width(c_idx):
+            occ = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity),
+                                 pop.state != FREE, name="occupancy")
+            cp = dr.gather(mi.Point3f, pop.pos, c_idx)
+            inside = grid.neighbour_count(occ, cp, mi.Bool(True), pop.state, MOSS) >= \
+                dr.opaque(mi.UInt32, int(cfg["clump_neighbours"]))
+            g_idx = dr.gather(mi.UInt32, c_idx, dr.compress(~inside))
+        ev.gemma_parents = int(dr.width(g_idx))
         # release and landing of the day's propagules (one batch: gemmae then spores)
-        g_idx = dr.compress(gemma)
         s_idx = dr.compress(spores)
         n_g, n_s = dr.width(g_idx), dr.width(s_idx)
         landed_total = 0
@@ -332,7 +339,9 @@ class MossSimulation:
             landed, elem, p, nrm = self._land(M + N * 2e-3, d, dist, mi.Bool(True))
             landed &= dr.gather(mi.Bool, self.living_dr, elem, landed)
             species = dr.gather(mi.UInt32, pop.species, parents)
+            dr.eval(landed, elem, p, nrm, species, is_spore)  # once, not once per gather below
             keep, evict = settle(pop, grid, p, species, dr.arange(mi.UInt32, n), landed)
+            dr.eval(keep, evict)
             pop.remove(evict)
             k_idx = dr.compress(keep)
             if dr.width(k_idx):

@@ -178,7 +178,13 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
             raise ParameterError("when", when, "a time with the sun above the horizon")
         doy = _day_of_year(when)
         em = daylight_from_angles(az, el, day_of_year=doy)
-        scene, leaf_map = tree_scene(obj, emitters=em, tau=tau)
+        # ground: the crown, its shadow at this sun elevation and a margin (<= 60 m)
+        pos = obj.leaves.position if len(obj.leaves) else obj.end
+        r = float(np.max(np.hypot(pos[:, 0] - pos[:, 0].mean(), pos[:, 2] - pos[:, 2].mean())))
+        top = float(max(pos[:, 1].max(), obj.end[:, 1].max() if len(obj) else 0.0))
+        ext = min(2.0 * (r + top / np.tan(np.radians(max(el, 10.0)))) + 1.0, 60.0)
+        scene, leaf_map = tree_scene(obj, emitters=em, tau=tau, ground_extent=ext,
+                                     ground_resolution=80)
         info["_tree"] = obj
         info.setdefault("scene", f"tree '{obj.name}' ({len(obj.leaves)} leaves)")
         info.update(when=when, latitude=lat, longitude=lon, sun_azimuth=az, sun_elevation=el,

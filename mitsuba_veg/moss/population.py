@@ -73,6 +73,17 @@ class SpeciesTable:
         gS = fitness(S, g("S0", idx), g("S1", idx), g("nS", idx))
         return gT * grh * gS
 
+    def fitness_table(self, Ts, rhs, S) -> mi.Float:
+        """G of eq 3.17 for every (element, species) pair, element-major (index
+        ``elem * n_species + species``). G depends only on the spot's environment and the
+        species, so it is evaluated once per triangle and species, not once per moss."""
+        n_sp = len(self.species)
+        n_el = dr.width(Ts)
+        e = dr.arange(mi.UInt32, n_el * n_sp) // n_sp
+        sp = dr.arange(mi.UInt32, n_el * n_sp) % n_sp
+        return self.fitness(sp, dr.gather(mi.Float, Ts, e), dr.gather(mi.Float, rhs, e),
+                            dr.gather(mi.Float, S, e))
+
 
 class MossPopulation:
     """Structure of arrays of ``capacity`` slots (see module docstring)."""
@@ -146,26 +157,33 @@ class MossPopulation:
             return mi.UInt32()
         src = dr.arange(mi.UInt32, k)
         slots = dr.gather(mi.UInt32, free, src)
+        # Map every slot to its newcomer (or none) with one scatter into a fresh array, then
+        # update all fields with gathers and selects fused into one kernel: scattering into the
+        # state arrays themselves would copy each of them first (copy-on-write).
+        inv = dr.full(mi.UInt32, 0xFFFFFFFF, self.capacity)
+        dr.scatter(inv, src, slots)
+        is_new = inv != 0xFFFFFFFF
+        j = dr.select(is_new, inv, 0)
 
-        def put(target, value, t):
-            v = value if dr.width(value) == k else dr.gather(t, value, src)
-            dr.scatter(target, v, slots)
+        def col(value, t):
+            if not dr.is_array_v(value):
+                return dr.select(is_new, value, 0)
+            return dr.gather(t, value, j, is_new)
 
-        put(self.state, state if dr.is_array_v(state) else dr.full(mi.UInt32, state, n),
-            mi.UInt32)
-        put(self.species, species, mi.UInt32)
-        put(self.kind, kind if dr.is_array_v(kind) else dr.full(mi.UInt32, kind, n), mi.UInt32)
-        put(self.elem, elem, mi.UInt32)
-        put(self.growth, growth if dr.is_array_v(growth) else dr.full(mi.Float, growth, n),
-            mi.Float)
-        put(self.age, dr.zeros(mi.Float, n), mi.Float)
-        put(self.gemmae, dr.zeros(mi.UInt32, n), mi.UInt32)
-        for target, value in ((self.pos, pos), (self.nrm, nrm)):
-            for c in range(3):
-                put(target[c], value[c], mi.Float)
+        growth = col(growth, mi.Float)
+        self.state = dr.select(is_new, col(state, mi.UInt32), self.state)
+        self.species = dr.select(is_new, col(species, mi.UInt32), self.species)
+        self.kind = dr.select(is_new, col(kind, mi.UInt32), self.kind)
+        self.elem = dr.select(is_new, col(elem, mi.UInt32), self.elem)
+        self.growth = dr.select(is_new, growth, self.growth)
+        self.age = dr.select(is_new, 0.0, self.age)
         # a moss placed with some growth has already passed its gemma thresholds
-        g = dr.gather(mi.Float, self.growth, slots)
-        dr.scatter(self.gemmae, mi.UInt32(dr.floor(dr.maximum(g, 0.0) / GEMMA_STEP)), slots)
+        self.gemmae = dr.select(is_new, mi.UInt32(dr.floor(dr.maximum(growth, 0.0) / GEMMA_STEP)),
+                                self.gemmae)
+        self.pos = mi.Point3f(*[dr.select(is_new, col(pos[c], mi.Float), self.pos[c])
+                                for c in range(3)])
+        self.nrm = mi.Vector3f(*[dr.select(is_new, col(nrm[c], mi.Float), self.nrm[c])
+                                 for c in range(3)])
         dr.eval(self.state, self.species, self.kind, self.elem, self.growth, self.age,
                 self.gemmae, self.pos, self.nrm)
         return slots
@@ -174,19 +192,20 @@ class MossPopulation:
         self.state = dr.select(mask, mi.UInt32(FREE), self.state)
 
     # ---- the daily life cycle ---------------------------------------------------------------
-    def live_day(self, S, Ts, rhs, interior: mi.Bool):
+    def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None):
         """Steps 1-2 of the day (germination, growth and death) and the parents of step 3-4.
 
         S, Ts, rhs: per-element arrays (mi.Float over all elements) of the day's insolation
         [W m-2], surface temperature [K] and surface humidity [-]; interior: per-slot mask of moss
-        inside a dense clump (no gemmae). Returns (gemma_parents, spore_parents, DayEvents)
-        with the parent masks as Dr.Jit Bool arrays over the slots.
+        inside a dense clump (no gemmae), or None to return the gemma *candidates* (the caller
+        then drops those inside a clump, testing only them). Returns (gemma_parents or
+        candidates, spore_parents, DayEvents), masks as Dr.Jit Bool arrays over the slots.
         """
         t = self.table
         alive = self.state != FREE
-        e = self.elem
-        G = t.fitness(self.species, dr.gather(mi.Float, Ts, e, alive),
-                      dr.gather(mi.Float, rhs, e, alive), dr.gather(mi.Float, S, e, alive))
+        n_sp = len(t.species)
+        G = dr.gather(mi.Float, t.fitness_table(Ts, rhs, S), self.elem * n_sp + self.species,
+                      alive)
         # 1. germination (eq 3.24): G g(L, L0, L1, 1) > tau_b
         prop = self.state == PROPAGULE
         self.age = dr.select(prop, self.age + 1.0, self.age)
@@ -210,7 +229,9 @@ class MossPopulation:
         live = moss & ~died
         # 3. gemmae: one per +0.5 of G_moss, only from the surface of a clump (eq 3.22)
         steps = mi.UInt32(dr.floor(dr.maximum(growth, 0.0) / GEMMA_STEP))
-        gemma = live & (steps > self.gemmae) & ~interior
+        gemma = live & (steps > self.gemmae)
+        if interior is not None:
+            gemma &= ~interior
         # inside a clump the counter moves on without a gemma (the paper: they grow, no gemmae)
         self.gemmae = dr.select(live & (steps > self.gemmae), steps, self.gemmae)
         # 4. spores: G_moss >= 2.0 and growing (eq 3.23)

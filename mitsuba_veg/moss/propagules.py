@@ -77,11 +77,11 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
     pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
     rank = mi.UInt32(dr.clip(1000.0 - pri_new * 10.0, 0.0, 2000.0))  # higher priority first
     key = (rank << 21) | dr.minimum(new_order, mi.UInt32((1 << 21) - 1))
-    best = dr.full(mi.UInt32, 0xFFFFFFFF, grid.n_cells)
-    dr.scatter_reduce(dr.ReduceOp.Min, best, key, cells, landed)
+    best = grid.reduce_min(key, cells, landed)
     first = landed & (dr.gather(mi.UInt32, best, cells, landed) == key)
     # against the individual already there
-    occ = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity), pop.state != FREE)
+    occ = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity), pop.state != FREE,
+                         name="occupancy")
     there = dr.gather(mi.UInt32, occ, cells, first)
     has = first & (there > 0)
     slot = dr.select(has, there - 1, 0)

@@ -58,15 +58,45 @@ class CellGrid:
         nx, ny = int(self.dims[0]), int(self.dims[1])
         return mi.UInt32(ix) + nx * (mi.UInt32(iy) + ny * mi.UInt32(iz))
 
-    def occupancy(self, p: mi.Point3f, slot: mi.UInt32, active: mi.Bool) -> mi.UInt32:
-        """Grid of ``slot + 1`` at the cells of the active points (0 = empty). Callers keep at
-        most one individual per cell, so the scatter has no conflicts."""
-        grid = dr.zeros(mi.UInt32, self.n_cells)
-        dr.scatter(grid, slot + 1, self.index(p), active)
+    def _persistent(self, name: str, fill: int) -> mi.UInt32:
+        """A grid kept between calls (allocated and filled once): clearing a dense grid every
+        day would cost more than everything else; instead the cells written last time are reset."""
+        grid = getattr(self, f"_{name}", None)
+        if grid is None:
+            grid = dr.full(mi.UInt32, fill, self.n_cells)
+            dr.eval(grid)
+            setattr(self, f"_{name}", grid)
+            setattr(self, f"_{name}_last", None)
+        last = getattr(self, f"_{name}_last")
+        if last is not None:
+            dr.scatter(grid, mi.UInt32(fill), last[0], last[1])
         return grid
 
-    def neighbour_count(self, flags: mi.UInt32, p: mi.Point3f, active: mi.Bool) -> mi.UInt32:
-        """Number of the 26 neighbour cells of each point whose ``flags`` entry is non-zero."""
+    def occupancy(self, p: mi.Point3f, slot: mi.UInt32, active: mi.Bool,
+                  name: str = "occupancy") -> mi.UInt32:
+        """Grid of ``slot + 1`` at the cells of the active points (0 = empty). Callers keep at
+        most one individual per cell, so the scatter has no conflicts. ``name`` selects one of
+        the persistent grids: the returned grid is valid until the next call with that name."""
+        grid = self._persistent(name, 0)
+        cells = self.index(p)
+        dr.scatter(grid, slot + 1, cells, active)
+        dr.eval(grid, cells, active)
+        setattr(self, f"_{name}_last", (cells, active))
+        return grid
+
+    def reduce_min(self, key: mi.UInt32, cells: mi.UInt32, active: mi.Bool) -> mi.UInt32:
+        """Per cell, the smallest ``key`` of the active entries (0xFFFFFFFF where none); the grid
+        is valid until the next call."""
+        grid = self._persistent("min", 0xFFFFFFFF)
+        dr.scatter_reduce(dr.ReduceOp.Min, grid, key, cells, active)
+        dr.eval(grid, cells, active)
+        self._min_last = (cells, active)
+        return grid
+
+    def neighbour_count(self, flags: mi.UInt32, p: mi.Point3f, active: mi.Bool,
+                        state: mi.UInt32 | None = None, wanted: int = 0) -> mi.UInt32:
+        """Number of the 26 neighbour cells of each point whose ``flags`` entry is non-zero
+        (with ``state``: whose occupant, slot = entry - 1, has ``state == wanted``)."""
         ix, iy, iz = self.coords(p)
         count = dr.zeros(mi.UInt32, dr.width(p.x))
         for dx, dy, dz in NEIGHBOURS:
@@ -74,7 +104,10 @@ class CellGrid:
             inside = (jx >= 0) & (jy >= 0) & (jz >= 0) & (jx < int(self.dims[0])) & \
                 (jy < int(self.dims[1])) & (jz < int(self.dims[2]))
             v = dr.gather(mi.UInt32, flags, self._linear(jx, jy, jz), active & inside)
-            count += dr.select(v > 0, mi.UInt32(1), mi.UInt32(0))
+            hit = v > 0
+            if state is not None:
+                hit &= dr.gather(mi.UInt32, state, v - 1, hit) == wanted
+            count += dr.select(hit, mi.UInt32(1), mi.UInt32(0))
         return count
 
 

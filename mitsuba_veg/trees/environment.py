@@ -220,6 +220,37 @@ class Environment:
         t = np.asarray(si.t, float)
         return np.where(np.isfinite(t), top - t, default)
 
+    def inside(self, points) -> np.ndarray:
+        """Which points are inside an obstacle: the first surface straight above them faces up
+        (below a terrain surface, inside a closed building)."""
+        import drjit as dr
+        import mitsuba as mi
+        pts = np.asarray(points, np.float32).reshape(-1, 3)
+        if not self.obstacles or len(pts) == 0:
+            return np.zeros(len(pts), bool)
+        o = mi.Point3f(*[mi.Float(np.ascontiguousarray(pts[:, k])) for k in range(3)])
+        si = self.scene().ray_intersect(mi.Ray3f(o, mi.Vector3f(0, 1, 0)),
+                                        ray_flags=mi.RayFlags.Minimal, coherent=False)
+        dr.eval(si.t, si.n)
+        return np.asarray(si.is_valid()) & (np.asarray(si.n.y) > 0)
+
+    def blocked(self, start, direction, length) -> np.ndarray:
+        """Which straight segments (start (n, 3), unit direction (n, 3), length (n,) [m]) cross
+        an obstacle surface."""
+        import drjit as dr
+        import mitsuba as mi
+        start = np.asarray(start, np.float32).reshape(-1, 3)
+        if not self.obstacles or len(start) == 0:
+            return np.zeros(len(start), bool)
+        d = np.asarray(direction, np.float32).reshape(-1, 3)
+        o = mi.Point3f(*[mi.Float(np.ascontiguousarray(start[:, k])) for k in range(3)])
+        dd = mi.Vector3f(*[mi.Float(np.ascontiguousarray(d[:, k])) for k in range(3)])
+        ray = mi.Ray3f(o, dd)
+        ray.maxt = mi.Float(np.asarray(length, np.float32).ravel())
+        pi = self.scene().ray_intersect_preliminary(ray, coherent=False)
+        dr.eval(pi.t)
+        return np.asarray(pi.is_valid())
+
     # ---- light (paper 001) -------------------------------------------------------------------
     def reflected_light(self, sky, passes: int = 2) -> np.ndarray:
         """Per-triangle reflected-light factor env (see module docstring), for ``sky`` (a
@@ -246,16 +277,12 @@ class Environment:
         origin = np.asarray(origin, float)
         ix, iy, iz = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         c = origin + (np.stack([ix, iy, iz], -1).reshape(-1, 3) + 0.5) * size
-        o = mi.Point3f(*[mi.Float(c[:, k].astype(np.float32)) for k in range(3)])
-        si = self.scene().ray_intersect(mi.Ray3f(o, mi.Vector3f(0, 1, 0)),
-                                        ray_flags=mi.RayFlags.Minimal)
-        dr.eval(si.t, si.n)
-        valid = np.asarray(si.is_valid())
-        ny_hit = np.asarray(si.n.y)
-        inside = valid & (ny_hit > 0)          # the surface above faces up: we are below/inside
-        mask |= inside.reshape(shape)
-        # surface samples, ~4 per voxel face area
-        V, F, _, _, areas, _, _ = self.triangles()
+        mask |= self.inside(c).reshape(shape)
+        # surface samples of steep faces (thin walls), ~4 per voxel face area; level faces
+        # (terrain, roofs) are resolved by the centre test
+        V, F, nrm, _, areas, _, _ = self.triangles()
+        steep = np.abs(nrm[:, 1]) < 0.9
+        F, areas = F[steep], areas[steep]
         rng = np.random.default_rng(0)
         per = np.maximum(1, np.ceil(4 * areas / size ** 2)).astype(np.int64)
         tri = np.repeat(np.arange(len(F)), per)

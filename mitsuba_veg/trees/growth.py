@@ -89,6 +89,7 @@ class GrowthParams:
     random_phase: bool = True             # random initial phyllotaxis azimuth per tree (seeded)
     ray_cutoff: float = 1e-3              # stop a ray when every band is attenuated below this
     engine: str = "auto"                  # "mitsuba" | "analytic" | "auto" (faster of the two)
+    obstacle_collision: bool = True       # a child that would grow into an obstacle is not made
 
     def __post_init__(self):
         self.validate()
@@ -190,8 +191,10 @@ def _turn_towards(d, u, target, frac):
 class _Forest:
     """Segments of all trees in one structure of arrays (append-only, parents first)."""
 
-    def __init__(self, p: GrowthParams, positions, seed):
+    def __init__(self, p: GrowthParams, positions, seed, env=None):
         self.p = p
+        self.env = env
+        self.blocked = 0
         n = len(positions)
         self.n_trees = n
         L = p.main_length * p.unit
@@ -263,29 +266,38 @@ class _Forest:
             v = light.vector
             dm, um = _turn_towards(dm, um, v, p.phototropism)
             dl, ul = _turn_towards(dl, ul, v, p.phototropism)
-        has_lat = ll > 1e-9
         L = p.unit
-        # new segments: all main children, then the laterals that have a length
-        new_start = np.concatenate([ends, ends[has_lat]])
-        new_end = np.concatenate([ends + dm * (lm * L)[:, None],
-                                  ends[has_lat] + dl[has_lat] * (ll[has_lat] * L)[:, None]])
-        par = np.concatenate([self.tip, self.tip[has_lat]])
-        k = len(new_start)
-        self.start.append(new_start)
-        self.end.append(new_end)
-        self.parent.append(par)
-        self.level.append(np.concatenate([lev, lev[has_lat] + 1]))
-        self.tree.append(np.concatenate([tree, tree[has_lat]]))
+        # candidate children: all main-axis children, then all laterals
+        c_start = np.concatenate([ends, ends])
+        c_dir = np.concatenate([dm, dl])
+        c_len = np.concatenate([lm, ll]) * L
+        c_u = np.concatenate([um, ul])
+        c_par = np.concatenate([self.tip, self.tip])
+        c_lev = np.concatenate([lev, lev + 1])
+        c_tree = np.concatenate([tree, tree])
+        c_kind = np.concatenate([np.zeros(n, np.int64), np.ones(n, np.int64)])
+        ok = c_len > 1e-9
+        if self.env is not None and self.p.obstacle_collision:
+            ok &= ~self.env.blocked(c_start, c_dir, c_len)
+        # a tip none of whose children can grow keeps its leaf sphere and tries again
+        grown = ok[:n] | ok[n:]
+        k = int(ok.sum())
+        self.start.append(c_start[ok])
+        self.end.append(c_start[ok] + c_dir[ok] * c_len[ok, None])
+        self.parent.append(c_par[ok])
+        self.level.append(c_lev[ok])
+        self.tree.append(c_tree[ok])
         self.gen.append(np.full(k, gen))
-        self.kind.append(np.concatenate([np.zeros(n, np.int64), np.ones(has_lat.sum(), np.int64)]))
+        self.kind.append(c_kind[ok])
         self.alive = np.concatenate([self.alive, np.ones(k, bool)])
         self.children_alive = np.concatenate([self.children_alive, np.zeros(k, np.int64)])
-        np.add.at(self.children_alive, par, 1)
+        np.add.at(self.children_alive, c_par[ok], 1)
         new = self.nseg + np.arange(k)
         self.nseg += k
-        self.tip = new
-        self.tip_dir = np.concatenate([dm, dl[has_lat]])
-        self.tip_u = np.concatenate([um, ul[has_lat]])
+        self.tip = np.concatenate([new, self.tip[~grown]])
+        self.tip_dir = np.concatenate([c_dir[ok], d[~grown]])
+        self.tip_u = np.concatenate([c_u[ok], u[~grown]])
+        self.blocked += int((~ok & (c_len > 1e-9)).sum())
 
 
 def _auto_engine(n_spheres: int, engine: str) -> str:
@@ -342,7 +354,7 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     alphas = {"light": p.alpha, "red": p.alpha_red, "far_red": p.alpha_far_red}
     if env is not None:
         env.reflected_light(sky)           # once, before growth (the paper's generation 0)
-    forest = _Forest(p, pos, seed)
+    forest = _Forest(p, pos, seed, env)
     hist = [] if history is None else history
     bar = None
     if progress:
@@ -363,6 +375,7 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
         if g < generations:
             forest.branch(light, g + 1)
         hist.append({"generation": g, "tips": int(n_tips), "died": int(dead.sum()),
+                     "blocked": forest.blocked,
                      "rays": light.rays, "casts": light.casts, "engine": light.stats.get("engine"),
                      "light_s": light.seconds, "seconds": time.perf_counter() - t0})
         if bar is not None:

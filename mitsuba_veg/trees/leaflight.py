@@ -292,6 +292,14 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
     cell = np.tile(np.arange(m), n)
     kin_ray = np.repeat(kin, m).astype(np.float64)
     vals = _ray_values(sky, env, k_np, tri_np, cell, alphas, kin_ray)
+    buried = np.zeros(n, bool)
+    if env is not None:
+        # a sphere centred inside an obstacle (below the terrain, in a wall) receives nothing
+        buried = env.inside(centers)
+        if buried.any():
+            zero = np.repeat(buried, m)
+            for v in vals.values():
+                v[zero] = 0.0
     norm = float((B0 * S).sum())
     Sr = np.tile(S, n)
     received = {b: (v * Sr).reshape(n, m).sum(1) / norm for b, v in vals.items()}
@@ -301,7 +309,8 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
     vec = np.where(ln > 1e-12, vec / np.maximum(ln, 1e-300), np.array([[0.0, 1.0, 0.0]]))
     return LeafLight(received, vec, n_rays, n_casts, time.perf_counter() - t0,
                      float((k_np + kin_ray).mean()),
-                     {"engine": engine, "spheres": n, "k_cap": kcap})
+                     {"engine": engine, "spheres": n, "k_cap": kcap,
+                      "buried": int(buried.sum())})
 
 
 # --------------------------------------------------------------------------------------------

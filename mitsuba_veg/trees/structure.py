@@ -13,7 +13,13 @@ and the renderer work on whole arrays, never on Python objects per branch:
 - ``leaves``: a :class:`Leaves` set (positions, normals, sizes, the segment each hangs on, and
   free per-leaf attributes such as autumn state).
 
-Models add their own per-segment arrays in ``attrs`` (e.g. received light).
+Models add their own per-segment arrays in ``attrs`` (e.g. received light). Keys with a
+meaning shared by several modules:
+
+- ``leaf_sphere_center`` (k, 3) [m], ``leaf_sphere_radius`` [m]: the leaf spheres of the growth
+  model (paper 001); when present they are the crown points of :meth:`Tree.metrics` (the leaf
+  blades drawn in them are random) and move with the tree (:meth:`Tree.translated`,
+  :meth:`Tree.transform_points`).
 """
 from __future__ import annotations
 
@@ -24,6 +30,8 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError
 
 NORMAL, KNOT, SPROUTED_KNOT = 0, 1, 2
+#: attrs holding points [m] that move with the tree
+POINT_ATTRS = ("leaf_sphere_center",)
 
 
 @dataclass
@@ -104,14 +112,14 @@ class Tree:
         np.add.at(c, self.parent[self.parent >= 0], 1)
         return c
 
+    def depth(self) -> np.ndarray:
+        """Number of ancestors of every segment (0 for roots)."""
+        return segment_depth(self.parent)
+
     def subtree_sum(self, values) -> np.ndarray:
-        """Sum of ``values`` over each segment's subtree (itself included): one reverse pass."""
-        acc = np.array(values, dtype=np.float64, copy=True)
-        for i in range(len(self) - 1, 0, -1):  # vectorising this needs levels; n is small
-            p = self.parent[i]
-            if p >= 0:
-                acc[p] += acc[i]
-        return acc
+        """Sum of ``values`` over each segment's subtree (itself included): one vectorised
+        pass per depth level, deepest first."""
+        return subtree_sum(self.parent, values)
 
     def subtree_mask(self, root: int) -> np.ndarray:
         """Boolean mask of the segments in ``root``'s subtree (itself included)."""
@@ -123,22 +131,52 @@ class Tree:
                 m[i] = True
         return m
 
+    def tips(self, alive_only: bool = True) -> np.ndarray:
+        """Indices of terminal segments (no live child; among live segments if
+        ``alive_only``)."""
+        keep = self.alive if alive_only else np.ones(len(self), bool)
+        has_child = np.zeros(len(self), bool)
+        par = self.parent[keep & (self.parent >= 0)]
+        has_child[par] = True
+        return np.nonzero(keep & ~has_child)[0]
+
+    def copy(self) -> "Tree":
+        import copy as _copy
+        lv = self.leaves
+        leaves = Leaves(lv.position.copy(), lv.normal.copy(), lv.size.copy(), lv.segment.copy(),
+                        None if lv.up is None else lv.up.copy(),
+                        {k: np.array(v, copy=True) for k, v in lv.attrs.items()})
+        return Tree(self.start.copy(), self.end.copy(), self.radius_start.copy(),
+                    self.radius_end.copy(), self.parent.copy(), self.level.copy(),
+                    self.alive.copy(), self.kind.copy(), leaves, _copy.deepcopy(self.attrs),
+                    self.name)
+
     def translated(self, offset) -> "Tree":
         o = np.asarray(offset, float)
         lv = self.leaves
         leaves = Leaves(lv.position + o, lv.normal, lv.size, lv.segment, lv.up, dict(lv.attrs))
+        attrs = dict(self.attrs)
+        for k in POINT_ATTRS:
+            if k in attrs:
+                attrs[k] = np.asarray(attrs[k], float) + o
         return Tree(self.start + o, self.end + o, self.radius_start, self.radius_end, self.parent,
-                    self.level, self.alive.copy(), self.kind.copy(), leaves, dict(self.attrs),
+                    self.level, self.alive.copy(), self.kind.copy(), leaves, attrs,
                     self.name)
 
     # ---- metrics -----------------------------------------------------------------------------
     def metrics(self) -> dict:
         """Shape numbers: height [m], crown centroid (x, y, z) [m], crown radius [m] (mean
-        horizontal distance of the leaves from the crown axis), branch and leaf counts."""
+        horizontal distance of the crown points from the crown's vertical axis through the
+        centroid), branch and leaf counts. Crown points are the leaf spheres when the tree has
+        them (growth model), else the leaves, else the live segment ends."""
         live = self.alive
         base = self.start[0] if len(self) else np.zeros(3)
-        pts = self.leaves.position if len(self.leaves) else (self.end[live] if live.any()
-                                                              else self.end)
+        spheres = self.attrs.get("leaf_sphere_center")
+        if spheres is not None and len(spheres):
+            pts = np.asarray(spheres, float).reshape(-1, 3)
+        else:
+            pts = self.leaves.position if len(self.leaves) else (self.end[live] if live.any()
+                                                                  else self.end)
         if len(pts) == 0:
             pts = np.zeros((1, 3))
         top = max(float(self.end[live, 1].max()) if live.any() else base[1],
@@ -148,6 +186,7 @@ class Tree:
         return {"height": top - float(base[1]), "crown_centroid": cen.tolist(),
                 "crown_radius": rad, "live_branches": int(live.sum()),
                 "dead_branches": int((~live).sum()), "leaves": int(len(self.leaves)),
+                "leaf_spheres": 0 if spheres is None else int(len(spheres)),
                 "base": base.tolist()}
 
     # ---- geometry ----------------------------------------------------------------------------
@@ -178,6 +217,33 @@ class Tree:
             raise ParameterError("path", path, "a .ply, .obj, .glb, .gltf or .stl file name")
         self.to_mesh(**kw).export(path)
         return path
+
+
+def segment_depth(parent) -> np.ndarray:
+    """Ancestor count per segment for a parents-first ``parent`` array."""
+    parent = np.asarray(parent, np.int64)
+    n = len(parent)
+    depth = np.zeros(n, np.int64)
+    cur = parent.copy()
+    while True:
+        m = cur >= 0
+        if not m.any():
+            return depth
+        depth[m] += 1
+        cur[m] = parent[cur[m]]
+
+
+def subtree_sum(parent, values) -> np.ndarray:
+    """Sum of ``values`` over every segment's subtree (itself included)."""
+    parent = np.asarray(parent, np.int64)
+    acc = np.array(values, dtype=np.float64, copy=True)
+    if len(parent) == 0:
+        return acc
+    depth = segment_depth(parent)
+    for d in range(int(depth.max()), 0, -1):
+        idx = np.nonzero(depth == d)[0]
+        np.add.at(acc, parent[idx], acc[idx])
+    return acc
 
 
 def _frames(d):

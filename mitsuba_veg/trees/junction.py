@@ -1,0 +1,523 @@
+"""Bark and leaf meshes with smooth branch junctions (paper 004, section 4).
+
+:func:`tree_mesh` turns a :class:`~mitsuba_veg.trees.structure.Tree` into one bark mesh (tubes
+with UVs, welded along each stem, capped at the tips) and one leaf mesh. Where a branch leaves its
+parent, the tube between the branch base and its first node is rebuilt from control points per
+tube corner m (paper 004 §4.3):
+
+- ``B`` - the original contact point: where the corner's line along the branch meets the parent's
+  surface;
+- ``P`` - the connection point on the parent, at the height (distance along the parent) of the
+  nearest neighbouring branch base or parent node above (upper corners) or below (lower corners)
+  the branch (§4.2.1); a node that coincides with the branch base is skipped;
+- ``C`` - the corner at the branch's first node.
+
+Rings d = 0..D follow eq 4.2,
+
+    N_{d,m} = ((1 - d/D)^F (P - B) + (d/D)^F (C - B)) · (l_c r_c)/(l_p r_p) + B,
+
+with F = Stretch on the upper side (tension wood) and F = Compress on the lower side
+(compression wood), and D = D_u / level (eq 4.1). F = 2 gives a quadratic Bezier curve with B as
+control point (tangent to the parent at d = 0 and to the branch at d = D), F < 1 a bulge (lumpy
+knots), F = 1 a straight chamfer. Ring d = 0 lies on (just under) the parent's surface, so the
+junction closes the gap between branch and parent without holes.
+
+Everything is vectorised over segments, rings and junctions (NumPy); trees from other models
+work too (stems are then inferred from the parent/level arrays).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, check_range
+
+from .structure import KNOT, Tree
+
+__all__ = ["subdivisions", "eq42", "junction_rings", "contact_points", "tree_mesh",
+           "leaf_mesh", "stem_structure"]
+
+LEAF_OUTLINE = np.array([[-0.5, 0.0], [-0.25, 0.433], [0.25, 0.433], [0.5, 0.0],
+                         [0.25, -0.433], [-0.25, -0.433]])   # (along, across), ellipse samples
+
+
+def subdivisions(D_u, level):
+    """Eq 4.1: junction subdivisions ``D = D_u / level`` (integer division, at least 1)."""
+    D_u = int(D_u)
+    if D_u < 1:
+        raise ParameterError("Du", D_u, "an integer >= 1", "set junction.Du to 1 or more")
+    level = np.asarray(level)
+    return np.maximum(1, D_u // np.maximum(level, 1)).astype(np.int64)
+
+
+def eq42(P, C, B, d, D, F, scale):
+    """Eq 4.2 for one subdivision ``d`` (0..D): the junction vertex of each corner.
+
+    ``P``, ``C``, ``B`` (..., 3) control points, ``F`` (...) Stretch or Compress,
+    ``scale`` (...) = (length_c radius_c)/(length_p radius_p)."""
+    P, C, B = (np.asarray(x, float) for x in (P, C, B))
+    t = np.asarray(d, float) / np.asarray(D, float)
+    F = np.asarray(F, float)[..., None]
+    s = np.asarray(scale, float)[..., None]
+    t = t[..., None] if np.ndim(t) else t
+    return ((1.0 - t) ** F * (P - B) + t ** F * (C - B)) * s + B
+
+
+def junction_rings(P, C, B, D, F, scale):
+    """Rings d = 0..D (eq 4.2) for junctions with the same ``D``: (n, D+1, M, 3) from control
+    points (n, M, 3), ``F`` (n, M) and ``scale`` (n,)."""
+    P, C, B = (np.asarray(x, float) for x in (P, C, B))
+    t = (np.arange(D + 1) / D)[None, :, None, None]
+    F = np.asarray(F, float)[:, None, :, None]
+    s = np.asarray(scale, float)[:, None, None, None]
+    return ((1.0 - t) ** F * (P - B)[:, None] + t ** F * (C - B)[:, None]) * s + B[:, None]
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def _perp_unit(u, t, fallback=None):
+    """``u`` made perpendicular to unit ``t`` and normalised (fallback where degenerate)."""
+    w = u - np.sum(u * t, axis=-1, keepdims=True) * t
+    n = np.linalg.norm(w, axis=-1, keepdims=True)
+    if fallback is None:
+        a = np.where(np.abs(t[..., 1:2]) < 0.9, np.array([0.0, 1.0, 0.0]),
+                     np.array([1.0, 0.0, 0.0]))
+        fallback = _unit(np.cross(t, a))
+    return np.where(n > 1e-9, w / np.maximum(n, 1e-300), fallback)
+
+
+def contact_points(S, a_c, a_p, e, r_c, r_p):
+    """Original contact points B of the corner lines ``S + r_c e_m + s a_c`` with the cylinder
+    of radius ``r_p`` around the parent axis through ``S`` along ``a_p`` (n, M, 3); returns
+    ``(B, s)``. Corners must start inside the cylinder (``r_c < r_p``)."""
+    q = r_c[:, None, None] * e
+    q = q - np.sum(q * a_p[:, None], -1, keepdims=True) * a_p[:, None]
+    g = a_c - np.sum(a_c * a_p, -1, keepdims=True) * a_p
+    A = np.sum(g * g, -1)[:, None]
+    Bq = np.sum(q * g[:, None], -1)
+    Cq = np.sum(q * q, -1) - (r_p ** 2)[:, None]
+    disc = np.maximum(Bq * Bq - A * Cq, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(A > 1e-12, (-Bq + np.sqrt(disc)) / np.maximum(A, 1e-300), 0.0)
+    s = np.maximum(s, 0.0)
+    B = S[:, None] + r_c[:, None, None] * e + s[..., None] * a_c[:, None]
+    return B, s
+
+
+def stem_structure(tree: Tree) -> dict:
+    """Per-segment stem bookkeeping: ``stem`` ids, ``cont`` (continues its parent's stem),
+    ``nxt`` (next segment of the stem or -1), ``arc`` (distance from the stem base at the segment
+    start), ``frame_x``, ``clone``, ``attach``, ``stem_length``, ``stem_radius``. Uses the
+    Weber-Penn attributes when present, else infers them (a child continues its parent's stem
+    when it is the parent's first child of the same level)."""
+    n = len(tree)
+    at = tree.attrs
+    par = tree.parent
+    alive = tree.alive
+    idx = np.arange(n)
+    haspar = (par >= 0)
+    pp = np.where(haspar, par, 0)
+    d = tree.end - tree.start
+    ln = np.linalg.norm(d, axis=1)
+    if "stem" in at and len(at["stem"]) == n:
+        stem = np.asarray(at["stem"], np.int64)
+        cont = haspar & (stem[pp] == stem)
+    else:
+        same = haspar & (tree.level[pp] == tree.level)
+        first = np.full(n, -1)
+        cand = idx[same][::-1]
+        first[par[cand]] = cand           # smallest index wins (written last)
+        cont = same & (first[pp] == idx)
+        stem = idx.copy()
+        for _ in range(n):                # propagate along chains (vectorised per step)
+            new = np.where(cont, stem[pp], stem)
+            if np.array_equal(new, stem):
+                break
+            stem = new
+    cont = cont & alive[pp] & alive
+    nxt = np.full(n, -1)
+    nxt[par[cont]] = idx[cont]
+    if "arc" in at and len(at["arc"]) == n:
+        arc = np.asarray(at["arc"], float)
+    else:
+        arc = np.zeros(n)
+        for _ in range(n):
+            new = np.where(cont, arc[pp] + ln[pp], 0.0)
+            if np.allclose(new, arc):
+                break
+            arc = new
+    if "frame_x" in at and len(at["frame_x"]) == n:
+        fx = np.asarray(at["frame_x"], float)
+    else:
+        fx = np.zeros((n, 3))
+        fx[:, 0] = 1.0
+    clone = np.asarray(at["clone"], bool) if "clone" in at else (
+        haspar & ~cont & (tree.level[pp] == tree.level))
+    if "attach" in at and len(at["attach"]) == n:
+        attach = np.asarray(at["attach"], float)
+    else:
+        dp = d[pp]
+        attach = np.clip(np.sum((tree.start - tree.start[pp]) * dp, 1)
+                         / np.maximum(np.sum(dp * dp, 1), 1e-300), 0.0, 1.0)
+    if "stem_length" in at and "stem_radius" in at:
+        slen = np.asarray(at["stem_length"], float)
+        srad = np.asarray(at["stem_radius"], float)
+    else:
+        tot = np.zeros(stem.max() + 1 if n else 0)
+        np.add.at(tot, stem, ln)
+        slen = tot[stem]
+        base = np.zeros_like(tot)
+        heads = ~cont
+        base[stem[heads]] = tree.radius_start[heads]
+        srad = base[stem]
+    return {"stem": stem, "cont": cont, "nxt": nxt, "arc": arc, "frame_x": fx, "clone": clone,
+            "attach": attach, "stem_length": slen, "stem_radius": srad, "length": ln,
+            "dir": _unit(d)}
+
+
+def _sides_of(tree, sides, knot_sides):
+    lv = np.minimum(tree.level, len(sides) - 1)
+    s = np.asarray(sides, np.int64)[lv]
+    s = np.where(tree.kind != 0, np.maximum(s, knot_sides), s)
+    lobes = np.asarray(tree.attrs.get("lobes", np.zeros(len(tree))), np.int64)
+    depth = np.asarray(tree.attrs.get("lobe_depth", np.zeros(len(tree))), float)
+    s = np.where((lobes > 0) & (depth > 0), np.maximum(s, 4 * lobes), s)
+    return s
+
+
+def _ring_vertices(center, t, u, r, S, lobes, depth):
+    """(R, S+1, 3) ring vertices (seam duplicated) for rings with ``S`` corners."""
+    v = np.cross(t, u)
+    th = 2 * np.pi * np.arange(S + 1) / S
+    rr = r[:, None] * (1.0 + depth[:, None] * np.sin(lobes[:, None] * th[None, :]))
+    return (center[:, None, :] + rr[..., None] * (np.cos(th)[None, :, None] * u[:, None, :]
+                                                  + np.sin(th)[None, :, None] * v[:, None, :]))
+
+
+def _tube_faces(oA, oB, S):
+    """Faces between rings starting at vertex offsets ``oA`` -> ``oB`` (S corners, S+1 verts)."""
+    k = np.arange(S)
+    q = np.stack([np.stack([k, k + 1, (S + 1) + k + 1], 1),
+                  np.stack([k, (S + 1) + k + 1, (S + 1) + k], 1)], 1).reshape(-1, 3)
+    # local index: < S+1 -> ring A, else ring B
+    a = q < (S + 1)
+    out = np.where(a[None], oA[:, None, None] + q[None], oB[:, None, None] + (q[None] - (S + 1)))
+    return out.reshape(-1, 3)
+
+
+def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_sides: int = 8,
+              D_u=None, stretch=None, compress=None, gain: float = 1.0, leaves: bool = True,
+              leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True):
+    """``(bark, leaves)`` trimesh meshes of ``tree``.
+
+    ``smooth``: rebuild branch bases with eq 4.2 (paper 004 §4); ``D_u``, ``stretch``,
+    ``compress``: junction parameters (default: the tree's Weber-Penn ``junction`` table, else
+    6 / 1.3 / 2.0); ``gain``: extra factor on eq 4.2's scale (1 = the paper); ``sides``: tube
+    corners per level (the trunk gets at least 4 x Lobes for its lobes); ``leaf_shape``:
+    ``"oval"`` (6-gon, 4 triangles) or ``"quad"``.
+
+    The bark carries UVs (u around the stem, v along it in units of the stem's base
+    circumference); ``bark.metadata`` holds ``junction_D`` (D per segment, 0 where not smoothed),
+    ``segment`` (the tree segment of each face) and ``vertex_ring`` (ring id of each vertex).
+    """
+    import trimesh
+
+    wp = getattr(tree, "weber_penn", None)
+    jp = dict(wp.params.junction) if wp is not None else {"Du": 6, "Stretch": 1.3,
+                                                          "Compress": 2.0}
+    D_u = int(jp["Du"] if D_u is None else D_u)
+    stretch = float(jp["Stretch"] if stretch is None else stretch)
+    compress = float(jp["Compress"] if compress is None else compress)
+    subdivisions(D_u, 1)
+    check_range("stretch", stretch, 1e-3, 20.0, fix="use a positive exponent")
+    check_range("compress", compress, 1e-3, 20.0, fix="use a positive exponent")
+    check_range("gain", gain, 0.0, None, fix="use gain >= 0 (1 = paper 004 eq 4.2)")
+    if leaf_shape not in ("oval", "quad"):
+        raise ParameterError("leaf_shape", leaf_shape, "'oval' or 'quad'")
+    if len(sides) < 1 or min(sides) < 3:
+        raise ParameterError("sides", sides, "corners per level, each >= 3")
+
+    n = len(tree)
+    st = stem_structure(tree)
+    alive = tree.alive
+    par = tree.parent
+    pp = np.where(par >= 0, par, 0)
+    dirs, ln = st["dir"], st["length"]
+    cont, nxt = st["cont"], st["nxt"]
+    Sg = _sides_of(tree, sides, knot_sides)
+    r0 = np.maximum(tree.radius_start, min_radius)
+    r1 = np.maximum(tree.radius_end, min_radius)
+    lobes = np.asarray(tree.attrs.get("lobes", np.zeros(n)), float)
+    depth = np.asarray(tree.attrs.get("lobe_depth", np.zeros(n)), float)
+    circ = 2 * np.pi * np.maximum(st["stem_radius"], 1e-6)
+
+    # top ring frames (bisector of the segment and the next one of its stem)
+    hasn = nxt >= 0
+    nn = np.where(hasn, nxt, 0)
+    t_top = _unit(np.where(hasn[:, None], dirs + dirs[nn], dirs))
+    fx = st["frame_x"]
+    u_top = _perp_unit(np.where(hasn[:, None], fx + fx[nn], fx), t_top)
+    u_bot = _perp_unit(fx, dirs)
+
+    child = alive & (par >= 0) & ~cont & ~st["clone"] & alive[pp] & (tree.level >= 1)
+    jmask = child & smooth
+    own_bottom = alive & ~cont & ~jmask
+
+    # ---- rings: top rings, own bottom rings, junction rings ---------------------------------
+    ring_S, ring_verts, ring_uv, ring_seg = [], [], [], []
+    ring_count = 0
+    top_id = np.full(n, -1)
+    bot_id = np.full(n, -1)
+
+    def add_rings(ids_seg, verts, uv, S):
+        nonlocal ring_count
+        k = len(ids_seg)
+        ring_S.append(np.full(k, S))
+        ring_verts.append(verts.reshape(-1, 3))
+        ring_uv.append(uv.reshape(-1, 2))
+        ring_seg.append(ids_seg)
+        r = np.arange(ring_count, ring_count + k)
+        ring_count += k
+        return r
+
+    uu = {S: np.arange(S + 1) / S for S in np.unique(Sg)}
+    for S in np.unique(Sg[alive]):
+        sel = np.nonzero(alive & (Sg == S))[0]
+        v = _ring_vertices(tree.end[sel], t_top[sel], u_top[sel], r1[sel], S, lobes[sel],
+                           depth[sel])
+        vv = (st["arc"][sel] + ln[sel]) / circ[sel]
+        uv = np.stack(np.broadcast_arrays(uu[S][None, :], vv[:, None]), -1)
+        top_id[sel] = add_rings(sel, v, uv, S)
+        sel = np.nonzero(own_bottom & (Sg == S))[0]
+        if len(sel):
+            v = _ring_vertices(tree.start[sel], dirs[sel], u_bot[sel], r0[sel], S, lobes[sel],
+                               depth[sel])
+            vv = st["arc"][sel] / circ[sel]
+            uv = np.stack(np.broadcast_arrays(uu[S][None, :], vv[:, None]), -1)
+            bot_id[sel] = add_rings(sel, v, uv, S)
+    bot_id[cont & alive] = top_id[par[cont & alive]]
+
+    # ---- junctions (paper 004 §4) ------------------------------------------------------------
+    junction_D = np.zeros(n, np.int64)
+    jchains = []          # (segment ids, ring ids (k, D+1)) per group
+    jc = np.nonzero(jmask)[0]
+    if len(jc):
+        Dj = subdivisions(D_u, tree.level[jc])
+        junction_D[jc] = Dj
+        info = _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts,
+                                 ring_count, ring_S)
+        P, C, B, c_m, scale = info
+        F = [0.5 * (1 + c) * stretch + 0.5 * (1 - c) * compress for c in c_m]
+        scale = np.clip(scale * gain, 0.0, 1.0)
+        for key in sorted(set(zip(Sg[jc].tolist(), Dj.tolist()))):
+            S, D = key
+            sel = np.nonzero((Sg[jc] == S) & (Dj == D))[0]
+            segs = jc[sel]
+            Pm, Cm, Bm = (np.stack([x[i] for i in sel]) for x in (P, C, B))
+            Fm = np.stack([F[i] for i in sel])
+            rings = junction_rings(Pm, Cm, Bm, D, Fm, scale[sel])     # (k, D+1, S+1, 3)
+            proj = np.sum((rings - tree.start[segs][:, None, None]) * dirs[segs][:, None, None],
+                          -1)
+            vv = np.maximum(proj, 0.0) / circ[segs][:, None, None] + st["arc"][segs][:, None, None]
+            uv = np.stack(np.broadcast_arrays(uu[S][None, None, :], vv), -1)
+            ids = add_rings(np.repeat(segs, D + 1), rings, uv, S).reshape(len(segs), D + 1)
+            bot_id[segs] = ids[:, 0]
+            jchains.append((segs, ids))
+
+    ring_S = np.concatenate(ring_S) if ring_S else np.zeros(0, np.int64)
+    ring_seg = np.concatenate(ring_seg) if ring_seg else np.zeros(0, np.int64)
+    verts = np.concatenate(ring_verts) if ring_verts else np.zeros((0, 3))
+    uvs = np.concatenate(ring_uv) if ring_uv else np.zeros((0, 2))
+    ring_off = np.r_[0, np.cumsum(ring_S + 1)[:-1]] if len(ring_S) else np.zeros(0, np.int64)
+
+    # ---- faces ----------------------------------------------------------------------------
+    pairs_a, pairs_b, pairs_seg = [bot_id[alive]], [top_id[alive]], [np.nonzero(alive)[0]]
+    for segs, ids in jchains:   # junction: N_0 -> ... -> N_D -> first node ring
+        chain = np.concatenate([ids, top_id[segs][:, None]], 1)
+        pairs_a.append(chain[:, :-1].ravel())
+        pairs_b.append(chain[:, 1:].ravel())
+        pairs_seg.append(np.repeat(segs, chain.shape[1] - 1))
+    # the unsmoothed piece of a junction segment is replaced by the chain
+    pa = np.concatenate(pairs_a)
+    pb = np.concatenate(pairs_b)
+    ps = np.concatenate(pairs_seg)
+    keep = np.ones(len(pa), bool)
+    if jchains:
+        nal = int(alive.sum())
+        keep[:nal] = ~jmask[np.nonzero(alive)[0]]
+    pa, pb, ps = pa[keep], pb[keep], ps[keep]
+    faces, fseg = [], []
+    for S in np.unique(ring_S[pa]) if len(pa) else []:
+        sel = ring_S[pa] == S
+        faces.append(_tube_faces(ring_off[pa[sel]], ring_off[pb[sel]], S))
+        fseg.append(np.repeat(ps[sel], 2 * S))
+    extra_v, extra_uv = [], []
+    nv = len(verts)
+    if caps:
+        tips = np.nonzero(alive & (nxt < 0) & (r1 > 0))[0]
+        roots = np.nonzero(alive & ~cont & ((par < 0) | ~alive[pp]) & (r0 > 0))[0]
+        for ids, centers, flip in ((tips, tree.end, False), (roots, tree.start, True)):
+            if not len(ids):
+                continue
+            rid = top_id[ids] if not flip else bot_id[ids]
+            for S in np.unique(ring_S[rid]):
+                sel = ring_S[rid] == S
+                o = ring_off[rid[sel]]
+                apex = nv + np.arange(sel.sum())
+                nv += int(sel.sum())
+                extra_v.append(centers[ids[sel]])
+                extra_uv.append(np.stack([np.full(sel.sum(), 0.5), uvs[o, 1]], 1))
+                k = np.arange(S)
+                a_ = o[:, None] + k[None]
+                b_ = o[:, None] + k[None] + 1
+                c_ = np.broadcast_to(apex[:, None], a_.shape)
+                f = np.stack([b_, a_, c_], -1) if flip else np.stack([a_, b_, c_], -1)
+                faces.append(f.reshape(-1, 3))
+                fseg.append(np.repeat(ids[sel], S))
+    if extra_v:
+        verts = np.concatenate([verts] + extra_v)
+        uvs = np.concatenate([uvs] + extra_uv)
+    faces = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
+    fseg = np.concatenate(fseg) if fseg else np.zeros(0, np.int64)
+    bark = trimesh.Trimesh(verts, faces, process=False,
+                           visual=trimesh.visual.TextureVisuals(uv=uvs))
+    vring = np.full(len(verts), -1)
+    if len(ring_S):
+        vring[:int(ring_off[-1] + ring_S[-1] + 1)] = np.repeat(np.arange(len(ring_S)), ring_S + 1)
+    bark.metadata.update({"junction_D": junction_D, "segment": fseg, "vertex_ring": vring,
+                          "ring_segment": ring_seg, "part": "bark"})
+    leaf = leaf_mesh(tree, shape=leaf_shape) if leaves else _empty_mesh()
+    return bark, leaf
+
+
+def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts, ring_count,
+                      ring_S):
+    """Control points P, C, B (lists of (S+1, 3) arrays), upper/lower weights c_m and the eq 4.2
+    scale for the junction segments ``jc``."""
+    n = len(tree)
+    par = tree.parent
+    dirs, ln = st["dir"], st["length"]
+    stem, arc = st["stem"], st["arc"]
+    p = par[jc]
+    a_c, a_p = dirs[jc], dirs[p]
+    t = st["attach"][jc]
+    S0 = tree.start[jc]
+    rp = r0[p] + t * (r1[p] - r0[p])
+    Sp = Sg[p].astype(float)
+    shrink = np.cos(np.pi / Sp) * (1.0 - depth[p]) * 0.98       # under the faceted, lobed skin
+    rpe = rp * shrink
+    rc = np.minimum(r0[jc], 0.95 * rpe)
+    # the parent's stem: nodes and branch bases as "heights" (distance along the stem)
+    alive = tree.alive
+    h_c = arc[p] + t * ln[p]
+    ps = stem[p]
+    seg_all = np.nonzero(alive)[0]
+    ev_stem = np.r_[stem[seg_all], stem[seg_all], ps]
+    ev_h = np.r_[arc[seg_all], arc[seg_all] + ln[seg_all], h_c]
+    W = float(np.max(ev_h)) * 2 + 1.0 if len(ev_h) else 1.0
+    uniq, rank = np.unique(ev_stem, return_inverse=True)
+    keys = np.sort(rank * W + ev_h)
+    kc = np.searchsorted(uniq, ps) * W + h_c
+    eps = np.maximum(1e-4 * ln[p], 1e-9)
+    iu = np.searchsorted(keys, kc + eps, side="right")
+    idn = np.searchsorted(keys, kc - eps, side="left") - 1
+    base_k = np.searchsorted(uniq, ps) * W
+    up_ok = (iu < len(keys)) & (np.minimum(iu, len(keys) - 1) < len(keys))
+    h_up = np.where(up_ok, keys[np.minimum(iu, len(keys) - 1)] - base_k, h_c)
+    h_up = np.where(h_up > W, h_c, h_up)            # next stem's key: no node above
+    h_dn = np.where(idn >= 0, keys[np.maximum(idn, 0)] - base_k, h_c)
+    h_dn = np.where(h_dn < 0, h_c, h_dn)
+    # segments of each stem, sorted by height, to place P on the parent stem
+    sk = np.searchsorted(uniq, stem[seg_all]) * W + arc[seg_all]
+    order = np.argsort(sk)
+    sk_sorted, seg_sorted = sk[order], seg_all[order]
+    P_l, C_l, B_l, c_l = [], [], [], []
+    scale = (st["stem_length"][jc] * st["stem_radius"][jc]
+             / np.maximum(st["stem_length"][p] * st["stem_radius"][p], 1e-300))
+    verts_all = np.concatenate(ring_verts)
+    ring_off = np.r_[0, np.cumsum(np.concatenate(ring_S) + 1)[:-1]]
+    for S in np.unique(Sg[jc]):
+        sel = np.nonzero(Sg[jc] == S)[0]
+        th = 2 * np.pi * np.arange(S + 1) / S
+        u = u_bot[jc[sel]]
+        v = np.cross(a_c[sel], u)
+        e = np.cos(th)[None, :, None] * u[:, None] + np.sin(th)[None, :, None] * v[:, None]
+        B, _ = contact_points(S0[sel], a_c[sel], a_p[sel], e, rc[sel], rpe[sel])
+        uhat = a_p[sel] - np.sum(a_p[sel] * a_c[sel], 1, keepdims=True) * a_c[sel]
+        nrm = np.linalg.norm(uhat, axis=1, keepdims=True)
+        uhat = np.where(nrm > 1e-9, uhat / np.maximum(nrm, 1e-300), u)
+        cm = np.sum(e * uhat[:, None], -1)                          # +1 upper .. -1 lower
+        hB = h_c[sel, None] + np.sum((B - S0[sel, None]) * a_p[sel, None], -1)
+        hP = np.where(cm >= 0, hB + cm * np.maximum(h_up[sel, None] - hB, 0.0),
+                      hB - (-cm) * np.maximum(hB - h_dn[sel, None], 0.0))
+        # parent segment containing hP on the parent's stem
+        qk = np.searchsorted(uniq, ps[sel])[:, None] * W + hP
+        qi = np.clip(np.searchsorted(sk_sorted, qk, side="right") - 1, 0, len(sk_sorted) - 1)
+        q = seg_sorted[qi]
+        q = np.where(stem[q] == ps[sel, None], q, p[sel, None])
+        hq = np.clip(hP - arc[q], 0.0, ln[q])
+        axis = tree.start[q] + hq[..., None] * dirs[q]
+        rq = (r0[q] + hq / np.maximum(ln[q], 1e-300) * (r1[q] - r0[q])) * shrink[sel, None]
+        rho = (B - S0[sel, None]) - np.sum((B - S0[sel, None]) * a_p[sel, None], -1,
+                                           keepdims=True) * a_p[sel, None]
+        rho = rho - np.sum(rho * dirs[q], -1, keepdims=True) * dirs[q]
+        rho = _unit(rho)
+        P = axis + rq[..., None] * rho
+        P = np.where((q == p[sel, None])[..., None] & (np.abs(hP - hB) < 1e-12)[..., None], B, P)
+        o = ring_off[top_id[jc[sel]]]
+        C = verts_all[o[:, None] + np.arange(S + 1)[None]]
+        for i in range(len(sel)):
+            P_l.append(P[i])
+            C_l.append(C[i])
+            B_l.append(B[i])
+            c_l.append(cm[i])
+    # restore the order of jc
+    order_j = np.concatenate([np.nonzero(Sg[jc] == S)[0] for S in np.unique(Sg[jc])])
+    inv = np.empty_like(order_j)
+    inv[order_j] = np.arange(len(order_j))
+    P_l = [P_l[i] for i in inv]
+    C_l = [C_l[i] for i in inv]
+    B_l = [B_l[i] for i in inv]
+    c_l = [c_l[i] for i in inv]
+    return P_l, C_l, B_l, c_l, scale
+
+
+def leaf_mesh(tree: Tree, shape: str = "oval"):
+    """One polygon per leaf (``oval``: 6 vertices / 4 triangles; ``quad``: 4 / 2) with UVs
+    (u across the blade, v from petiole to tip)."""
+    import trimesh
+
+    lv = tree.leaves
+    m = len(lv)
+    if m == 0:
+        return _empty_mesh()
+    nrm = _unit(lv.normal)
+    up = lv.up if lv.up is not None else np.cross(nrm, [[1.0, 0.0, 0.0]])
+    up = _perp_unit(up, nrm)
+    side = np.cross(nrm, up)
+    length = lv.size
+    width = np.asarray(lv.attrs.get("width", 0.6 * lv.size), float)
+    if shape == "oval":
+        outline = LEAF_OUTLINE
+        tri = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]])
+    else:
+        outline = np.array([[-0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.5, -0.5]])
+        tri = np.array([[0, 1, 2], [0, 2, 3]])
+    k = len(outline)
+    a = outline[:, 0][None, :, None] * length[:, None, None] * up[:, None]
+    b = outline[:, 1][None, :, None] * width[:, None, None] * side[:, None]
+    verts = (lv.position[:, None] + a + b).reshape(-1, 3)
+    faces = (tri[None] + k * np.arange(m)[:, None, None]).reshape(-1, 3)
+    uv = np.tile(np.stack([outline[:, 1] + 0.5, outline[:, 0] + 0.5], 1), (m, 1))
+    mesh = trimesh.Trimesh(verts, faces, process=False,
+                           visual=trimesh.visual.TextureVisuals(uv=uv))
+    mesh.metadata.update({"leaf": np.repeat(np.arange(m), len(tri)), "part": "leaves"})
+    return mesh
+
+
+def _empty_mesh():
+    import trimesh
+    return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), process=False)
