@@ -195,12 +195,25 @@ def _cmd_run(a) -> int:
 
 
 def _cmd_demo(a) -> int:
+    from .simulation import run
     out = Path(a.out)
-    print(f"mitsuba-veg demo: light study of the moss garden (paper 000 test scene) under "
-          f"daylight on {DEMO_WHEN} -> {out}/")
-    s = run_irradiance(_default_scenario(), out, photons=a.photons, when=DEMO_WHEN,
+    scen = _default_scenario()
+    print(f"mitsuba-veg demo 1/2: light study of the moss garden (paper 000 test scene) under "
+          f"daylight on {DEMO_WHEN} -> {out / 'light'}/")
+    s = run_irradiance(scen, out / "light", photons=a.photons, when=DEMO_WHEN,
                        progress=not a.quiet)
     _report(s)
+    print(f"\nmitsuba-veg demo 2/2: {a.days} days of moss in the garden (paper 000) -> "
+          f"{out / 'moss'}/")
+    m = run(scen, out=out / "moss", days=a.days, progress=not a.quiet)
+    f = m["final"]
+    print(f"{a.days} days: {f['moss_alive']} moss alive, covered {f['covered_area_m2']:.3f} m2"
+          + "".join(f"; {k} {v['covered_area_m2']:.3f} m2" for k, v in f["regions"].items()))
+    print("wrote:")
+    for p in (out / "moss" / "summary.json", m.get("files", {}).get("animation"),
+              out / "moss" / "maps"):
+        if p:
+            print(f"  {p}")
     return 0
 
 
@@ -211,7 +224,9 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     d = sub.add_parser("demo", help="run the default scenario end to end")
     d.add_argument("--out", default="out/demo")
-    d.add_argument("--photons", type=int, default=4_000_000)
+    d.add_argument("--photons", type=int, default=4_000_000,
+                   help="photons of the light study (the moss run uses the scenario's)")
+    d.add_argument("--days", type=int, default=300, help="days of the moss run")
     d.add_argument("--quiet", action="store_true")
     d.set_defaults(func=_cmd_demo)
     r = sub.add_parser("run", help="run a moss scenario day by day (paper 000)")

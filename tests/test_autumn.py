@@ -171,3 +171,14 @@ def test_alpha_r_alpha_fr_from_leaf_spectra():
     assert red_far_red_attenuation(tau=0.0, lai_path=0.0)["alpha_r"] == pytest.approx(1.0)
     ab = absorbed_fraction(s)
     assert ab["r"] == pytest.approx(1 - R - T) and ab["r"] > 0.9 and ab["fr"] < 0.3
+
+
+def test_apply_to_tree_stores_leaf_attributes(tree_autumn):
+    tree, ins, st = tree_autumn
+    fo.apply_to_tree(tree, st, day=20)
+    a = tree.leaves.attrs
+    assert a["autumn_stage"].shape == (len(tree.leaves),)
+    assert np.allclose(a["autumn_stage"], 1 + 6 * a["autumn_tau"])
+    assert (a["anth"] >= 0).all() and not a["fallen"].any()
+    sub = tree.leaves.subset(a["autumn_tau"] > 0.5)
+    assert (sub.attrs["autumn_tau"] > 0.5).all()

@@ -1,5 +1,6 @@
 """Foliage: pigments and autumn colour (paper 003), leaf spectra (PROSPECT-D), the ``veg_leaf``
-BSDF, Barnsley maple leaves, insolation per leaf, and spectral light studies.
+BSDF, Barnsley maple leaves, insolation per leaf, red/far-red attenuation and spectral light
+studies. See docs/foliage.md.
 
 Importing this package registers the Mitsuba BSDF plugin ``veg_leaf`` (a thin bi-Lambertian
 leaf with spectral reflectance and transmittance).
@@ -13,9 +14,25 @@ from .pigments import (LeafTraits, pigments_at_stage, pigments_at_tau, stage_fro
                        stage_table, tau_from_stage, vary_pigments)
 from .prospect import prospect_d
 from .spectra import LeafSpectra, leaf_spectra, mitsuba_spectrum, spectrum_to_srgb
+from .attenuation import absorbed_fraction, red_far_red_attenuation
+from .autumn import AutumnParams, AutumnState, apply_to_tree, autumn_time
+from .ifs import MapleLeaf, chaos_game, leaf_image, maple_leaf
+from .insolation import (InsolationResult, SunPath, instantaneous_insolation, leaf_insolation,
+                         shadow_scene, sky_view_factor, sun_path)
 
 _register_bsdf()
 
+
+def run_light_study(*args, **kwargs):
+    """See :func:`mitsuba_veg.foliage.light_study.run_light_study`."""
+    from .light_study import run_light_study as _run
+    return _run(*args, **kwargs)
+
+
 __all__ = ["LeafBSDF", "leaf_bsdf_dict", "LeafTraits", "pigments_at_stage", "pigments_at_tau",
            "stage_from_tau", "stage_table", "tau_from_stage", "vary_pigments", "prospect_d",
-           "LeafSpectra", "leaf_spectra", "mitsuba_spectrum", "spectrum_to_srgb"]
+           "LeafSpectra", "leaf_spectra", "mitsuba_spectrum", "spectrum_to_srgb",
+           "absorbed_fraction", "red_far_red_attenuation", "AutumnParams", "AutumnState",
+           "apply_to_tree", "autumn_time", "MapleLeaf", "chaos_game", "leaf_image", "maple_leaf",
+           "InsolationResult", "SunPath", "instantaneous_insolation", "leaf_insolation",
+           "shadow_scene", "sky_view_factor", "sun_path", "run_light_study"]

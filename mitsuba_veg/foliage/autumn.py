@@ -117,3 +117,17 @@ def autumn_time(daily_insolation, params: AutumnParams = AutumnParams(), seed=0)
 
 def params_dict(p: AutumnParams) -> dict:
     return asdict(p)
+
+
+def apply_to_tree(tree, state: AutumnState, day: int = -1, seed=0) -> None:
+    """Store a day's autumn state in the tree's per-leaf attributes: ``autumn_tau``,
+    ``autumn_stage``, ``fallen`` and the pigment contents ``cab``, ``car``, ``anth``
+    [µg cm-2] (with per-leaf variation)."""
+    lv = tree.leaves if hasattr(tree, "leaves") else tree
+    if len(lv) != state.tau_raw.shape[0]:
+        raise ParameterError("state", state.tau_raw.shape[0], f"one row per leaf ({len(lv)})")
+    lv.attrs["autumn_tau"] = state.tau(day)
+    lv.attrs["autumn_stage"] = state.stage(day)
+    lv.attrs["fallen"] = state.fallen(day)
+    p = state.pigments(day, seed=seed)
+    lv.attrs["cab"], lv.attrs["car"], lv.attrs["anth"] = p["Cab"], p["Car"], p["Anth"]

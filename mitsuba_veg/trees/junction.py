@@ -307,25 +307,25 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     if len(jc):
         Dj = subdivisions(D_u, tree.level[jc])
         junction_D[jc] = Dj
-        info = _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts,
-                                 ring_count, ring_S)
-        P, C, B, c_m, scale = info
-        F = [0.5 * (1 + c) * stretch + 0.5 * (1 - c) * compress for c in c_m]
+        groups, scale = _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id,
+                                          ring_verts, ring_S)
         scale = np.clip(scale * gain, 0.0, 1.0)
-        for key in sorted(set(zip(Sg[jc].tolist(), Dj.tolist()))):
-            S, D = key
-            sel = np.nonzero((Sg[jc] == S) & (Dj == D))[0]
-            segs = jc[sel]
-            Pm, Cm, Bm = (np.stack([x[i] for i in sel]) for x in (P, C, B))
-            Fm = np.stack([F[i] for i in sel])
-            rings = junction_rings(Pm, Cm, Bm, D, Fm, scale[sel])     # (k, D+1, S+1, 3)
-            proj = np.sum((rings - tree.start[segs][:, None, None]) * dirs[segs][:, None, None],
-                          -1)
-            vv = np.maximum(proj, 0.0) / circ[segs][:, None, None] + st["arc"][segs][:, None, None]
-            uv = np.stack(np.broadcast_arrays(uu[S][None, None, :], vv), -1)
-            ids = add_rings(np.repeat(segs, D + 1), rings, uv, S).reshape(len(segs), D + 1)
-            bot_id[segs] = ids[:, 0]
-            jchains.append((segs, ids))
+        for sel, P, C, B, cm in groups:
+            S = int(Sg[jc[sel[0]]])
+            F = 0.5 * (1 + cm) * stretch + 0.5 * (1 - cm) * compress
+            for D in np.unique(Dj[sel]):
+                w = np.nonzero(Dj[sel] == D)[0]
+                segs = jc[sel[w]]
+                D = int(D)
+                rings = junction_rings(P[w], C[w], B[w], D, F[w], scale[sel[w]])
+                proj = np.sum((rings - tree.start[segs][:, None, None])
+                              * dirs[segs][:, None, None], -1)
+                vv = (np.maximum(proj, 0.0) / circ[segs][:, None, None]
+                      + st["arc"][segs][:, None, None])
+                uv = np.stack(np.broadcast_arrays(uu[S][None, None, :], vv), -1)
+                ids = add_rings(np.repeat(segs, D + 1), rings, uv, S).reshape(len(segs), D + 1)
+                bot_id[segs] = ids[:, 0]
+                jchains.append((segs, ids))
 
     ring_S = np.concatenate(ring_S) if ring_S else np.zeros(0, np.int64)
     ring_seg = np.concatenate(ring_seg) if ring_seg else np.zeros(0, np.int64)
@@ -393,11 +393,11 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     return bark, leaf
 
 
-def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts, ring_count,
-                      ring_S):
-    """Control points P, C, B (lists of (S+1, 3) arrays), upper/lower weights c_m and the eq 4.2
-    scale for the junction segments ``jc``."""
-    n = len(tree)
+def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts, ring_S):
+    """Control points of the junction segments ``jc``, grouped by corner count:
+    ``([(sel, P, C, B, c_m), ...], scale)`` with ``sel`` indices into ``jc``, P/C/B
+    (k, S+1, 3), ``c_m`` (k, S+1) in [-1, 1] (+1: upper side, towards the parent's tip) and the
+    eq 4.2 scale (length_c radius_c)/(length_p radius_p) per junction."""
     par = tree.parent
     dirs, ln = st["dir"], st["length"]
     stem, arc = st["stem"], st["arc"]
@@ -410,35 +410,34 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
     shrink = np.cos(np.pi / Sp) * (1.0 - depth[p]) * 0.98       # under the faceted, lobed skin
     rpe = rp * shrink
     rc = np.minimum(r0[jc], 0.95 * rpe)
-    # the parent's stem: nodes and branch bases as "heights" (distance along the stem)
+    # heights on the parent's stem: its nodes and the bases of all its branches
     alive = tree.alive
     h_c = arc[p] + t * ln[p]
     ps = stem[p]
     seg_all = np.nonzero(alive)[0]
     ev_stem = np.r_[stem[seg_all], stem[seg_all], ps]
     ev_h = np.r_[arc[seg_all], arc[seg_all] + ln[seg_all], h_c]
-    W = float(np.max(ev_h)) * 2 + 1.0 if len(ev_h) else 1.0
-    uniq, rank = np.unique(ev_stem, return_inverse=True)
-    keys = np.sort(rank * W + ev_h)
-    kc = np.searchsorted(uniq, ps) * W + h_c
-    eps = np.maximum(1e-4 * ln[p], 1e-9)
-    iu = np.searchsorted(keys, kc + eps, side="right")
-    idn = np.searchsorted(keys, kc - eps, side="left") - 1
+    W = float(np.max(ev_h)) * 2 + 1.0
+    uniq = np.unique(ev_stem)
+    keys = np.sort(np.searchsorted(uniq, ev_stem) * W + ev_h)
     base_k = np.searchsorted(uniq, ps) * W
-    up_ok = (iu < len(keys)) & (np.minimum(iu, len(keys) - 1) < len(keys))
-    h_up = np.where(up_ok, keys[np.minimum(iu, len(keys) - 1)] - base_k, h_c)
-    h_up = np.where(h_up > W, h_c, h_up)            # next stem's key: no node above
-    h_dn = np.where(idn >= 0, keys[np.maximum(idn, 0)] - base_k, h_c)
-    h_dn = np.where(h_dn < 0, h_c, h_dn)
+    kc = base_k + h_c
+    eps = np.maximum(1e-4 * ln[p], 1e-9)
+    iu = np.minimum(np.searchsorted(keys, kc + eps, side="right"), len(keys) - 1)
+    idn = np.maximum(np.searchsorted(keys, kc - eps, side="left") - 1, 0)
+    h_up = keys[iu] - base_k
+    h_up = np.where((h_up > h_c) & (h_up < W), h_up, h_c)     # none above: no stretch upwards
+    h_dn = keys[idn] - base_k
+    h_dn = np.where((h_dn < h_c) & (h_dn >= 0), h_dn, h_c)
     # segments of each stem, sorted by height, to place P on the parent stem
     sk = np.searchsorted(uniq, stem[seg_all]) * W + arc[seg_all]
     order = np.argsort(sk)
     sk_sorted, seg_sorted = sk[order], seg_all[order]
-    P_l, C_l, B_l, c_l = [], [], [], []
     scale = (st["stem_length"][jc] * st["stem_radius"][jc]
              / np.maximum(st["stem_length"][p] * st["stem_radius"][p], 1e-300))
     verts_all = np.concatenate(ring_verts)
     ring_off = np.r_[0, np.cumsum(np.concatenate(ring_S) + 1)[:-1]]
+    groups = []
     for S in np.unique(Sg[jc]):
         sel = np.nonzero(Sg[jc] == S)[0]
         th = 2 * np.pi * np.arange(S + 1) / S
@@ -449,40 +448,28 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
         uhat = a_p[sel] - np.sum(a_p[sel] * a_c[sel], 1, keepdims=True) * a_c[sel]
         nrm = np.linalg.norm(uhat, axis=1, keepdims=True)
         uhat = np.where(nrm > 1e-9, uhat / np.maximum(nrm, 1e-300), u)
-        cm = np.sum(e * uhat[:, None], -1)                          # +1 upper .. -1 lower
+        cm = np.clip(np.sum(e * uhat[:, None], -1), -1.0, 1.0)
         hB = h_c[sel, None] + np.sum((B - S0[sel, None]) * a_p[sel, None], -1)
         hP = np.where(cm >= 0, hB + cm * np.maximum(h_up[sel, None] - hB, 0.0),
-                      hB - (-cm) * np.maximum(hB - h_dn[sel, None], 0.0))
-        # parent segment containing hP on the parent's stem
-        qk = np.searchsorted(uniq, ps[sel])[:, None] * W + hP
+                      hB + cm * np.maximum(hB - h_dn[sel, None], 0.0))
+        # the parent-stem segment holding hP
+        qk = base_k[sel, None] + hP
         qi = np.clip(np.searchsorted(sk_sorted, qk, side="right") - 1, 0, len(sk_sorted) - 1)
         q = seg_sorted[qi]
         q = np.where(stem[q] == ps[sel, None], q, p[sel, None])
         hq = np.clip(hP - arc[q], 0.0, ln[q])
         axis = tree.start[q] + hq[..., None] * dirs[q]
         rq = (r0[q] + hq / np.maximum(ln[q], 1e-300) * (r1[q] - r0[q])) * shrink[sel, None]
-        rho = (B - S0[sel, None]) - np.sum((B - S0[sel, None]) * a_p[sel, None], -1,
-                                           keepdims=True) * a_p[sel, None]
-        rho = rho - np.sum(rho * dirs[q], -1, keepdims=True) * dirs[q]
-        rho = _unit(rho)
+        rel = B - S0[sel, None]
+        rho = rel - np.sum(rel * a_p[sel, None], -1, keepdims=True) * a_p[sel, None]
+        rho = _unit(rho - np.sum(rho * dirs[q], -1, keepdims=True) * dirs[q])
         P = axis + rq[..., None] * rho
-        P = np.where((q == p[sel, None])[..., None] & (np.abs(hP - hB) < 1e-12)[..., None], B, P)
+        same = (np.abs(hP - hB) < 1e-12)[..., None]
+        P = np.where(same, B, P)
         o = ring_off[top_id[jc[sel]]]
         C = verts_all[o[:, None] + np.arange(S + 1)[None]]
-        for i in range(len(sel)):
-            P_l.append(P[i])
-            C_l.append(C[i])
-            B_l.append(B[i])
-            c_l.append(cm[i])
-    # restore the order of jc
-    order_j = np.concatenate([np.nonzero(Sg[jc] == S)[0] for S in np.unique(Sg[jc])])
-    inv = np.empty_like(order_j)
-    inv[order_j] = np.arange(len(order_j))
-    P_l = [P_l[i] for i in inv]
-    C_l = [C_l[i] for i in inv]
-    B_l = [B_l[i] for i in inv]
-    c_l = [c_l[i] for i in inv]
-    return P_l, C_l, B_l, c_l, scale
+        groups.append((sel, P, C, B, cm))
+    return groups, scale
 
 
 def leaf_mesh(tree: Tree, shape: str = "oval"):

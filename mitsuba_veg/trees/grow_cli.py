@@ -1,0 +1,310 @@
+"""``mitsuba-veg grow TREE.toml --out DIR``: grow a tree (or a stand) and write mesh, metrics
+and a picture.
+
+TREE.toml (all keys optional; see scenes/trees/*.toml and docs/trees.md)::
+
+    model = "growth"            # "growth" (paper 001), "branching" (no light) or "weber_penn"
+    seed = 0
+    generations = 10            # G
+    positions = [[0.0, 0.0, 0.0]]   # tree bases [m]; [x, z] pairs stand on the terrain
+    preset = "quaking_aspen"    # model = "weber_penn": a preset name (or [weber_penn] params)
+
+    [growth]                    # GrowthParams fields; defaults = paper 001 table 3.1
+    branch_angle = 60.0
+    unit = 0.25                 # [m] per model unit
+
+    [environment]               # obstacles [m]
+    ground = { size = 60.0, y = 0.0, cells = 20 }
+    slope = { angle = 25.0, size = 60.0, downhill = [1.0, 0.0], cells = 20 }
+    boxes = [{ lo = [-4.0, 0.0, -15.0], hi = [-3.0, 20.0, 15.0], name = "wall" }]
+    meshes = [{ file = "terrain.ply", light_factor = 1.0 }]
+
+    [nongrowth]                 # optional: then deform the trees (paper 002)
+    rules = ["death", "heliotropism"]
+    voxel_size = 0.5
+
+    [output]
+    formats = ["ply", "glb"]    # mesh files (all trees in one mesh)
+    leaves = true               # leaf blades in the mesh
+    picture = true
+
+Writes into DIR: ``tree.<fmt>``, ``metrics.json`` (per tree + stand), ``picture.png``,
+``summary.json`` (settings, timings per generation, rays, versions, files).
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError
+
+_TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
+             "environment", "nongrowth", "output", "weber_penn", "name", "description"}
+_MODELS = ("growth", "branching", "weber_penn")
+
+
+def _write_json(path: Path, data) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_jsonable))
+    os.replace(tmp, path)
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    return str(x)
+
+
+def load_tree_toml(path, overrides=()) -> dict:
+    """Read and check a TREE.toml; ``overrides`` are ``KEY=VALUE`` strings (dotted keys)."""
+    from mitsuba_veg.scenario import apply_overrides
+    path = Path(path)
+    src = str(path)
+    if not path.exists():
+        raise ParameterError("TREE", src, "an existing .toml file", "check the path")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ParameterError("TREE", src, "valid TOML", f"fix the syntax: {e}") from None
+    data = apply_overrides(data, overrides)
+    bad = [k for k in data if k not in _TOP_KEYS]
+    if bad:
+        raise ParameterError(bad[0], data[bad[0]], f"top-level keys {sorted(_TOP_KEYS)}",
+                             "check the spelling", src)
+    model = data.get("model", "growth")
+    if model not in _MODELS:
+        raise ParameterError("model", model, f"one of {_MODELS}", source=src)
+    g = data.get("generations", 10)
+    if isinstance(g, bool) or not isinstance(g, int) or not 0 <= g <= 20:
+        raise ParameterError("generations", g, "an integer in [0, 20]", "e.g. 10", src)
+    s = data.get("seed", 0)
+    if isinstance(s, bool) or not isinstance(s, int) or s < 0:
+        raise ParameterError("seed", s, "an integer >= 0", source=src)
+    return data
+
+
+def build_environment(cfg: dict, root: Path, source: str | None = None):
+    """An Environment from an [environment] table (None when it is empty)."""
+    from .environment import Environment
+    if not cfg:
+        return None
+    allowed = {"ground", "slope", "boxes", "meshes"}
+    bad = [k for k in cfg if k not in allowed]
+    if bad:
+        raise ParameterError(f"environment.{bad[0]}", cfg[bad[0]], f"keys {sorted(allowed)}",
+                             source=source)
+    env = Environment()
+    try:
+        if "ground" in cfg:
+            g = cfg["ground"] if isinstance(cfg["ground"], dict) else {}
+            env.add_ground(g.get("size", 60.0), g.get("y", 0.0), g.get("cells", 20))
+        if "slope" in cfg:
+            s = cfg["slope"]
+            env.add_slope(s.get("angle", 20.0), s.get("size", 60.0), s.get("cells", 20),
+                          tuple(s.get("downhill", (1.0, 0.0))), s.get("y0", 0.0))
+        for i, b in enumerate(cfg.get("boxes", [])):
+            env.add_box(b["lo"], b["hi"], b.get("name", f"box{i}"), b.get("max_edge", 1.0),
+                        b.get("light_factor", 1.0))
+        for i, m in enumerate(cfg.get("meshes", [])):
+            import trimesh
+            f = (root / m["file"]).resolve()
+            if not f.exists():
+                raise ParameterError(f"environment.meshes[{i}].file", m["file"],
+                                     "an existing mesh file (relative to the TOML)",
+                                     f"looked for {f}", source)
+            tm = trimesh.load(f, force="mesh")
+            env.add(tm, name=m.get("name", f.stem), light_factor=m.get("light_factor", 1.0),
+                    max_edge=m.get("max_edge"))
+    except KeyError as e:
+        raise ParameterError(f"environment.{e.args[0]}", None, "a value", "add it", source) \
+            from None
+    except ParameterError as e:
+        raise ParameterError(f"environment.{e.field}", e.value, e.allowed, e.fix, source) \
+            from None
+    return env
+
+
+def _weber_penn(data, seed, src):
+    try:
+        from . import weber_penn  # noqa: F401  (written in a separate module)
+    except ImportError as e:
+        raise ParameterError("model", "weber_penn", "a model available in this installation",
+                             f"mitsuba_veg.trees.weber_penn is not available ({e}); use "
+                             "model = 'growth'", src) from None
+    wp = data.get("weber_penn", {})
+    what = data.get("preset", wp.get("preset", wp.get("params", "quaking_aspen")))
+    return weber_penn.generate(what, seed=seed)
+
+
+def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> dict:
+    """Grow what TREE.toml describes; write mesh, metrics JSON, picture and summary.json into
+    ``out_dir``. Returns the summary dict."""
+    from .environment import Environment
+    from .figures import picture
+    from .growth import GrowthParams, branching, grow_forest
+
+    t_start = time.perf_counter()
+    path = Path(tree_toml_path)
+    src = str(path)
+    data = load_tree_toml(path, overrides)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    model = data.get("model", "growth")
+    seed = int(data.get("seed", 0))
+    gens = int(data.get("generations", 10))
+    positions = data.get("positions", [data.get("position", [0.0, 0.0, 0.0])])
+    env = build_environment(data.get("environment", {}), path.parent, src)
+    params = GrowthParams.from_dict(data.get("growth", {}), src)
+    history: list = []
+    t0 = time.perf_counter()
+    if model == "growth":
+        trees = grow_forest(positions, params, gens, env, seed, progress=progress,
+                            history=history)
+    elif model == "branching":
+        pos = np.asarray(positions, float).reshape(-1, 3)
+        trees = [branching(params, gens, p, seed) for p in pos]
+    else:
+        base = _weber_penn(data, seed, src)
+        pos = np.asarray(positions, float).reshape(-1, 3)
+        trees = [base.translated(p - base.start[0]) if len(base) else base for p in pos]
+    t_model = time.perf_counter() - t0
+    ng_stats = None
+    if data.get("nongrowth"):
+        from .nongrowth import deform
+        ng = dict(data["nongrowth"])
+        try:
+            res = deform(trees, env, **ng)
+        except TypeError as e:
+            raise ParameterError("nongrowth", sorted(ng), "arguments of "
+                                 "mitsuba_veg.trees.nongrowth.deform", str(e), src) from None
+        trees, ng_stats = res.trees, res.stats
+    # outputs
+    oc = data.get("output", {})
+    formats = oc.get("formats", ["ply", "glb"])
+    files = {"mesh": []}
+    mesh = _stand_mesh(trees, leaves=bool(oc.get("leaves", True)))
+    for fmt in formats:
+        if fmt not in ("ply", "obj", "glb", "gltf", "stl"):
+            raise ParameterError("output.formats", fmt, "ply, obj, glb, gltf or stl", source=src)
+        f = out / f"tree.{fmt}"
+        tmp = out / f"tree.tmp.{fmt}"
+        mesh.export(str(tmp))
+        os.replace(tmp, f)
+        files["mesh"].append(str(f))
+    metrics = {"trees": [t.metrics() for t in trees], "stand": _stand_metrics(trees)}
+    _write_json(out / "metrics.json", metrics)
+    files["metrics"] = str(out / "metrics.json")
+    if oc.get("picture", True):
+        files["picture"] = picture(trees, out / "picture.png", env=env,
+                                   title=f"{path.stem}: {model}, {len(trees)} tree(s)")
+    try:
+        from mitsuba_veg.cli import versions
+        vers = versions()
+    except Exception:  # pragma: no cover
+        vers = {}
+    summary = {
+        "command": "grow", "tree_file": src, "model": model, "seed": seed,
+        "generations": gens, "positions": np.asarray(positions).tolist(),
+        "params": params.to_dict() if model != "weber_penn" else data.get("weber_penn", {}),
+        "environment": data.get("environment", {}),
+        "nongrowth": ng_stats, "history": history,
+        "timings_s": {"model": t_model, "total": time.perf_counter() - t_start},
+        "rays": int(sum(h["rays"] for h in history)),
+        "ray_casts": int(sum(h["casts"] for h in history)),
+        "metrics": metrics["stand"], "files": files, "versions": vers,
+    }
+    _write_json(out / "summary.json", summary)
+    files["summary"] = str(out / "summary.json")
+    return summary
+
+
+def _stand_metrics(trees) -> dict:
+    ms = [t.metrics() for t in trees]
+    return {"trees": len(trees), "height_max": max(m["height"] for m in ms),
+            "live_branches": sum(m["live_branches"] for m in ms),
+            "dead_branches": sum(m["dead_branches"] for m in ms),
+            "leaves": sum(m["leaves"] for m in ms),
+            "leaf_spheres": sum(m.get("leaf_spheres", 0) for m in ms)}
+
+
+def _stand_mesh(trees, leaves=True):
+    import trimesh
+    parts = []
+    for t in trees:
+        m = t.to_mesh(leaves=leaves)
+        part = m.metadata.get("part", np.zeros(len(m.faces), np.int8))
+        col = np.where(part[:, None] == 1, [[46, 139, 62, 255]], [[90, 58, 26, 255]])
+        m.visual.face_colors = col.astype(np.uint8)
+        parts.append(m)
+    return trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+
+
+def report(s: dict) -> None:
+    """Print what run_grow did (one screen)."""
+    st = s["metrics"]
+    print(f"grew {st['trees']} tree(s) ({s['model']}, G = {s['generations']}) in "
+          f"{s['timings_s']['model']:.2f} s: {st['live_branches']} live / {st['dead_branches']} "
+          f"dead branches, {st['leaf_spheres']} leaf spheres, max height {st['height_max']:.2f} m")
+    if s["rays"]:
+        print(f"  light: {s['rays']:,d} sky rays, {s['ray_casts']:,d} ray casts")
+    print("wrote:")
+    for f in s["files"]["mesh"]:
+        print(f"  {f}")
+    for k in ("metrics", "picture", "summary"):
+        if k in s["files"]:
+            print(f"  {s['files'][k]}")
+
+
+def _cmd_grow(a) -> int:
+    overrides = list(a.set or ())
+    if a.seed is not None:
+        overrides.append(f"seed={a.seed}")
+    if a.generations is not None:
+        overrides.append(f"generations={a.generations}")
+    s = run_grow(a.tree, a.out, overrides, progress=not a.quiet)
+    report(s)
+    return 0
+
+
+def add_parser(subparsers):
+    """Add the ``grow`` command to an argparse sub-parser set (``mitsuba-veg grow``)."""
+    p = subparsers.add_parser("grow", help="grow trees from light (paper 001/002) or make a "
+                              "Weber-Penn tree: mesh, metrics, picture")
+    p.add_argument("tree", help="TREE.toml (see scenes/trees/)")
+    p.add_argument("--out", default="out/grow")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--generations", type=int)
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a TREE.toml field, e.g. --set growth.branch_angle=45")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_cmd_grow)
+    return p
+
+
+def main(argv=None) -> int:
+    """Stand-alone entry (``python -m mitsuba_veg.trees.grow_cli TREE.toml``)."""
+    import argparse
+    import sys
+
+    from mitsuba_veg.errors import MitsubaVegError
+    ap = argparse.ArgumentParser(prog="mitsuba-veg")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    add_parser(sub)
+    a = ap.parse_args(["grow", *(sys.argv[1:] if argv is None else argv)])
+    import mitsuba_veg  # noqa: F401
+    try:
+        return a.func(a)
+    except MitsubaVegError as e:
+        print(f"mitsuba-veg: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,314 @@
+"""Non-growth model of environmental effects on trees (paper 002, Noma).
+
+Instead of simulating growth, user-placed sample trees are deformed into the shape their light
+environment would give them, by rules applied to the finished trees:
+
+- **Light**: voxel space (:mod:`mitsuba_veg.trees.voxel`): every branch tip carries a leaf that
+  adds shading to its voxel, obstacles are opaque voxels, light at a point = 36 sky rays
+  attenuated voxel by voxel (vectorised 3D-DDA).
+- **Branch death** (§5.1): for every subtree, T/N < threshold → the subtree dies, with T the
+  total light at its tips and N its number of branches (segments).
+- **Heliotropism** (§5.2): for every branch, root first, its whole subtree is rotated about the
+  branch's base: (1a) brightness gradient at each tip of the subtree by finite differences on
+  the voxel lattice, (1b) times the tip's distance from the rotation centre, (2) averaged over
+  the tips, (3) projected onto the plane perpendicular to the branch, (4) rotated about the axis
+  perpendicular to the branch and that vector, by ``constant x sqrt(L / N)`` (L the vector's
+  length, N the subtree's tip count; capped at ``max_angle``).
+
+Rules run in the order given; the light is re-evaluated before each rule (dead subtrees no
+longer shade). The gradient field of one rule is computed once, from the trees as they enter
+the rule; the root-first rotations then sample it at the moved tips (see docs/deviations.md).
+All trees of the stand are processed together, level by level, with NumPy.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, check_range
+
+from .structure import POINT_ATTRS, Tree, segment_depth
+
+RULES = ("death", "heliotropism")
+
+
+@dataclass
+class DeformResult:
+    """What :func:`deform` did: trees, per-rule statistics and timings."""
+
+    trees: list
+    stats: list = field(default_factory=list)
+    seconds: float = 0.0
+
+
+class _Stand:
+    """All trees' segments in one parents-first array set (views back into the trees)."""
+
+    def __init__(self, trees):
+        self.trees = trees
+        self.off = np.concatenate([[0], np.cumsum([len(t) for t in trees])])
+        self.parent = np.concatenate([np.where(t.parent >= 0, t.parent + o, -1)
+                                      for t, o in zip(trees, self.off[:-1])])
+        self.start = np.concatenate([t.start for t in trees])
+        self.end = np.concatenate([t.end for t in trees])
+        self.alive = np.concatenate([t.alive for t in trees])
+        self.tree_of = np.repeat(np.arange(len(trees)), np.diff(self.off))
+        self.depth = segment_depth(self.parent)
+
+    def tips(self):
+        has = np.zeros(len(self.parent), bool)
+        par = self.parent[self.alive & (self.parent >= 0)]
+        has[par] = True
+        return np.nonzero(self.alive & ~has)[0]
+
+    def ancestor_at(self, level):
+        """Ancestor of every segment at depth ``level`` (-1 where depth < level)."""
+        a = np.arange(len(self.parent))
+        a = np.where(self.depth >= level, a, -1)
+        for _ in range(int(self.depth.max()) - level if len(a) else 0):
+            deeper = (a >= 0) & (self.depth[np.maximum(a, 0)] > level)
+            a[deeper] = self.parent[a[deeper]]
+        return a
+
+    def write_back(self):
+        for t, o, e in zip(self.trees, self.off[:-1], self.off[1:]):
+            t.start = self.start[o:e].copy()
+            t.end = self.end[o:e].copy()
+            t.alive = self.alive[o:e].copy()
+
+
+def _leaf_points(stand, shade_from):
+    tips = stand.tips()
+    if shade_from == "tips":
+        return stand.end[tips], tips
+    pts = []
+    for t, o in zip(stand.trees, stand.off[:-1]):
+        if len(t.leaves):
+            ok = stand.alive[o + t.leaves.segment]
+            pts.append(t.leaves.position[ok])
+    if not pts:
+        return stand.end[tips], tips
+    return np.concatenate(pts), tips
+
+
+def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: float = 0.5,
+           shading: float = 0.3, death_threshold: float = 0.2, helio_constant: float = 1.0,
+           max_angle: float = 30.0, shade_from: str = "tips", iterations: int = 1,
+           death_order: str = "bottom_up", copy: bool = True) -> DeformResult:
+    """Deform placed sample ``trees`` (a Tree or a list) by the rules of paper 002.
+
+    obstacles: None or anything :meth:`Environment.coerce` takes (opaque voxels).
+    voxel_size [m]; shading: fraction of light a leaf (tip) removes in its voxel per voxel
+    length; death_threshold: T/N below which a subtree dies [light units, open sky = 1];
+    helio_constant [rad]: the constant of the rotation angle constant x sqrt(L/N);
+    max_angle [deg]: cap of one rotation; shade_from: "tips" (paper) or "leaves" (a tree's
+    leaf blades, e.g. Weber-Penn trees); iterations: how often the whole rule list is applied;
+    death_order: "bottom_up" (deepest subtrees first, T and N over what is still alive) or
+    "simultaneous" (every subtree judged on the intact tree).
+    Returns a :class:`DeformResult` (the input trees are copied unless ``copy=False``).
+    """
+    from .environment import Environment
+
+    t0 = time.perf_counter()
+    single = isinstance(trees, Tree)
+    trees = [trees] if single else list(trees)
+    if not trees:
+        raise ParameterError("trees", trees, "one or more Tree objects")
+    for t in trees:
+        if not isinstance(t, Tree):
+            raise ParameterError("trees", type(t).__name__, "Tree objects "
+                                 "(mitsuba_veg.trees.Tree)")
+    rules = (rules,) if isinstance(rules, str) else tuple(rules)
+    for r in rules:
+        if r not in RULES:
+            raise ParameterError("rules", r, f"names from {RULES}")
+    check_range("death_threshold", death_threshold, 0.0, None)
+    check_range("helio_constant", helio_constant, 0.0, None)
+    check_range("max_angle", max_angle, 0.0, 180.0)
+    if death_order not in ("bottom_up", "simultaneous"):
+        raise ParameterError("death_order", death_order, "'bottom_up' or 'simultaneous'")
+    if shade_from not in ("tips", "leaves"):
+        raise ParameterError("shade_from", shade_from, "'tips' or 'leaves'")
+    env = Environment.coerce(obstacles)
+    if copy:
+        trees = [t.copy() for t in trees]
+    stats = []
+    for it in range(int(iterations)):
+        for rule in rules:
+            t1 = time.perf_counter()
+            stand = _Stand(trees)
+            pts, tips = _leaf_points(stand, shade_from)
+            bounds = (np.minimum(stand.start.min(0), stand.end.min(0)),
+                      np.maximum(stand.start.max(0), stand.end.max(0)))
+            vs = _voxels(pts, voxel_size, shading, env, bounds)
+            if rule == "death":
+                st = _death(stand, vs, tips, death_threshold, death_order)
+            else:
+                st = _heliotropism(stand, vs, helio_constant, math.radians(max_angle))
+            stand.write_back()
+            st.update({"rule": rule, "iteration": it, "voxels": vs.stats["voxels"],
+                       "voxel_shape": list(vs.shape), "seconds": time.perf_counter() - t1})
+            stats.append(st)
+    for t in trees:
+        _sync_attachments(t)
+    return DeformResult(trees[0] if single else trees, stats, time.perf_counter() - t0)
+
+
+def _voxels(pts, size, shading, env, bounds):
+    from .voxel import VoxelSpace
+    return VoxelSpace.build(pts, size, shading, env, bounds)
+
+
+def _death(stand, vs, tips, threshold, order="bottom_up"):
+    light = vs.light(stand.end[tips])
+    n = len(stand.parent)
+    tip_light = np.zeros(n)
+    tip_light[tips] = light
+    before = stand.alive.copy()
+    alive = stand.alive.copy()
+    if order == "simultaneous":
+        T = _subtree_sum(stand, tip_light, alive)
+        N = _subtree_sum(stand, alive.astype(float), alive)
+        alive &= ~(T < threshold * N)
+    else:
+        # deepest subtrees first; a subtree's T and N count only what is still alive
+        for d in range(int(stand.depth.max()) if n else -1, -1, -1):
+            T = _subtree_sum(stand, tip_light * alive, alive)
+            N = _subtree_sum(stand, alive.astype(float), alive)
+            idx = np.nonzero((stand.depth == d) & alive)[0]
+            alive[idx[T[idx] < threshold * N[idx]]] = False
+    # a dead subtree root kills its descendants (parents first, level by level)
+    for d in range(1, int(stand.depth.max()) + 1 if n else 0):
+        idx = np.nonzero(stand.depth == d)[0]
+        alive[idx] &= alive[stand.parent[idx]]
+    stand.alive = alive
+    died = before & ~alive
+    per_tree = np.bincount(stand.tree_of[died], minlength=len(stand.trees))
+    return {"tips": int(len(tips)), "tip_light_mean": float(light.mean()) if len(light) else 0.0,
+            "died": int(died.sum()), "died_per_tree": per_tree.tolist(), "order": order,
+            "rays": vs.stats.get("rays", 0), "dda_steps": vs.stats.get("dda_steps", 0),
+            "light_s": vs.stats.get("light_s", 0.0)}
+
+
+def _subtree_sum(stand, values, alive):
+    acc = np.array(values, float)
+    for d in range(int(stand.depth.max()) if len(acc) else 0, 0, -1):
+        idx = np.nonzero((stand.depth == d) & alive)[0]
+        np.add.at(acc, stand.parent[idx], acc[idx])
+    return acc
+
+
+def _rotate_about(p, pivot, axis, angle):
+    v = p - pivot
+    c = np.cos(angle)[:, None]
+    s = np.sin(angle)[:, None]
+    v = v * c + np.cross(axis, v) * s + axis * (axis * v).sum(1, keepdims=True) * (1 - c)
+    return pivot + v
+
+
+def _heliotropism(stand, vs, constant, max_angle):
+    from .voxel import gradient_sampler
+    field = vs.light_field()
+    grad = gradient_sampler(field, vs.origin, vs.size)
+    n = len(stand.parent)
+    rotated = 0
+    angles = []
+    for level in range(int(stand.depth.max()) + 1 if n else 0):
+        tips = stand.tips()
+        anc = stand.ancestor_at(level)
+        roots = np.nonzero((stand.depth == level) & stand.alive)[0]
+        if not len(roots) or not len(tips):
+            continue
+        ta = anc[tips]
+        ok = ta >= 0
+        tips, ta = tips[ok], ta[ok]
+        g = grad(stand.end[tips])                                     # (1a)
+        lever = np.linalg.norm(stand.end[tips] - stand.start[ta], axis=1)
+        g = g * lever[:, None]                                        # (1b)
+        acc = np.zeros((n, 3))
+        np.add.at(acc, ta, g)
+        cnt = np.bincount(ta, minlength=n).astype(float)
+        r = roots[cnt[roots] > 0]
+        v = acc[r] / cnt[r, None]                                     # (2)
+        d = stand.end[r] - stand.start[r]
+        d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+        v = v - (v * d).sum(1, keepdims=True) * d                     # (3)
+        L = np.linalg.norm(v, axis=1)
+        ang = np.minimum(constant * np.sqrt(L / cnt[r]), max_angle)   # (4)
+        axis = np.cross(d, v)
+        an = np.linalg.norm(axis, axis=1)
+        go = (an > 1e-12) & (ang > 1e-9)
+        if not go.any():
+            continue
+        r, ang = r[go], ang[go]
+        axis = axis[go] / an[go, None]
+        # rotate every segment whose ancestor at this level is a rotating root
+        rot_id = np.full(n, -1)
+        rot_id[r] = np.arange(len(r))
+        seg_rot = np.where(anc >= 0, rot_id[np.maximum(anc, 0)], -1)
+        m = seg_rot >= 0
+        k = seg_rot[m]
+        pivot = stand.start[r][k]
+        stand.end[m] = _rotate_about(stand.end[m], pivot, axis[k], ang[k])
+        # starts: all but the roots themselves (they are the pivots)
+        ms = m & (stand.depth > level)
+        ks = seg_rot[ms]
+        stand.start[ms] = _rotate_about(stand.start[ms], stand.start[r][ks], axis[ks], ang[ks])
+        # remember per segment the rotations applied (for leaves and point attrs)
+        _record(stand, m, stand.start[r][k], axis[k], ang[k])
+        rotated += len(r)
+        angles.append(ang)
+    allang = np.degrees(np.concatenate(angles)) if angles else np.zeros(0)
+    return {"rotations": int(rotated),
+            "angle_mean_deg": float(allang.mean()) if len(allang) else 0.0,
+            "angle_max_deg": float(allang.max()) if len(allang) else 0.0,
+            "rays": vs.stats.get("rays", 0), "dda_steps": vs.stats.get("dda_steps", 0),
+            "light_s": vs.stats.get("light_s", 0.0)}
+
+
+def _record(stand, mask, pivot, axis, angle):
+    """Accumulate rigid transforms per segment: a segment's attachments (leaves, leaf spheres)
+    follow the same sequence of rotations as its end point."""
+    if not hasattr(stand, "xf"):
+        stand.xf = [t.attrs.get("_xf", []) for t in stand.trees]
+    idx = np.nonzero(mask)[0]
+    tr = stand.tree_of[idx]
+    for t in np.unique(tr):
+        sel = tr == t
+        stand.xf[t].append((idx[sel] - stand.off[t], pivot[sel], axis[sel], angle[sel]))
+    for t, xf in zip(stand.trees, stand.xf):
+        t.attrs["_xf"] = xf
+
+
+def _sync_attachments(tree: Tree):
+    """Move leaves and point attrs with the rotations recorded on their segments."""
+    xf = tree.attrs.pop("_xf", None)
+    if not xf:
+        return
+    lv = tree.leaves
+    seg_of_sphere = tree.attrs.get("leaf_sphere_segment")
+    for segs, pivot, axis, angle in xf:
+        lut = np.full(len(tree), -1)
+        lut[segs] = np.arange(len(segs))
+        if len(lv):
+            j = lut[lv.segment]
+            m = j >= 0
+            if m.any():
+                k = j[m]
+                lv.position[m] = _rotate_about(lv.position[m], pivot[k], axis[k], angle[k])
+                lv.normal[m] = _rotate_about(lv.normal[m], 0 * pivot[k], axis[k], angle[k])
+                if lv.up is not None:
+                    lv.up[m] = _rotate_about(lv.up[m], 0 * pivot[k], axis[k], angle[k])
+        if seg_of_sphere is not None:
+            for key in POINT_ATTRS:
+                if key in tree.attrs:
+                    pts = np.asarray(tree.attrs[key], float)
+                    j = lut[np.asarray(seg_of_sphere)]
+                    m = j >= 0
+                    if m.any():
+                        k = j[m]
+                        pts[m] = _rotate_about(pts[m], pivot[k], axis[k], angle[k])
+                    tree.attrs[key] = pts
