@@ -439,8 +439,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             absorbed=book[2], truncated=book[3], seconds=_time.perf_counter() - t0,
             settings=dict(photons=photons, seed=seed, max_depth=max_depth, indirect=indirect,
                           bands=list(names)))
-        tot = flux[..., 0].sum(axis=(0, 2)) if n_b else None
-        irr_front = tot[:, 0] / np.maximum(index.areas, 1e-30)
+        # front irradiance of the first band, all emitters and components: what render() shows
+        irr_front = flux[..., 0].sum(axis=(0, 2))[:, 0] / np.maximum(index.areas, 1e-30)
         self._vis = (index.lookup, mi.Float(irr_front.astype(np.float32)))
         return res
 

@@ -318,7 +318,11 @@ class MossSimulation:
             cp = dr.gather(mi.Point3f, pop.pos, c_idx)
             inside = grid.neighbour_count(occ, cp, mi.Bool(True), pop.state, MOSS) >= \
                 dr.opaque(mi.UInt32, int(cfg["clump_neighbours"]))
+            # evaluate now: a lazy `inside` would keep the grid referenced, and the next write
+            # to the grid would then copy all of it
+            dr.eval(inside)
             g_idx = dr.gather(mi.UInt32, c_idx, dr.compress(~inside))
+            del inside, occ
         ev.gemma_parents = int(dr.width(g_idx))
         # release and landing of the day's propagules (one batch: gemmae then spores)
         s_idx = dr.compress(spores)

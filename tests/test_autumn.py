@@ -182,3 +182,15 @@ def test_apply_to_tree_stores_leaf_attributes(tree_autumn):
     assert (a["anth"] >= 0).all() and not a["fallen"].any()
     sub = tree.leaves.subset(a["autumn_tau"] > 0.5)
     assert (sub.attrs["autumn_tau"] > 0.5).all()
+
+
+def test_growth_params_take_alphas_from_leaf_spectra():
+    from mitsuba_veg.foliage.attenuation import growth_alphas, with_leaf_optics
+    g = growth_alphas(0.0)
+    assert g["alpha"] == pytest.approx(0.3) and g["alpha_red"] < g["alpha_far_red"]
+    growth = pytest.importorskip("mitsuba_veg.trees.growth")
+    p = with_leaf_optics(growth.GrowthParams(), tau=1.0)
+    assert p.alpha_red == pytest.approx(red_far_red_attenuation(tau=1.0)["alpha_r"])
+    assert p.alpha_red > growth.GrowthParams().alpha_red
+    with pytest.raises(ParameterError):
+        with_leaf_optics(object())

@@ -102,3 +102,21 @@ def test_many_leaves_many_hours_in_few_kernels():
     bottom = lv.position[:, 1] < 0.2
     assert r.cumulative[top].mean() > 1.5 * r.cumulative[bottom].mean()
     assert isinstance(path, SunPath)
+
+
+def test_sky_factor_from_the_photon_pass():
+    lv = _leaves([[0, 0, 0], [3, 0, 0], [3, 0.05, 0]], [[0, 1, 0], [0, 1, 0], [0, 1, 0]],
+                 size=0.3)
+    lv.size[2] = 2.0                                   # a big leaf just above leaf 1
+    from mitsuba_veg.foliage.insolation import sky_view_factor_photons
+    v = sky_view_factor_photons(lv, photons=1_000_000)
+    r = sky_view_factor(lv, rays=256)
+    assert v[0] == pytest.approx(1.0, rel=0.05) and r[0] == pytest.approx(1.0, abs=0.02)
+    # under a leaf: the ray-cast factor sees little sky; the photon pass adds the light the big
+    # leaf transmits and scatters (green leaf: PAR T ~ 0.06)
+    assert r[1] < 0.2 and r[1] < v[1] < 0.4
+    path = sun_path(35.0, 139.0, "2026-10-01", days=1)
+    res = leaf_insolation(lv, path, sky=True, sky_method="photons", sky_photons=200_000)
+    assert res.sky_view.shape == (3,)
+    with pytest.raises(ParameterError):
+        leaf_insolation(lv, path, sky=True, sky_method="nope")

@@ -14,7 +14,8 @@ from .pigments import (LeafTraits, pigments_at_stage, pigments_at_tau, stage_fro
                        stage_table, tau_from_stage, vary_pigments)
 from .prospect import prospect_d
 from .spectra import LeafSpectra, leaf_spectra, mitsuba_spectrum, spectrum_to_srgb
-from .attenuation import absorbed_fraction, red_far_red_attenuation
+from .attenuation import (absorbed_fraction, growth_alphas, red_far_red_attenuation,
+                          with_leaf_optics)
 from .autumn import AutumnParams, AutumnState, apply_to_tree, autumn_time
 from .ifs import MapleLeaf, chaos_game, leaf_image, maple_leaf
 from .insolation import (InsolationResult, SunPath, instantaneous_insolation, leaf_insolation,
@@ -32,7 +33,7 @@ def run_light_study(*args, **kwargs):
 __all__ = ["LeafBSDF", "leaf_bsdf_dict", "LeafTraits", "pigments_at_stage", "pigments_at_tau",
            "stage_from_tau", "stage_table", "tau_from_stage", "vary_pigments", "prospect_d",
            "LeafSpectra", "leaf_spectra", "mitsuba_spectrum", "spectrum_to_srgb",
-           "absorbed_fraction", "red_far_red_attenuation", "AutumnParams", "AutumnState",
+           "absorbed_fraction", "growth_alphas", "red_far_red_attenuation", "with_leaf_optics", "AutumnParams", "AutumnState",
            "apply_to_tree", "autumn_time", "MapleLeaf", "chaos_game", "leaf_image", "maple_leaf",
            "InsolationResult", "SunPath", "instantaneous_insolation", "leaf_insolation",
            "shadow_scene", "sky_view_factor", "sun_path", "run_light_study"]

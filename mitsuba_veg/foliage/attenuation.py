@@ -97,3 +97,25 @@ def absorbed_fraction(spectra: LeafSpectra) -> dict:
         R, T = spectra.band_mean(*band)
         out[name] = 1.0 - R - T
     return out
+
+
+def growth_alphas(tau=0.0, alpha_l: float = 0.3, spectra: LeafSpectra | None = None) -> dict:
+    """The growth model's (paper 001) attenuation parameters from leaf spectra:
+    ``{"alpha": α_l, "alpha_red": α_r, "alpha_far_red": α_fr}`` (names of
+    ``mitsuba_veg.trees.growth.GrowthParams``). The gap fraction of a leaf sphere is calibrated on
+    the green leaf so that green leaves keep α_l; autumn leaves (``tau`` > 0) change all three."""
+    a = red_far_red_attenuation(spectra, tau=tau, alpha_l=alpha_l)
+    return {"alpha": float(a["alpha_par"]), "alpha_red": float(a["alpha_r"]),
+            "alpha_far_red": float(a["alpha_fr"])}
+
+
+def with_leaf_optics(params, tau=0.0, spectra: LeafSpectra | None = None):
+    """A copy of a growth-parameter dataclass (``GrowthParams``) whose α_l, α_r, α_fr come from
+    the leaves' spectra (autumn time ``tau`` or given ``spectra``) instead of the constants;
+    ``params.alpha`` is taken as the green leaves' α_l."""
+    import dataclasses
+
+    if not dataclasses.is_dataclass(params) or not hasattr(params, "alpha_red"):
+        raise ParameterError("params", type(params).__name__,
+                             "a dataclass with alpha, alpha_red, alpha_far_red (GrowthParams)")
+    return dataclasses.replace(params, **growth_alphas(tau, float(params.alpha), spectra))

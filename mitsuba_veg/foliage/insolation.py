@@ -236,15 +236,19 @@ def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
 
 def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bool = True,
                     shadows: bool = True, leaf_transmittance: float = 0.0, max_layers: int = 8,
-                    sky: bool = False, sky_rays: int = 64, bark: bool = True,
+                    sky: bool = False, sky_rays: int = 64, sky_method: str = "rays",
+                    sky_photons: int = 1_000_000, bark: bool = True,
                     batch: int = 1 << 23, seed: int = 0) -> InsolationResult:
     """Daily insolation per leaf over ``path`` with ray-traced shadows (module docstring).
 
     tree_or_scene: a :class:`~mitsuba_veg.trees.Tree` (its leaves and live branches are the
     occluders, plus ``obstacles``), :class:`~mitsuba_veg.trees.Leaves`, or a ``(scene, leaves)``
     pair from :func:`shadow_scene`.
+
+    sky_method: "rays" (view factor of the sky by shadow rays: direct skylight only) or
+    "photons" (a photon pass from a uniform sky through the tree with green ``veg_leaf`` leaves:
+    skylight including its scattering by leaves and bark, :func:`sky_view_factor_photons`).
     """
-    import drjit as dr
     import mitsuba as mi
 
     check_range("leaf_transmittance", leaf_transmittance, 0.0, 1.0, hi_open=True)
@@ -310,8 +314,16 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
     beam_daily = daily.copy()
     sky_view = None
     if sky:
-        sky_view = sky_view_factor((scene, leaves), rays=sky_rays, seed=seed)
-        rays += n * sky_rays
+        if sky_method == "rays":
+            sky_view = sky_view_factor((scene, leaves), rays=sky_rays, seed=seed)
+            rays += n * sky_rays
+        elif sky_method == "photons":
+            if isinstance(tree_or_scene, tuple):
+                raise ParameterError("sky_method", sky_method, "'rays' for a prebuilt scene",
+                                     "pass the Tree or Leaves for sky_method='photons'")
+            sky_view = sky_view_factor_photons(tree_or_scene, photons=sky_photons, seed=seed)
+        else:
+            raise ParameterError("sky_method", sky_method, "'rays' or 'photons'")
         dhi_day = np.bincount(path.day, path.dhi * path.step_hours * 3600.0 / 1e6, minlength=nd)
         daily = daily + sky_view[:, None] * dhi_day[None, :]
     up = path.direction[:, 1]
@@ -390,3 +402,22 @@ def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
     acc = dr.zeros(mi.Float, n)
     dr.scatter_add(acc, val, li)
     return np.asarray(acc, np.float64)
+
+
+def sky_view_factor_photons(tree_or_leaves, photons: int = 1_000_000, seed: int = 0,
+                            tau=None) -> np.ndarray:
+    """Per-leaf skylight factor from the photon pass: a uniform sky of unit horizontal
+    irradiance over a tree with ``veg_leaf`` leaves (PROSPECT-D, ``tau`` per leaf, default green)
+    and grey bark, no ground; V = PAR power on both faces / (leaf area x open PAR). Includes
+    light scattered by leaves (so V can exceed the ray-cast view factor)."""
+    from .light_study import leaf_values, tree_scene
+
+    em = {"sky": {"type": "veg_sky", "radiance": {"type": "uniform", "value": 1.0 / np.pi},
+                  "distribution": "uniform", "sun_direction": [0.0, 1.0, 0.0]}}
+    leaves = tree_or_leaves.leaves if hasattr(tree_or_leaves, "leaves") else tree_or_leaves
+    scene, leaf_map = tree_scene(tree_or_leaves, emitters=em, tau=tau, ground=False)
+    from mitsuba_veg.light import photon_irradiance
+
+    res = photon_irradiance(scene, photons=int(photons), seed=int(seed), bands=("par",))
+    lv = leaf_values(res, leaf_map, n_leaves=len(leaves))
+    return lv["par_W_m2"] / 300.0      # open: 1 W m-2 nm-1 x 300 nm

@@ -121,14 +121,16 @@ def leaf_values(result, leaf_map: dict | None = None, n_leaves: int | None = Non
     n = n_leaves if n_leaves is not None else int(sum(len(v) for v in leaf_map.values()))
     out = {k: np.full(n, np.nan) for k in ("par_W_m2", "red_W_m2", "far_red_W_m2",
                                             "front_par_W_m2", "back_par_W_m2", "area_m2")}
+    bands = [(b, k) for b, k in (("par", "par_W_m2"), ("red", "red_W_m2"),
+                                 ("far_red", "far_red_W_m2")) if b in result.bands]
     for s, idx in leaf_map.items():
         sl = result.index.shape_slice(s)
         area = result.index.areas[sl].reshape(-1, 2).sum(1)
         out["area_m2"][idx] = area
-        for b, key in (("par", "par_W_m2"), ("red", "red_W_m2"), ("far_red", "far_red_W_m2")):
+        for b, key in bands:
             f = result.flux_of(s, b, side="both").reshape(-1, 2).sum(1)
             out[key][idx] = f / area
-        for side in ("front", "back"):
+        for side in ("front", "back") if "par" in result.bands else ():
             f = result.flux_of(s, "par", side=side).reshape(-1, 2).sum(1)
             out[f"{side}_par_W_m2"][idx] = f / area
     out["ppfd"] = out["par_W_m2"] * _umol_per_joule(400, 700)

@@ -122,8 +122,6 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     emitters is added with shadow rays. Spectrally flat scenes only (see module docstring).
     Returns (irradiance, std_error) arrays.
     """
-    import time as _t
-
     key = None
     for k, v in scene_dict.items():
         if isinstance(v, mi.Mesh) and v.id() == shape_id:

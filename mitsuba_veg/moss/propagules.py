@@ -71,7 +71,6 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
 
     Returns (keep mask over the new propagules, mask of existing slots that lose their cell).
     """
-    n = dr.width(landed)
     cells = grid.index(new_pos)
     # among the newcomers of one cell: highest species priority, then lowest order
     pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
@@ -91,5 +90,4 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
     keep = first & wins
     evict = dr.zeros(mi.Bool, pop.capacity)
     dr.scatter(evict, True, slot, has & wins)
-    _ = n
     return keep, evict

@@ -88,7 +88,7 @@ class GrowthParams:
     leaf_size: float = 0.5                # [unit] blade length
     random_phase: bool = True             # random initial phyllotaxis azimuth per tree (seeded)
     ray_cutoff: float = 1e-3              # stop a ray when every band is attenuated below this
-    engine: str = "auto"                  # "mitsuba" | "analytic" | "auto" (faster of the two)
+    engine: str = "auto"                  # sphere counting: "grid" | "mitsuba" | "analytic" | "auto"
     obstacle_collision: bool = True       # a child that would grow into an obstacle is not made
 
     def __post_init__(self):
@@ -126,24 +126,25 @@ class GrowthParams:
         self.leaves_per_sphere = int(self.leaves_per_sphere)
         c("leaf_size", 0.0, None, lo_open=True)
         c("ray_cutoff", 0.0, 1.0, lo_open=True, hi_open=True)
-        if self.engine not in ("auto", "mitsuba", "analytic"):
-            raise ParameterError("engine", self.engine, "'auto', 'mitsuba' or 'analytic'",
-                                 source=source)
+        if self.engine not in ("auto", "grid", "mitsuba", "analytic"):
+            raise ParameterError("engine", self.engine, "'auto', 'grid', 'mitsuba' or "
+                                 "'analytic'", source=source)
         return self
 
     @classmethod
-    def from_dict(cls, d: dict, source: str | None = None) -> "GrowthParams":
-        """From a dict (e.g. a TOML section); unknown keys are an error naming the allowed ones."""
+    def from_dict(cls, d: dict, source: str | None = None, prefix: str = "growth.") \
+            -> "GrowthParams":
+        """From a dict (e.g. the [growth] table of a TREE.toml); unknown keys are an error
+        naming the allowed ones; errors name the field as ``prefix + name``."""
         names = {f.name for f in fields(cls)}
         bad = [k for k in d if k not in names]
         if bad:
-            raise ParameterError(bad[0], d[bad[0]], f"one of {sorted(names)}",
+            raise ParameterError(prefix + bad[0], d[bad[0]], f"one of {sorted(names)}",
                                  "check the spelling", source)
         try:
             return cls(**d)
         except ParameterError as e:
-            e.source = source
-            raise ParameterError(e.field, e.value, e.allowed, e.fix, source) from None
+            raise ParameterError(prefix + e.field, e.value, e.allowed, e.fix, source) from None
 
     def replace(self, **kw) -> "GrowthParams":
         d = asdict(self)
@@ -303,9 +304,10 @@ class _Forest:
 def _auto_engine(n_spheres: int, engine: str) -> str:
     if engine != "auto":
         return engine
-    # measured on a 2-core machine (benchmarks/trees_growth.py): the all-pairs Dr.Jit test does
-    # ~1e9 ray-sphere tests/s, Mitsuba's ellipsoid BVH ~2.7e6 casts/s at ~5-10 casts per ray
-    return "analytic" if n_spheres <= 2500 else "mitsuba"
+    # measured (benchmarks/trees_growth.py): the Dr.Jit grid walk counts the same spheres as
+    # the all-pairs test (bit-identical counts) 2-3x faster than re-casting through Mitsuba's
+    # ellipsoid BVH, and the all-pairs test only wins below ~300 spheres, where both take ms
+    return "grid"
 
 
 def _light(forest, p, sky, env, alphas, engine):
@@ -332,7 +334,7 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
 
     p = GrowthParams() if params is None else params
     if not isinstance(p, GrowthParams):
-        p = GrowthParams.from_dict(dict(p))
+        p = GrowthParams.from_dict(dict(p), prefix="params.")
     p.validate()
     if isinstance(generations, bool) or int(generations) != generations or generations < 0:
         raise ParameterError("generations", generations, "an integer >= 0", "e.g. 10 (G)")

@@ -89,20 +89,26 @@ def _perp_unit(u, t, fallback=None):
     return np.where(n > 1e-9, w / np.maximum(n, 1e-300), fallback)
 
 
-def contact_points(S, a_c, a_p, e, r_c, r_p):
-    """Original contact points B of the corner lines ``S + r_c e_m + s a_c`` with the cylinder
-    of radius ``r_p`` around the parent axis through ``S`` along ``a_p`` (n, M, 3); returns
-    ``(B, s)``. Corners must start inside the cylinder (``r_c < r_p``)."""
-    q = r_c[:, None, None] * e
-    q = q - np.sum(q * a_p[:, None], -1, keepdims=True) * a_p[:, None]
+def contact_points(S, O, a_c, a_p, e, r_c, r_p, s_max=None):
+    """Original contact points B: where the corner lines ``S + r_c e_m + s a_c`` of a branch
+    meet the cylinder of radius ``r_p`` around the parent axis through ``O`` along ``a_p``.
+
+    ``S`` (n, 3) branch start, ``e`` (n, M, 3) unit corner directions; returns ``(B, s)``
+    (n, M, 3), (n, M). The outer intersection is taken (``s`` may be negative when a corner
+    starts outside the cylinder); ``s`` is clamped to ``s_max`` (n,) so that B stays before the
+    branch's first node. A corner line that misses the cylinder keeps ``s = 0``."""
+    w = (S - O)[:, None] + r_c[:, None, None] * e
+    q = w - np.sum(w * a_p[:, None], -1, keepdims=True) * a_p[:, None]
     g = a_c - np.sum(a_c * a_p, -1, keepdims=True) * a_p
     A = np.sum(g * g, -1)[:, None]
     Bq = np.sum(q * g[:, None], -1)
     Cq = np.sum(q * q, -1) - (r_p ** 2)[:, None]
-    disc = np.maximum(Bq * Bq - A * Cq, 0.0)
+    disc = Bq * Bq - A * Cq
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(A > 1e-12, (-Bq + np.sqrt(disc)) / np.maximum(A, 1e-300), 0.0)
-    s = np.maximum(s, 0.0)
+        s = np.where((A > 1e-12) & (disc >= 0),
+                     (-Bq + np.sqrt(np.maximum(disc, 0.0))) / np.maximum(A, 1e-300), 0.0)
+    if s_max is not None:
+        s = np.minimum(s, np.asarray(s_max, float)[:, None])
     B = S[:, None] + r_c[:, None, None] * e + s[..., None] * a_c[:, None]
     return B, s
 
@@ -209,13 +215,16 @@ def _tube_faces(oA, oB, S):
 
 
 def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_sides: int = 8,
-              D_u=None, stretch=None, compress=None, gain: float = 1.0, leaves: bool = True,
+              D_u=None, stretch=None, compress=None, gain=None, knot_gain=None,
+              leaves: bool = True,
               leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True):
     """``(bark, leaves)`` trimesh meshes of ``tree``.
 
     ``smooth``: rebuild branch bases with eq 4.2 (paper 004 §4); ``D_u``, ``stretch``,
     ``compress``: junction parameters (default: the tree's Weber-Penn ``junction`` table, else
-    6 / 1.3 / 2.0); ``gain``: extra factor on eq 4.2's scale (1 = the paper); ``sides``: tube
+    6 / 1.3 / 2.0); ``gain``, ``knot_gain``: extra factors on eq 4.2's scale for branches and
+    knots (default the table's ``Gain``/``KnotGain``, 1 = the paper; the scale is clipped to
+    1); ``sides``: tube
     corners per level (the trunk gets at least 4 x Lobes for its lobes); ``leaf_shape``:
     ``"oval"`` (6-gon, 4 triangles) or ``"quad"``.
 
@@ -226,15 +235,19 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     import trimesh
 
     wp = getattr(tree, "weber_penn", None)
-    jp = dict(wp.params.junction) if wp is not None else {"Du": 6, "Stretch": 1.3,
-                                                          "Compress": 2.0}
+    jp = {"Du": 6, "Stretch": 1.3, "Compress": 2.0, "Gain": 1.0, "KnotGain": 1.0}
+    if wp is not None:
+        jp.update(wp.params.junction)
     D_u = int(jp["Du"] if D_u is None else D_u)
     stretch = float(jp["Stretch"] if stretch is None else stretch)
     compress = float(jp["Compress"] if compress is None else compress)
+    gain = float(jp["Gain"] if gain is None else gain)
+    knot_gain = float(jp["KnotGain"] if knot_gain is None else knot_gain)
     subdivisions(D_u, 1)
     check_range("stretch", stretch, 1e-3, 20.0, fix="use a positive exponent")
     check_range("compress", compress, 1e-3, 20.0, fix="use a positive exponent")
     check_range("gain", gain, 0.0, None, fix="use gain >= 0 (1 = paper 004 eq 4.2)")
+    check_range("knot_gain", knot_gain, 0.0, None, fix="use knot_gain >= 0 (1 = paper 004)")
     if leaf_shape not in ("oval", "quad"):
         raise ParameterError("leaf_shape", leaf_shape, "'oval' or 'quad'")
     if len(sides) < 1 or min(sides) < 3:
@@ -309,7 +322,7 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
         junction_D[jc] = Dj
         groups, scale = _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id,
                                           ring_verts, ring_S)
-        scale = np.clip(scale * gain, 0.0, 1.0)
+        scale = np.clip(scale * np.where(tree.kind[jc] != 0, knot_gain, gain), 0.0, 1.0)
         for sel, P, C, B, cm in groups:
             S = int(Sg[jc[sel[0]]])
             F = 0.5 * (1 + cm) * stretch + 0.5 * (1 - cm) * compress
@@ -405,6 +418,7 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
     a_c, a_p = dirs[jc], dirs[p]
     t = st["attach"][jc]
     S0 = tree.start[jc]
+    O = tree.start[p] + (t * ln[p])[:, None] * a_p          # the junction on the parent axis
     rp = r0[p] + t * (r1[p] - r0[p])
     Sp = Sg[p].astype(float)
     shrink = np.cos(np.pi / Sp) * (1.0 - depth[p]) * 0.98       # under the faceted, lobed skin
@@ -444,12 +458,13 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
         u = u_bot[jc[sel]]
         v = np.cross(a_c[sel], u)
         e = np.cos(th)[None, :, None] * u[:, None] + np.sin(th)[None, :, None] * v[:, None]
-        B, _ = contact_points(S0[sel], a_c[sel], a_p[sel], e, rc[sel], rpe[sel])
+        B, _ = contact_points(S0[sel], O[sel], a_c[sel], a_p[sel], e, rc[sel], rpe[sel],
+                              0.8 * ln[jc[sel]])
         uhat = a_p[sel] - np.sum(a_p[sel] * a_c[sel], 1, keepdims=True) * a_c[sel]
         nrm = np.linalg.norm(uhat, axis=1, keepdims=True)
         uhat = np.where(nrm > 1e-9, uhat / np.maximum(nrm, 1e-300), u)
         cm = np.clip(np.sum(e * uhat[:, None], -1), -1.0, 1.0)
-        hB = h_c[sel, None] + np.sum((B - S0[sel, None]) * a_p[sel, None], -1)
+        hB = h_c[sel, None] + np.sum((B - O[sel, None]) * a_p[sel, None], -1)
         hP = np.where(cm >= 0, hB + cm * np.maximum(h_up[sel, None] - hB, 0.0),
                       hB + cm * np.maximum(hB - h_dn[sel, None], 0.0))
         # the parent-stem segment holding hP
@@ -460,7 +475,7 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
         hq = np.clip(hP - arc[q], 0.0, ln[q])
         axis = tree.start[q] + hq[..., None] * dirs[q]
         rq = (r0[q] + hq / np.maximum(ln[q], 1e-300) * (r1[q] - r0[q])) * shrink[sel, None]
-        rel = B - S0[sel, None]
+        rel = B - O[sel, None]
         rho = rel - np.sum(rel * a_p[sel, None], -1, keepdims=True) * a_p[sel, None]
         rho = _unit(rho - np.sum(rho * dirs[q], -1, keepdims=True) * dirs[q])
         P = axis + rq[..., None] * rho

@@ -173,6 +173,110 @@ def _brute_loop(o, d, own, centers, n, r2, tmax):
     return k
 
 
+@dr.syntax
+def _grid_loop(o, d, own, tmax, kmax, q, cell_start, cell_items, centers, r2, h, nx, ny, nz):
+    """Count the spheres each ray passes, walking a uniform grid of sphere lists (3D-DDA).
+
+    Each iteration either tests one sphere listed in the current cell or steps to the next
+    cell. A sphere is counted in the cell that contains its entry point (t = 0 for a sphere
+    containing the origin), so spheres listed in several cells count once."""
+    ix = mi.Int32(dr.floor(q.x))
+    iy = mi.Int32(dr.floor(q.y))
+    iz = mi.Int32(dr.floor(q.z))
+    sx = dr.select(d.x > 0, mi.Int32(1), mi.Int32(-1))
+    sy = dr.select(d.y > 0, mi.Int32(1), mi.Int32(-1))
+    sz = dr.select(d.z > 0, mi.Int32(1), mi.Int32(-1))
+    big = mi.Float(1e30)
+    tdx = dr.select(dr.abs(d.x) > 1e-12, h / dr.abs(d.x), big)
+    tdy = dr.select(dr.abs(d.y) > 1e-12, h / dr.abs(d.y), big)
+    tdz = dr.select(dr.abs(d.z) > 1e-12, h / dr.abs(d.z), big)
+    tmx = dr.select(dr.abs(d.x) > 1e-12,
+                    (mi.Float(ix) + dr.select(d.x > 0, 1.0, 0.0) - q.x) * h / d.x, big)
+    tmy = dr.select(dr.abs(d.y) > 1e-12,
+                    (mi.Float(iy) + dr.select(d.y > 0, 1.0, 0.0) - q.y) * h / d.y, big)
+    tmz = dr.select(dr.abs(d.z) > 1e-12,
+                    (mi.Float(iz) + dr.select(d.z > 0, 1.0, 0.0) - q.z) * h / d.z, big)
+    inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & (iz >= 0) & (iz < nz)
+    cidx = mi.UInt32(ix + nx * (iy + ny * iz))
+    j = dr.gather(mi.UInt32, cell_start, cidx, inside)
+    jend = dr.gather(mi.UInt32, cell_start, cidx + 1, inside)
+    t_in = mi.Float(-1.0)
+    t_out = dr.minimum(tmx, dr.minimum(tmy, tmz))
+    k = mi.UInt32(0)
+    steps = mi.UInt32(0)
+    active = inside & (kmax > 0)
+    while dr.hint(active, label="veg_leaf_sphere_grid"):
+        steps += 1
+        item = active & (j < jend)
+        s = dr.gather(mi.UInt32, cell_items, j, item)
+        c = dr.gather(mi.Point3f, centers, s, item)
+        w = c - o
+        b = dr.dot(w, d)
+        ww = dr.dot(w, w)
+        disc = r2 - (ww - b * b)
+        ins = ww < r2
+        tn = dr.select(ins, 0.0, b - dr.sqrt(dr.maximum(disc, 0.0)))
+        hit = item & (s != own) & (ins | ((disc > 0) & (tn > 0))) & (tn >= t_in) \
+            & (tn < t_out) & (tn < tmax)
+        k = dr.select(hit, k + 1, k)
+        j = dr.select(item, j + 1, j)
+        adv = active & ~item
+        bx = adv & (tmx <= tmy) & (tmx <= tmz)
+        by = adv & ~bx & (tmy <= tmz)
+        bz = adv & ~bx & ~by
+        ix = dr.select(bx, ix + sx, ix)
+        tmx = dr.select(bx, tmx + tdx, tmx)
+        iy = dr.select(by, iy + sy, iy)
+        tmy = dr.select(by, tmy + tdy, tmy)
+        iz = dr.select(bz, iz + sz, iz)
+        tmz = dr.select(bz, tmz + tdz, tmz)
+        t_in = dr.select(adv, t_out, t_in)
+        t_out = dr.select(adv, dr.minimum(tmx, dr.minimum(tmy, tmz)), t_out)
+        ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & (iz >= 0) & (iz < nz)
+        cidx = mi.UInt32(ix + nx * (iy + ny * iz))
+        j = dr.select(adv, dr.gather(mi.UInt32, cell_start, cidx, adv & ok), j)
+        jend = dr.select(adv, dr.gather(mi.UInt32, cell_start, cidx + 1, adv & ok), jend)
+        active = active & ok & (k < kmax) & (t_in < tmax)
+    return k, steps
+
+
+def sphere_grid(centers, radius, cell=None):
+    """Uniform grid of sphere lists: (origin (3,), cell size, shape, cell_start (ncell + 1,),
+    items (sphere ids, grouped by cell)). Every sphere is listed in each cell its bounding box
+    overlaps; cell size = R by default (minimises tests per unit ray length)."""
+    c = np.asarray(centers, float).reshape(-1, 3)
+    h = float(radius if cell is None else cell)
+    lo = c.min(0) - radius - 1e-3 * h
+    hi = c.max(0) + radius + 1e-3 * h
+    shape = np.maximum(np.ceil((hi - lo) / h).astype(np.int64), 1)
+    # keep the grid bounded (very sparse scenes): grow cells until <= 16M cells
+    while np.prod(shape) > 16_000_000:
+        h *= 1.5
+        shape = np.maximum(np.ceil((hi - lo) / h).astype(np.int64), 1)
+    i0 = np.floor((c - radius - lo) / h).astype(np.int64)
+    i1 = np.floor((c + radius - lo) / h).astype(np.int64)
+    i0 = np.clip(i0, 0, shape - 1)
+    i1 = np.clip(i1, 0, shape - 1)
+    span = int((i1 - i0).max()) + 1
+    offs = np.stack(np.meshgrid(*[np.arange(span)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    cells, ids = [], []
+    for off in offs:
+        ijk = i0 + off
+        ok = np.all(ijk <= i1, axis=1)
+        ijk = ijk[ok]
+        cells.append(ijk[:, 0] + shape[0] * (ijk[:, 1] + shape[1] * ijk[:, 2]))
+        ids.append(np.nonzero(ok)[0])
+    cells = np.concatenate(cells)
+    ids = np.concatenate(ids)
+    order = np.argsort(cells, kind="stable")
+    ncell = int(np.prod(shape))
+    start = np.zeros(ncell + 1, np.int64)
+    np.add.at(start, cells + 1, 1)
+    start = np.cumsum(start)
+    return lo, h, tuple(int(v) for v in shape), start.astype(np.uint32), \
+        ids[order].astype(np.uint32)
+
+
 def _rays(centers_dr, dirs_dr, n_rays, m):
     idx = dr.arange(mi.UInt32, n_rays)
     s = idx // dr.opaque(mi.UInt32, m)
@@ -266,7 +370,8 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
         k_np = np.asarray(k).astype(np.int64)
         tri_np = np.asarray(tri)
         n_casts = int(np.asarray(casts, np.int64).sum())
-    elif engine == "analytic":
+        loop_steps = n_casts
+    elif engine in ("analytic", "grid"):
         s, o, dd = _rays(centers_dr, dirs_dr, n_rays, m)
         if env is not None:
             scene = env.scene()
@@ -280,15 +385,27 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
         else:
             tmax = dr.full(mi.Float, dr.inf, n_rays)
             tri = dr.full(mi.UInt32, _NONE, n_rays)
-        k = _brute_loop(o, dd, s, centers_dr, dr.opaque(mi.UInt32, n),
-                        dr.opaque(mi.Float, float(radius) ** 2), tmax)
-        dr.eval(k, tri)
+        r2 = dr.opaque(mi.Float, float(radius) ** 2)
+        if engine == "analytic":
+            k = _brute_loop(o, dd, s, centers_dr, dr.opaque(mi.UInt32, n), r2, tmax)
+            steps = None
+        else:
+            lo, h, shape, start, items = sphere_grid(centers, radius)
+            q = (o - mi.Vector3f(*[dr.opaque(mi.Float, float(v)) for v in lo])) \
+                * dr.opaque(mi.Float, 1.0 / h)
+            kmax = dr.gather(mi.UInt32, mi.UInt32(np.full(n, kcap, np.uint32)), s)
+            k, steps = _grid_loop(o, dd, s, tmax, kmax, q, mi.UInt32(start), mi.UInt32(items),
+                                  centers_dr, r2, dr.opaque(mi.Float, h),
+                                  *[dr.opaque(mi.Int32, v) for v in shape])
+        dr.eval(k, tri) if steps is None else dr.eval(k, tri, steps)
         k_np = np.asarray(k).astype(np.int64)
         tri_np = np.asarray(tri)
         kin = np.zeros(n, np.int64)         # counted by the kernel itself
-        n_casts = n_rays if env is not None else 0
+        n_casts = n_rays if env is not None else 0   # the obstacle casts
+        loop_steps = int(np.asarray(steps, np.int64).sum()) if steps is not None \
+            else n_rays * n
     else:
-        raise ParameterError("engine", engine, "'mitsuba' or 'analytic'")
+        raise ParameterError("engine", engine, "'mitsuba', 'grid' or 'analytic'")
     cell = np.tile(np.arange(m), n)
     kin_ray = np.repeat(kin, m).astype(np.float64)
     vals = _ray_values(sky, env, k_np, tri_np, cell, alphas, kin_ray)
@@ -309,7 +426,7 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
     vec = np.where(ln > 1e-12, vec / np.maximum(ln, 1e-300), np.array([[0.0, 1.0, 0.0]]))
     return LeafLight(received, vec, n_rays, n_casts, time.perf_counter() - t0,
                      float((k_np + kin_ray).mean()),
-                     {"engine": engine, "spheres": n, "k_cap": kcap,
+                     {"engine": engine, "spheres": n, "k_cap": kcap, "loop_steps": loop_steps,
                       "buried": int(buried.sum())})
 
 

@@ -154,6 +154,7 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
             stats.append(st)
     for t in trees:
         _sync_attachments(t)
+        t.drop_dead_leaves()
     return DeformResult(trees[0] if single else trees, stats, time.perf_counter() - t0)
 
 

@@ -32,6 +32,9 @@ from mitsuba_veg.errors import ParameterError
 NORMAL, KNOT, SPROUTED_KNOT = 0, 1, 2
 #: attrs holding points [m] that move with the tree
 POINT_ATTRS = ("leaf_sphere_center",)
+#: per-leaf-sphere attrs (one row per sphere, aligned with ``leaf_sphere_segment``)
+LEAF_SPHERE_ATTRS = ("leaf_sphere_center", "leaf_sphere_segment", "light", "red_far_red",
+                     "light_vector")
 
 
 @dataclass
@@ -139,6 +142,24 @@ class Tree:
         par = self.parent[keep & (self.parent >= 0)]
         has_child[par] = True
         return np.nonzero(keep & ~has_child)[0]
+
+    def drop_dead_leaves(self) -> "Tree":
+        """Remove leaves (and leaf spheres) hanging on dead segments, in place."""
+        if len(self.leaves):
+            self.leaves = self.leaves.subset(self.alive[self.leaves.segment])
+        seg = self.attrs.get("leaf_sphere_segment")
+        if seg is not None:
+            seg = np.asarray(seg, np.int64)
+            keep = self.alive[seg] if len(seg) else np.zeros(0, bool)
+            n = len(seg)
+            for k in LEAF_SPHERE_ATTRS:
+                v = self.attrs.get(k)
+                if v is not None and len(np.asarray(v)) == n:
+                    self.attrs[k] = np.asarray(v)[keep]
+            if "sphere" in self.leaves.attrs and len(self.leaves):
+                remap = np.cumsum(keep) - 1
+                self.leaves.attrs["sphere"] = remap[self.leaves.attrs["sphere"]]
+        return self
 
     def copy(self) -> "Tree":
         import copy as _copy

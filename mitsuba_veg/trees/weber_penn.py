@@ -68,7 +68,7 @@ KNOT_DEFAULTS = {
     "DensityV": 0.0, "DormancyBreak": 2.0, "DormancyBreakV": 0.0, "DormancyStep": 1.0,
 }
 KNOT_OPTIONS = {"enabled": False, "SproutVariation": "ContractionV"}
-JUNCTION_DEFAULTS = {"Du": 6, "Stretch": 1.3, "Compress": 2.0}
+JUNCTION_DEFAULTS = {"Du": 6, "Stretch": 1.3, "Compress": 2.0, "Gain": 1.0, "KnotGain": 1.0}
 
 _FIX = "see docs/weber_penn.md for the parameter list and ranges"
 # name: (lo, hi, integer, note)
@@ -107,6 +107,8 @@ _RANGES = {
     # junction
     "Du": (1, 64, True, "subdivisions at level 1"), "Stretch": (1e-3, 20.0, False, ""),
     "Compress": (1e-3, 20.0, False, ""),
+    "Gain": (0.0, None, False, "extra factor on the eq 4.2 scale; 1 = paper 004"),
+    "KnotGain": (0.0, None, False, "the same for knots; 1 = paper 004"),
 }
 
 
@@ -439,6 +441,15 @@ def flare_factor(flare, z):
     return 1.0 + flare * (100.0 ** y - 1.0) / 100.0
 
 
+def _sink(pos, d, axis, r_parent, r_knot):
+    """Start point of a knot: from the parent's axis along the knot direction ``d`` to the
+    parent's surface, then back by the knot's radius, so that a short knot protrudes from the
+    bark instead of ending inside the parent (its base ring stays under the bark)."""
+    sin = np.sqrt(np.maximum(1.0 - np.sum(d * axis, 1) ** 2, 0.0))
+    s_exit = r_parent / np.maximum(sin, 0.25)
+    return pos + np.maximum(s_exit - r_knot, 0.0)[:, None] * d
+
+
 def _errdiff(x, start=0.0):
     """Integer counts by error diffusion (running rounding) of the non-negative floats ``x``."""
     c = np.floor(np.cumsum(x) + start + 0.5)
@@ -463,8 +474,8 @@ class _Grower:
     def __init__(self, p: WeberPennParams, seed, knots_on: bool):
         self.p = p
         self.seed = seed
-        self.rng = np.random.default_rng(seed)
         self.ss_entropy = int(np.random.SeedSequence(seed).entropy) if seed is None else seed
+        self.rng = self.stream(-1, 0)
         self.knots_on = bool(knots_on)
         g = p.params
         u = self.rng.random(8)
@@ -490,6 +501,11 @@ class _Grower:
             X=[[math.cos(phi), math.sin(phi), 0.0]], Y=[[-math.sin(phi), math.cos(phi), 0.0]],
             Z=[[0.0, 0.0, 1.0]])
 
+    def stream(self, lv: int, purpose: int):
+        """Random stream keyed by (seed, level, purpose): 0 growth, 1 bud layout, 2 knots,
+        3 knot buds, 4 leaves. Switching knots on leaves the streams of growth untouched."""
+        return np.random.default_rng([self.ss_entropy, lv + 1, purpose])
+
     @staticmethod
     def _fam(**kw):
         f = {k: np.asarray(v, dtype=float if k not in ("kind", "parent_seg", "parent_stem")
@@ -503,7 +519,7 @@ class _Grower:
         p, g = self.p, self.p.params
         N = int(p.lv("CurveRes", lv))
         nf = len(fam["L"])
-        U = self.rng.random((nf, N, self.KR))
+        U = self.stream(lv, 0).random((nf, N, self.KR))
         rows = {"fam": np.arange(nf), "k0": np.zeros(nf, np.int64), "prow": np.full(nf, -1),
                 "pos": fam["pos"].copy(), "X": fam["X"].copy(), "Y": fam["Y"].copy(),
                 "Z": fam["Z"].copy(), "corr": np.zeros(nf), "dens": np.ones((nf, N)), "U": U}
@@ -799,7 +815,8 @@ class _Grower:
         dens = base[:, None] * rows["dens"] * owned * bearing
         n_row = dens.sum(1)
         kn_on = self.knots_on
-        u = self.rng.random((nr, 4))
+        rng_b = self.stream(lv, 1)
+        u = self.stream(lv, 2).random((nr, 4))
         if kn_on:
             kp = np.clip(p.kn("KnotPosition", lvc) + p.kn("KnotPositionV", lvc) * (2 * u[:, 0] - 1),
                          0.0, 1.0)
@@ -823,7 +840,8 @@ class _Grower:
             dorm = np.full(nr, np.nan)
         count = _errdiff(n_row + E)
         st.update(expected=float(n_row.sum()), expected_knots=float(E.sum()),
-                  buds=int(count.sum()))
+                  buds=int(count.sum()), expected_per_row=n_row + E, weber_penn_per_row=n_row,
+                  buds_per_row=count.copy())
         # positions: quantiles of the (knot-augmented) density, ordered base -> tip
         aug = dens + dens_zone * np.where(n_zone > 0, E / np.maximum(n_zone, 1e-300), 0.0)[:, None]
         cum = np.concatenate([np.zeros((nr, 1)), np.cumsum(aug, 1)], 1)
@@ -859,7 +877,7 @@ class _Grower:
         order = np.lexsort((bs, brow))
         brow, bk, bs, bfrac, forced = brow[order], bk[order], bs[order], bfrac[order], forced[order]
         in_zone = bs >= (kp * L)[brow] - 1e-12
-        ub = self.rng.random((len(brow), 8))
+        ub = rng_b.random((len(brow), 8))
         if kn_on:
             is_knot, _ = _kn.assign_knots(brow, in_zone, forced, rate, decay, ub[:, 0])
         else:
@@ -931,6 +949,8 @@ class _Grower:
                                         2 * ub[kI, 4] - 1)
             dm[kI] = dorm[brow[kI]]
             taper[kI] = 1.0
+            pos[kI] = _sink(pos[kI], Z[kI], seg["Z"][si[kI]], cap[kI],
+                            np.minimum(r_raw[kI], cap[kI]))
         lcm = p.lv("Length", lvc + 1) + p.lv("LengthV", lvc + 1) * (2 * ub[:, 5] - 1)
         return self._fam(L=Lc, r_raw=r_raw, r_cap=cap, kind=kind, sprout=np.zeros(len(brow)),
                          dorm=dm, parent_seg=gid, parent_stem=rows["stem"][brow], attach=t,
@@ -943,7 +963,7 @@ class _Grower:
         lvc = lv + 1
         f = rows["fam"][krows]
         n = len(krows)
-        u = self.rng.random((n, 8))
+        u = self.stream(lv, 3).random((n, 8))
         Lk = fam["L"][f]
         s = (0.5 + 0.45 * u[:, 0]) * Lk
         k = np.clip((s / (Lk / N)).astype(np.int64), 0, N - 1)
@@ -972,6 +992,9 @@ class _Grower:
         Lsk = _kn.knot_length(Lb, s / Lk, p.kn("Contraction", lvc), p.kn("ContractionV", lvc),
                               2 * u[:, 3] - 1)
         rsk = _kn.knot_radius(rb, p.kn("Density", lvc), p.kn("DensityV", lvc), 2 * u[:, 4] - 1)
+        sub = ~spr
+        pos[sub] = _sink(pos[sub], Z[sub], seg["Z"][si[sub]], cap[sub],
+                         np.minimum(rsk[sub], cap[sub]))
         st = self.stats["levels"][lv]
         st["sprouts"] = int(spr.sum())
         st["subknots"] = int((~spr).sum())
@@ -1006,7 +1029,7 @@ class _Grower:
             jj = np.arange(len(lrow)) - np.repeat(np.r_[0, np.cumsum(cnt)[:-1]], cnt)
             own = N - rows["k0"][lrow]
             s = (rows["k0"][lrow] + (jj + 0.5) / np.maximum(cnt[lrow], 1) * own) * seglen[lrow]
-            u = self.rng.random((len(lrow), 3))
+            u = self.stream(lv, 4).random((len(lrow), 3))
             step = p.lv("Rotate", lvl) + p.lv("RotateV", lvl) * (2 * u[:, 0] - 1)
             first = np.r_[True, lrow[1:] != lrow[:-1]] if len(lrow) else np.zeros(0, bool)
             startv = np.maximum.accumulate(np.where(first, np.arange(len(lrow)), 0))
@@ -1029,7 +1052,7 @@ class _Grower:
             cnt = _errdiff(np.where(ok, per, 0.0))
             lrow = np.repeat(np.arange(nr), cnt)
             jj = np.arange(len(lrow)) - np.repeat(np.r_[0, np.cumsum(cnt)[:-1]], cnt)
-            u = self.rng.random((len(lrow), 3))
+            u = self.stream(lv, 4).random((len(lrow), 3))
             si = seg["idx"][lrow, N - 1]
             gid, _, pos = self._point(seg, si, np.ones(len(lrow)))
             c = cnt[lrow]

@@ -1,0 +1,176 @@
+"""Spectral materials of the final render: reflectance spectra and Mitsuba BSDF dicts.
+
+Every material is an explicit spectrum over Mitsuba's range (360-830 nm, 5 nm steps), never an
+RGB colour: RGB is up-sampled inside the visible range only and means nothing at 730 nm, and the
+render's far-red band must see the vegetation's red edge. The curves are smooth, hand-fitted
+shapes of typical measured spectra (soil and concrete rise slowly with wavelength; iron-rich
+sand absorbs below ~550 nm; asphalt is dark and flat; chlorophyll-bearing moss and leaves reflect
+a little green, absorb red near 670 nm and reflect strongly beyond the red edge at ~700-740 nm).
+Their band means agree with the moss model's albedo per band (``[moss] albedo`` of the moss
+garden: red 0.05, far-red 0.45) within a few hundredths; ``band_mean`` reports them.
+
+Leaves use PROSPECT-D spectra and the ``veg_leaf`` BSDF (:mod:`mitsuba_veg.foliage`) when that
+package is importable; otherwise :func:`leaf_bsdf` falls back to a one-sided diffuse green.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ParameterError
+
+#: wavelength grid of every material spectrum [nm]
+WAVELENGTHS = np.arange(360.0, 830.0 + 1e-9, 5.0)
+
+
+def _logistic(x, x0, w):
+    return 1.0 / (1.0 + np.exp(-(x - x0) / w))
+
+
+def _gauss(x, x0, s):
+    return np.exp(-0.5 * ((x - x0) / s) ** 2)
+
+
+def _soil(lo, hi, knee=600.0, width=120.0, floor_uv=0.7):
+    """A soil-like curve rising from ``lo`` (blue) to ``hi`` (near infrared)."""
+    wl = WAVELENGTHS
+    r = lo + (hi - lo) * _logistic(wl, knee, width) / _logistic(830.0, knee, width)
+    return r * np.where(wl < 400, floor_uv + (1 - floor_uv) * (wl - 360) / 40.0, 1.0)
+
+
+def _vegetation(blue, green, red, nir, yellow=0.0, edge=705.0, edge_width=11.0,
+                green_width=32.0):
+    """Chlorophyll vegetation: low blue, a green bump at 550 nm, a red trough at ~670 nm and the
+    red edge (logistic at ``edge``) up to the near-infrared plateau ``nir``."""
+    wl = WAVELENGTHS
+    base = blue + (red - blue) * _logistic(wl, 600.0, 25.0)
+    bump = (green - blue) * _gauss(wl, 552.0, green_width) + yellow * _gauss(wl, 600.0, 25.0)
+    vis = base + bump
+    redge = _logistic(wl, edge, edge_width)
+    return vis * (1.0 - redge) + nir * redge
+
+
+def _spectra() -> dict:
+    wl = WAVELENGTHS
+    s = {
+        # ground (paper 000 geology classes; texture colours in mitsuba_veg.terrain)
+        "humus": _soil(0.035, 0.16, knee=640, width=110),
+        "humus_light": _soil(0.05, 0.20, knee=640, width=110),
+        "sand": np.clip(0.10 + 0.40 * _logistic(wl, 545.0, 30.0) + 0.05 * (wl - 600) / 230, 0, 1),
+        "sand_light": np.clip(0.14 + 0.44 * _logistic(wl, 540.0, 30.0)
+                              + 0.05 * (wl - 600) / 230, 0, 1),
+        "asphalt": 0.075 + 0.02 * (wl - 360) / 470,
+        "asphalt_light": 0.11 + 0.025 * (wl - 360) / 470,
+        # built structure and surroundings
+        "concrete": 0.24 + 0.11 * _logistic(wl, 520.0, 90.0),
+        "gravel": _soil(0.09, 0.22, knee=560, width=150),
+        "bark": _soil(0.045, 0.30, knee=700, width=70),
+        # moss: established (dark) and young/tip (light) tones per species
+        "bryum_argenteum": _vegetation(0.07, 0.16, 0.07, 0.46, green_width=30.0),
+        "bryum_argenteum_light": _vegetation(0.16, 0.27, 0.16, 0.55, green_width=30.0),
+        "hypnum_plumaeforme": _vegetation(0.025, 0.16, 0.035, 0.42, yellow=0.02,
+                                          green_width=28.0),
+        "hypnum_plumaeforme_light": _vegetation(0.04, 0.24, 0.06, 0.48, yellow=0.04,
+                                                green_width=28.0),
+        "polytrichum": _vegetation(0.02, 0.09, 0.025, 0.38, green_width=26.0),
+        "polytrichum_light": _vegetation(0.03, 0.14, 0.035, 0.44, yellow=0.01, green_width=26.0),
+        # the carpet of old stems and rhizoids under living moss
+        "moss_base": _vegetation(0.03, 0.06, 0.045, 0.28, yellow=0.015, edge=712,
+                                 edge_width=16.0),
+        # fallback leaf (no PROSPECT-D available): a mature green leaf, R only
+        "leaf_green": _vegetation(0.04, 0.13, 0.04, 0.48, edge=710, green_width=28.0),
+    }
+    return {k: np.clip(v, 0.0, 0.95) for k, v in s.items()}
+
+
+SPECTRA: dict[str, np.ndarray] = _spectra()
+#: geology class (mitsuba_veg.terrain.GEOLOGY order) -> material name
+GEOLOGY_MATERIAL = {"humus": "humus", "sand": "sand", "asphalt": "asphalt"}
+#: moss species key -> material name (unknown species use "moss_generic" = hypnum's)
+MOSS_MATERIAL = {"bryum_argenteum": "bryum_argenteum",
+                 "hypnum_plumaeforme": "hypnum_plumaeforme",
+                 "polytrichum": "polytrichum"}
+
+
+def spectrum(name_or_values) -> np.ndarray:
+    """Reflectance on :data:`WAVELENGTHS`: a material name or an array of that length."""
+    if isinstance(name_or_values, str):
+        if name_or_values not in SPECTRA:
+            raise ParameterError("material", name_or_values, "one of " + ", ".join(sorted(SPECTRA)),
+                                 "use a built-in material name or give a spectrum")
+        return SPECTRA[name_or_values]
+    v = np.asarray(name_or_values, float)
+    if v.ndim == 0:
+        return np.full(len(WAVELENGTHS), float(v))
+    if v.shape != WAVELENGTHS.shape:
+        raise ParameterError("material spectrum", v.shape, f"{len(WAVELENGTHS)} values on "
+                             "360-830 nm in 5 nm steps")
+    return v
+
+
+def regular(values) -> dict:
+    """A Mitsuba ``regular`` spectrum dict on :data:`WAVELENGTHS`."""
+    v = spectrum(values)
+    return {"type": "regular", "wavelength_min": float(WAVELENGTHS[0]),
+            "wavelength_max": float(WAVELENGTHS[-1]),
+            "values": ", ".join(f"{x:.5g}" for x in v)}
+
+
+def diffuse(name_or_values) -> dict:
+    """A ``diffuse`` BSDF dict with an explicit spectral reflectance."""
+    return {"type": "diffuse", "reflectance": regular(name_or_values)}
+
+
+def blend(bsdf0: dict, bsdf1: dict, weight) -> dict:
+    """``blendbsdf``: weight 0 -> ``bsdf0``, 1 -> ``bsdf1``; weight a float or texture dict."""
+    w = {"type": "uniform", "value": float(weight)} if np.isscalar(weight) else weight
+    return {"type": "blendbsdf", "weight": w, "bsdf_0": bsdf0, "bsdf_1": bsdf1}
+
+
+def band_mean(name_or_values, lo: float, hi: float) -> float:
+    """Mean reflectance over [lo, hi] nm (linear interpolation of the 5-nm grid)."""
+    x = np.linspace(lo, hi, 64)
+    return float(np.interp(x, WAVELENGTHS, spectrum(name_or_values)).mean())
+
+
+def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
+    """sRGB (0-1, gamma-encoded) of a reflectance under D65, for legends and checks."""
+    import colour
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    d65 = colour.SDS_ILLUMINANTS["D65"]
+    wl = np.arange(380.0, 781.0, 5.0)
+    r = np.interp(wl, WAVELENGTHS, spectrum(name_or_values))
+    xyz_bar = np.stack([np.interp(wl, cmfs.wavelengths, cmfs.values[:, i]) for i in range(3)], 1)
+    e = np.interp(wl, d65.wavelengths, d65.values)
+    XYZ = (r * e) @ xyz_bar / (e @ xyz_bar[:, 1]) * exposure
+    rgb = colour.XYZ_to_sRGB(XYZ)
+    return np.clip(rgb, 0.0, 1.0)
+
+
+# ---- leaves ----------------------------------------------------------------------------------
+def foliage_available() -> bool:
+    """True when :mod:`mitsuba_veg.foliage` (PROSPECT-D spectra, ``veg_leaf`` BSDF) imports."""
+    try:
+        from .. import foliage  # noqa: F401
+        from ..foliage import leaf_spectra, leaf_bsdf_dict  # noqa: F401
+        return True
+    except Exception:  # pragma: no cover - depends on the other package's state
+        return False
+
+
+def leaf_bsdf(tau: float = 0.0) -> dict:
+    """BSDF dict of a leaf at autumn logical time ``tau`` (0 green .. 1 red, paper 003).
+
+    With :mod:`mitsuba_veg.foliage`: PROSPECT-D reflectance and transmittance in the two-sided
+    ``veg_leaf`` BSDF. Without it: a ``twosided`` diffuse green-to-red blend (no transmission).
+    """
+    tau = float(np.clip(tau, 0.0, 1.0))
+    if foliage_available():
+        from ..foliage import leaf_bsdf_dict, leaf_spectra
+        return leaf_bsdf_dict(leaf_spectra(tau=tau))
+    red = _vegetation(0.04, 0.06, 0.20, 0.50, yellow=0.10, edge=690)
+    r = (1 - tau) * SPECTRA["leaf_green"] + tau * red
+    return {"type": "twosided", "bsdf": diffuse(r)}
+
+
+__all__ = ["WAVELENGTHS", "SPECTRA", "GEOLOGY_MATERIAL", "MOSS_MATERIAL", "spectrum", "regular",
+           "diffuse", "blend", "band_mean", "srgb", "foliage_available", "leaf_bsdf"]
