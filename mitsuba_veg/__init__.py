@@ -17,7 +17,8 @@ from . import integrators  # noqa: E402,F401  (registers the Mitsuba plugins)
 from . import light  # noqa: E402,F401
 from . import climate, moss, scenario, soil, terrain  # noqa: E402,F401
 from . import trees  # noqa: E402,F401
+from . import foliage  # noqa: E402,F401  (registers the veg_leaf BSDF)
 from .simulation import run  # noqa: E402,F401
 
 __all__ = ["__version__", "variant", "errors", "integrators", "light", "climate", "moss",
-           "scenario", "soil", "terrain", "trees", "run"]
+           "scenario", "soil", "terrain", "trees", "foliage", "run"]

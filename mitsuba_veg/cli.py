@@ -251,6 +251,8 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="out/irradiance")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_irradiance)
+    from .foliage.light_study import add_parser as _add_light_study
+    _add_light_study(sub)
     a = ap.parse_args(argv)
     import mitsuba_veg  # noqa: F401  (variant + plugins)
     try:

@@ -525,6 +525,11 @@ class MossSimulation:
                              "start_date": self.start.isoformat(),
                              "checkpoint_every": self.checkpoint_every}},
             "species": [s.name for s in self.species],
+            "spot_grid": {"cell_m": self.grid.cell, "requested_cell_m": self.grid.requested_cell,
+                          "cells": self.grid.n_cells,
+                          "warning": (None if self.grid.cell == self.grid.requested_cell else
+                                      "the scene's volume needs more than 64M spots of the moss "
+                                      "size: spots were enlarged (coarser occupancy)")},
             "final": {"covered_area_m2": float(cov.sum()),
                       "moss_alive": int(self.pop.count(MOSS)),
                       "propagules": int(self.pop.count(PROPAGULE)),

@@ -76,7 +76,6 @@ def sphere_crown_tree(n_leaves: int = 2000, crown_radius: float = 1.5, crown_hei
         starts.append(c.copy())
         ends.append(c + 0.85 * crown_radius * d)
     starts, ends = np.array(starts), np.array(ends)
-    nseg = len(starts)
     r0 = np.r_[trunk_radius, np.full(branches, trunk_radius * 0.4)]
     r1 = np.r_[trunk_radius * 0.7, np.full(branches, trunk_radius * 0.1)]
     parent = np.r_[-1, np.zeros(branches, np.int64)]

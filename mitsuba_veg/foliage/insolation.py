@@ -220,8 +220,6 @@ class InsolationResult:
 def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
                              two_sided: bool = True, obstacles=()) -> np.ndarray:
     """I |L·S| [W m-2] per leaf for one sun direction (towards the sun), 0 where shaded."""
-    import mitsuba as mi
-
     scene, leaves = (scene_or_tree if isinstance(scene_or_tree, tuple)
                      else shadow_scene(scene_or_tree, obstacles))
     s = np.asarray(sun_vector, float).reshape(1, 3)
@@ -230,7 +228,6 @@ def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
                    np.zeros(1), np.array([45.0]), s, np.array([float(intensity)]), np.zeros(1),
                    1.0, 1)
     res = leaf_insolation((scene, leaves), path, two_sided=two_sided)
-    _ = mi
     return res.beam_daily[:, 0] * 1e6 / 3600.0
 
 
