@@ -228,3 +228,23 @@ def test_bad_knot_parameters_get_clear_errors():
         wp.generate(_aspen(KnotRate=1.5))
     with pytest.raises(ParameterError, match="SproutVariation"):
         wp.generate(_aspen(SproutVariation="Random"))
+
+
+@pytest.mark.parametrize("variation", ["ContractionV", "DensityV"])
+def test_eq33_variation_as_read_or_as_printed(variation):
+    # only the variation named by SproutVariation makes the sprouts' lengths vary
+    p = _aspen(KnotRate=0.4, KnotPosition=0.4, DormancyBreak=1.0, DormancyBreakV=0.0,
+               ContractionV=0.0, DensityV=0.5, SproutVariation=variation)
+    t = wp.generate(p, seed=6, knots=True)
+    a = t.attrs
+    head = (t.parent >= 0) & (a["stem"][np.maximum(t.parent, 0)] != a["stem"])
+    spr = head & a["sprout"]
+    assert spr.sum() >= 3
+    ratio = a["stem_length"][spr] / a["stem_length"][t.parent[spr]]
+    pk = t.weber_penn.params
+    nominal = pk.kn("Contraction", 1) * pk.lv("Length", 2)
+    if variation == "ContractionV":          # ContractionV = 0: no variation
+        np.testing.assert_allclose(ratio, nominal, rtol=1e-9)
+    else:                                    # as printed: Contraction ± DensityV·Random
+        assert np.ptp(ratio) > 0
+        assert np.all(np.abs(ratio / pk.lv("Length", 2) - pk.kn("Contraction", 1)) <= 0.5 + 1e-9)

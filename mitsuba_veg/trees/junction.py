@@ -27,13 +27,11 @@ work too (stems are then inferred from the parent/level arrays).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
-from .structure import KNOT, Tree
+from .structure import Tree
 
 __all__ = ["subdivisions", "eq42", "junction_rings", "contact_points", "tree_mesh",
            "leaf_mesh", "stem_structure"]
@@ -89,26 +87,34 @@ def _perp_unit(u, t, fallback=None):
     return np.where(n > 1e-9, w / np.maximum(n, 1e-300), fallback)
 
 
-def contact_points(S, O, a_c, a_p, e, r_c, r_p, s_max=None):
+def contact_points(S, O, a_c, a_p, e, r_c, r_p, s_max=None, slope=None):
     """Original contact points B: where the corner lines ``S + r_c e_m + s a_c`` of a branch
-    meet the cylinder of radius ``r_p`` around the parent axis through ``O`` along ``a_p``.
+    meet the parent's surface, a cone around the axis through ``O`` along ``a_p`` with radius
+    ``r_p + slope · h`` at height ``h`` above ``O`` (``slope`` = 0: a cylinder).
 
     ``S`` (n, 3) branch start, ``e`` (n, M, 3) unit corner directions; returns ``(B, s)``
     (n, M, 3), (n, M). The outer intersection is taken (``s`` may be negative when a corner
-    starts outside the cylinder); ``s`` is clamped to ``s_max`` (n,) so that B stays before the
-    branch's first node. A corner line that misses the cylinder keeps ``s = 0``."""
+    starts outside the parent); ``s`` is clamped to ``s_max`` (n,) so that B stays before the
+    branch's first node. A corner line that misses the surface keeps ``s = 0``."""
+    sl = np.zeros(len(S)) if slope is None else np.asarray(slope, float)
     w = (S - O)[:, None] + r_c[:, None, None] * e
-    q = w - np.sum(w * a_p[:, None], -1, keepdims=True) * a_p[:, None]
-    g = a_c - np.sum(a_c * a_p, -1, keepdims=True) * a_p
-    A = np.sum(g * g, -1)[:, None]
-    Bq = np.sum(q * g[:, None], -1)
-    Cq = np.sum(q * q, -1) - (r_p ** 2)[:, None]
+    a0 = np.sum(w * a_p[:, None], -1)                       # height of the corner start
+    q = w - a0[..., None] * a_p[:, None]
+    ca = np.sum(a_c * a_p, -1)[:, None]
+    g = a_c - ca * a_p
+    R = r_p[:, None] + sl[:, None] * a0                      # surface radius at that height
+    k = sl[:, None] * ca                                     # its change per unit s
+    A = np.sum(g * g, -1)[:, None] - k * k
+    Bq = np.sum(q * g[:, None], -1) - R * k
+    Cq = np.sum(q * q, -1) - R * R
     disc = Bq * Bq - A * Cq
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where((A > 1e-12) & (disc >= 0),
-                     (-Bq + np.sqrt(np.maximum(disc, 0.0))) / np.maximum(A, 1e-300), 0.0)
+        s = np.where((np.abs(A) > 1e-12) & (disc >= 0),
+                     (-Bq + np.sqrt(np.maximum(disc, 0.0))) / np.where(np.abs(A) > 1e-12, A, 1.0),
+                     0.0)
     if s_max is not None:
-        s = np.minimum(s, np.asarray(s_max, float)[:, None])
+        sm = np.asarray(s_max, float)
+        s = np.minimum(s, sm[:, None] if sm.ndim == 1 else sm)
     B = S[:, None] + r_c[:, None, None] * e + s[..., None] * a_c[:, None]
     return B, s
 
@@ -230,7 +236,8 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
 
     The bark carries UVs (u around the stem, v along it in units of the stem's base
     circumference); ``bark.metadata`` holds ``junction_D`` (D per segment, 0 where not smoothed),
-    ``segment`` (the tree segment of each face) and ``vertex_ring`` (ring id of each vertex).
+    ``segment`` (the tree segment of each face), ``vertex_ring`` (ring id of each vertex),
+    ``ring_segment`` (segment of each ring) and ``top_ring`` (ring at each segment's end).
     """
     import trimesh
 
@@ -278,6 +285,17 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     child = alive & (par >= 0) & ~cont & ~st["clone"] & alive[pp] & (tree.level >= 1)
     jmask = child & smooth
     own_bottom = alive & ~cont & ~jmask
+    # own bottom rings of clones and unsmoothed branches are tucked inside the parent's tube
+    # (clones: moved back along the parent by its radius), so forks leave no gaps
+    tp = st["attach"]
+    rp_in = ((r0[pp] + tp * (r1[pp] - r0[pp])) * np.cos(np.pi / Sg[pp]) * (1 - depth[pp]))
+    inner = own_bottom & (par >= 0) & alive[pp]
+    bot_r = np.where(inner, np.minimum(r0, 0.9 * rp_in), r0)
+    bot_c = np.where((inner & st["clone"])[:, None],
+                     tree.start - dirs[pp] * np.minimum(r1[pp], ln[pp])[:, None], tree.start)
+    # a knot starting on the bark: its unsmoothed tube starts on the parent's axis instead
+    on_axis = tree.start[pp] + (tp * ln[pp])[:, None] * dirs[pp]
+    bot_c = np.where((inner & ~st["clone"] & (tree.kind != 0))[:, None], on_axis, bot_c)
 
     # ---- rings: top rings, own bottom rings, junction rings ---------------------------------
     ring_S, ring_verts, ring_uv, ring_seg = [], [], [], []
@@ -306,7 +324,7 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
         top_id[sel] = add_rings(sel, v, uv, S)
         sel = np.nonzero(own_bottom & (Sg == S))[0]
         if len(sel):
-            v = _ring_vertices(tree.start[sel], dirs[sel], u_bot[sel], r0[sel], S, lobes[sel],
+            v = _ring_vertices(bot_c[sel], dirs[sel], u_bot[sel], bot_r[sel], S, lobes[sel],
                                depth[sel])
             vv = st["arc"][sel] / circ[sel]
             uv = np.stack(np.broadcast_arrays(uu[S][None, :], vv[:, None]), -1)
@@ -320,10 +338,13 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     if len(jc):
         Dj = subdivisions(D_u, tree.level[jc])
         junction_D[jc] = Dj
-        groups, scale = _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id,
-                                          ring_verts, ring_S)
+        pj = par[jc]
+        scale = (st["stem_length"][jc] * st["stem_radius"][jc]
+                 / np.maximum(st["stem_length"][pj] * st["stem_radius"][pj], 1e-300))
         scale = np.clip(scale * np.where(tree.kind[jc] != 0, knot_gain, gain), 0.0, 1.0)
-        for sel, P, C, B, cm in groups:
+        groups = _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id,
+                                   ring_verts, ring_S, scale)
+        for sel, P, C, B, cm, N0 in groups:
             S = int(Sg[jc[sel[0]]])
             F = 0.5 * (1 + cm) * stretch + 0.5 * (1 - cm) * compress
             for D in np.unique(Dj[sel]):
@@ -331,6 +352,7 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
                 segs = jc[sel[w]]
                 D = int(D)
                 rings = junction_rings(P[w], C[w], B[w], D, F[w], scale[sel[w]])
+                rings[:, 0] = N0[w]                  # the base ring, kept under the bark
                 proj = np.sum((rings - tree.start[segs][:, None, None])
                               * dirs[segs][:, None, None], -1)
                 vv = (np.maximum(proj, 0.0) / circ[segs][:, None, None]
@@ -401,16 +423,18 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     if len(ring_S):
         vring[:int(ring_off[-1] + ring_S[-1] + 1)] = np.repeat(np.arange(len(ring_S)), ring_S + 1)
     bark.metadata.update({"junction_D": junction_D, "segment": fseg, "vertex_ring": vring,
-                          "ring_segment": ring_seg, "part": "bark"})
+                          "ring_segment": ring_seg, "top_ring": top_id, "part": "bark"})
     leaf = leaf_mesh(tree, shape=leaf_shape) if leaves else _empty_mesh()
     return bark, leaf
 
 
-def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts, ring_S):
+def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts, ring_S,
+                      scale):
     """Control points of the junction segments ``jc``, grouped by corner count:
-    ``([(sel, P, C, B, c_m), ...], scale)`` with ``sel`` indices into ``jc``, P/C/B
-    (k, S+1, 3), ``c_m`` (k, S+1) in [-1, 1] (+1: upper side, towards the parent's tip) and the
-    eq 4.2 scale (length_c radius_c)/(length_p radius_p) per junction."""
+    ``[(sel, P, C, B, c_m, N0), ...]`` with ``sel`` indices into ``jc``, P/C/B (k, S+1, 3),
+    ``c_m`` (k, S+1) in [-1, 1] (+1: upper side, towards the parent's tip) and ``N0`` the
+    ring d = 0 of eq 4.2 (with the given ``scale``) pulled under the parent's bark where the
+    parent's real surface (taper, flare, bends) lies inside it."""
     par = tree.parent
     dirs, ln = st["dir"], st["length"]
     stem, arc = st["stem"], st["arc"]
@@ -423,6 +447,7 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
     Sp = Sg[p].astype(float)
     shrink = np.cos(np.pi / Sp) * (1.0 - depth[p]) * 0.98       # under the faceted, lobed skin
     rpe = rp * shrink
+    slope = (r1[p] - r0[p]) / np.maximum(ln[p], 1e-300) * shrink   # the parent is a cone
     rc = np.minimum(r0[jc], 0.95 * rpe)
     # heights on the parent's stem: its nodes and the bases of all its branches
     alive = tree.alive
@@ -447,8 +472,6 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
     sk = np.searchsorted(uniq, stem[seg_all]) * W + arc[seg_all]
     order = np.argsort(sk)
     sk_sorted, seg_sorted = sk[order], seg_all[order]
-    scale = (st["stem_length"][jc] * st["stem_radius"][jc]
-             / np.maximum(st["stem_length"][p] * st["stem_radius"][p], 1e-300))
     verts_all = np.concatenate(ring_verts)
     ring_off = np.r_[0, np.cumsum(np.concatenate(ring_S) + 1)[:-1]]
     groups = []
@@ -458,8 +481,18 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
         u = u_bot[jc[sel]]
         v = np.cross(a_c[sel], u)
         e = np.cos(th)[None, :, None] * u[:, None] + np.sin(th)[None, :, None] * v[:, None]
+        # B stays before the branch's first node and within the parent segment (a bend of the
+        # parent at its nodes would leave a B beyond them outside the bark)
+        a0 = np.sum(((S0[sel] - O[sel])[:, None] + rc[sel, None, None] * e) * a_p[sel, None], -1)
+        ca = np.sum(a_c[sel] * a_p[sel], -1)[:, None]
+        hi = (1.0 - t[sel, None]) * ln[p[sel], None] * 0.999
+        lo = -t[sel, None] * ln[p[sel], None] * 0.999
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_node = np.where(ca > 1e-9, (hi - a0) / ca,
+                              np.where(ca < -1e-9, (lo - a0) / ca, np.inf))
+        s_max = np.minimum(0.8 * ln[jc[sel], None], s_node)
         B, _ = contact_points(S0[sel], O[sel], a_c[sel], a_p[sel], e, rc[sel], rpe[sel],
-                              0.8 * ln[jc[sel]])
+                              s_max, slope[sel])
         uhat = a_p[sel] - np.sum(a_p[sel] * a_c[sel], 1, keepdims=True) * a_c[sel]
         nrm = np.linalg.norm(uhat, axis=1, keepdims=True)
         uhat = np.where(nrm > 1e-9, uhat / np.maximum(nrm, 1e-300), u)
@@ -483,8 +516,23 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
         P = np.where(same, B, P)
         o = ring_off[top_id[jc[sel]]]
         C = verts_all[o[:, None] + np.arange(S + 1)[None]]
-        groups.append((sel, P, C, B, cm))
-    return groups, scale
+        # ring d = 0 under the parent's bark: find the parent-stem segment at its height
+        N0 = B + scale[sel, None, None] * (P - B)
+        hN = h_c[sel, None] + np.sum((N0 - O[sel, None]) * a_p[sel, None], -1)
+        qi = np.clip(np.searchsorted(sk_sorted, base_k[sel, None] + hN, side="right") - 1, 0,
+                     len(sk_sorted) - 1)
+        q = seg_sorted[qi]
+        q = np.where(stem[q] == ps[sel, None], q, p[sel, None])
+        hq = np.clip(np.sum((N0 - tree.start[q]) * dirs[q], -1), 0.0, ln[q])
+        axis = tree.start[q] + hq[..., None] * dirs[q]
+        rel = N0 - axis
+        rad = rel - np.sum(rel * dirs[q], -1, keepdims=True) * dirs[q]
+        dist = np.linalg.norm(rad, axis=-1)
+        r_in = (r0[q] + hq / np.maximum(ln[q], 1e-300) * (r1[q] - r0[q])) * shrink[sel, None]
+        f = np.where(dist > r_in, r_in / np.maximum(dist, 1e-300), 1.0)
+        N0 = N0 + (f - 1.0)[..., None] * rad
+        groups.append((sel, P, C, B, cm, N0))
+    return groups
 
 
 def leaf_mesh(tree: Tree, shape: str = "oval"):
@@ -509,9 +557,12 @@ def leaf_mesh(tree: Tree, shape: str = "oval"):
         outline = np.array([[-0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.5, -0.5]])
         tri = np.array([[0, 1, 2], [0, 2, 3]])
     k = len(outline)
-    a = outline[:, 0][None, :, None] * length[:, None, None] * up[:, None]
-    b = outline[:, 1][None, :, None] * width[:, None, None] * side[:, None]
-    verts = (lv.position[:, None] + a + b).reshape(-1, 3)
+    LU = length[:, None] * up
+    WS = width[:, None] * side
+    verts = np.empty((m, k, 3))
+    for j, (a, b) in enumerate(outline):      # k contiguous (m, 3) passes: fast
+        verts[:, j] = lv.position + a * LU + b * WS
+    verts = verts.reshape(-1, 3)
     faces = (tri[None] + k * np.arange(m)[:, None, None]).reshape(-1, 3)
     uv = np.tile(np.stack([outline[:, 1] + 0.5, outline[:, 0] + 0.5], 1), (m, 1))
     mesh = trimesh.Trimesh(verts, faces, process=False,

@@ -47,8 +47,8 @@ def knot_radius(radius_branch, density, density_v=0.0, xi=0.0):
     the text defines Density as a correction factor of the branch thickness and DensityV as its
     variation, so the variation multiplies the radius too (docs/deviations.md).
     """
-    return np.asarray(radius_branch, float) * (np.asarray(density, float)
-                                               + np.asarray(density_v, float) * np.asarray(xi, float))
+    d = np.asarray(density, float) + np.asarray(density_v, float) * np.asarray(xi, float)
+    return np.asarray(radius_branch, float) * d
 
 
 def sprout_length(length_parent, contraction, variation, length_n, xi=0.0):
@@ -59,14 +59,13 @@ def sprout_length(length_parent, contraction, variation, length_n, xi=0.0):
     the caller passes whichever it uses (``SproutVariation`` option, docs/deviations.md).
     Multiplying by Contraction undoes the 1/Contraction of eq 3.1: the sprout grows "suddenly".
     """
-    return (np.asarray(length_parent, float)
-            * (np.asarray(contraction, float) + np.asarray(variation, float) * np.asarray(xi, float))
-            * np.asarray(length_n, float))
+    c = np.asarray(contraction, float) + np.asarray(variation, float) * np.asarray(xi, float)
+    return np.asarray(length_parent, float) * c * np.asarray(length_n, float)
 
 
 def sprout_radius(radius_parent, length_child, length_parent, density, density_v, ratio_power,
                   xi=0.0):
-    """Eq 3.4: ``radius_c = (radius_p / (Density ± DensityV·Random)) · (length_c/length_p)^RatioPower``.
+    """Eq 3.4: ``radius_c = radius_p / (Density ± DensityV·Random) · (length_c/length_p)^RatioPower``.
 
     Dividing by Density undoes eq 3.2; the power law is Weber-Penn's child radius rule.
     """

@@ -278,7 +278,12 @@ def preset_path(name: str) -> Path:
     if name not in PRESETS:
         raise ParameterError("preset", name, "one of " + ", ".join(PRESETS),
                              "use a shipped preset name or pass a parameter dict / TOML path")
-    return DATA_DIR / f"{name}.toml"
+    path = DATA_DIR / f"{name}.toml"
+    if not path.is_file():
+        raise ParameterError("preset", name, f"a preset file at {path}",
+                             "this installation lacks mitsuba_veg/data/weber_penn/*.toml; "
+                             "reinstall the package (they are package data)")
+    return path
 
 
 def load_params(preset_or_params="quaking_aspen") -> WeberPennParams:
@@ -442,12 +447,13 @@ def flare_factor(flare, z):
 
 
 def _sink(pos, d, axis, r_parent, r_knot):
-    """Start point of a knot: from the parent's axis along the knot direction ``d`` to the
-    parent's surface, then back by the knot's radius, so that a short knot protrudes from the
-    bark instead of ending inside the parent (its base ring stays under the bark)."""
+    """Start point of a knot: on the parent's bark, from the parent's axis along the knot
+    direction ``d`` (Weber-Penn stems start on the axis; a knot, much shorter than its parent is
+    thick, would end inside it). Its whole length (eq 3.1) protrudes; the mesher closes its
+    base under the bark."""
     sin = np.sqrt(np.maximum(1.0 - np.sum(d * axis, 1) ** 2, 0.0))
     s_exit = r_parent / np.maximum(sin, 0.25)
-    return pos + np.maximum(s_exit - r_knot, 0.0)[:, None] * d
+    return pos + s_exit[:, None] * d
 
 
 def _errdiff(x, start=0.0):
@@ -573,36 +579,35 @@ class _Grower:
             rows["Y"][r], rows["Z"][r] = Ys, Zs
             rows["corr"][r] -= sa / (N - k - 1)
             rows["dens"][r, k + 1:] /= (nsp[sp] + 1)[:, None]
-            new = {key: [] for key in ("fam", "k0", "prow", "pos", "X", "Y", "Z", "corr",
-                                       "dens", "U")}
+            c_row, c_j, c_div, c_U = [], [], [], []
             for j, row in enumerate(r):
                 f = int(rows["fam"][row])
                 gen = gens.get(f)
                 if gen is None:
                     gen = gens[f] = np.random.default_rng([self.ss_entropy, 7919, lv, f])
                 n = int(nsp[sp[j]])
+                base_split = base_splits and k == k_base and rows["prow"][row] < 0
                 for i in range(1, n + 1):
                     h = gen.random(3)
-                    if base_splits and k == k_base and rows["prow"][row] < 0:
+                    if base_split:
                         div = 360.0 * i / (n + 1) + sanglev * (2 * h[0] - 1)
                     else:
                         div = (20 + 0.75 * (30 + abs(decl[j] - 90)) * h[0] ** 2) * (
                             1 if h[1] < 0.5 else -1)
-                    up = np.array([[0.0, 0.0, 1.0]])
-                    a = np.radians([div])
-                    new["fam"].append(f)
-                    new["k0"].append(k + 1)
-                    new["prow"].append(row)
-                    new["pos"].append(rows["pos"][row])
-                    new["X"].append(_rot(rows["X"][row][None], up, a)[0])
-                    new["Y"].append(_rot(Ys[j][None], up, a)[0])
-                    new["Z"].append(_rot(Zs[j][None], up, a)[0])
-                    new["corr"].append(rows["corr"][row])
-                    new["dens"].append(rows["dens"][row])
-                    new["U"].append(gen.random((N, self.KR)))
+                    c_row.append(row)
+                    c_j.append(j)
+                    c_div.append(div)
+                    c_U.append(gen.random((N, self.KR)))
+            c_row, c_j = np.asarray(c_row), np.asarray(c_j)
+            a = np.radians(np.asarray(c_div))
+            up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (len(c_row), 3))
+            new = {"fam": rows["fam"][c_row], "k0": np.full(len(c_row), k + 1),
+                   "prow": c_row, "pos": rows["pos"][c_row],
+                   "X": _rot(rows["X"][c_row], up, a), "Y": _rot(Ys[c_j], up, a),
+                   "Z": _rot(Zs[c_j], up, a), "corr": rows["corr"][c_row],
+                   "dens": rows["dens"][c_row], "U": np.stack(c_U)}
             for key, v in new.items():
-                rows[key] = np.concatenate([rows[key], np.asarray(v).reshape(
-                    (len(v),) + rows[key].shape[1:]).astype(rows[key].dtype)])
+                rows[key] = np.concatenate([rows[key], np.asarray(v).astype(rows[key].dtype)])
         # segment table sorted by (row, k): parents before children
         seg = {"row": np.concatenate([a for a, *_ in recs]),
                "k": np.concatenate([np.full(len(a), kk) for a, kk, *_ in recs])}
