@@ -21,6 +21,11 @@ test-all: setup
 bench: setup
 	$(BIN)/python benchmarks/photon_throughput.py
 	$(BIN)/python benchmarks/photon_vs_path.py
+	$(BIN)/python benchmarks/moss_run.py
+	$(BIN)/python benchmarks/trees_growth.py
+	$(BIN)/python benchmarks/trees_nongrowth.py
+	$(BIN)/python benchmarks/weber_penn_generation.py
+	$(BIN)/python benchmarks/autumn_insolation.py
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache

@@ -378,10 +378,14 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             raise ParameterError("bands", bands, "distinct bands")
 
         t0 = _time.perf_counter()
-        index = self._index_cache.get(id(scene))
-        if index is None:
+        # the cache holds the scene itself: keyed by id() alone, a new scene allocated where a
+        # freed one was would get the old scene's index
+        cached = self._index_cache.get("scene")
+        if cached is scene:
+            index = self._index_cache["index"]
+        else:
             index = SceneIndex.build(scene)
-            self._index_cache = {id(scene): index}
+            self._index_cache = {"scene": scene, "index": index}
         all_emitters = scene.emitters()
         if len(all_emitters) == 0:
             raise SceneError("the scene has no emitters: add a sun (e.g. mitsuba_veg.light."

@@ -2,6 +2,9 @@
 
     mitsuba-veg demo [--out DIR]                       the default scenario end to end
     mitsuba-veg irradiance SCENE [--photons N] [--out DIR] [--when ISO] [--no-indirect] ...
+    mitsuba-veg run SCENARIO [--out DIR] [--days N] [--set KEY=VALUE ...] [--fresh]
+    mitsuba-veg light-study SCENE [--out DIR] ...
+    mitsuba-veg grow TREE.toml [--out DIR] [--set KEY=VALUE] [--seed S] [--generations G]
 
 SCENE is a Mitsuba XML file or a scenario TOML (which names the XML and the light settings).
 """
@@ -253,6 +256,8 @@ def main(argv=None) -> int:
     p.set_defaults(func=_cmd_irradiance)
     from .foliage.light_study import add_parser as _add_light_study
     _add_light_study(sub)
+    from .trees.grow_cli import add_parser as _add_grow
+    _add_grow(sub)
     a = ap.parse_args(argv)
     import mitsuba_veg  # noqa: F401  (variant + plugins)
     try:

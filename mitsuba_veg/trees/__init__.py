@@ -11,6 +11,7 @@ from .structure import Tree, Leaves, tube_mesh, leaf_quads  # noqa: F401
 from .environment import Environment  # noqa: F401
 from .growth import GrowthParams, grow, grow_forest, branching  # noqa: F401
 from . import nongrowth  # noqa: F401
+from . import weber_penn, knots, junction  # noqa: F401
 
 __all__ = ["Tree", "Leaves", "tube_mesh", "leaf_quads", "Environment", "GrowthParams", "grow",
-           "grow_forest", "branching", "nongrowth"]
+           "grow_forest", "branching", "nongrowth", "weber_penn", "knots", "junction"]

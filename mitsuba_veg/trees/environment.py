@@ -206,7 +206,6 @@ class Environment:
     def height_at(self, x, z, default=None):
         """Terrain height [m] under (x, z): the highest upward-facing obstacle surface below
         y = 1e4, or ``default`` (``ground_y``) where there is none."""
-        import drjit as dr
         import mitsuba as mi
         x = np.atleast_1d(np.asarray(x, float))
         z = np.atleast_1d(np.asarray(z, float))

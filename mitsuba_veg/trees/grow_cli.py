@@ -24,12 +24,13 @@ TREE.toml (all keys optional; see scenes/trees/*.toml and docs/trees.md)::
     voxel_size = 0.5
 
     [output]
-    formats = ["ply", "glb"]    # mesh files (all trees in one mesh)
+    formats = ["ply", "glb"]    # mesh files (all trees in one mesh): ply, obj, glb, stl
     leaves = true               # leaf blades in the mesh
     picture = true
 
 Writes into DIR: ``tree.<fmt>``, ``metrics.json`` (per tree + stand), ``picture.png``,
-``summary.json`` (settings, timings per generation, rays, versions, files).
+``summary.json`` (settings, timings per generation, sky rays, Mitsuba ray casts (obstacle
+queries, or every cast of the ``mitsuba`` engine), versions, files).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ from mitsuba_veg.errors import ParameterError
 _TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
              "environment", "nongrowth", "output", "weber_penn", "name", "description"}
 _MODELS = ("growth", "branching", "weber_penn")
+_FORMATS = ("ply", "obj", "glb", "stl")
 
 
 def _write_json(path: Path, data) -> None:
@@ -87,6 +89,10 @@ def load_tree_toml(path, overrides=()) -> dict:
     s = data.get("seed", 0)
     if isinstance(s, bool) or not isinstance(s, int) or s < 0:
         raise ParameterError("seed", s, "an integer >= 0", source=src)
+    fm = data.get("output", {}).get("formats", ["ply", "glb"])
+    for f in fm if isinstance(fm, list) else [fm]:
+        if f not in _FORMATS:
+            raise ParameterError("output.formats", f, f"a list of {_FORMATS}", source=src)
     return data
 
 
@@ -146,9 +152,8 @@ def _weber_penn(data, seed, src):
 def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> dict:
     """Grow what TREE.toml describes; write mesh, metrics JSON, picture and summary.json into
     ``out_dir``. Returns the summary dict."""
-    from .environment import Environment
     from .figures import picture
-    from .growth import GrowthParams, branching, grow_forest
+    from .growth import GrowthParams
 
     t_start = time.perf_counter()
     path = Path(tree_toml_path)
@@ -164,16 +169,13 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     params = GrowthParams.from_dict(data.get("growth", {}), src)
     history: list = []
     t0 = time.perf_counter()
-    if model == "growth":
-        trees = grow_forest(positions, params, gens, env, seed, progress=progress,
-                            history=history)
-    elif model == "branching":
-        pos = np.asarray(positions, float).reshape(-1, 3)
-        trees = [branching(params, gens, p, seed) for p in pos]
-    else:
-        base = _weber_penn(data, seed, src)
-        pos = np.asarray(positions, float).reshape(-1, 3)
-        trees = [base.translated(p - base.start[0]) if len(base) else base for p in pos]
+    try:
+        trees = _make_trees(model, data, positions, params, gens, env, seed, src, progress,
+                            history)
+    except ParameterError as e:
+        if e.source:
+            raise
+        raise ParameterError(e.field, e.value, e.allowed, e.fix, src) from None
     t_model = time.perf_counter() - t0
     ng_stats = None
     if data.get("nongrowth"):
@@ -184,6 +186,9 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
         except TypeError as e:
             raise ParameterError("nongrowth", sorted(ng), "arguments of "
                                  "mitsuba_veg.trees.nongrowth.deform", str(e), src) from None
+        except ParameterError as e:
+            raise ParameterError(f"nongrowth.{e.field}", e.value, e.allowed, e.fix, src) \
+                from None
         trees, ng_stats = res.trees, res.stats
     # outputs
     oc = data.get("output", {})
@@ -191,8 +196,6 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     files = {"mesh": []}
     mesh = _stand_mesh(trees, leaves=bool(oc.get("leaves", True)))
     for fmt in formats:
-        if fmt not in ("ply", "obj", "glb", "gltf", "stl"):
-            raise ParameterError("output.formats", fmt, "ply, obj, glb, gltf or stl", source=src)
         f = out / f"tree.{fmt}"
         tmp = out / f"tree.tmp.{fmt}"
         mesh.export(str(tmp))
@@ -211,7 +214,7 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
         vers = {}
     summary = {
         "command": "grow", "tree_file": src, "model": model, "seed": seed,
-        "generations": gens, "positions": np.asarray(positions).tolist(),
+        "generations": gens, "positions": positions,
         "params": params.to_dict() if model != "weber_penn" else data.get("weber_penn", {}),
         "environment": data.get("environment", {}),
         "nongrowth": ng_stats, "history": history,
@@ -223,6 +226,18 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     _write_json(out / "summary.json", summary)
     files["summary"] = str(out / "summary.json")
     return summary
+
+
+def _make_trees(model, data, positions, params, gens, env, seed, src, progress, history):
+    from .growth import _positions, branching, grow_forest
+    if model == "growth":
+        return grow_forest(positions, params, gens, env, seed, progress=progress,
+                           history=history)
+    pos = _positions(positions, env)
+    if model == "branching":
+        return [branching(params, gens, p, seed) for p in pos]
+    base = _weber_penn(data, seed, src)
+    return [base.translated(p - base.start[0]) if len(base) else base for p in pos]
 
 
 def _stand_metrics(trees) -> dict:
@@ -249,11 +264,14 @@ def _stand_mesh(trees, leaves=True):
 def report(s: dict) -> None:
     """Print what run_grow did (one screen)."""
     st = s["metrics"]
-    print(f"grew {st['trees']} tree(s) ({s['model']}, G = {s['generations']}) in "
+    what = s["model"] if s["model"] == "weber_penn" else f"{s['model']}, G = {s['generations']}"
+    print(f"grew {st['trees']} tree(s) ({what}) in "
           f"{s['timings_s']['model']:.2f} s: {st['live_branches']} live / {st['dead_branches']} "
           f"dead branches, {st['leaf_spheres']} leaf spheres, max height {st['height_max']:.2f} m")
     if s["rays"]:
-        print(f"  light: {s['rays']:,d} sky rays, {s['ray_casts']:,d} ray casts")
+        eng = sorted({h.get("engine") for h in s["history"] if h.get("engine")})
+        print(f"  light: {s['rays']:,d} sky rays (sphere counting: {', '.join(eng)}), "
+              f"{s['ray_casts']:,d} Mitsuba ray casts")
     print("wrote:")
     for f in s["files"]["mesh"]:
         print(f"  {f}")

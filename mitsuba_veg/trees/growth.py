@@ -341,17 +341,7 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     generations = int(generations)
     engine = engine or p.engine
     env = Environment.coerce(scene)
-    pos = np.asarray(positions, float)
-    if pos.ndim == 1:
-        pos = pos[None]
-    if pos.ndim != 2 or pos.shape[1] not in (2, 3) or len(pos) == 0:
-        raise ParameterError("positions", np.asarray(positions).tolist()[:4],
-                             "a list of (x, y, z) or (x, z) points [m]")
-    if pos.shape[1] == 2:
-        y = env.height_at(pos[:, 0], pos[:, 1]) if env is not None else np.zeros(len(pos))
-        pos = np.stack([pos[:, 0], y, pos[:, 1]], 1)
-    if not np.all(np.isfinite(pos)):
-        raise ParameterError("positions", pos.tolist()[:4], "finite coordinates [m]")
+    pos = _positions(positions, env)
     sky = Sky(p.sky_h, p.sky_v, p.light_ratio)
     alphas = {"light": p.alpha, "red": p.alpha_red, "far_red": p.alpha_far_red}
     if env is not None:
@@ -386,6 +376,37 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     if bar is not None:
         bar.close()
     return _to_trees(forest, light, p, seed, hist)
+
+
+def _positions(positions, env) -> np.ndarray:
+    """(n, 3) bases [m] from (x, y, z) and/or (x, z) items (these stand on the terrain)."""
+    items = positions
+    if isinstance(items, np.ndarray):
+        items = items.tolist()
+    if len(items) and isinstance(items[0], (int, float, np.floating)) or \
+            (len(items) and items[0] is None):
+        items = [items]
+    rows, need = [], []
+    try:
+        for i, it in enumerate(items):
+            it = list(it)
+            if len(it) == 2:
+                it = [it[0], None, it[1]]
+            if len(it) != 3:
+                raise ValueError
+            if it[1] is None:
+                need.append(i)
+                it[1] = 0.0
+            rows.append([float(v) for v in it])
+    except (TypeError, ValueError):
+        raise ParameterError("positions", positions, "a list of (x, y, z) or (x, z) points "
+                             "[m]", "e.g. [[0, 0, 0], [5, 0]]") from None
+    pos = np.array(rows, float).reshape(-1, 3)
+    if len(pos) == 0 or not np.all(np.isfinite(pos)):
+        raise ParameterError("positions", positions, "one or more finite points [m]")
+    if need and env is not None:
+        pos[need, 1] = env.height_at(pos[need, 0], pos[need, 2])
+    return pos
 
 
 def _subset_light(light, keep):

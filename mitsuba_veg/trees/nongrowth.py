@@ -30,7 +30,7 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
-from .structure import POINT_ATTRS, Tree, segment_depth
+from .structure import Tree, segment_depth
 
 RULES = ("death", "heliotropism")
 
@@ -57,12 +57,59 @@ class _Stand:
         self.alive = np.concatenate([t.alive for t in trees])
         self.tree_of = np.repeat(np.arange(len(trees)), np.diff(self.off))
         self.depth = segment_depth(self.parent)
+        # attachments: leaves (position, normal, up) and leaf-sphere centres, by global segment
+        self.leaf_off = np.concatenate([[0], np.cumsum([len(t.leaves) for t in trees])])
+        self.leaf_seg = np.concatenate([t.leaves.segment + o for t, o in
+                                        zip(trees, self.off[:-1])]).astype(np.int64)
+        self.leaf_pos = np.concatenate([t.leaves.position for t in trees]).reshape(-1, 3)
+        self.leaf_nrm = np.concatenate([t.leaves.normal for t in trees]).reshape(-1, 3)
+        self.leaf_up = np.concatenate([t.leaves.up if t.leaves.up is not None
+                                       else np.zeros((len(t.leaves), 3)) for t in trees])
+        self.leaf_up = self.leaf_up.reshape(-1, 3)
+        sph = [(np.asarray(t.attrs.get("leaf_sphere_center", np.zeros((0, 3))), float)
+                .reshape(-1, 3), np.asarray(t.attrs.get("leaf_sphere_segment", np.zeros(0)),
+                                             np.int64)) for t in trees]
+        ok = [len(c) == len(sg) for c, sg in sph]
+        sph = [(c, sg) if k else (np.zeros((0, 3)), np.zeros(0, np.int64))
+               for (c, sg), k in zip(sph, ok)]
+        self.sph_off = np.concatenate([[0], np.cumsum([len(c) for c, _ in sph])])
+        self.sph_pos = np.concatenate([c for c, _ in sph]).reshape(-1, 3)
+        self.sph_seg = np.concatenate([sg + o for (_, sg), o in zip(sph, self.off[:-1])]) \
+            .astype(np.int64)
+        self.moved = False
+
+    def rotate_attachments(self, seg_rot, pivots, axes, angles):
+        """Rotate leaves and leaf-sphere centres whose segment has rotation ``seg_rot[seg]``
+        (index into pivots/axes/angles, -1: none)."""
+        for seg, pts, vecs in ((self.leaf_seg, self.leaf_pos, (self.leaf_nrm, self.leaf_up)),
+                               (self.sph_seg, self.sph_pos, ())):
+            if not len(seg):
+                continue
+            j = seg_rot[seg]
+            m = j >= 0
+            if not m.any():
+                continue
+            k = j[m]
+            pts[m] = _rotate_about(pts[m], pivots[k], axes[k], angles[k])
+            for v in vecs:
+                v[m] = _rotate_about(v[m], 0.0 * pivots[k], axes[k], angles[k])
+        self.moved = True
 
     def tips(self):
         has = np.zeros(len(self.parent), bool)
         par = self.parent[self.alive & (self.parent >= 0)]
         has[par] = True
         return np.nonzero(self.alive & ~has)[0]
+
+    def unit_start(self, alive=None):
+        """Segments that start a branch unit (node to node): roots and children of a segment
+        with two or more live children. A chain of single-child segments (a curved Weber-Penn
+        stem between two branchings) is one branch; in binary trees every segment is one."""
+        alive = self.alive if alive is None else alive
+        nkids = np.zeros(len(self.parent), np.int64)
+        m = alive & (self.parent >= 0)
+        np.add.at(nkids, self.parent[m], 1)
+        return (self.parent < 0) | (nkids[np.maximum(self.parent, 0)] >= 2)
 
     def ancestor_at(self, level):
         """Ancestor of every segment at depth ``level`` (-1 where depth < level)."""
@@ -74,35 +121,58 @@ class _Stand:
         return a
 
     def write_back(self):
-        for t, o, e in zip(self.trees, self.off[:-1], self.off[1:]):
+        for i, (t, o, e) in enumerate(zip(self.trees, self.off[:-1], self.off[1:])):
             t.start = self.start[o:e].copy()
             t.end = self.end[o:e].copy()
             t.alive = self.alive[o:e].copy()
+            if self.moved:
+                a, b = self.leaf_off[i], self.leaf_off[i + 1]
+                if b > a:
+                    t.leaves.position = self.leaf_pos[a:b].copy()
+                    t.leaves.normal = self.leaf_nrm[a:b].copy()
+                    if t.leaves.up is not None:
+                        t.leaves.up = self.leaf_up[a:b].copy()
+                a, b = self.sph_off[i], self.sph_off[i + 1]
+                if b > a:
+                    t.attrs["leaf_sphere_center"] = self.sph_pos[a:b].copy()
 
 
-def _leaf_points(stand, shade_from):
+#: shading of one tip leaf per voxel when ``shading="auto"`` and ``shade_from="tips"``
+TIP_SHADING = 0.3
+
+
+def _leaf_points(stand, shade_from, shading, size):
+    """Shading points and their shading: tips (paper) or leaf blades (area-based)."""
     tips = stand.tips()
+    auto = isinstance(shading, str)
     if shade_from == "tips":
-        return stand.end[tips], tips
-    pts = []
+        return stand.end[tips], (TIP_SHADING if auto else shading), tips
+    pts, sh = [], []
     for t, o in zip(stand.trees, stand.off[:-1]):
         if len(t.leaves):
             ok = stand.alive[o + t.leaves.segment]
             pts.append(t.leaves.position[ok])
+            # a blade (length l, width 0.6 l as drawn) of random orientation blocks on average
+            # half its area of a voxel face
+            area = 0.6 * t.leaves.size[ok] ** 2
+            sh.append(np.minimum(0.5 * area / size ** 2, 0.99) if auto else
+                      np.full(ok.sum(), float(shading)))
     if not pts:
-        return stand.end[tips], tips
-    return np.concatenate(pts), tips
+        return stand.end[tips], (TIP_SHADING if auto else shading), tips
+    return np.concatenate(pts), np.concatenate(sh), tips
 
 
 def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: float = 0.5,
-           shading: float = 0.3, death_threshold: float = 0.2, helio_constant: float = 1.0,
+           shading="auto", death_threshold: float = 0.25, helio_constant: float = 1.0,
            max_angle: float = 30.0, shade_from: str = "tips", iterations: int = 1,
            death_order: str = "bottom_up", copy: bool = True) -> DeformResult:
     """Deform placed sample ``trees`` (a Tree or a list) by the rules of paper 002.
 
     obstacles: None or anything :meth:`Environment.coerce` takes (opaque voxels).
-    voxel_size [m]; shading: fraction of light a leaf (tip) removes in its voxel per voxel
-    length; death_threshold: T/N below which a subtree dies [light units, open sky = 1];
+    voxel_size [m]; shading: fraction of the light crossing its voxel (along a voxel edge) that
+    one tip / leaf removes, or "auto": 0.3 per tip (``shade_from="tips"``, the paper's fixed
+    amount), half the blade area over the voxel face area per leaf (``"leaves"``);
+    death_threshold: T/N below which a subtree dies [light units, open sky = 1];
     helio_constant [rad]: the constant of the rotation angle constant x sqrt(L/N);
     max_angle [deg]: cap of one rotation; shade_from: "tips" (paper) or "leaves" (a tree's
     leaf blades, e.g. Weber-Penn trees); iterations: how often the whole rule list is applied;
@@ -126,6 +196,8 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
         if r not in RULES:
             raise ParameterError("rules", r, f"names from {RULES}")
     check_range("death_threshold", death_threshold, 0.0, None)
+    if isinstance(shading, str) and shading != "auto":
+        raise ParameterError("shading", shading, "'auto' or a fraction in [0, 1)")
     check_range("helio_constant", helio_constant, 0.0, None)
     check_range("max_angle", max_angle, 0.0, 180.0)
     if death_order not in ("bottom_up", "simultaneous"):
@@ -140,10 +212,10 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
         for rule in rules:
             t1 = time.perf_counter()
             stand = _Stand(trees)
-            pts, tips = _leaf_points(stand, shade_from)
+            pts, sh, tips = _leaf_points(stand, shade_from, shading, voxel_size)
             bounds = (np.minimum(stand.start.min(0), stand.end.min(0)),
                       np.maximum(stand.start.max(0), stand.end.max(0)))
-            vs = _voxels(pts, voxel_size, shading, env, bounds)
+            vs = _voxels(pts, voxel_size, sh, env, bounds)
             if rule == "death":
                 st = _death(stand, vs, tips, death_threshold, death_order)
             else:
@@ -153,7 +225,6 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
                        "voxel_shape": list(vs.shape), "seconds": time.perf_counter() - t1})
             stats.append(st)
     for t in trees:
-        _sync_attachments(t)
         t.drop_dead_leaves()
     return DeformResult(trees[0] if single else trees, stats, time.perf_counter() - t0)
 
@@ -170,15 +241,16 @@ def _death(stand, vs, tips, threshold, order="bottom_up"):
     tip_light[tips] = light
     before = stand.alive.copy()
     alive = stand.alive.copy()
+    units = stand.unit_start(before)      # branches as they are when the rule starts
     if order == "simultaneous":
         T = _subtree_sum(stand, tip_light, alive)
-        N = _subtree_sum(stand, alive.astype(float), alive)
+        N = _subtree_sum(stand, (alive & units).astype(float), alive)
         alive &= ~(T < threshold * N)
     else:
         # deepest subtrees first; a subtree's T and N count only what is still alive
         for d in range(int(stand.depth.max()) if n else -1, -1, -1):
             T = _subtree_sum(stand, tip_light * alive, alive)
-            N = _subtree_sum(stand, alive.astype(float), alive)
+            N = _subtree_sum(stand, (alive & units).astype(float), alive)
             idx = np.nonzero((stand.depth == d) & alive)[0]
             alive[idx[T[idx] < threshold * N[idx]]] = False
     # a dead subtree root kills its descendants (parents first, level by level)
@@ -220,7 +292,7 @@ def _heliotropism(stand, vs, constant, max_angle):
     for level in range(int(stand.depth.max()) + 1 if n else 0):
         tips = stand.tips()
         anc = stand.ancestor_at(level)
-        roots = np.nonzero((stand.depth == level) & stand.alive)[0]
+        roots = np.nonzero((stand.depth == level) & stand.alive & stand.unit_start())[0]
         if not len(roots) or not len(tips):
             continue
         ta = anc[tips]
@@ -258,8 +330,8 @@ def _heliotropism(stand, vs, constant, max_angle):
         ms = m & (stand.depth > level)
         ks = seg_rot[ms]
         stand.start[ms] = _rotate_about(stand.start[ms], stand.start[r][ks], axis[ks], ang[ks])
-        # remember per segment the rotations applied (for leaves and point attrs)
-        _record(stand, m, stand.start[r][k], axis[k], ang[k])
+        # leaves and leaf spheres turn with their segments
+        stand.rotate_attachments(seg_rot, stand.start[r], axis, ang)
         rotated += len(r)
         angles.append(ang)
     allang = np.degrees(np.concatenate(angles)) if angles else np.zeros(0)
@@ -268,48 +340,3 @@ def _heliotropism(stand, vs, constant, max_angle):
             "angle_max_deg": float(allang.max()) if len(allang) else 0.0,
             "rays": vs.stats.get("rays", 0), "dda_steps": vs.stats.get("dda_steps", 0),
             "light_s": vs.stats.get("light_s", 0.0)}
-
-
-def _record(stand, mask, pivot, axis, angle):
-    """Accumulate rigid transforms per segment: a segment's attachments (leaves, leaf spheres)
-    follow the same sequence of rotations as its end point."""
-    if not hasattr(stand, "xf"):
-        stand.xf = [t.attrs.get("_xf", []) for t in stand.trees]
-    idx = np.nonzero(mask)[0]
-    tr = stand.tree_of[idx]
-    for t in np.unique(tr):
-        sel = tr == t
-        stand.xf[t].append((idx[sel] - stand.off[t], pivot[sel], axis[sel], angle[sel]))
-    for t, xf in zip(stand.trees, stand.xf):
-        t.attrs["_xf"] = xf
-
-
-def _sync_attachments(tree: Tree):
-    """Move leaves and point attrs with the rotations recorded on their segments."""
-    xf = tree.attrs.pop("_xf", None)
-    if not xf:
-        return
-    lv = tree.leaves
-    seg_of_sphere = tree.attrs.get("leaf_sphere_segment")
-    for segs, pivot, axis, angle in xf:
-        lut = np.full(len(tree), -1)
-        lut[segs] = np.arange(len(segs))
-        if len(lv):
-            j = lut[lv.segment]
-            m = j >= 0
-            if m.any():
-                k = j[m]
-                lv.position[m] = _rotate_about(lv.position[m], pivot[k], axis[k], angle[k])
-                lv.normal[m] = _rotate_about(lv.normal[m], 0 * pivot[k], axis[k], angle[k])
-                if lv.up is not None:
-                    lv.up[m] = _rotate_about(lv.up[m], 0 * pivot[k], axis[k], angle[k])
-        if seg_of_sphere is not None:
-            for key in POINT_ATTRS:
-                if key in tree.attrs:
-                    pts = np.asarray(tree.attrs[key], float)
-                    j = lut[np.asarray(seg_of_sphere)]
-                    m = j >= 0
-                    if m.any():
-                        k = j[m]
-                        pts[m] = _rotate_about(pts[m], pivot[k], axis[k], angle[k])
-                    tree.attrs[key] = pts

@@ -103,25 +103,38 @@ class VoxelSpace:
         return self.tau.shape
 
     @staticmethod
-    def build(leaf_points, size: float = 0.5, shading: float = 0.3, env=None, bounds=None,
+    def build(leaf_points, size: float = 0.5, shading=0.3, env=None, bounds=None,
               margin: int = 2, max_voxels: int = 20_000_000) -> "VoxelSpace":
         """Voxels covering ``leaf_points`` (n, 3) [m] (and ``bounds`` (lo, hi), and the
-        obstacles of ``env`` near them), each point adding ``shading`` to its voxel."""
+        obstacles of ``env`` near them), each point removing the fraction ``shading`` (one
+        value, or one per point) of the light crossing its voxel along a voxel edge."""
         check_range("voxel_size", size, 0.0, None, lo_open=True)
-        check_range("shading", shading, 0.0, 1.0, hi_open=True)
+        sh = np.asarray(shading, float)
+        if sh.ndim == 0:
+            check_range("shading", float(sh), 0.0, 1.0, hi_open=True)
+        elif np.any(~(sh >= 0) | ~(sh < 1)):
+            raise ParameterError("shading", "per-point values", "each in [0, 1)")
         pts = np.asarray(leaf_points, float).reshape(-1, 3)
         lo = pts.min(0) if len(pts) else np.zeros(3)
         hi = pts.max(0) if len(pts) else np.zeros(3)
         if bounds is not None:
             lo = np.minimum(lo, bounds[0])
             hi = np.maximum(hi, bounds[1])
+        rising = None
         if env is not None and len(env):
-            elo, ehi = env.bbox()
-            # obstacles matter up to their height, within the rays' reach of the trees
-            reach = (max(hi[1], ehi[1]) - lo[1]) / math.tan(math.radians(15.0)) + size
+            V, F = env.triangles()[:2]
+            tv = V[F]                                             # (m, 3, 3)
+            rising = tv[:, :, 1].max(1) > lo[1] + 1e-6 * size     # parts above the trees' foot
+        if rising is not None and rising.any():
+            tv = tv[rising].reshape(-1, 3)
+            elo, ehi = tv.min(0), tv.max(0)
+            # rays go up: obstacles matter from the lowest query point up to their top, within
+            # the horizontal reach of the lowest (15 deg) rays
+            y0 = lo[1]
+            reach = (max(hi[1], ehi[1]) - y0) / math.tan(math.radians(15.0)) + size
             lo = np.minimum(lo, np.maximum(elo, lo - reach))
             hi = np.maximum(hi, np.minimum(ehi, hi + reach))
-            lo[1] = max(lo[1], elo[1])
+            lo[1] = y0
         lo = lo - margin * size
         hi = hi + margin * size
         shape = tuple(int(v) for v in np.maximum(np.ceil((hi - lo) / size), 1))
@@ -130,26 +143,25 @@ class VoxelSpace:
             raise ParameterError("voxel_size", size, f"a size giving <= {max_voxels:,} voxels "
                                  f"(this one gives {nvox:,} for {hi - lo} m)",
                                  "use larger voxels")
-        counts = np.zeros(shape, np.float64)
+        tau = np.zeros(shape, np.float64)
         idx = np.floor((pts - lo) / size).astype(np.int64)
-        np.add.at(counts, (idx[:, 0], idx[:, 1], idx[:, 2]), 1.0)
-        tau = counts * -math.log1p(-shading) if shading > 0 else counts * 0.0
+        per = -np.log1p(-np.broadcast_to(sh, (len(pts),)))
+        np.add.at(tau, (idx[:, 0], idx[:, 1], idx[:, 2]), per)
         opaque = env.voxel_mask(lo, size, shape) if env is not None and len(env) else \
             np.zeros(shape, bool)
         tau = np.where(opaque, OPAQUE_TAU, tau)
-        return VoxelSpace(lo, float(size), tau, opaque, shading,
+        return VoxelSpace(lo, float(size), tau, opaque, float(sh.mean()) if sh.size else 0.0,
                           {"voxels": nvox, "leaf_points": len(pts)})
 
     # ---- light -------------------------------------------------------------------------------
-    def light(self, points, azimuths: int = 12, elevations: int = 3) -> np.ndarray:
-        """Sky light (open sky = 1) at ``points`` (n, 3) [m] from 36 (default) rays each."""
-        t0 = time.perf_counter()
+    def optical_depth(self, points, directions):
+        """Optical depth [-] from every point (n, 3) [m] along every unit direction (k, 3)
+        to the grid's boundary: (n, k) array, one DDA kernel for all n x k rays."""
         pts = np.asarray(points, float).reshape(-1, 3)
-        n = len(pts)
-        if n == 0:
-            return np.zeros(0)
-        D, W = sky_rays(azimuths, elevations)
-        k = len(D)
+        D = np.asarray(directions, float).reshape(-1, 3)
+        n, k = len(pts), len(D)
+        if n == 0 or k == 0:
+            return np.zeros((n, k))
         q = ((pts - self.origin) / self.size).astype(np.float32)
         idx = dr.arange(mi.UInt32, n * k)
         pi = idx // dr.opaque(mi.UInt32, k)
@@ -160,20 +172,30 @@ class VoxelSpace:
         qq = dr.gather(mi.Point3f, qd, pi)
         rd = dr.gather(mi.Vector3f, dd, ri)
         nx, ny, nz = self.shape
-        # flat index ix + nx (iy + ny iz): store the grid in Fortran (x fastest) order
+        # flat index ix + nx (iy + ny iz): store the grid with x fastest
         grid = mi.Float(np.ascontiguousarray(self.tau.transpose(2, 1, 0).ravel(), np.float32))
         tau, steps = _dda(qq, rd, grid, dr.opaque(mi.Int32, nx), dr.opaque(mi.Int32, ny),
                           dr.opaque(mi.Int32, nz), dr.opaque(mi.Float, TAU_STOP))
         dr.eval(tau, steps)
-        tr = np.exp(-np.asarray(tau, np.float64)).reshape(n, k)
+        self.stats.update({"rays": n * k, "dda_steps": int(np.asarray(steps, np.int64).sum())})
+        return np.asarray(tau, np.float64).reshape(n, k)
+
+    def light(self, points, azimuths: int = 12, elevations: int = 3) -> np.ndarray:
+        """Sky light (open sky = 1) at ``points`` (n, 3) [m] from 36 (default) rays each."""
+        t0 = time.perf_counter()
+        pts = np.asarray(points, float).reshape(-1, 3)
+        if len(pts) == 0:
+            return np.zeros(0)
+        D, W = sky_rays(azimuths, elevations)
+        tr = np.exp(-self.optical_depth(pts, D))
+        q = (pts - self.origin) / self.size
         inside = np.all((q >= 0) & (q < np.array(self.shape)), axis=1)
         # points inside an obstacle voxel get no light
         iv = np.clip(np.floor(q).astype(np.int64), 0, np.array(self.shape) - 1)
         buried = self.opaque[iv[:, 0], iv[:, 1], iv[:, 2]] & inside
         out = tr @ W
         out[buried] = 0.0
-        self.stats.update({"rays": n * k, "dda_steps": int(np.asarray(steps, np.int64).sum()),
-                           "light_s": time.perf_counter() - t0})
+        self.stats["light_s"] = time.perf_counter() - t0
         return out
 
     def centers(self) -> np.ndarray:
