@@ -183,6 +183,7 @@ class MossSimulation:
         self.O = soil_model.bucket_capacity(self.h, self.geology).astype(np.float64)  # saturated
         self.history: list[dict] = []
         self.day = 0
+        self._moss_version = 0
         self.timings["setup"] += time.perf_counter() - t0
 
     def _setup_terrain(self):
@@ -268,8 +269,13 @@ class MossSimulation:
         return mi.PCG32(size=max(n, 1), initstate=dr.opaque(mi.UInt64, init))
 
     def _counts(self):
-        return np.asarray(per_element_count(self.pop.elem, self.pop.moss, self.index.n_elements),
-                          dtype=np.float64)
+        """Live moss per element (cached until the population changes, i.e. per day step)."""
+        key = (self.day, self._moss_version)
+        if getattr(self, "_counts_cache", (None,))[0] != key:
+            c = np.asarray(per_element_count(self.pop.elem, self.pop.moss,
+                                             self.index.n_elements), dtype=np.float64)
+            self._counts_cache = (key, c)
+        return self._counts_cache[1]
 
     def light(self, day: int, counts: np.ndarray):
         """Daily-mean insolation S per element [W m-2] and the photon-pass result."""
@@ -408,6 +414,7 @@ class MossSimulation:
         st, theta = self.soil(day, S, counts)
         t2 = time.perf_counter()
         events = self.moss(day, S, np.asarray(st.Ts), np.asarray(st.rhs))
+        self._moss_version += 1
         t3 = time.perf_counter()
         self.timings["light"] += t1 - t0
         self.timings["soil"] += t2 - t1
@@ -443,6 +450,7 @@ class MossSimulation:
                 "seconds": secs}
 
     def initialise(self):
+        self._moss_version += 1
         self._place_random(int(self.moss_cfg["initial"]), -1, MOSS, GEMMA,
                            float(self.moss_cfg["initial_growth"]), stream=3)
 
@@ -476,6 +484,7 @@ class MossSimulation:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
                                  "delete it or use another --out folder to start afresh")
         self.pop.load_numpy(d)
+        self._moss_version += 1
         self.day = int(d["day"])
         self.O = np.asarray(d["O"], np.float64)
         self.history = json.loads(str(d["history"]))
