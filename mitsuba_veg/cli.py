@@ -201,12 +201,12 @@ def _cmd_demo(a) -> int:
     from .simulation import run
     out = Path(a.out)
     scen = _default_scenario()
-    print(f"mitsuba-veg demo 1/2: light study of the moss garden (paper 000 test scene) under "
+    print(f"mitsuba-veg demo 1/3: light study of the moss garden (paper 000 test scene) under "
           f"daylight on {DEMO_WHEN} -> {out / 'light'}/")
     s = run_irradiance(scen, out / "light", photons=a.photons, when=DEMO_WHEN,
                        progress=not a.quiet)
     _report(s)
-    print(f"\nmitsuba-veg demo 2/2: {a.days} days of moss in the garden (paper 000) -> "
+    print(f"\nmitsuba-veg demo 2/3: {a.days} days of moss in the garden (paper 000) -> "
           f"{out / 'moss'}/")
     m = run(scen, out=out / "moss", days=a.days, progress=not a.quiet)
     f = m["final"]
@@ -217,6 +217,18 @@ def _cmd_demo(a) -> int:
               out / "moss" / "maps"):
         if p:
             print(f"  {p}")
+    from .render.cli import run_animate, run_render
+    print(f"\nmitsuba-veg demo 3/3: spectral render and animation -> "
+          f"{out / 'moss' / 'render'}/, {out / 'moss' / 'animation'}/")
+    r = run_render(out / "moss", progress=not a.quiet)
+    an = run_animate(out / "moss", progress=not a.quiet)
+    print("wrote:")
+    for cam in r["files"].values():
+        for p in cam.values():
+            print(f"  {p}")
+    for k in ("mp4", "gif"):
+        if an["files"].get(k):
+            print(f"  {an['files'][k]}")
     return 0
 
 
@@ -258,6 +270,8 @@ def main(argv=None) -> int:
     _add_light_study(sub)
     from .trees.grow_cli import add_parser as _add_grow
     _add_grow(sub)
+    from .render.cli import add_parsers as _render_parsers
+    _render_parsers(sub)
     a = ap.parse_args(argv)
     import mitsuba_veg  # noqa: F401  (variant + plugins)
     try:

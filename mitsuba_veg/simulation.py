@@ -556,8 +556,17 @@ def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: 
     from .outputs import DayFrames, write_summary
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
     sim = MossSimulation(scn, out, days=days, progress=progress)
+    from .render.history import SnapshotWriter
     frames_writer = DayFrames(sim) if frames else None
-    summary = sim.run(resume=resume, on_day=frames_writer)
+    snapshots = SnapshotWriter() if frames else None  # living moss on frame days (animation)
+
+    def on_day(s, rec):
+        if frames_writer is not None:
+            frames_writer(s, rec)
+        if snapshots is not None:
+            snapshots(s, rec)
+
+    summary = sim.run(resume=resume, on_day=on_day)
     if frames_writer is not None:
         summary["files"] = frames_writer.finish()
     write_summary(Path(out) / "summary.json", summary)

@@ -55,18 +55,19 @@ def _spectra() -> dict:
         # ground (paper 000 geology classes; texture colours in mitsuba_veg.terrain)
         "humus": _soil(0.035, 0.16, knee=640, width=110),
         "humus_light": _soil(0.05, 0.20, knee=640, width=110),
-        "sand": np.clip(0.10 + 0.40 * _logistic(wl, 545.0, 30.0) + 0.05 * (wl - 600) / 230, 0, 1),
-        "sand_light": np.clip(0.14 + 0.44 * _logistic(wl, 540.0, 30.0)
+        "sand": np.clip(0.15 + 0.27 * _logistic(wl, 530.0, 35.0) + 0.05 * (wl - 600) / 230, 0, 1),
+        "sand_light": np.clip(0.19 + 0.31 * _logistic(wl, 525.0, 35.0)
                               + 0.05 * (wl - 600) / 230, 0, 1),
         "asphalt": 0.075 + 0.02 * (wl - 360) / 470,
         "asphalt_light": 0.11 + 0.025 * (wl - 360) / 470,
         # built structure and surroundings
         "concrete": 0.24 + 0.11 * _logistic(wl, 520.0, 90.0),
-        "gravel": _soil(0.09, 0.22, knee=560, width=150),
+        "gravel": 0.13 + 0.03 * _logistic(wl, 560.0, 80.0),
         "bark": _soil(0.045, 0.30, knee=700, width=70),
         # moss: established (dark) and young/tip (light) tones per species
-        "bryum_argenteum": _vegetation(0.07, 0.16, 0.07, 0.46, green_width=30.0),
-        "bryum_argenteum_light": _vegetation(0.16, 0.27, 0.16, 0.55, green_width=30.0),
+        "bryum_argenteum": _vegetation(0.045, 0.15, 0.065, 0.46, yellow=0.02, green_width=30.0),
+        "bryum_argenteum_light": _vegetation(0.09, 0.27, 0.12, 0.55, yellow=0.02,
+                                             green_width=30.0),
         "hypnum_plumaeforme": _vegetation(0.025, 0.16, 0.035, 0.42, yellow=0.02,
                                           green_width=28.0),
         "hypnum_plumaeforme_light": _vegetation(0.04, 0.24, 0.06, 0.48, yellow=0.04,
@@ -85,7 +86,7 @@ def _spectra() -> dict:
 SPECTRA: dict[str, np.ndarray] = _spectra()
 #: geology class (mitsuba_veg.terrain.GEOLOGY order) -> material name
 GEOLOGY_MATERIAL = {"humus": "humus", "sand": "sand", "asphalt": "asphalt"}
-#: moss species key -> material name (unknown species use "moss_generic" = hypnum's)
+#: moss species key -> material name (other species use hypnum_plumaeforme's)
 MOSS_MATERIAL = {"bryum_argenteum": "bryum_argenteum",
                  "hypnum_plumaeforme": "hypnum_plumaeforme",
                  "polytrichum": "polytrichum"}

@@ -15,7 +15,8 @@ _MASK = np.uint64(0xFFFFFFFF)
 
 def _hash(ix, iy, iz, seed):
     """Deterministic pseudo-random values in [-1, 1) for integer lattice points."""
-    h = (ix.astype(np.uint64) * np.uint64(73856093)) ^ (iy.astype(np.uint64) * np.uint64(19349663)) \
+    h = (ix.astype(np.uint64) * np.uint64(73856093)) \
+        ^ (iy.astype(np.uint64) * np.uint64(19349663)) \
         ^ (iz.astype(np.uint64) * np.uint64(83492791)) ^ np.uint64(seed * 2654435761 & 0xFFFFFFFF)
     h &= _MASK
     h ^= h >> np.uint64(13)
@@ -53,8 +54,8 @@ def pink_noise(p, scale: float = 0.1, octaves: int = 5, seed: int = 0) -> np.nda
         a = 2.0 ** -k
         out += a * value_noise(p * f + 17.31 * k, seed + 101 * k)
         norm += a * a
-    # value noise has a standard deviation of ~0.3; scale the sum to ~1/3
-    return out / np.sqrt(norm) * (1.0 / 3.0) / 0.3
+    # the octave sum has a standard deviation of ~0.42 * sqrt(norm); scale it to ~1/3
+    return out / np.sqrt(norm) * (1.0 / 3.0) / 0.42
 
 
 def pink_noise_image(shape, scale_px: float = 64.0, octaves: int = 6, seed: int = 0):

@@ -1,0 +1,384 @@
+"""``mitsuba-veg render RUN_DIR`` and ``mitsuba-veg animate RUN_DIR``.
+
+:func:`run_render` renders the last day of a moss run (or ``day``) from one or more camera
+presets and writes, per camera, ``render_<camera>.exr`` (RGB + red/far-red bands + R:FR),
+``render_<camera>.png`` (sRGB) and ``render_<camera>_rfr.png`` (red:far-red false colour), plus
+``render.json`` (settings, counts, timings, files).
+
+:func:`run_animate` renders the run's days (the snapshot days, thinned to ``frames``) at lower
+settings, with one light (the last day's, so that the rendering kernel is compiled once) and
+writes ``frames/frame_NNNN.png``, ``animation.mp4`` (H.264, ffmpeg), ``animation.gif`` and
+``animate.json``.
+"""
+from __future__ import annotations
+
+import gc
+import json
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError, check_range
+
+RENDER_DEFAULTS = {"width": 800, "height": 450, "spp": 24, "cameras": ("overview", "shelter")}
+ANIMATE_DEFAULTS = {"width": 480, "height": 270, "spp": 8, "frames": 31, "fps": 6,
+                    "camera": "overview", "gif_width": 360}
+
+
+def _write_json(path: Path, data) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_jsonable))
+    os.replace(tmp, path)
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    return str(x)
+
+
+def _versions() -> dict:
+    try:
+        from ..cli import versions
+        return versions()
+    except Exception:  # pragma: no cover
+        return {}
+
+
+def _cameras(camera) -> list[str]:
+    if camera is None:
+        return list(RENDER_DEFAULTS["cameras"])
+    if isinstance(camera, str):
+        return [c.strip() for c in camera.split(",") if c.strip()]
+    return list(camera)
+
+
+def _trees_for(run, trees):
+    """Trees of the render: ``trees`` if given (a list of Tree; [] for none), else the
+    scenario's ``[[render.trees]]``; with their seasonal model over the run's dates."""
+    from .seasons import TreeSeasons
+    from .trees import scenario_trees
+    tl = scenario_trees(run.scenario) if trees is None else list(trees)
+    seasons = []
+    if tl:
+        lat = float(run.scenario.get("site.latitude"))
+        cfgs = run.scenario.get("render.trees", []) or []
+        if isinstance(cfgs, dict):
+            cfgs = [cfgs]
+        for i, t in enumerate(tl):
+            auto = cfgs[i].get("autumn", True) if i < len(cfgs) else True
+            if auto and trees is None and len(t.leaves):
+                seasons.append(TreeSeasons(t, lat, run.start, max(run.final_day, 1) + 1, seed=i))
+    return tl, seasons
+
+
+def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
+               day=None, when=None, hour=None, max_depth=None, trees=None, scenario=None,
+               seed=0, progress=True) -> dict:
+    """Render a moss run (module docstring). ``out`` defaults to ``RUN_DIR/render``;
+    ``camera``: preset name(s), comma-separated or a list (default overview and shelter);
+    ``day``: the simulated day to show (default: the last); ``when``: ISO date-time of the
+    light (default: that day at ``hour``, 10:00 local); ``trees``: a list of Tree to add
+    instead of the scenario's ``[[render.trees]]``. Returns the summary written to
+    ``render.json``."""
+    from . import RenderOptions, build_scene, load_run, render, write_outputs
+    from .scene import Terrain
+
+    t0 = time.perf_counter()
+    run = load_run(run_dir, scenario)
+    out = Path(out) if out is not None else Path(run_dir) / "render"
+    out.mkdir(parents=True, exist_ok=True)
+    last = run.final_day
+    day = last if day is None else int(day)
+    check_range("day", day, 1, max(last, 1), fix=f"a simulated day of the run (1-{last})")
+    frame = run.frame(day)
+    opts = dict(width=width or RENDER_DEFAULTS["width"],
+                height=height or RENDER_DEFAULTS["height"], spp=spp or RENDER_DEFAULTS["spp"],
+                when=when, seed=int(seed))
+    if hour is not None:
+        opts["hour"] = float(hour)
+    if max_depth is not None:
+        opts["max_depth"] = int(max_depth)
+    tree_list, seasons = _trees_for(run, trees)
+    for s in seasons:
+        s.apply(frame.date)
+    terrain = Terrain.from_scenario(run.scenario)
+    cams = _cameras(camera)
+    results = {}
+    files = {}
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=len(cams), unit="image", desc="render")
+    tree_cache = {}
+    for cam in cams:
+        o = RenderOptions(camera=cam, **opts)
+        rs = build_scene(run.scenario, frame.moss, moss_size=run.moss_size, trees=tree_list,
+                         date=frame.date, options=o, terrain=terrain, tree_cache=tree_cache)
+        images = render(rs)
+        meta = {"mitsuba_veg": "render", "run": str(run.dir), "day": str(day),
+                "date": frame.date.isoformat(), "when": rs.info["when"], "camera": cam,
+                "units": "R,G,B,X,Y,Z: CIE-weighted spectral radiance W m-2 sr-1 nm-1 (linear "
+                         "sRGB / XYZ, Y = ybar-weighted mean); red_655_665, far_red_725_735: "
+                         "band-mean spectral radiance W m-2 sr-1 nm-1; R_FR: photon ratio"}
+        title = f"red : far-red   day {day} ({frame.date.isoformat()}), {cam}"
+        w = write_outputs(images, out, stem=f"render_{cam}", meta=meta, title=title)
+        rfr = images.get("r_fr")
+        results[cam] = {"render_s": images["seconds"], "exposure": w["exposure"],
+                        "info": rs.info, "files": w["files"],
+                        "r_fr_median": float(np.nanmedian(rfr)) if rfr is not None else None,
+                        "mean_rgb": np.nanmean(images["rgb"].reshape(-1, 3), 0).tolist()}
+        files[cam] = w["files"]
+        del rs, images
+        gc.collect()
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(camera=cam, s=f"{results[cam]['render_s']:.1f}")
+    if bar is not None:
+        bar.close()
+    summary = {"command": "render", "run": str(run.dir), "day": day,
+               "date": frame.date.isoformat(), "moss_exact": frame.exact,
+               "moss": len(frame.moss), "trees": len(tree_list),
+               "settings": {**opts, "cameras": cams, "max_depth": RenderOptions().max_depth
+                            if max_depth is None else max_depth},
+               "cameras": results, "files": files,
+               "seconds": time.perf_counter() - t0, "versions": _versions()}
+    _write_json(out / "render.json", summary)
+    return summary
+
+
+# ---- animation ----------------------------------------------------------------------------------
+def _label(img8, text: str):
+    from PIL import Image, ImageDraw, ImageFont
+    im = Image.fromarray(img8)
+    d = ImageDraw.Draw(im)
+    size = max(11, im.size[1] // 22)
+    try:
+        font = ImageFont.load_default(size=size)
+    except TypeError:  # pragma: no cover - old Pillow
+        font = ImageFont.load_default()
+    x, y = 8, 6
+    box = d.textbbox((x, y), text, font=font)
+    d.rectangle((box[0] - 4, box[1] - 3, box[2] + 4, box[3] + 3), fill=(0, 0, 0))
+    d.text((x, y), text, fill=(255, 255, 255), font=font)
+    return np.asarray(im)
+
+
+def ffmpeg_path() -> str | None:
+    return shutil.which("ffmpeg")
+
+
+def write_mp4(frames_dir: Path, pattern: str, path: Path, fps: int) -> Path | None:
+    """H.264 MP4 of numbered PNG frames with ffmpeg (None when ffmpeg is missing)."""
+    exe = ffmpeg_path()
+    if exe is None:
+        return None
+    tmp = path.with_name("." + path.stem + ".tmp.mp4")
+    cmd = [exe, "-y", "-loglevel", "error", "-framerate", str(int(fps)), "-i",
+           str(frames_dir / pattern), "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+           "-c:v", "libx264", "-pix_fmt", "yuv420p", "-crf", "20", "-movflags", "+faststart",
+           str(tmp)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        cmd[cmd.index("libx264")] = "mpeg4"
+        r = subprocess.run(cmd + [], capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"ffmpeg failed: {r.stderr.strip()[-400:]}")
+    os.replace(tmp, path)
+    return path
+
+
+def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> Path:
+    from PIL import Image
+    imgs = []
+    for f in frames:
+        im = Image.open(f).convert("RGB")
+        if width and im.size[0] > width:
+            im = im.resize((width, round(im.size[1] * width / im.size[0])), Image.LANCZOS)
+        imgs.append(im.convert("P", palette=Image.ADAPTIVE, colors=255))
+    tmp = path.with_name("." + path.stem + ".tmp.gif")
+    durations = [int(1000 / fps)] * len(imgs)
+    if durations:
+        durations[-1] = 1500      # hold the last day
+    imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=durations, loop=0,
+                 optimize=True)
+    os.replace(tmp, path)
+    return path
+
+
+def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
+                frames=None, every=None, fps=None, when=None, hour=None, light="fixed",
+                trees=None, scenario=None, gif_width=None, seed=0, progress=True) -> dict:
+    """Render the days of a moss run to ``animation.mp4`` and ``animation.gif`` (module
+    docstring). ``frames``: at most this many frames (default 31), spread over the snapshot
+    days (or every ``every`` days); ``light``: ``"fixed"`` (the last day's light for every
+    frame: one kernel compile) or ``"daily"`` (each frame's own date; recompiles per frame);
+    ``gif_width``: downscale the GIF to this width (default 360 px; 0 keeps the frame width).
+    Returns the summary written to
+    ``animate.json``."""
+    from . import RenderOptions, build_scene, load_run, render
+    from .film import to_srgb8, write_png
+    from .scene import Terrain, render_time, sky_emitters
+
+    if light not in ("fixed", "daily"):
+        raise ParameterError("light", light, "'fixed' or 'daily'")
+    t0 = time.perf_counter()
+    run = load_run(run_dir, scenario)
+    out = Path(out) if out is not None else Path(run_dir) / "animation"
+    fdir = out / "frames"
+    fdir.mkdir(parents=True, exist_ok=True)
+    for old in fdir.glob("frame_*.png"):
+        old.unlink()
+    n_frames = int(frames or ANIMATE_DEFAULTS["frames"])
+    check_range("frames", n_frames, 2, 10000)
+    fps = int(fps or ANIMATE_DEFAULTS["fps"])
+    check_range("fps", fps, 1, 120)
+    days = run.frame_days(count=n_frames, every=every)
+    if len(days) < 2:
+        raise ParameterError("run", str(run.dir), "a run with at least 2 days to animate",
+                             "run more days")
+    opts = dict(width=width or ANIMATE_DEFAULTS["width"],
+                height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
+                camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
+                max_depth=5)
+    if hour is not None:
+        opts["hour"] = float(hour)
+    o = RenderOptions(**opts).validate()
+    tree_list, seasons = _trees_for(run, trees)
+    terrain = Terrain.from_scenario(run.scenario)
+    last = run.frame(days[-1])
+    emitters = None
+    if light == "fixed":
+        emitters = sky_emitters(run.scenario, render_time(run.scenario, last.date, o))
+    timings = {"build": 0.0, "update": 0.0, "render": 0.0, "write": 0.0}
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=len(days), unit="frame", desc="animate")
+    # the last frame first: it sets the exposure of every frame (no flicker)
+    order = [len(days) - 1] + list(range(len(days) - 1))
+    rs = None
+    exposure = None
+    paths = [None] * len(days)
+    records = [None] * len(days)
+    for k in order:
+        day = days[k]
+        fr = last if k == len(days) - 1 else run.frame(day)
+        for s in seasons:
+            s.apply(fr.date)
+        t1 = time.perf_counter()
+        if rs is None or light == "daily":
+            rs = None
+            gc.collect()
+            rs = build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=tree_list,
+                             date=fr.date, options=o, terrain=terrain, emitters=emitters,
+                             species=run.species)
+            timings["build"] += time.perf_counter() - t1
+        else:
+            rs.update(fr.moss, tree_list if tree_list else None)
+            timings["update"] += time.perf_counter() - t1
+        images = render(rs, seed=int(seed) + k)
+        timings["render"] += images["seconds"]
+        t2 = time.perf_counter()
+        img8, exp = to_srgb8(images["rgb"], exposure)
+        exposure = exp if exposure is None else exposure
+        text = f"day {day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
+        p = write_png(fdir / f"frame_{k:04d}.png", _label(img8, text))
+        paths[k] = p
+        records[k] = {"day": day, "date": fr.date.isoformat(), "moss": len(fr.moss),
+                      "exact": fr.exact, "render_s": images["seconds"]}
+        timings["write"] += time.perf_counter() - t2
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(day=day, moss=len(fr.moss))
+    if bar is not None:
+        bar.close()
+    t3 = time.perf_counter()
+    mp4 = write_mp4(fdir, "frame_%04d.png", out / "animation.mp4", fps)
+    gif = write_gif(paths, out / "animation.gif", fps,
+                    ANIMATE_DEFAULTS["gif_width"] if gif_width is None else gif_width)
+    timings["encode"] = time.perf_counter() - t3
+    summary = {"command": "animate", "run": str(run.dir), "frames": records,
+               "exact": all(r["exact"] for r in records),
+               "settings": {**opts, "fps": fps, "light": light, "when": rs.info.get("when")},
+               "trees": len(tree_list),
+               "files": {"mp4": str(mp4) if mp4 else None, "gif": str(gif),
+                         "frames": str(fdir)},
+               "timings_s": {**timings, "total": time.perf_counter() - t0},
+               "versions": _versions()}
+    if mp4 is None:
+        summary["warning"] = "ffmpeg not found: no MP4 written (install ffmpeg)"
+    _write_json(out / "animate.json", summary)
+    return summary
+
+
+# ---- argparse -----------------------------------------------------------------------------------
+def add_parsers(subparsers) -> None:
+    """Add ``render`` and ``animate`` to the ``mitsuba-veg`` sub-command parsers."""
+    r = subparsers.add_parser("render", help="spectral render of a moss run (EXR, PNG, R:FR)")
+    r.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
+    r.add_argument("--out", help="output folder (default RUN_DIR/render)")
+    r.add_argument("--camera", help="camera preset(s), comma-separated: overview, shelter, top, "
+                   "scene or a [render.cameras.NAME] of the scenario (default overview,shelter)")
+    r.add_argument("--width", type=int)
+    r.add_argument("--height", type=int)
+    r.add_argument("--spp", type=int, help="samples per pixel (default 24)")
+    r.add_argument("--day", type=int, help="simulated day to show (default: the last)")
+    r.add_argument("--when", help="ISO date-time of the daylight (default: that day at --hour)")
+    r.add_argument("--hour", type=float, help="local hour of the daylight (default 10)")
+    r.add_argument("--max-depth", type=int)
+    r.add_argument("--quiet", action="store_true")
+    r.set_defaults(func=_cmd_render)
+    a = subparsers.add_parser("animate", help="animate the days of a moss run (MP4 + GIF)")
+    a.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
+    a.add_argument("--out", help="output folder (default RUN_DIR/animation)")
+    a.add_argument("--camera", help="camera preset (default overview)")
+    a.add_argument("--width", type=int)
+    a.add_argument("--height", type=int)
+    a.add_argument("--spp", type=int, help="samples per pixel per frame (default 8)")
+    a.add_argument("--frames", type=int, help="at most this many frames (default 31)")
+    a.add_argument("--every", type=int, help="a frame every N days (of the snapshot days)")
+    a.add_argument("--fps", type=int, help="frames per second (default 6)")
+    a.add_argument("--light", choices=("fixed", "daily"), default="fixed",
+                   help="fixed: the last day's light in every frame (fast); daily: each "
+                        "frame's date (slower)")
+    a.add_argument("--hour", type=float, help="local hour of the daylight (default 10)")
+    a.add_argument("--quiet", action="store_true")
+    a.set_defaults(func=_cmd_animate)
+
+
+def _cmd_render(a) -> int:
+    s = run_render(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height, spp=a.spp,
+                   day=a.day, when=a.when, hour=a.hour, max_depth=a.max_depth,
+                   progress=not a.quiet)
+    print(f"rendered day {s['day']} ({s['date']}): {s['moss']:,d} moss, {s['trees']} trees, "
+          f"{s['seconds']:.1f} s")
+    print("wrote:")
+    for cam, f in s["files"].items():
+        for p in f.values():
+            print(f"  {p}")
+    print(f"  {Path(next(iter(s['files'].values()))['png']).parent / 'render.json'}")
+    return 0
+
+
+def _cmd_animate(a) -> int:
+    s = run_animate(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height,
+                    spp=a.spp, frames=a.frames, every=a.every, fps=a.fps, light=a.light,
+                    hour=a.hour, progress=not a.quiet)
+    t = s["timings_s"]
+    print(f"animated {len(s['frames'])} days in {t['total']:.1f} s (render {t['render']:.1f} s)"
+          + ("" if s["exact"] else "; moss of past days approximated from the last checkpoint "
+             "(no snapshots in the run)"))
+    if s.get("warning"):
+        print(f"warning: {s['warning']}")
+    print("wrote:")
+    for k in ("mp4", "gif", "frames"):
+        if s["files"].get(k):
+            print(f"  {s['files'][k]}")
+    return 0

@@ -1,0 +1,208 @@
+"""The render's film and image outputs: spectral bands, sRGB, EXR, PNG, red:far-red view.
+
+One ``specfilm`` records five channels in a single pass: the CIE 1931 colour matching functions
+x̄, ȳ, z̄ (for the colour image) and two narrow bands, red 655-665 nm and far-red 725-735 nm
+(Smith 1982's R:FR bands). The film samples wavelengths in proportion to the sum of the channel
+sensitivities; the narrow bands are weighted up (:data:`BAND_WEIGHT`) so that each gets about
+a sixth of the wavelength samples instead of 3 %, and divided back afterwards.
+
+:func:`develop` turns the film's tensor into calibrated quantities:
+
+- ``XYZ`` (h, w, 3): CIE XYZ normalised so that Y is the ȳ-weighted mean spectral radiance
+  [W m-2 sr-1 nm-1] (Y = 1 for a flat spectrum of 1 W m-2 sr-1 nm-1);
+- ``rgb`` (h, w, 3): linear sRGB (D65 white, colour-science's ``XYZ_to_sRGB``), same scale;
+- ``bands`` {name: (h, w)}: band-mean spectral radiance [W m-2 sr-1 nm-1] over 655-665 and
+  725-735 nm (each band is a 10-nm box with 1-nm linear edges, FWHM 10 nm);
+- ``r_fr`` (h, w): the red:far-red photon ratio (photon radiance 655-665 / 725-735 nm).
+
+Outputs: :func:`write_exr` (OpenEXR, float32: R, G, B linear sRGB + the bands + R:FR + X, Y, Z),
+:func:`to_srgb8` / :func:`write_png` (exposure, filmic shoulder, sRGB encoding through
+colour-science) and :func:`rfr_false_colour` (the ratio on a log colour scale with a legend).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+
+#: extra spectral bands of every render: name -> (lo, hi) [nm]
+BANDS = {"red": (655.0, 665.0), "far_red": (725.0, 735.0)}
+#: sensitivity of the band channels (relative to the CMFs' peak ~1): sampling weight
+BAND_WEIGHT = 8.0
+_WL = np.arange(360.0, 831.0, 1.0)
+_CMF_INTEGRAL_Y = None
+
+
+def _cmfs():
+    import colour
+    cmf = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return np.stack([np.interp(_WL, cmf.wavelengths, cmf.values[:, i], left=0, right=0)
+                     for i in range(3)])
+
+
+def band_response(lo: float, hi: float, height: float = BAND_WEIGHT) -> np.ndarray:
+    """A box response on the 1-nm grid: ``height`` inside (lo, hi), half at lo and hi, so that
+    its integral is exactly height * (hi - lo) (Mitsuba interpolates linearly)."""
+    r = np.where((_WL > lo) & (_WL < hi), height, 0.0)
+    r[np.isclose(_WL, lo) | np.isclose(_WL, hi)] = 0.5 * height
+    return r
+
+
+def _regular(v) -> dict:
+    return {"type": "regular", "wavelength_min": float(_WL[0]), "wavelength_max": float(_WL[-1]),
+            "values": ", ".join(f"{x:.6g}" for x in v)}
+
+
+def film_dict(options) -> dict:
+    """The ``specfilm`` of a render (channels c0_X, c1_Y, c2_Z, c3_<band>, ... in this order:
+    specfilm sorts channels by name)."""
+    xyz = _cmfs()
+    d = {"type": "specfilm", "width": int(options.width), "height": int(options.height),
+         "component_format": "float32", "rfilter": {"type": "gaussian"}}
+    for i, c in enumerate("XYZ"):
+        d[f"c{i}_{c}"] = _regular(xyz[i])
+    for j, (name, (lo, hi)) in enumerate(BANDS.items()):
+        d[f"c{3 + j}_{name}"] = _regular(band_response(lo, hi))
+    return d
+
+
+def develop(tensor) -> dict:
+    """Calibrated images from the film tensor (module docstring)."""
+    import colour
+    a = np.asarray(tensor, np.float64)
+    if a.ndim != 3 or a.shape[2] != 3 + len(BANDS):
+        raise ParameterError("film tensor", a.shape, f"(h, w, {3 + len(BANDS)})")
+    y_int = float(np.trapezoid(_cmfs()[1], _WL))
+    XYZ = a[..., :3] / y_int
+    rgb = colour.XYZ_to_sRGB(XYZ, apply_cctf_encoding=False)
+    bands = {}
+    for j, (name, (lo, hi)) in enumerate(BANDS.items()):
+        bands[name] = a[..., 3 + j] / (BAND_WEIGHT * (hi - lo))
+    out = {"XYZ": XYZ, "rgb": rgb, "bands": bands}
+    if "red" in bands and "far_red" in bands:
+        lr = 0.5 * sum(BANDS["red"])
+        lf = 0.5 * sum(BANDS["far_red"])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = (bands["red"] * lr) / (bands["far_red"] * lf)
+        out["r_fr"] = np.where(np.isfinite(r), r, np.nan)
+    return out
+
+
+# ---- EXR ---------------------------------------------------------------------------------------
+def write_exr(path, images: dict, meta: dict | None = None) -> Path:
+    """OpenEXR (float32, ZIP) with channels R, G, B (linear sRGB), X, Y, Z, the bands
+    (``red_655_665``, ``far_red_725_735``: band-mean spectral radiance W m-2 sr-1 nm-1) and
+    ``R_FR`` (photon ratio). ``meta``: string header attributes (units, time, camera ...)."""
+    import OpenEXR
+
+    path = Path(path)
+    ch = {}
+    rgb = np.asarray(images["rgb"], np.float32)
+    for i, c in enumerate("RGB"):
+        ch[c] = np.ascontiguousarray(rgb[..., i])
+    xyz = np.asarray(images["XYZ"], np.float32)
+    for i, c in enumerate("XYZ"):
+        ch[c] = np.ascontiguousarray(xyz[..., i])
+    for name, img in images.get("bands", {}).items():
+        lo, hi = BANDS[name]
+        ch[f"{name}_{lo:.0f}_{hi:.0f}"] = np.ascontiguousarray(np.asarray(img, np.float32))
+    if "r_fr" in images:
+        ch["R_FR"] = np.ascontiguousarray(np.nan_to_num(images["r_fr"], nan=0.0)
+                                          .astype(np.float32))
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for k, v in (meta or {}).items():
+        header[str(k)] = str(v)
+    tmp = path.with_name("." + path.stem + ".tmp.exr")
+    with OpenEXR.File(header, ch) as f:
+        f.write(str(tmp))
+    os.replace(tmp, path)
+    return path
+
+
+def read_exr(path) -> dict:
+    """Channels of an EXR as float32 arrays {name: (h, w)}."""
+    import OpenEXR
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        return {k: np.array(v.pixels) for k, v in f.channels().items()}
+
+
+# ---- display -----------------------------------------------------------------------------------
+def auto_exposure(rgb, key: float = 0.18) -> float:
+    """Exposure that maps the image's log-average luminance to ``key`` (Reinhard et al. 2002's
+    "key value"): shade and sun both stay readable under :func:`tone_map`'s shoulder."""
+    Y = 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
+    Y = Y[np.isfinite(Y) & (Y > 0)]
+    if Y.size == 0:
+        return 1.0
+    lo = max(float(np.percentile(Y, 99.0)) * 1e-4, 1e-12)
+    gm = float(np.exp(np.mean(np.log(np.maximum(Y, lo)))))
+    return key / gm if gm > 0 else 1.0
+
+
+def tone_map(x):
+    """Filmic curve (Narkowicz's fit of the ACES reference rendering transform): a toe, a nearly
+    linear middle and a soft shoulder that reaches 1 only far above the key, so sunlit sand does
+    not clip while the shade keeps its contrast."""
+    x = np.maximum(np.asarray(x, np.float64), 0.0)
+    return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
+
+
+def to_srgb8(rgb, exposure: float | None = None) -> tuple[np.ndarray, float]:
+    """8-bit sRGB image (h, w, 3) of a linear sRGB image and the exposure used."""
+    import colour
+    rgb = np.nan_to_num(np.asarray(rgb, np.float64), nan=0.0, posinf=0.0)
+    if exposure is None:
+        exposure = auto_exposure(rgb)
+    lin = tone_map(rgb * exposure)
+    enc = colour.cctf_encoding(np.clip(lin, 0.0, 1.0), function="sRGB")
+    return (np.clip(enc, 0, 1) * 255 + 0.5).astype(np.uint8), float(exposure)
+
+
+def write_png(path, img8) -> Path:
+    from PIL import Image
+    path = Path(path)
+    tmp = path.with_name("." + path.stem + ".tmp.png")
+    Image.fromarray(np.asarray(img8, np.uint8)).save(tmp, optimize=True)
+    os.replace(tmp, path)
+    return path
+
+
+def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None = None,
+                     luminance=None):
+    """An RGB uint8 image of the red:far-red ratio on a log scale (``lo``..``hi``) with a colour
+    bar: low ratios (light filtered or reflected by vegetation) purple-blue, daylight's ~1.15
+    yellow-orange. ``luminance`` (optional) shades the colours so that shapes stay readable."""
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+
+    r = np.asarray(r_fr, np.float64)
+    h, w = r.shape
+    norm = LogNorm(vmin=lo, vmax=hi)
+    cmap = plt.get_cmap("plasma")
+    rgba = cmap(norm(np.clip(np.nan_to_num(r, nan=lo), lo, hi)))
+    if luminance is not None:
+        L = np.asarray(luminance, np.float64)
+        ref = np.percentile(L[np.isfinite(L)], 99) if np.isfinite(L).any() else 1.0
+        shade = np.clip(L / max(ref, 1e-12), 0, 1) ** 0.4
+        rgba[..., :3] *= (0.35 + 0.65 * shade)[..., None]
+    dpi = 100
+    fig = plt.figure(figsize=(w / dpi + 1.25, h / dpi + 0.45), dpi=dpi)
+    ax = fig.add_axes([0.0, 0.0, w / (w + 125.0), h / (h + 45.0)])
+    ax.imshow(rgba, interpolation="nearest")
+    ax.set_axis_off()
+    cax = fig.add_axes([w / (w + 125.0) + 0.02, 0.1, 0.025, 0.75])
+    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    cb = fig.colorbar(sm, cax=cax)
+    cb.set_label("red : far-red (photons 655-665 / 725-735 nm)", fontsize=8)
+    cb.ax.tick_params(labelsize=7)
+    if title:
+        fig.text(0.01, 1.0 - 0.3 * 45.0 / (h + 45.0), title, fontsize=9, va="center")
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return img

@@ -1,0 +1,241 @@
+"""A finished (or running) moss run as the renderer sees it: scenario, days, moss per day.
+
+A run directory (``mitsuba-veg run ... --out DIR``) holds ``summary.json`` (settings, species,
+one record per day), ``checkpoint.npz`` (the whole population at the last checkpoint) and, when
+the run was made with snapshots (:class:`SnapshotWriter`), ``snapshots/day_NNNN.npz``: the living
+moss (positions, normals, species, growth) on the frame days. :func:`load_run` reads them;
+:meth:`Run.frames` gives the moss of each frame day for the animation:
+
+- from the snapshots when they exist (exact);
+- otherwise reconstructed from the last checkpoint and the per-day counts of ``summary.json``
+  (approximate, flagged ``exact=False``): on day d each species shows its ``alive(d)`` most grown
+  moss of the final population, their growth scaled by d / last day. Moss that died before the
+  end is missing from such frames. Runs made with snapshots do not have this limitation.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+from .moss import MossSet, live_moss
+
+SNAPSHOT_DIR = "snapshots"
+
+
+# ---- writing snapshots during a run -------------------------------------------------------------
+class SnapshotWriter:
+    """``on_day`` hook for :meth:`mitsuba_veg.simulation.MossSimulation.run`: writes the living
+    moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days (default: the run's
+    ``frame_every``) and on the last day. About 0.3 MB per 16,000 moss (compressed)."""
+
+    def __init__(self, every: int | None = None):
+        self.every = every
+
+    def __call__(self, sim, rec) -> None:
+        every = max(int(self.every or getattr(sim, "frame_every", 10) or 10), 1)
+        if sim.day % every == 0 or sim.day == sim.days or sim.day == 1:
+            write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
+                           date=rec.get("date"))
+
+
+def write_snapshot(directory, day: int, population: dict, date: str | None = None) -> Path:
+    """Write the living moss of a population dict (``MossPopulation.to_numpy()``)."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    m = np.asarray(population["state"]) == 2
+    path = d / f"day_{int(day):04d}.npz"
+    tmp = d / f".day_{int(day):04d}.tmp.npz"
+    np.savez_compressed(tmp, day=np.array(int(day)), date=np.array(str(date or "")),
+                        pos=np.asarray(population["pos"])[m].astype(np.float32),
+                        nrm=np.asarray(population["nrm"])[m].astype(np.float16),
+                        species=np.asarray(population["species"])[m].astype(np.uint8),
+                        growth=np.asarray(population["growth"])[m].astype(np.float16))
+    os.replace(tmp, path)
+    return path
+
+
+# ---- reading a run ------------------------------------------------------------------------------
+@dataclass
+class Frame:
+    day: int                 # 1-based simulated day (end of that day)
+    date: _dt.date
+    moss: MossSet
+    exact: bool = True
+
+
+@dataclass
+class Run:
+    dir: Path
+    summary: dict
+    scenario: object                      # mitsuba_veg.scenario.Scenario
+    species: list                         # species keys, index = population species id
+    moss_size: float
+    start: _dt.date
+    days: int                             # days simulated so far
+    checkpoint: dict | None = None
+    snapshots: list = field(default_factory=list)
+
+    def date(self, day: int) -> _dt.date:
+        """Calendar date of simulated day ``day`` (1-based)."""
+        return self.start + _dt.timedelta(days=int(day) - 1)
+
+    def final_moss(self) -> MossSet:
+        if self.snapshots and (self.checkpoint is None or
+                               int(self.checkpoint.get("day", 0)) <= self.snapshots[-1][0]):
+            return self._snapshot(self.snapshots[-1][1])
+        if self.checkpoint is None:
+            raise ParameterError("run", str(self.dir), "a run with checkpoint.npz or snapshots/",
+                                 "run `mitsuba-veg run SCENARIO --out DIR` first")
+        return live_moss(self.checkpoint, self.species)
+
+    @property
+    def final_day(self) -> int:
+        if self.checkpoint is not None:
+            return int(self.checkpoint["day"])
+        return self.snapshots[-1][0] if self.snapshots else self.days
+
+    def _snapshot(self, path) -> MossSet:
+        with np.load(path) as z:
+            return MossSet(z["pos"], z["nrm"].astype(np.float64), z["species"],
+                           z["growth"].astype(np.float64), list(self.species))
+
+    def frame_days(self, count: int | None = None, every: int | None = None) -> list[int]:
+        """Days to animate: the snapshot days (or every ``every`` days), thinned to at most
+        ``count`` frames, always including the last day."""
+        last = self.final_day
+        if self.snapshots:
+            days = [d for d, _ in self.snapshots]
+        else:
+            step = max(int(every or 10), 1)
+            days = sorted(set([1] + list(range(step, last + 1, step)) + [last]))
+        if every and self.snapshots:
+            days = sorted(set([d for d in days if d % every == 0 or d == 1] + [days[-1]]))
+        if count and len(days) > count:
+            idx = np.unique(np.round(np.linspace(0, len(days) - 1, int(count))).astype(int))
+            days = [days[i] for i in idx]
+        return days
+
+    def frame(self, day: int) -> Frame:
+        """The moss at the end of simulated ``day``."""
+        snap = dict(self.snapshots)
+        if day in snap:
+            return Frame(day, self.date(day), self._snapshot(snap[day]), True)
+        final = self.final_moss()
+        last = self.final_day
+        if day >= last:
+            return Frame(day, self.date(day), final, True)
+        rec = {r["day"]: r for r in self.summary.get("days_record", [])}.get(int(day))
+        names = list(self.summary.get("species", []))
+        keep = np.zeros(len(final), bool)
+        for si in range(len(self.species)):
+            idx = np.nonzero(final.species == si)[0]
+            if rec is not None and si < len(names):
+                n = int(rec.get("alive", {}).get(names[si], 0))
+            else:
+                n = int(round(len(idx) * day / max(last, 1)))
+            order = idx[np.argsort(-final.growth[idx], kind="stable")]
+            keep[order[:min(n, len(order))]] = True
+        m = final.subset(keep)
+        m.growth = m.growth * (day / max(last, 1))
+        return Frame(day, self.date(day), m, False)
+
+
+def _resolve_scenario(summary: dict, checkpoint, run_dir: Path):
+    from ..scenario import Scenario, load_scenario
+
+    raw = summary.get("scenario")
+    cands = []
+    if raw:
+        p = Path(raw)
+        cands += [p] if p.is_absolute() else [Path.cwd() / p, run_dir / p, run_dir.parent / p]
+        here = Path(__file__).resolve().parents[1]
+        for base in (here.parent / "scenes", here / "scenes"):
+            cands.append(base / p.parent.name / p.name)
+    path = next((c for c in cands if c.exists()), None)
+    if path is None:
+        raise ParameterError("summary.json scenario", raw, "an existing scenario file",
+                             "run the command from the folder the run was started in, or pass "
+                             "the scenario explicitly (scenario=...)")
+    if checkpoint is not None and "fingerprint" in checkpoint:
+        try:
+            fp = json.loads(str(checkpoint["fingerprint"]))
+            data = dict(fp["scenario"])
+            data["simulation"] = load_scenario(path).data.get("simulation", {})
+            return Scenario(path.resolve(), data)
+        except (ValueError, KeyError, TypeError):
+            pass
+    return load_scenario(path)
+
+
+def load_run(run_dir, scenario=None) -> Run:
+    """Read a run directory (see module docstring). ``scenario``: a scenario path or
+    :class:`~mitsuba_veg.scenario.Scenario` to use instead of the one the run names."""
+    from ..scenario import Scenario, load_scenario
+
+    d = Path(run_dir)
+    sp = d / "summary.json"
+    cp = d / "checkpoint.npz"
+    if not d.is_dir() or not (sp.exists() or cp.exists()):
+        raise ParameterError("RUN_DIR", str(d), "a moss run folder with summary.json and "
+                             "checkpoint.npz", "run `mitsuba-veg run SCENARIO --out DIR` first")
+    ck = dict(np.load(cp, allow_pickle=False)) if cp.exists() else None
+    summary = json.loads(sp.read_text()) if sp.exists() else {}
+    if not summary and ck is not None and "history" in ck:
+        summary = {"days_record": json.loads(str(ck["history"]))}
+    if scenario is None:
+        if not summary.get("scenario"):
+            raise ParameterError("RUN_DIR", str(d), "a run with summary.json",
+                                 "wait for the run to write summary.json or pass scenario=")
+        scn = _resolve_scenario(summary, ck, d)
+    else:
+        scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    from ..simulation import MOSS_DEFAULTS, SIM_DEFAULTS
+    moss_cfg = {**MOSS_DEFAULTS, **(scn.get("moss", {}) or {}),
+                **(summary.get("settings", {}).get("moss", {}) or {})}
+    sim = {**SIM_DEFAULTS, **(scn.get("simulation", {}) or {})}
+    start = summary.get("settings", {}).get("simulation", {}).get("start_date") or \
+        sim["start_date"]
+    start = _dt.date.fromisoformat(str(start))
+    recs = summary.get("days_record", [])
+    days = int(recs[-1]["day"]) if recs else int(ck["day"]) if ck is not None else 0
+    snaps = []
+    sd = d / SNAPSHOT_DIR
+    if sd.is_dir():
+        for p in sorted(sd.glob("day_*.npz")):
+            try:
+                snaps.append((int(p.stem.split("_")[1]), p))
+            except ValueError:
+                continue
+    return Run(d, summary, scn, list(moss_cfg["species"]), float(moss_cfg["size"]), start, days,
+               ck, snaps)
+
+
+def run_with_snapshots(scenario, out, days: int | None = None, overrides=(),
+                       resume: bool = True, progress: bool = True, every: int | None = None):
+    """:func:`mitsuba_veg.simulation.run` plus moss snapshots for exact animations: the same
+    run (maps, days.gif, summary.json, checkpoints) with :class:`SnapshotWriter` as an extra
+    ``on_day`` hook. Returns the run's summary dict."""
+    from ..outputs import DayFrames, write_summary
+    from ..scenario import Scenario, load_scenario
+    from ..simulation import MossSimulation
+
+    scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
+    sim = MossSimulation(scn, out, days=days, progress=progress)
+    frames = DayFrames(sim)
+    snaps = SnapshotWriter(every)
+
+    def on_day(s, rec):
+        frames(s, rec)
+        snaps(s, rec)
+
+    summary = sim.run(resume=resume, on_day=on_day)
+    summary["files"] = frames.finish()
+    summary["files"]["snapshots"] = str(Path(out) / SNAPSHOT_DIR)
+    write_summary(Path(out) / "summary.json", summary)
+    return summary

@@ -1,0 +1,175 @@
+"""Moss for the render: one tuft model per living moss, merged into one mesh per species.
+
+Input is the moss population of a run (positions, surface normals, species, total growth
+G_moss; :func:`live_moss` reads them from a checkpoint or snapshot). Each moss becomes one of the
+species' tuft models (:mod:`.tufts`), with
+
+- a random rotation about the surface normal and a small random tilt (paper 000: "randomly
+  rotated");
+- 1/f-noise jitter of its placement in the tangent plane (paper 000: "1/f noise on the place"),
+  amplitude ``jitter`` x the moss size, and 1/f-noise modulation of its size and tone so that
+  neighbouring tufts vary together (patches) rather than independently;
+- a scale from its growth: ``size * (0.45 + (1 - exp(-G / 4)))`` (a young moss with G ~ 0
+  is half-size, an established one with G >> 4 reaches 1.45 x ``size``: established moss spreads
+  sideways, so that neighbouring tufts on the 1-cm spot grid close into a carpet).
+
+Mitsuba 3.9.1 does not scale to one ``instance`` per tuft (../shared/MITSUBA_NOTES.md), so all
+tufts of a species are merged into one triangle mesh (vectorised: one einsum per tuft variant).
+Per-vertex ``tone`` (tuft model tone mixed with the tuft's own noise and growth) is attached as a
+mesh attribute that blends the species' dark and light spectral reflectances.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ParameterError
+from .noise import pink_noise
+from .tufts import TUFT_SIZE, tuft_models
+
+MOSS_STATE = 2  # mitsuba_veg.moss.population.MOSS
+
+
+@dataclass
+class MossSet:
+    """Living moss: positions (n, 3) [m], unit normals (n, 3), species index (n,), growth
+    G_moss (n,), and the species keys the indices refer to."""
+
+    pos: np.ndarray
+    nrm: np.ndarray
+    species: np.ndarray
+    growth: np.ndarray
+    species_names: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.pos = np.asarray(self.pos, np.float64).reshape(-1, 3)
+        n = len(self.pos)
+        self.nrm = np.asarray(self.nrm, np.float64).reshape(n, 3)
+        self.species = np.asarray(self.species, np.int64).reshape(n)
+        self.growth = np.asarray(self.growth, np.float64).reshape(n)
+        ln = np.linalg.norm(self.nrm, axis=1, keepdims=True)
+        self.nrm = np.where(ln > 0, self.nrm / np.maximum(ln, 1e-30), [[0.0, 1.0, 0.0]])
+
+    def __len__(self):
+        return len(self.pos)
+
+    def subset(self, mask) -> "MossSet":
+        return MossSet(self.pos[mask], self.nrm[mask], self.species[mask], self.growth[mask],
+                       list(self.species_names))
+
+
+def live_moss(arrays: dict, species_names) -> MossSet:
+    """The living moss (state 2) of a population dict (checkpoint.npz or a snapshot)."""
+    if "state" in arrays:
+        m = np.asarray(arrays["state"]) == MOSS_STATE
+        return MossSet(np.asarray(arrays["pos"])[m], np.asarray(arrays["nrm"])[m],
+                       np.asarray(arrays["species"])[m], np.asarray(arrays["growth"])[m],
+                       list(species_names))
+    return MossSet(arrays["pos"], arrays["nrm"], arrays["species"], arrays["growth"],
+                   list(species_names))
+
+
+def growth_scale(growth) -> np.ndarray:
+    """Tuft scale factor from total growth G_moss (see module docstring)."""
+    g = np.maximum(np.asarray(growth, np.float64), 0.0)
+    return 0.45 + 1.0 * (1.0 - np.exp(-g / 4.0))
+
+
+def _tangent_frames(n):
+    a = np.where(np.abs(n[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t = np.cross(a, n)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(n, t)
+    return t, b
+
+
+@dataclass
+class TuftMesh:
+    """Merged tufts of one species: vertices (v, 3) float32, faces (f, 3) uint32, tone (v,)."""
+
+    species: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    tone: np.ndarray
+    count: int
+
+
+def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
+                tilt_deg: float = 12.0, seed: int = 0, variants: int | None = None,
+                noise_scale: float = 0.08) -> list[TuftMesh]:
+    """Merge one tuft model per moss into one mesh per species (module docstring).
+
+    ``size``: tuft footprint [m] at scale 1 (the moss size of the run); ``jitter``: 1/f
+    placement jitter amplitude as a fraction of ``size``; ``tilt_deg``: random tilt of the tuft
+    axis; ``noise_scale``: the 1/f noise's largest wavelength [m]; ``seed``: makes rotations and
+    variant choices reproducible (a moss keeps its look from frame to frame when the seed and its
+    position stay the same: every random draw is keyed on the position).
+    """
+    if size <= 0 or not np.isfinite(size):
+        raise ParameterError("size", size, "> 0 [m]", "the moss size of the run, e.g. 0.01")
+    out = []
+    if len(moss) == 0:
+        return out
+    # per-tuft random numbers keyed on the (quantised) position: stable across frames
+    q = np.round(moss.pos / 1e-4).astype(np.int64)
+    key = (q[:, 0] * 73856093) ^ (q[:, 1] * 19349663) ^ (q[:, 2] * 83492791) ^ (seed * 2654435761)
+    key = key.astype(np.uint64)
+
+    def rnd(stream):
+        h = (key + np.uint64((stream * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFF)) & \
+            np.uint64(0xFFFFFFFFFFFF)
+        h ^= h >> np.uint64(17)
+        h = (h * np.uint64(0xED5AD4BB)) & np.uint64(0xFFFFFFFFFFFF)
+        h ^= h >> np.uint64(11)
+        h = (h * np.uint64(0xAC4C1B51)) & np.uint64(0xFFFFFFFFFFFF)
+        h ^= h >> np.uint64(15)
+        return (h & np.uint64(0xFFFFFF)).astype(np.float64) / float(1 << 24)
+
+    n = moss.nrm
+    t, b = _tangent_frames(n)
+    # 1/f jitter of placement, tangent to the surface
+    jx = pink_noise(moss.pos, noise_scale, seed=seed + 1)
+    jy = pink_noise(moss.pos, noise_scale, seed=seed + 2)
+    pos = moss.pos + jitter * size * 2.0 * (jx[:, None] * t + jy[:, None] * b)
+    patch = pink_noise(moss.pos, noise_scale * 2.0, seed=seed + 3)   # patches of size/tone
+    scale = (size / TUFT_SIZE) * growth_scale(moss.growth) * (1.0 + 0.25 * patch) * \
+        (0.9 + 0.2 * rnd(1))     # the models are ~TUFT_SIZE across, in metres
+    # tilt the axis a little, rotate about it at random
+    tilt = np.radians(tilt_deg) * np.sqrt(rnd(2))
+    tphi = 2 * np.pi * rnd(3)
+    axis = n * np.cos(tilt)[:, None] + np.sin(tilt)[:, None] * (
+        np.cos(tphi)[:, None] * t + np.sin(tphi)[:, None] * b)
+    ta, ba = _tangent_frames(axis)
+    rot = 2 * np.pi * rnd(4)
+    c, s = np.cos(rot)[:, None], np.sin(rot)[:, None]
+    ex = c * ta + s * ba          # local x
+    ez = -s * ta + c * ba         # local z
+    tone_shift = 0.25 * patch + 0.15 * (rnd(5) - 0.5) - 0.2 * np.exp(-moss.growth / 3.0)
+    # push the base a little into the surface so that tufts never float
+    pos = pos - axis * (0.05 * TUFT_SIZE * scale)[:, None]
+    M = np.stack([ex, axis, ez], axis=1) * scale[:, None, None]     # rows: local axes in world
+    names = moss.species_names
+    for si in np.unique(moss.species):
+        sel = np.nonzero(moss.species == si)[0]
+        name = names[si] if si < len(names) else f"species{si}"
+        models = tuft_models(name) if variants is None else tuft_models(name, variants)
+        var = np.minimum((rnd(6)[sel] * len(models)).astype(np.int64), len(models) - 1)
+        V, F, T = [], [], []
+        nv = 0
+        for k, model in enumerate(models):
+            idx = sel[var == k]
+            if len(idx) == 0:
+                continue
+            lv = model.vertices.astype(np.float64)
+            w = np.einsum("vj,njk->nvk", lv, M[idx]) + pos[idx][:, None, :]
+            V.append(w.reshape(-1, 3).astype(np.float32))
+            f = model.faces[None, :, :].astype(np.int64) + \
+                (nv + len(lv) * np.arange(len(idx)))[:, None, None]
+            F.append(f.reshape(-1, 3))
+            tone = np.clip(model.tone[None, :] * 0.75 + tone_shift[idx][:, None], 0.0, 1.0)
+            T.append(tone.reshape(-1).astype(np.float32))
+            nv += len(lv) * len(idx)
+        out.append(TuftMesh(name, np.concatenate(V), np.concatenate(F).astype(np.uint32),
+                            np.concatenate(T), len(sel)))
+    return out

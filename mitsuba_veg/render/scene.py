@@ -1,0 +1,483 @@
+"""Scene assembly for the final spectral render (``mitsuba_veg.render``).
+
+:func:`build_scene` turns a scenario plus simulation state into one Mitsuba scene:
+
+- **terrain**: every mesh of the scenario's scene with an explicit spectral material. The ground
+  (``terrain.ground``) is textured by its geology map (``terrain.geology_texture``: humus, sand,
+  asphalt; :mod:`mitsuba_veg.terrain`): one mask per class (bitmap textures over the ground's
+  UVs) selects the class's reflectance spectrum through nested ``blendbsdf``s, 1/f noise varies
+  each class between a dark and a light spectrum, and a moss-cover texture (the living moss on
+  the ground splatted into its UV space) blends in the spectrum of the moss carpet's base so that
+  no bare soil shows between the tufts. Other meshes get ``[render.materials] <id> = "name"``
+  (:data:`~mitsuba_veg.render.materials.SPECTRA`) or concrete.
+- **surround**: an optional flat ring of gravel around the ground out to 2 km, so that views do
+  not end at the garden's edge in black (the ``veg_sky`` is zero below the horizon).
+- **moss**: one tuft model per living moss (:mod:`.moss`), merged into one mesh per species,
+  two-sided, blending the species' dark and light spectra by a per-vertex ``tone`` attribute.
+- **trees**: bark tubes and leaves (:mod:`.trees`): leaves binned by autumn logical time, one
+  ``veg_leaf`` (PROSPECT-D) BSDF per bin when :mod:`mitsuba_veg.foliage` is available.
+- **light**: the physical sun (``directional``) and sky (``veg_sky``) of
+  :func:`mitsuba_veg.light.daylight` for the scenario's site and the render time, with explicit
+  spectra over 360-830 nm (all of Mitsuba's range; the far-red band is inside it).
+- **camera**: a preset (:mod:`.cameras`) with a ``specfilm`` (:mod:`.film`) that records CIE
+  X, Y, Z and the red (655-665 nm) and far-red (725-735 nm) bands in one pass.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import time
+from dataclasses import dataclass, field
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..errors import ParameterError, SceneError
+from . import materials as mat
+from .moss import MossSet, growth_scale, place_tufts
+from .noise import pink_noise_image
+
+__all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_time",
+           "Terrain"]
+
+
+@dataclass
+class RenderOptions:
+    """Settings of a render (all optional)."""
+
+    width: int = 960
+    height: int = 540
+    spp: int = 64
+    max_depth: int = 6
+    camera: str = "overview"
+    #: ISO date-time of the light; None: the day being rendered at ``hour`` local time
+    when: str | None = None
+    hour: float = 10.0
+    #: material of the ring around the ground (None: no ring)
+    surround: str | None = "gravel"
+    moss_jitter: float = 0.35
+    seed: int = 0
+    leaf_bins: int = 12
+    cover_resolution: int = 1024
+    sampler: str = "multijitter"
+
+    @property
+    def samples(self) -> int:
+        """Samples per pixel as the sampler takes them: ``multijitter`` needs a x b samples
+        (a = floor(sqrt(spp)), b = ceil(spp / a)); other samplers take ``spp`` as it is."""
+        n = int(self.spp)
+        if self.sampler == "multijitter":
+            a = max(int(math.isqrt(n)), 1)
+            return a * -(-n // a)
+        return n
+
+    def validate(self) -> "RenderOptions":
+        from ..errors import check_range
+        check_range("width", self.width, 8, 16384, fix="image width in pixels")
+        check_range("height", self.height, 8, 16384, fix="image height in pixels")
+        check_range("spp", self.spp, 1, 1 << 20, fix="samples per pixel, e.g. 64")
+        check_range("max_depth", self.max_depth, 1, 100)
+        check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
+        check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
+        check_range("leaf_bins", self.leaf_bins, 1, 64)
+        check_range("cover_resolution", self.cover_resolution, 16, 8192)
+        if self.surround is not None and self.surround not in mat.SPECTRA:
+            raise ParameterError("surround", self.surround, "a material name or None",
+                                 "one of " + ", ".join(sorted(mat.SPECTRA)))
+        return self
+
+
+@dataclass
+class RenderScene:
+    """An assembled scene, its camera and what it holds. :meth:`update` swaps the moss and the
+    leaves in place (same Mitsuba objects, new buffers), so that an animation compiles its
+    rendering kernel once."""
+
+    scene: mi.Scene
+    sensor: mi.Sensor
+    options: RenderOptions
+    info: dict = field(default_factory=dict)
+    terrain: "Terrain | None" = None
+    moss_size: float = 0.01
+    species: list = field(default_factory=list)
+    tree_cache: dict | None = None
+
+    def update(self, moss: MossSet | None = None, trees=None) -> dict:
+        """Replace the moss (and, when given, the trees' leaves) of the scene; returns the new
+        counts. The scene must have been built with ``species`` (and with trees when ``trees``
+        is given)."""
+        from .trees import leaf_bin_arrays
+        params = mi.traverse(self.scene)
+        keys = set(params.keys())
+        info = {}
+        parts = _moss_parts(moss, self.moss_size, self.options, self.species)
+        for sid, (v, f, tone, count) in parts.items():
+            if f"{sid}.faces" not in keys:
+                raise SceneError(f"update(): the scene has no mesh '{sid}': build it with "
+                                 f"species={self.species!r}")
+            params[f"{sid}.vertex_positions"] = mi.Float(np.ascontiguousarray(v).ravel())
+            params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
+            params[f"{sid}.vertex_tone"] = mi.Float(np.ascontiguousarray(tone).ravel())
+        info["tufts"] = int(sum(c for *_, c in parts.values()))
+        g = self.terrain.ground if self.terrain is not None else None
+        ck = f"{g}.bsdf.brdf_0.weight.data"
+        if g is not None and ck in keys:
+            cover = self.terrain.moss_cover(moss, self.moss_size, self.options.cover_resolution) \
+                if moss is not None and len(moss) else None
+            shape = tuple(params[ck].shape)
+            if cover is None or cover.shape != shape[:2]:
+                cover = np.zeros(shape[:2], np.float32) if cover is None else cover
+            params[ck] = mi.TensorXf(np.ascontiguousarray(cover.reshape(shape)))
+        if trees is not None:
+            for sid, (v, f) in leaf_bin_arrays(trees, self.options, self.tree_cache).items():
+                if f"{sid}.faces" in keys:
+                    params[f"{sid}.vertex_positions"] = mi.Float(np.ascontiguousarray(v).ravel())
+                    params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
+        params.update()
+        self.info.update(info)
+        return info
+
+
+# ---- meshes ------------------------------------------------------------------------------------
+def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
+              attributes: dict | None = None) -> mi.Mesh:
+    """An in-memory Mitsuba mesh (float32 vertices, uint32 faces) with optional UVs, vertex
+    normals, a BSDF (dict or object) and per-vertex float attributes (``vertex_<name>``)."""
+    v = np.ascontiguousarray(np.asarray(vertices, np.float32).reshape(-1, 3))
+    f = np.ascontiguousarray(np.asarray(faces, np.uint32).reshape(-1, 3))
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf if isinstance(bsdf, mi.BSDF) else mi.load_dict(bsdf)
+    m = mi.Mesh(name, len(v), len(f), props, has_vertex_normals=normals is not None,
+                has_vertex_texcoords=uv is not None)
+    p = mi.traverse(m)
+    p["vertex_positions"] = mi.Float(v.ravel())
+    p["faces"] = mi.UInt32(f.ravel())
+    if uv is not None:
+        p["vertex_texcoords"] = mi.Float(np.asarray(uv, np.float32).ravel())
+    if normals is not None:
+        p["vertex_normals"] = mi.Float(np.asarray(normals, np.float32).ravel())
+    p.update()
+    for k, a in (attributes or {}).items():
+        m.add_attribute(k, 1, mi.Float(np.asarray(a, np.float32).ravel()))
+    return m
+
+
+def _mesh_arrays(shape):
+    p = mi.traverse(shape)
+    v = np.asarray(p["vertex_positions"], np.float32).reshape(-1, 3)
+    f = np.asarray(p["faces"], np.uint32).reshape(-1, 3)
+    uv = None
+    if shape.has_vertex_texcoords():
+        uv = np.asarray(p["vertex_texcoords"], np.float32).reshape(-1, 2)
+    nrm = None
+    if shape.has_vertex_normals():
+        nrm = np.asarray(p["vertex_normals"], np.float32).reshape(-1, 3)
+    return v, f, uv, nrm
+
+
+def _bitmap(img, raw=True, filter_type="bilinear", wrap="clamp") -> dict:
+    a = np.ascontiguousarray(np.asarray(img, np.float32))
+    if a.ndim == 2:
+        a = a[..., None]
+    return {"type": "bitmap", "bitmap": mi.Bitmap(a), "raw": raw, "filter_type": filter_type,
+            "wrap_mode": wrap}
+
+
+# ---- terrain -----------------------------------------------------------------------------------
+@dataclass
+class Terrain:
+    """The scenario's meshes (arrays) and what the ground's material needs, built once per
+    scenario and reused for every frame."""
+
+    meshes: dict                      # id -> (v, f, uv, normals)
+    ground: str | None
+    geology_masks: list | None        # per class (humus, sand, asphalt): (H, W) float masks
+    noise: np.ndarray                 # (H, W) 1/f noise in [0, 1]
+    base_scene: mi.Scene              # the scenario's geometry (for ray casts)
+    uv_scale: float = 1.0             # metres per UV unit on the ground
+    materials: dict = field(default_factory=dict)   # id -> material name
+
+    @staticmethod
+    def from_scenario(scn) -> "Terrain":
+        base = scn.load_scene(daylight=False)
+        meshes = {}
+        for sh in base.shapes():
+            if sh.is_mesh():
+                meshes[sh.id()] = _mesh_arrays(sh)
+        if not meshes:
+            raise SceneError(f"{scn.path}: the scene has no meshes to render")
+        ground = scn.get("terrain.ground", "ground")
+        ground = ground if ground in meshes else None
+        masks = None
+        uv_scale = 1.0
+        if ground is not None and meshes[ground][2] is not None:
+            v, f, uv, _ = meshes[ground]
+            a3 = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
+                                      axis=1).sum()
+            t = uv[f].astype(np.float64)
+            a2 = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) -
+                              (t[:, 2, 0] - t[:, 0, 0]) * (t[:, 1, 1] - t[:, 0, 1])).sum()
+            uv_scale = math.sqrt(a3 / a2) if a2 > 0 else 1.0
+            if scn.get("terrain.geology_texture"):
+                from ..terrain import classify_geology, load_texture_rgb
+                img = load_texture_rgb(scn.file("terrain.geology_texture"))
+                codes = classify_geology(img)
+                masks = [(codes == k).astype(np.float32) for k in range(3)]
+        noise = pink_noise_image((512, 512), scale_px=96.0, octaves=6, seed=7)
+        noise = np.clip(0.5 + 1.1 * noise, 0.0, 1.0).astype(np.float32)
+        mats = dict(scn.get("render.materials", {}) or {})
+        for k, v in mats.items():
+            if v not in mat.SPECTRA:
+                raise ParameterError(f"render.materials.{k}", v, "one of " +
+                                     ", ".join(sorted(mat.SPECTRA)), None, str(scn.path))
+        return Terrain(meshes, ground, masks, noise, base, uv_scale, mats)
+
+    # ground material --------------------------------------------------------------------------
+    def ground_bsdf(self, cover: np.ndarray | None) -> dict:
+        noise = _bitmap(self.noise, wrap="repeat")
+
+        def varied(name):
+            light = name + "_light"
+            if light not in mat.SPECTRA:
+                return mat.diffuse(name)
+            return mat.blend(mat.diffuse(name), mat.diffuse(light), noise)
+
+        if self.geology_masks is None:
+            b = varied(self.materials.get(self.ground, "humus"))
+        else:
+            hum, sand, asph = self.geology_masks
+            # humus everywhere, sand where its mask is 1, asphalt where its mask is 1
+            b = varied("humus")
+            if sand.any():
+                b = mat.blend(b, varied("sand"), _bitmap(sand))
+            if asph.any():
+                b = mat.blend(b, varied("asphalt"), _bitmap(asph))
+        if cover is not None:
+            b = mat.blend(b, mat.diffuse("moss_base"), _bitmap(cover))
+        return b
+
+    def moss_cover(self, moss: MossSet, size: float, resolution: int = 1024) -> np.ndarray | None:
+        """Moss cover of the ground in its UV space (H, W) in [0, 1]."""
+        if self.ground is None or self.meshes[self.ground][2] is None or len(moss) == 0:
+            return None
+        o = moss.pos + moss.nrm * 2e-3
+        ray = mi.Ray3f(mi.Point3f(*[mi.Float(o[:, k].astype(np.float32)) for k in range(3)]),
+                       mi.Vector3f(*[mi.Float((-moss.nrm[:, k]).astype(np.float32))
+                                     for k in range(3)]))
+        ray.maxt = mi.Float(6e-3)
+        si = self.base_scene.ray_intersect(ray)
+        valid = np.asarray(si.is_valid())
+        gid = np.array([s.id() == self.ground for s in self.base_scene.shapes()])
+        reg = np.asarray(dr.reinterpret_array(mi.UInt32, self.base_scene.shapes_dr()))
+        shp = np.asarray(dr.reinterpret_array(mi.UInt32, si.shape))
+        on = valid & np.isin(shp, reg[gid])
+        if not on.any():
+            return None
+        uv = np.stack([np.asarray(si.uv.x), np.asarray(si.uv.y)], 1)[on]
+        R = int(resolution)
+        img = np.zeros((R, R))
+        col = np.clip((uv[:, 0] * R).astype(np.int64), 0, R - 1)
+        row = np.clip((uv[:, 1] * R).astype(np.int64), 0, R - 1)
+        w = growth_scale(moss.growth[on]) ** 2
+        np.add.at(img, (row, col), w)
+        # a disc of the tuft's footprint: Gaussian blur with sigma ~ 0.45 size (FFT)
+        sigma = 0.45 * size / (self.uv_scale / R)
+        img = _gauss_blur(img, sigma) * (2 * math.pi * sigma ** 2) * 0.9
+        return np.clip(img, 0.0, 1.0).astype(np.float32)
+
+    # shapes -----------------------------------------------------------------------------------
+    def shapes(self, cover=None, surround: str | None = "gravel") -> dict:
+        out = {}
+        for sid, (v, f, uv, nrm) in self.meshes.items():
+            if sid == self.ground:
+                bsdf = self.ground_bsdf(cover)
+            else:
+                bsdf = mat.diffuse(self.materials.get(sid, "concrete"))
+            out[sid] = make_mesh(sid, v, f, {"type": "twosided", "bsdf": bsdf}, uv=uv,
+                                 normals=nrm)
+        if surround is not None:
+            ring = self._surround()
+            if ring is not None:
+                out["surround"] = make_mesh("surround", ring[0], ring[1],
+                                            {"type": "twosided", "bsdf": mat.diffuse(surround)})
+        return out
+
+    def _surround(self, radius: float = 2000.0):
+        if self.ground is None:
+            return None
+        v = self.meshes[self.ground][0].astype(np.float64)
+        lo, hi = v.min(0), v.max(0)
+        # the ground's rim height: vertices on its bounding rectangle
+        rim = (np.isclose(v[:, 0], lo[0]) | np.isclose(v[:, 0], hi[0]) |
+               np.isclose(v[:, 2], lo[2]) | np.isclose(v[:, 2], hi[2]))
+        y = float(np.median(v[rim, 1])) - 1e-3 if rim.any() else float(lo[1])
+        x0, x1, z0, z1 = lo[0], hi[0], lo[2], hi[2]
+        R = radius
+        inner = [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
+        outer = [(-R, -R), (R, -R), (R, R), (-R, R)]
+        verts = np.array([[x, y, z] for x, z in inner + outer])
+        faces = []
+        for i in range(4):
+            j = (i + 1) % 4
+            faces += [[i, 4 + i, 4 + j], [i, 4 + j, j]]
+        faces = np.array(faces)
+        # orient upwards (+y normals)
+        p = verts[faces]
+        n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        faces[n[:, 1] < 0] = faces[n[:, 1] < 0][:, [0, 2, 1]]
+        return verts, faces
+
+    def bbox(self):
+        v = np.concatenate([m[0] for m in self.meshes.values()])
+        return v.min(0).astype(float), v.max(0).astype(float)
+
+    def ground_bbox(self):
+        if self.ground is None:
+            return self.bbox()
+        v = self.meshes[self.ground][0]
+        return v.min(0).astype(float), v.max(0).astype(float)
+
+
+def _gauss_blur(img, sigma):
+    if sigma < 0.3:
+        return img
+    h, w = img.shape
+    fy = np.fft.fftfreq(h)[:, None]
+    fx = np.fft.rfftfreq(w)[None, :]
+    g = np.exp(-2 * (math.pi * sigma) ** 2 * (fx ** 2 + fy ** 2))
+    return np.fft.irfft2(np.fft.rfft2(img) * g, s=img.shape)
+
+
+# ---- moss ----------------------------------------------------------------------------------------
+_EMPTY = (np.full((3, 3), -1e4, np.float32), np.array([[0, 1, 2]], np.uint32),
+          np.zeros(3, np.float32), 0)   # one degenerate triangle far away: an "empty" mesh
+
+
+def _moss_parts(moss: MossSet | None, size: float, options: RenderOptions,
+                species: list | None = None) -> dict:
+    """{mesh id: (vertices, faces, tone, tuft count)}: one merged mesh per species present,
+    and an empty one for each key in ``species`` without moss."""
+    out = {}
+    if moss is not None and len(moss):
+        for tm in place_tufts(moss, size=size, jitter=options.moss_jitter, seed=options.seed):
+            out[f"moss_{tm.species}"] = (tm.vertices, tm.faces, tm.tone, tm.count)
+    for sp in species or []:
+        out.setdefault(f"moss_{sp}", _EMPTY)
+    return dict(sorted(out.items()))
+
+
+def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
+                species: list | None = None) -> tuple[dict, dict]:
+    """Merged tuft meshes (one per species) and counts."""
+    out, info = {}, {"tufts": 0, "moss_triangles": 0}
+    for sid, (v, f, tone, count) in _moss_parts(moss, size, options, species).items():
+        sp = sid[len("moss_"):]
+        key = sp if sp in mat.MOSS_MATERIAL else "hypnum_plumaeforme"
+        dark = mat.diffuse(mat.MOSS_MATERIAL[key])
+        light = mat.diffuse(mat.MOSS_MATERIAL[key] + "_light")
+        bsdf = {"type": "twosided", "bsdf": mat.blend(dark, light, {
+            "type": "mesh_attribute", "name": "vertex_tone"})}
+        out[sid] = make_mesh(sid, v, f, bsdf, attributes={"vertex_tone": tone})
+        info["tufts"] += count
+        info["moss_triangles"] += len(f) if count else 0
+    return out, info
+
+
+# ---- light ---------------------------------------------------------------------------------------
+def _timezone(scn) -> _dt.timezone:
+    tz = scn.get("site.timezone")
+    if tz is None:
+        hours = round(float(scn.get("site.longitude", 0.0)) / 15.0)
+    else:
+        hours = float(tz)
+    return _dt.timezone(_dt.timedelta(hours=hours))
+
+
+def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
+    """ISO date-time of the render's daylight: ``options.when``, else the scenario's
+    ``render.when``, else ``date`` at ``options.hour`` local time (time zone ``site.timezone``
+    [h] or longitude/15)."""
+    if options.when:
+        return str(options.when)
+    if scn.get("render.when"):
+        return str(scn.get("render.when"))
+    if date is None:
+        w = scn.get("light.when")
+        if w:
+            return str(w)
+        date = _dt.date(2026, 6, 21)
+    h = int(options.hour)
+    m = int(round((options.hour - h) * 60))
+    t = _dt.datetime(date.year, date.month, date.day, min(h, 23), min(m, 59),
+                     tzinfo=_timezone(scn))
+    return t.isoformat()
+
+
+def sky_emitters(scn, when: str) -> dict:
+    from ..light.daylight import daylight
+    em = daylight(float(scn.get("site.latitude")), float(scn.get("site.longitude")), when,
+                  wavelength_range=(360.0, 830.0))
+    if not em:
+        raise ParameterError("render time", when, "a time when the sun is above the horizon",
+                             "choose another hour (--hour) or date (--when)", str(scn.path))
+    return em
+
+
+# ---- the scene -----------------------------------------------------------------------------------
+def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
+                trees=None, date: _dt.date | None = None,
+                options: RenderOptions | None = None, terrain: Terrain | None = None,
+                tree_cache=None, emitters: dict | None = None,
+                species: list | None = None) -> RenderScene:
+    """Assemble the render scene (module docstring). ``trees``: a list of
+    :class:`~mitsuba_veg.trees.Tree` (leaves may carry ``autumn_tau`` and ``fallen`` attrs);
+    ``terrain``: a prebuilt :class:`Terrain` to reuse across frames; ``emitters``: sun and sky
+    dicts to use instead of the daylight of ``date`` (an animation keeps one light so that every
+    frame reuses the same compiled kernel); ``species``: species keys that always get a moss
+    mesh (an empty one when no moss of theirs lives), for the same reason."""
+    from .cameras import sensor_dict
+    from .film import film_dict
+    from .trees import tree_shapes
+
+    options = (options or RenderOptions()).validate()
+    t0 = time.perf_counter()
+    terrain = terrain or Terrain.from_scenario(scn)
+    t1 = time.perf_counter()
+    info = {"tufts": 0, "moss_triangles": 0, "trees": 0, "leaves": 0, "tree_triangles": 0}
+    d = {"type": "scene",
+         "integrator": {"type": "path", "max_depth": int(options.max_depth),
+                        "rr_depth": 4, "hide_emitters": False}}
+    cover = None
+    if moss is not None and len(moss):
+        cover = terrain.moss_cover(moss, moss_size, options.cover_resolution)
+    if (moss is not None and len(moss)) or species:
+        ms, mi_info = moss_shapes(moss, moss_size, options, species)
+        d.update(ms)
+        info.update(mi_info)
+    if species and cover is None:
+        cover = np.zeros((8, 8), np.float32)
+    t2 = time.perf_counter()
+    d.update(terrain.shapes(cover, options.surround))
+    if trees:
+        tree_cache = {} if tree_cache is None else tree_cache
+        ts, t_info = tree_shapes(trees, options, cache=tree_cache)
+        d.update(ts)
+        info.update(t_info)
+    t3 = time.perf_counter()
+    when = render_time(scn, date, options)
+    em = emitters if emitters is not None else sky_emitters(scn, when)
+    d.update(em)
+    d["camera"] = sensor_dict(scn, terrain, options, film_dict(options))
+    scene = mi.load_dict(d, optimize=False)
+    from ..light.sky import attach_scene
+    attach_scene(scene)
+    sensor = [s for s in scene.sensors() if s.id() == "camera"][0]
+    t4 = time.perf_counter()
+    info.update({"when": when, "camera": options.camera,
+                 "triangles": int(sum(s.face_count() for s in scene.shapes() if s.is_mesh())),
+                 "seconds": {"terrain": t1 - t0, "moss": t2 - t1, "trees": t3 - t2,
+                             "load": t4 - t3, "total": t4 - t0}})
+    return RenderScene(scene, sensor, options, info, terrain, float(moss_size),
+                       list(species or []), tree_cache)

@@ -1,0 +1,114 @@
+"""Seasonal state of the render's trees: leaf-out in spring, autumn colour and leaf fall.
+
+The moss run does not simulate trees, so a tree placed next to it (``[[render.trees]]``) gets a
+simple phenology driven by the calendar and by light (documented in docs/render.md):
+
+- **leaf-out**: leaves grow from nothing to full size between ``leaf_out`` (default day-of-year
+  95, early April) and ``leaf_out + 30``: per-leaf ``leaf_scale`` (a smoothstep, 5 days earlier
+  for the sunniest leaves);
+- **autumn** (paper 003 through :func:`mitsuba_veg.foliage.autumn_time` when available): each
+  leaf's logical time tau grows with its cumulative insolation from the onset day
+  (``autumn_onset``, default day-of-year 258, mid-September). The daily insolation of a leaf is
+  the clear-sky daily irradiation of the site (extraterrestrial irradiation x 0.55) times an
+  exposure factor from its place in the crown (0.35 for inner, low leaves up to 1 for outer, top
+  leaves: a proxy for the crown's self-shading, which the render does not trace);
+- **leaf fall**: a leaf falls when its raw tau passes a per-leaf threshold (log-normal around
+  1.25, as :class:`mitsuba_veg.foliage.AutumnParams` with ``fall=True``).
+
+:func:`tree_season` writes ``leaf_scale``, ``autumn_tau`` and ``fallen`` into
+``tree.leaves.attrs`` for one date; the renderer reads them.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+
+import numpy as np
+
+LEAF_OUT_DOY = 95
+LEAF_OUT_DAYS = 30
+AUTUMN_ONSET_DOY = 258
+
+
+def daily_extraterrestrial_mj(latitude: float, doy) -> np.ndarray:
+    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2] (Duffie & Beckman)."""
+    doy = np.asarray(doy, float)
+    phi = math.radians(latitude)
+    dec = np.radians(23.45) * np.sin(2 * np.pi * (284 + doy) / 365.0)
+    ws = np.arccos(np.clip(-np.tan(phi) * np.tan(dec), -1.0, 1.0))
+    e0 = 1 + 0.033 * np.cos(2 * np.pi * doy / 365.0)
+    h0 = 24 * 3600 * 1367 / np.pi * e0 * (np.cos(phi) * np.cos(dec) * np.sin(ws)
+                                           + ws * np.sin(phi) * np.sin(dec))
+    return np.maximum(h0, 0.0) / 1e6
+
+
+def leaf_exposure(tree) -> np.ndarray:
+    """Exposure factor per leaf in [0.35, 1]: higher and outer leaves get more light."""
+    p = tree.leaves.position
+    if len(p) == 0:
+        return np.zeros(0)
+    y = p[:, 1]
+    h = (y - y.min()) / max(float(np.ptp(y)), 1e-9)
+    c = p.mean(0)
+    r = np.hypot(p[:, 0] - c[0], p[:, 2] - c[2])
+    r = r / max(float(r.max()), 1e-9)
+    return np.clip(0.35 + 0.65 * (0.6 * h + 0.4 * r), 0.35, 1.0)
+
+
+class TreeSeasons:
+    """Phenology of one tree over a date range (precomputed once, then :meth:`apply` per date)."""
+
+    def __init__(self, tree, latitude: float, start: _dt.date, days: int, seed: int = 0,
+                 leaf_out: int = LEAF_OUT_DOY, onset: int = AUTUMN_ONSET_DOY):
+        self.tree = tree
+        self.start = start
+        n = len(tree.leaves)
+        self.days = int(days)
+        dates = [start + _dt.timedelta(days=i) for i in range(self.days)]
+        self.doy = np.array([d.timetuple().tm_yday for d in dates])
+        exp = leaf_exposure(tree)
+        rng = np.random.default_rng(seed)
+        self.leaf_out_day = leaf_out - 5.0 * exp + rng.normal(0, 2.0, n)
+        H = daily_extraterrestrial_mj(latitude, self.doy) * 0.55          # MJ m-2 per day
+        daily = exp[:, None] * H[None, :]
+        # onset: the first day of the range on or after the onset day of year
+        after = np.nonzero(self.doy >= onset)[0]
+        onset_idx = int(after[0]) if len(after) else self.days
+        self.state = None
+        try:
+            from ..foliage import AutumnParams, autumn_time
+            if onset_idx < self.days:
+                self.state = autumn_time(daily, AutumnParams(onset_day=onset_idx, fall=True),
+                                         seed=seed)
+        except Exception:   # foliage package missing or changed: a plain clock
+            self.state = None
+        if self.state is None:
+            t = np.clip(np.arange(self.days) - onset_idx + 1, 0, None) / 60.0
+            rate = np.exp(0.15 * rng.standard_normal(n))
+            self.tau_raw = rate[:, None] * (0.8 * np.cumsum(daily, 1) / 250.0 *
+                                            (np.arange(self.days) >= onset_idx) + 0.2 * t)
+            self.fall_thr = 1.25 * np.exp(0.1 * rng.standard_normal(n))
+        else:
+            self.tau_raw = self.state.tau_raw
+            self.fall_thr = self.state.fall_threshold
+
+    def apply(self, date: _dt.date) -> None:
+        """Write the tree's leaf attributes for ``date``."""
+        i = int(np.clip((date - self.start).days, 0, self.days - 1))
+        doy = date.timetuple().tm_yday
+        lv = self.tree.leaves
+        x = np.clip((doy - self.leaf_out_day) / LEAF_OUT_DAYS, 0.0, 1.0)
+        scale = x * x * (3 - 2 * x)
+        if doy > 200:           # after midsummer: leaves stay out until they fall
+            scale = np.ones_like(scale)
+        lv.attrs["leaf_scale"] = scale
+        raw = self.tau_raw[:, i]
+        lv.attrs["autumn_tau"] = np.clip(raw, 0.0, 1.0)
+        lv.attrs["fallen"] = raw >= self.fall_thr
+
+
+def tree_season(tree, latitude: float, date: _dt.date, start: _dt.date | None = None,
+                seed: int = 0) -> None:
+    """Set one tree's leaves for ``date`` (phenology from ``start``, default 1 Jan)."""
+    start = start or _dt.date(date.year, 1, 1)
+    TreeSeasons(tree, latitude, start, (date - start).days + 1, seed).apply(date)

@@ -1,0 +1,293 @@
+"""Trees and leaves for the render.
+
+- **bark**: the smooth Weber-Penn mesh with junctions (:func:`mitsuba_veg.trees.junction.
+  tree_mesh`, paper 004) when available, else the tube mesh of
+  :meth:`mitsuba_veg.trees.Tree.to_mesh`; all trees merged into one two-sided spectral ``bark``
+  mesh.
+- **leaves**: one blade per leaf (oval when the junction module is there, else a quad), binned
+  by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
+  ``leaf_bins`` meshes, each with the leaf BSDF of its bin's tau
+  (:func:`mitsuba_veg.render.materials.leaf_bsdf`: PROSPECT-D spectra in the two-sided
+  ``veg_leaf`` BSDF when :mod:`mitsuba_veg.foliage` is present). Leaves with ``fallen`` set are
+  not drawn; an optional ``leaf_scale`` attr (0..1) shrinks leaves (spring leaf-out).
+
+:func:`scenario_trees` builds the trees a scenario asks for in ``[[render.trees]]``::
+
+    [[render.trees]]
+    preset = "quaking_aspen"      # Weber-Penn preset (mitsuba_veg.trees.weber_penn.PRESETS)
+    seed = 3
+    position = [1.7, 0.0, -1.6]   # trunk base [m]
+    height = 3.5                  # scale the tree to this height [m] (optional)
+    autumn = true                 # leaves turn and fall over the run's days (default true)
+
+``model = "growth"`` grows the tree with paper 001's model (``generations``, ``[growth]``
+parameters of :class:`mitsuba_veg.trees.GrowthParams`) under an open sky. Without
+:mod:`mitsuba_veg.trees.weber_penn` (or with ``model = "simple"``) a small procedural tree made
+with the :class:`~mitsuba_veg.trees.Tree` constructor stands in.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ParameterError
+from . import materials as mat
+
+
+# ---- meshes -------------------------------------------------------------------------------------
+def _bark_and_leaf_geometry(tree, smooth=True):
+    """(bark (v, f), leaves (v, f, leaf index per face))."""
+    from ..trees.structure import leaf_quads, tube_mesh
+    bark = leaves = None
+    if getattr(tree, "weber_penn", None) is not None:
+        try:
+            from ..trees.junction import leaf_mesh, tree_mesh
+            b, l_ = tree_mesh(tree, smooth=smooth, leaves=False)
+            bark = (np.asarray(b.vertices), np.asarray(b.faces))
+            if len(tree.leaves):
+                lm = leaf_mesh(tree)
+                leaves = (np.asarray(lm.vertices), np.asarray(lm.faces),
+                          np.asarray(lm.metadata["leaf"]))
+        except Exception:  # other developers' module in flux: fall back to plain tubes
+            bark = leaves = None
+    if bark is None:
+        a = tree.alive
+        v, f = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], 6)
+        bark = (v, f)
+    if leaves is None and len(tree.leaves):
+        v, f = leaf_quads(tree.leaves)
+        leaves = (v, f, np.repeat(np.arange(len(tree.leaves)), 2))
+    return bark, leaves
+
+
+def tree_geometry(trees, cache=None):
+    """Merged bark and per-leaf geometry of several trees (cached per tree object id)."""
+    bv, bf, lv, lf, lleaf, ltau, lkeep, lscale, lcentre = [], [], [], [], [], [], [], [], []
+    nb = nl = nleaf = 0
+    for t in trees:
+        key = id(t)
+        if cache is not None and key in cache:
+            bark, leaves = cache[key]
+        else:
+            bark, leaves = _bark_and_leaf_geometry(t)
+            if cache is not None:
+                cache[key] = (bark, leaves)
+        bv.append(bark[0])
+        bf.append(bark[1] + nb)
+        nb += len(bark[0])
+        if leaves is not None:
+            m = len(t.leaves)
+            attrs = t.leaves.attrs
+            lv.append(leaves[0])
+            lf.append(leaves[1] + nl)
+            lleaf.append(leaves[2] + nleaf)
+            ltau.append(np.asarray(attrs.get("autumn_tau", np.zeros(m)), float))
+            lkeep.append(~np.asarray(attrs.get("fallen", np.zeros(m, bool)), bool))
+            lscale.append(np.asarray(attrs.get("leaf_scale", np.ones(m)), float))
+            lcentre.append(np.asarray(t.leaves.position, float))
+            nl += len(leaves[0])
+            nleaf += m
+    bark = (np.concatenate(bv), np.concatenate(bf)) if bv else None
+    if not lv:
+        return bark, None
+    return bark, {"v": np.concatenate(lv), "f": np.concatenate(lf), "leaf": np.concatenate(lleaf),
+                  "tau": np.concatenate(ltau), "keep": np.concatenate(lkeep),
+                  "scale": np.concatenate(lscale), "centre": np.concatenate(lcentre)}
+
+
+_EMPTY_V = np.full((3, 3), -1e4, np.float32)
+_EMPTY_F = np.array([[0, 1, 2]], np.uint32)
+
+
+def leaf_bin_arrays(trees, options, cache=None) -> dict:
+    """{``leaves_KK``: (vertices, faces)} for all ``options.leaf_bins`` autumn bins (an empty
+    bin is one degenerate triangle far away, so that the scene keeps its structure)."""
+    _, lv = tree_geometry(trees, cache)
+    K = int(options.leaf_bins)
+    out = {f"leaves_{b:02d}": (_EMPTY_V, _EMPTY_F) for b in range(K)}
+    if lv is None:
+        return out
+    keep_leaf = lv["keep"] & (lv["scale"] > 1e-3)
+    bins = np.minimum((np.clip(lv["tau"], 0, 1) * K).astype(np.int64), K - 1)
+    face_leaf = lv["leaf"]
+    verts = lv["v"]
+    if np.any(lv["scale"] != 1.0):   # per-leaf scale about its centre (leaf-out)
+        vleaf = np.zeros(len(verts), np.int64)
+        vleaf[lv["f"].ravel()] = np.repeat(face_leaf, 3)
+        s = lv["scale"][vleaf][:, None]
+        c = lv["centre"][vleaf]
+        verts = c + s * (verts - c)
+    fb = np.where(keep_leaf[face_leaf], bins[face_leaf], -1)
+    for b in range(K):
+        fsel = fb == b
+        if not fsel.any():
+            continue
+        f = lv["f"][fsel]
+        used, inv = np.unique(f.ravel(), return_inverse=True)
+        out[f"leaves_{b:02d}"] = (verts[used].astype(np.float32),
+                                  inv.reshape(-1, 3).astype(np.uint32))
+    return out
+
+
+def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
+    """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts."""
+    from .scene import make_mesh
+
+    bark, lv = tree_geometry(trees, cache)
+    out = {}
+    info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
+    if bark is not None and len(bark[1]):
+        out["bark"] = make_mesh("bark", bark[0], bark[1],
+                                {"type": "twosided", "bsdf": mat.diffuse("bark")})
+        info["tree_triangles"] += len(bark[1])
+    if lv is None:
+        return out, info
+    info["leaves"] = int((lv["keep"] & (lv["scale"] > 1e-3)).sum())
+    K = int(options.leaf_bins)
+    for sid, (v, f) in leaf_bin_arrays(trees, options, cache).items():
+        b = int(sid.split("_")[1])
+        out[sid] = make_mesh(sid, v, f, mat.leaf_bsdf((b + 0.5) / K if K > 1 else 0.0))
+        if f is not _EMPTY_F:
+            info["tree_triangles"] += len(f)
+    return out, info
+
+
+# ---- trees of a scenario ------------------------------------------------------------------------
+def simple_tree(height: float = 3.0, seed: int = 0, leaves_per_twig: int = 12):
+    """A small deciduous tree made directly with the Tree constructor (no growth model):
+    trunk, 3 levels of branches, leaves on the last level."""
+    from ..trees.structure import Leaves, Tree
+
+    rng = np.random.default_rng(seed)
+    start, end, r0, r1, parent, level = [], [], [], [], [], []
+
+    def add(p0, p1, ra, rb, par, lv):
+        start.append(p0)
+        end.append(p1)
+        r0.append(ra)
+        r1.append(rb)
+        parent.append(par)
+        level.append(lv)
+        return len(start) - 1
+
+    trunk_h = 0.45 * height
+    n_seg = 4
+    prev = -1
+    base = np.zeros(3)
+    tips = []
+    for i in range(n_seg):
+        top = base + np.array([rng.normal(0, 0.02), trunk_h / n_seg, rng.normal(0, 0.02)])
+        rad = 0.045 * height / 3.0 * (1 - 0.5 * i / n_seg)
+        prev = add(base, top, rad, rad * 0.9, prev, 0)
+        base = top
+    stems = [(prev, base, np.array([0.0, 1.0, 0.0]), 0.55 * height, 0.02 * height / 3.0)]
+    for lv in range(1, 4):
+        new = []
+        for par, p, d, length, rad in stems:
+            k = 5 if lv == 1 else 3
+            for j in range(k):
+                phi = 2.4 * j + rng.random()
+                tilt = np.radians(35 + 20 * rng.random()) if lv > 1 else np.radians(40 + 25 * j / k)
+                u = np.cross(d, [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 0.0, 1.0])
+                u /= np.linalg.norm(u)
+                w = np.cross(d, u)
+                nd = np.cos(tilt) * d + np.sin(tilt) * (np.cos(phi) * u + np.sin(phi) * w)
+                nd += np.array([0, 0.25, 0])
+                nd /= np.linalg.norm(nd)
+                L = length * (0.55 + 0.2 * rng.random())
+                q = p + L * nd
+                idx = add(p, q, rad, rad * 0.6, par, lv)
+                new.append((idx, q, nd, L, rad * 0.6))
+        stems = new
+        tips = new
+    # leaves around the last-level stems
+    pos, nrm, size, seg, up = [], [], [], [], []
+    for idx, q, d, L, _ in tips:
+        p0 = np.asarray(start[idx])
+        for j in range(leaves_per_twig):
+            t = rng.random()
+            c = p0 + t * (q - p0) + rng.normal(0, 0.06 * height / 3.0, 3)
+            n = rng.normal(0, 1, 3) + np.array([0, 1.5, 0])
+            n /= np.linalg.norm(n)
+            a = rng.normal(0, 1, 3)
+            a -= a.dot(n) * n
+            a /= np.linalg.norm(a)
+            pos.append(c)
+            nrm.append(n)
+            up.append(a)
+            size.append(0.07 * height / 3.0 * (0.8 + 0.4 * rng.random()))
+            seg.append(idx)
+    leaves = Leaves(np.array(pos), np.array(nrm), np.array(size), np.array(seg), np.array(up))
+    return Tree(np.array(start), np.array(end), np.array(r0), np.array(r1), np.array(parent),
+                np.array(level), leaves=leaves, name="simple")
+
+
+def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
+    """A copy of ``tree`` scaled about its base by ``factor`` and moved by ``offset`` [m]."""
+    t = tree.copy()
+    base = t.start[0].copy() if len(t) else np.zeros(3)
+    o = np.asarray(offset, float)
+    t.start = (t.start - base) * factor + base + o
+    t.end = (t.end - base) * factor + base + o
+    t.radius_start = t.radius_start * factor
+    t.radius_end = t.radius_end * factor
+    lv = t.leaves
+    lv.position = (lv.position - base) * factor + base + o
+    lv.size = lv.size * factor
+    if "width" in lv.attrs:
+        lv.attrs["width"] = np.asarray(lv.attrs["width"]) * factor
+    for k in ("leaf_sphere_center",):
+        if k in t.attrs:
+            t.attrs[k] = (np.asarray(t.attrs[k]) - base) * factor + base + o
+    if getattr(tree, "weber_penn", None) is not None:
+        t.weber_penn = tree.weber_penn
+    return t
+
+
+def make_tree(cfg: dict, source: str | None = None):
+    """One tree from a ``[[render.trees]]`` entry (module docstring)."""
+    allowed = {"preset", "model", "seed", "position", "height", "autumn", "overrides",
+               "generations", "growth"}
+    for k in cfg:
+        if k not in allowed:
+            raise ParameterError(f"render.trees.{k}", cfg[k],
+                                 "one of " + ", ".join(sorted(allowed)),
+                                 "remove or rename the field", source)
+    pos = cfg.get("position", [0.0, 0.0, 0.0])
+    if not (isinstance(pos, list) and len(pos) == 3):
+        raise ParameterError("render.trees.position", pos, "[x, y, z] in metres", None, source)
+    seed = int(cfg.get("seed", 0))
+    height = cfg.get("height")
+    if height is not None and not (isinstance(height, (int, float)) and 0.05 <= height <= 200):
+        raise ParameterError("render.trees.height", height, "[0.05, 200] metres", None, source)
+    model = cfg.get("model", "weber_penn")
+    tree = None
+    if model == "weber_penn":
+        try:
+            from ..trees import weber_penn as wp
+            tree = wp.generate(cfg.get("preset", "quaking_aspen"), seed=seed,
+                               overrides=cfg.get("overrides"))
+        except ImportError:
+            tree = None
+        except ParameterError:
+            raise
+    elif model == "growth":   # paper 001's light-driven growth model (open sky)
+        from ..trees import GrowthParams, grow
+        params = GrowthParams(**(cfg.get("growth") or {}))
+        tree = grow(params, generations=int(cfg.get("generations", 8)), seed=seed)
+    elif model != "simple":
+        raise ParameterError("render.trees.model", model, "'weber_penn', 'growth' or 'simple'",
+                             None, source)
+    if tree is None:
+        tree = simple_tree(float(height or 3.0), seed)
+    h = tree.metrics()["height"]
+    f = float(height) / h if height and h > 0 else 1.0
+    base = tree.start[0] if len(tree) else np.zeros(3)
+    return scaled_tree(tree, f, np.asarray(pos, float) - base)
+
+
+def scenario_trees(scn) -> list:
+    """The trees of ``[[render.trees]]`` (empty list when there are none)."""
+    cfgs = scn.get("render.trees", []) or []
+    if isinstance(cfgs, dict):
+        cfgs = [cfgs]
+    return [make_tree(c, str(scn.path)) for c in cfgs]

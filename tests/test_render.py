@@ -1,0 +1,117 @@
+"""The assembled render scene: tiny renders (64x48, a few spp) of the moss garden with moss and
+a tree, film calibration against a flat environment, in-place updates, the CLI functions."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mitsuba_veg  # noqa: F401
+import mitsuba as mi
+from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.render import (MossSet, RenderOptions, Terrain, build_scene, develop, render,
+                                simple_tree)
+from mitsuba_veg.render.film import film_dict
+from mitsuba_veg.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = ROOT / "scenes" / "moss_garden" / "scenario.toml"
+SPECIES = ["bryum_argenteum", "hypnum_plumaeforme", "polytrichum"]
+
+
+@pytest.fixture(scope="module")
+def scn():
+    s = load_scenario(SCENARIO)
+    s.data.setdefault("render", {})["cameras"] = {
+        # looking straight down on a patch of the back floor, under the roof
+        "patch": {"origin": [0.0, 0.55, -0.62], "target": [0.0, 0.0, -0.621], "fov": 30,
+                  "up": [0, 0, -1]}}
+    return s
+
+
+@pytest.fixture(scope="module")
+def terrain(scn):
+    return Terrain.from_scenario(scn)
+
+
+def carpet(n_side=30, x0=-0.15, z0=-0.77):
+    """A dense moss carpet (1 cm grid) on the back floor (y ~ 0 there)."""
+    g = np.arange(n_side) * 0.01
+    X, Z = np.meshgrid(x0 + g, z0 + g)
+    n = X.size
+    pos = np.c_[X.ravel(), np.zeros(n), Z.ravel()]
+    return MossSet(pos, np.tile([0.0, 1.0, 0.0], (n, 1)), np.arange(n) % 3, np.full(n, 12.0),
+                   SPECIES)
+
+
+def test_flat_environment_calibrates_the_film():
+    """A camera inside a uniform environment of 1 W m-2 sr-1 nm-1 reads Y = 1, band means 1 and
+    the photon R:FR of a flat spectrum (660/730)."""
+    o = RenderOptions(width=16, height=12, spp=16)
+    d = {"type": "scene", "integrator": {"type": "path", "max_depth": 2},
+         "env": {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}},
+         "cam": {"type": "perspective", "fov": 40, "sampler": {"type": "independent",
+                                                               "sample_count": 16},
+                 "film": film_dict(o)}}
+    im = develop(mi.render(mi.load_dict(d)))
+    assert np.nanmean(im["XYZ"][..., 1]) == pytest.approx(1.0, rel=0.02)
+    assert np.nanmean(im["bands"]["red"]) == pytest.approx(1.0, rel=0.05)
+    assert np.nanmean(im["bands"]["far_red"]) == pytest.approx(1.0, rel=0.05)
+    assert np.nanmedian(im["r_fr"]) == pytest.approx(660 / 730, rel=0.08)
+
+
+def test_moss_carpet_render_is_green_and_low_rfr_and_updates_in_place(scn, terrain):
+    o = RenderOptions(width=64, height=48, spp=8, camera="patch", when="2026-06-21T12:00+09:00")
+    rs = build_scene(scn, carpet(), moss_size=0.01, options=o, terrain=terrain,
+                     species=SPECIES)
+    assert rs.info["tufts"] == 900 and rs.info["moss_triangles"] > 900 * 30
+    ids = {s.id() for s in rs.scene.shapes()}
+    assert {"ground", "roof", "wall", "surround", "moss_bryum_argenteum"} <= ids
+    a = render(rs)
+    # the same scene without moss (update in place: same kernel, no recompilation)
+    rs.update(None)
+    faces = {s.id(): s.face_count() for s in rs.scene.shapes()}
+    assert faces["moss_polytrichum"] == 1            # an empty mesh keeps the structure
+    bare = render(rs)
+    for im in (a, bare):
+        assert np.all(np.isfinite(im["rgb"]))
+        assert im["XYZ"][..., 1].mean() > 1e-4     # not black: skylight reaches under the roof
+    # moss reflects far-red strongly and absorbs red: lower R:FR than bare humus
+    assert np.nanmedian(a["r_fr"]) < 0.6 * np.nanmedian(bare["r_fr"])
+    r, g, b = np.nanmean(a["rgb"].reshape(-1, 3), 0)
+    assert g > r and g > b                          # green
+    rb, gb, bb = np.nanmean(bare["rgb"].reshape(-1, 3), 0)
+    assert rb > bb                                  # bare humus is brown, not green
+    # moss of two species only: the third species' mesh becomes empty
+    two = carpet(20)
+    two = two.subset(two.species < 2)
+    info = rs.update(two)
+    assert info["tufts"] == len(two)
+    faces = {s.id(): s.face_count() for s in rs.scene.shapes()}
+    assert faces["moss_bryum_argenteum"] > 100 and faces["moss_polytrichum"] == 1
+
+
+def test_tree_with_autumn_leaves(scn, terrain):
+    t = simple_tree(height=1.0, seed=2)
+    t = t.translated([0.3, 0.0, 0.4])
+    n = len(t.leaves)
+    t.leaves.attrs["autumn_tau"] = np.linspace(0, 1, n)
+    t.leaves.attrs["fallen"] = np.arange(n) % 5 == 0
+    o = RenderOptions(width=48, height=32, spp=2, leaf_bins=4, camera="overview")
+    rs = build_scene(scn, None, trees=[t], options=o, terrain=terrain)
+    ids = {s.id() for s in rs.scene.shapes()}
+    assert {"bark", "leaves_00", "leaves_03"} <= ids
+    assert rs.info["leaves"] == n - len(range(0, n, 5))
+    assert np.all(np.isfinite(render(rs)["rgb"]))
+
+
+def test_options_and_cameras_are_validated(scn, terrain):
+    with pytest.raises(ParameterError):
+        RenderOptions(spp=0).validate()
+    with pytest.raises(ParameterError):
+        RenderOptions(surround="lava").validate()
+    with pytest.raises(ParameterError):
+        build_scene(scn, None, options=RenderOptions(camera="nope", width=8, height=8, spp=1),
+                    terrain=terrain)
+    with pytest.raises(ParameterError):      # night: no daylight
+        build_scene(scn, None, options=RenderOptions(when="2026-06-21T01:00+09:00", width=8,
+                                                     height=8, spp=1), terrain=terrain)
