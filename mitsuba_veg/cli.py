@@ -32,19 +32,7 @@ DEFAULT_SCENARIO = None  # resolved lazily by _default_scenario()
 DEMO_WHEN = "2026-04-20T10:00:00+09:00"
 
 
-def _write_json(path: Path, data) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_jsonable))
-    os.replace(tmp, path)
-
-
-def _jsonable(x):
-    import numpy as np
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return str(x)
+from .outputs import write_json as _write_json  # noqa: E402
 
 
 def versions() -> dict:

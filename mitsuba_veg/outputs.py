@@ -12,17 +12,23 @@ from pathlib import Path
 import numpy as np
 
 
-def write_summary(path, summary: dict) -> None:
+def write_json(path, data, indent: int = 2) -> None:
+    """Write ``data`` as JSON atomically (NumPy values converted)."""
     path = Path(path)
-    tmp = path.with_suffix(".tmp.json")
-    tmp.write_text(json.dumps(summary, indent=1, default=_jsonable))
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=indent, default=jsonable))
     os.replace(tmp, path)
 
 
-def _jsonable(x):
+def write_summary(path, summary: dict) -> None:
+    write_json(path, summary, indent=1)
+
+
+def jsonable(x):
+    """JSON fallback for NumPy arrays and scalars (anything else becomes its str)."""
     if isinstance(x, np.ndarray):
         return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
         return x.item()
     return str(x)
 

@@ -29,18 +29,7 @@ ANIMATE_DEFAULTS = {"width": 480, "height": 270, "spp": 8, "frames": 31, "fps": 
                     "camera": "overview", "gif_width": 360}
 
 
-def _write_json(path: Path, data) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_jsonable))
-    os.replace(tmp, path)
-
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    return str(x)
+from ..outputs import write_json as _write_json  # noqa: E402
 
 
 def _versions() -> dict:

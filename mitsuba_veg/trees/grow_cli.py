@@ -50,18 +50,7 @@ _MODELS = ("growth", "branching", "weber_penn")
 _FORMATS = ("ply", "obj", "glb", "stl")
 
 
-def _write_json(path: Path, data) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_jsonable))
-    os.replace(tmp, path)
-
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    return str(x)
+from ..outputs import write_json as _write_json  # noqa: E402
 
 
 def load_tree_toml(path, overrides=()) -> dict:
