@@ -19,6 +19,7 @@ from . import climate, moss, scenario, soil, terrain  # noqa: E402,F401
 from . import trees  # noqa: E402,F401
 from . import foliage  # noqa: E402,F401  (registers the veg_leaf BSDF)
 from .simulation import run  # noqa: E402,F401
+from . import tune  # noqa: E402,F401
 
 __all__ = ["__version__", "variant", "errors", "integrators", "light", "climate", "moss",
-           "scenario", "soil", "terrain", "trees", "foliage", "run"]
+           "scenario", "soil", "terrain", "trees", "foliage", "tune", "run"]

@@ -260,6 +260,8 @@ def main(argv=None) -> int:
     _add_grow(sub)
     from .render.cli import add_parsers as _render_parsers
     _render_parsers(sub)
+    from .tune.cli import add_parser as _add_tune
+    _add_tune(sub)
     a = ap.parse_args(argv)
     import mitsuba_veg  # noqa: F401  (variant + plugins)
     try:

@@ -1,0 +1,20 @@
+"""Differentiable parameter tuning with Dr.Jit (docs/tuning.md).
+
+- :mod:`.relax`      smooth relaxations of the moss thresholds, temperature t (t -> 0: discrete);
+- :mod:`.smooth`     the relaxed daily soil + moss model on a scenario's triangles
+                     (:func:`prepare`, :class:`SmoothMossModel`);
+- :mod:`.dispersal`  expected propagule landing kernels (eqs 3.22-3.23);
+- :mod:`.photon_ad`  a differentiable photon pass (weights instead of Russian roulette);
+- :mod:`.grad`       gradients through many days (optionally checkpointed), finite differences;
+- :mod:`.fit`        ``fit(scenario, target, params=[...], loss=..., steps=...)`` with Adam.
+"""
+from __future__ import annotations
+
+from . import dispersal, grad, lifecycle, photon_ad, relax, smooth  # noqa: F401
+from .fit import FitResult, coverage_figure, coverage_from_checkpoint, fit  # noqa: F401
+from .grad import finite_difference, value_and_grad  # noqa: F401
+from .smooth import ModelData, RunResult, SmoothMossModel, prepare  # noqa: F401
+
+__all__ = ["relax", "lifecycle", "smooth", "dispersal", "photon_ad", "grad", "prepare",
+           "SmoothMossModel", "ModelData", "RunResult", "value_and_grad", "finite_difference",
+           "fit", "FitResult", "coverage_figure", "coverage_from_checkpoint"]

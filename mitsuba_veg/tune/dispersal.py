@@ -1,0 +1,135 @@
+"""Expected propagule dispersal between triangles: the kernels of eqs 3.22-3.23, precomputed.
+
+In the discrete model (``simulation.py``, ``moss/propagules.py``) a gemma leaves its parent M
+towards B = M + k I (eq 3.22, I uniform on the sphere), a spore towards Q = M + l I_N (eq 3.23,
+I_N in the 45° cones about the normal), both stop at a surface in the way, else fall along -y;
+nothing hit or a back face: lost; a landing on a surface where moss may not live: lost.
+
+The relaxed model needs the *expectation* of that: the probability ``K[j -> i]`` that a
+propagule released by a moss lying uniformly on triangle j lands on triangle i. It does not
+depend on the model's parameters, so it is estimated once by Monte Carlo with the very same
+functions (``land``, ``uniform_sphere``, ``spore_direction``, the same lift off the surface) and
+stored as a sparse matrix (COO: src, dst, weight). Applying it is a gather and a scatter-add,
+differentiable w.r.t. the number of propagules produced on each triangle:
+
+    arrivals_i = sum_j K[j -> i] * produced_j.
+
+The Monte-Carlo error of K is fixed (same for every evaluation); with ``samples`` per source
+triangle a weight is a multiple of 1/samples.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..moss.propagules import land, spore_direction, uniform_sphere
+
+__all__ = ["Kernel", "dispersal_kernel", "random_points"]
+
+
+@dataclass
+class Kernel:
+    """Sparse dispersal matrix: ``weight[k]`` = P(land on ``dst[k]`` | released on ``src[k]``)."""
+
+    kind: str
+    distance: float
+    samples: int
+    src: np.ndarray
+    dst: np.ndarray
+    weight: np.ndarray
+    n_elements: int
+
+    def __post_init__(self):
+        self._dr = None
+
+    @property
+    def nnz(self) -> int:
+        return len(self.weight)
+
+    def kept(self) -> np.ndarray:
+        """Per source triangle: the fraction of its propagules that land on a living surface."""
+        return np.bincount(self.src, self.weight, minlength=self.n_elements)
+
+    def apply(self, produced):
+        """Expected arrivals per element for ``produced`` propagules per element (Dr.Jit Float64,
+        differentiable)."""
+        t = type(produced)
+        if self._dr is None or self._dr[0] is not t:
+            u = dr.uint32_array_t(t)
+            self._dr = (t, u(self.src.astype(np.uint32)), u(self.dst.astype(np.uint32)),
+                        t(self.weight))
+        _, src, dst, w = self._dr
+        out = dr.zeros(t, self.n_elements)
+        dr.scatter_add(out, dr.gather(t, produced, src) * w, dst)
+        return out
+
+
+def random_points(index, elems: np.ndarray, rng: np.random.Generator):
+    """Uniform random points on the given elements (triangles of ``index.geometry``) and their
+    unit normals, as NumPy arrays (n, 3)."""
+    elems = np.asarray(elems, np.int64)
+    u = rng.random((len(elems), 2))
+    flip = u.sum(1) > 1
+    u[flip] = 1 - u[flip]
+    pts = np.zeros((len(elems), 3))
+    for sid, (v, f) in index.geometry.items():
+        sl = index.shape_slice(sid)
+        sel = (elems >= sl.start) & (elems < sl.stop)
+        if sel.any():
+            fc = f[elems[sel] - sl.start]
+            p0, p1, p2 = v[fc[:, 0]], v[fc[:, 1]], v[fc[:, 2]]
+            pts[sel] = p0 + u[sel, :1] * (p1 - p0) + u[sel, 1:] * (p2 - p0)
+    return pts, index.normals[elems]
+
+
+def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: float,
+                     samples: int = 64, seed: int = 0, grid=None, batch: int = 1 << 21) -> Kernel:
+    """Monte-Carlo dispersal kernel of ``kind`` ``"gemma"`` (eq 3.22) or ``"spore"`` (eq 3.23)
+    over the living elements of ``scene`` (``samples`` releases per living source triangle).
+
+    ``grid``: the run's spot grid (:class:`~mitsuba_veg.moss.spatial.CellGrid`); a propagule
+    that lands in its parent's own spot is lost in the discrete model (the parent holds it and
+    wins the priority rule), so such landings are left out of K. On the moss garden that is 25 %
+    of the gemmae and 42 % of the spores (half of them leave into the cone below the surface and
+    stop right at the parent).
+    """
+    if kind not in ("gemma", "spore"):
+        raise ValueError(f"kind must be 'gemma' or 'spore', not {kind!r}")
+    n = index.n_elements
+    living = np.asarray(living, bool)
+    sources = np.flatnonzero(living)
+    rng = np.random.default_rng([seed, 0 if kind == "gemma" else 1])
+    src_all = np.repeat(sources, samples)
+    srcs, dsts = [], []
+    for start in range(0, len(src_all), batch):
+        src = src_all[start:start + batch]
+        m = len(src)
+        pts, nrm = random_points(index, src, rng)
+        pts = pts + nrm * 1e-4  # individuals sit 0.1 mm off the surface (simulation.py)
+        P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
+        N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
+        r = rng.random((m, 3)).astype(np.float32)
+        u = mi.Point2f(mi.Float(r[:, 0]), mi.Float(r[:, 1]))
+        if kind == "spore":
+            d = spore_direction(N, u, mi.Float(r[:, 2]))
+        else:
+            d = uniform_sphere(u)
+        landed, elem, p, _ = land(scene, index.lookup, P + N * 2e-3, d, float(distance),
+                                  mi.Bool(True))
+        if grid is not None:
+            landed &= grid.index(p) != grid.index(P)
+        ok = np.asarray(landed)
+        el = np.asarray(elem).astype(np.int64)
+        ok &= (el >= 0) & (el < n)
+        ok[ok] &= living[el[ok]]
+        srcs.append(src[ok])
+        dsts.append(el[ok])
+    src = np.concatenate(srcs)
+    dst = np.concatenate(dsts)
+    key = src * n + dst
+    uniq, counts = np.unique(key, return_counts=True)
+    return Kernel(kind, float(distance), int(samples), (uniq // n).astype(np.int64),
+                  (uniq % n).astype(np.int64), counts / float(samples), n)

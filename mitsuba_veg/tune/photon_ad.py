@@ -1,0 +1,204 @@
+"""A differentiable photon pass: weights instead of Russian roulette, replayed with Dr.Jit AD.
+
+The photon pass of ``integrators/photon_irradiance.py`` (paper 000 §3.4) continues a photon at a
+hit with probability q = albedo (Russian roulette). That is unbiased but a step function of the
+albedo: its derivative is zero almost everywhere. Here every photon always continues (diffusely,
+cosine-weighted about the side it hit, as in the integrator) up to ``max_depth`` hits and
+carries the product of the albedos it met as a *weight*:
+
+    P_0 = s_e w_0 / N,        P_{k+1} = P_k a(e_k),        flux(e) += P_k   for every hit k on e,
+
+with ``w_0`` the emitter's sample weight (the integrator's own ``_emit``, same aim and
+stratification), ``s_e`` a strength factor per emitter, ``a(e)`` the albedo of triangle e
+(grey, Lambertian, the same on both sides) and ``e_k`` the triangle of the k-th hit. Both
+estimators have the same expectation (the integrator's RR keeps P a/q with probability q).
+
+Because the directions do not depend on the albedo (cosine sampling), the geometry of every path
+is traced once (:func:`trace_paths`: triangle and side of each hit, Mitsuba ray casts, no AD) and
+the flux is a polynomial in the albedos that :func:`replay` evaluates with Dr.Jit gathers and
+scatter-adds: differentiable in reverse and forward mode w.r.t. per-triangle albedo and emitter
+strength, and exactly the derivative of the Monte-Carlo estimate (common random numbers: a
+finite difference of two replays is noise-free). Re-tracing with the same seed gives the same
+paths.
+
+Front/back: as in the integrator, a hit is *front* when the ray arrives against the geometric
+normal; the moss model uses front irradiance only. Reflection is two-sided.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..errors import ParameterError, SceneError, check_range
+
+__all__ = ["PhotonPaths", "trace_paths", "replay", "irradiance"]
+
+_INVALID = 0xFFFFFFFF
+
+
+def _f64():
+    return dr.float64_array_t(mi.Float)
+
+
+@dataclass
+class PhotonPaths:
+    """Recorded geometry of a photon pass of one emitter (see module docstring).
+
+    ``elem[k]`` (UInt32, width = photons) is the element of the k-th hit (0xFFFFFFFF: none),
+    ``front[k]`` whether it hit the front side; ``w0`` the initial power per photon [W] for a
+    unit strength (already divided by the photon count and multiplied by the band width).
+    """
+
+    emitter: str
+    photons: int
+    max_depth: int
+    band: tuple
+    w0: object                 # Float64 (photons)
+    elem: list = field(default_factory=list)
+    front: list = field(default_factory=list)
+    n_elements: int = 0
+    areas: np.ndarray | None = None
+    seconds: float = 0.0
+    rays: int = 0
+
+    @property
+    def nbytes(self) -> int:
+        return self.photons * (8 + len(self.elem) * 5)
+
+
+def _emitter(scene, emitter):
+    ems = scene.emitters()
+    if isinstance(emitter, (int, np.integer)):
+        if not 0 <= emitter < len(ems):
+            raise ParameterError("emitter", emitter, f"0..{len(ems) - 1}")
+        return ems[int(emitter)], ems[int(emitter)].id() or f"emitter{int(emitter)}"
+    if isinstance(emitter, str):
+        for e in ems:
+            if e.id() == emitter:
+                return e, emitter
+        raise ParameterError("emitter", emitter, f"one of {[e.id() for e in ems]}",
+                             "give the emitter an id in the scene")
+    return emitter, emitter.id() or "emitter"
+
+
+def trace_paths(scene: mi.Scene, emitter, photons: int, index=None, max_depth: int = 8,
+                seed: int = 0, band=(360.0, 830.0)) -> PhotonPaths:
+    """Trace ``photons`` paths from one emitter and record the hit triangles (no AD).
+
+    ``emitter``: an emitter of ``scene`` (object, id or index). ``index``: the
+    :class:`~mitsuba_veg.integrators.photon_irradiance.SceneIndex` of the scene (built if None).
+    ``band`` [nm]: the photon power is the emitter's spectral power integrated over the band (four
+    stratified wavelengths per photon, as the integrator does), so that ``replay`` gives band
+    irradiance [W m-2].
+    """
+    import time
+
+    from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
+
+    check_range("photons", photons, 16, 2**26, fix="a photon count such as 200000")
+    check_range("max_depth", max_depth, 1, 64)
+    t0 = time.perf_counter()
+    index = SceneIndex.build(scene) if index is None else index
+    em, name = _emitter(scene, emitter)
+    n = int(photons)
+    integ = PhotonIrradianceIntegrator()
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(int(seed) & 0x7FFFFFFF, n)
+    idx = dr.arange(mi.UInt32, n)
+    lo, hi = float(band[0]), float(band[1])
+    if not 0 < lo < hi:
+        raise ParameterError("band", band, "(min_nm, max_nm) with 0 < min < max")
+    rng = np.random.default_rng(seed)
+    lam = []
+    for k in range(4):  # stratified wavelengths (golden-ratio sequence, random shift)
+        bits = idx * dr.opaque(mi.UInt32, 2654435769) + \
+            dr.opaque(mi.UInt32, int(rng.integers(0, 2**32)))
+        u = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
+        lam.append(dr.opaque(mi.Float, lo) + dr.opaque(mi.Float, hi - lo) * u)
+    wav = mi.Spectrum(*lam)
+    m = int(math.isqrt(n))
+    o, d, w, time_ = integ._emit(scene, em, index, sampler, wav, mi.Bool(True), strata=(idx, m))
+    wm = (w[0] + w[1] + w[2] + w[3]) * dr.opaque(mi.Float, 0.25 * (hi - lo) / n)
+    wm = dr.select(dr.isfinite(wm), wm, 0.0) * dr.full(mi.Float, 1.0, n)
+    F64 = _f64()
+    w0 = F64(wm)
+    ray = mi.Ray3f(o, d, time_, wav)
+    active = wm > 0
+    dr.eval(w0, ray, active)
+    elems, fronts = [], []
+    rays = 0
+    for _ in range(int(max_depth)):
+        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=False, active=active)
+        hit = active & si.is_valid()
+        sid = dr.reinterpret_array(mi.UInt32, si.shape)
+        e = dr.gather(mi.UInt32, index.lookup, sid, hit) + si.prim_index
+        e = dr.select(hit, e, mi.UInt32(_INVALID))
+        front = hit & (dr.dot(si.n, ray.d) <= 0)
+        # diffuse reflection on the side that was hit (mirrors the integrator's two-sided rule)
+        wi = si.to_local(-ray.d)
+        flip = wi.z < 0
+        wo = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
+        wo = dr.select(flip, mi.Vector3f(wo.x, wo.y, -wo.z), wo)
+        ray = si.spawn_ray(si.to_world(wo))
+        rays += int(dr.count(active)[0]) if dr.width(active) else 0
+        active = hit
+        dr.eval(e, front, ray, active)
+        elems.append(e)
+        fronts.append(front)
+        if not bool(dr.any(active)[0]):
+            break
+    return PhotonPaths(emitter=name, photons=n, max_depth=int(max_depth), band=(lo, hi), w0=w0,
+                       elem=elems, front=fronts, n_elements=index.n_elements,
+                       areas=np.asarray(index.areas, float), seconds=time.perf_counter() - t0,
+                       rays=rays)
+
+
+def replay(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
+    """Flux per element [W] of the recorded paths for per-element ``albedo`` (Float64 of width
+    n_elements, may carry gradients) and emitter ``strength`` (a number or width-1 Float64).
+
+    Differentiable with Dr.Jit AD in both modes. ``side``: "front", "back" or "both".
+    """
+    F64 = type(albedo) if dr.is_array_v(albedo) else _f64()
+    if side not in ("front", "back", "both"):
+        raise ParameterError("side", side, "'front', 'back' or 'both'")
+    if dr.width(albedo) != paths.n_elements:
+        raise ParameterError("albedo", f"width {dr.width(albedo)}",
+                             f"one albedo per element ({paths.n_elements})")
+    flux = dr.zeros(F64, paths.n_elements)
+    beta = F64(paths.w0) * strength
+    for e, front in zip(paths.elem, paths.front):
+        valid = e != _INVALID
+        rec = valid if side == "both" else (valid & front if side == "front" else valid & ~front)
+        dr.scatter_add(flux, beta, e, rec)
+        beta = beta * dr.gather(F64, albedo, e, valid)
+    return flux
+
+
+def irradiance(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
+    """Irradiance per element [W m-2] = :func:`replay` / element area."""
+    F64 = type(albedo) if dr.is_array_v(albedo) else _f64()
+    inv_area = F64(1.0 / np.maximum(paths.areas, 1e-30))
+    return replay(paths, albedo, strength, side) * inv_area
+
+
+def albedo_array(n_elements: int, base, overrides: dict | None = None, slices: dict | None = None,
+                 dtype=None):
+    """Per-element albedo: ``base`` (array or number) with ``{shape_id: value}`` overrides on
+    the elements ``slices[shape_id]`` (values may be Dr.Jit scalars with gradients); ``dtype``
+    the Dr.Jit float type (default Float64)."""
+    F64 = dtype or _f64()
+    a = F64(np.broadcast_to(np.asarray(base, float), (n_elements,)).copy())
+    if overrides:
+        ids = dr.arange(mi.UInt32, n_elements)
+        for sid, v in overrides.items():
+            if slices is None or sid not in slices:
+                raise SceneError(f"albedo override for unknown shape '{sid}'")
+            sl = slices[sid]
+            m = (ids >= sl.start) & (ids < sl.stop)
+            a = dr.select(m, v, a)
+    return a

@@ -1,0 +1,629 @@
+"""The relaxed (differentiable) daily soil + moss model of paper 000 on a scenario's triangles.
+
+Same physics as the discrete run (``simulation.py``), with three changes (docs/tuning.md):
+
+1. **Expected densities instead of individuals.** Every moss on one triangle, of one species,
+   germinated on the same day, has the same G_moss trajectory in the discrete model (G depends
+   only on the triangle's light, soil and the species). So the population is held exactly as
+   *cohorts*: per (triangle, species, birth day) a density ``n`` (moss per spot, a spot = one
+   cell of the moss-size grid, M = area / size² spots per triangle), its growth offset ``B``
+   (G_moss = cum - B with cum the running sum of the triangle's daily growth D) and its gemma
+   counter ``K``. Waiting propagules are held per (triangle, species, kind, day made) in a ring
+   of L1 + 1 age slots, so their age L of eq 3.24 is exact.
+2. **Thresholds relaxed with a temperature t** (:mod:`.relax`): death, germination, the gemma
+   staircase and the spore condition use the logistic ``H_t``; ``t -> 0`` gives the discrete
+   rules (``t = 0``: exact indicators).
+3. **Space in expectation**: propagules spread with the precomputed landing kernels of eqs
+   3.22-3.23 (:mod:`.dispersal`); one individual per spot becomes a Poisson occupancy of the free
+   spots; "inside a clump" (>= 8 moss neighbours) becomes the binomial tail of the triangle's
+   moss density; the global capacity scales the day's newcomers; the initial moss and the spores
+   from outside arrive as expected (area-weighted) densities.
+
+The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
+``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
+differentiated w.r.t. albedo and emitter strength; moss does not change the albedo here (the
+discrete run recomputes light daily with moss albedo). Soil: ``soil.py`` unchanged (eqs
+3.2-3.16, bucket eq 3.6) on Dr.Jit arrays. Float64 throughout.
+
+Usage::
+
+    data = prepare("scenes/moss_garden/scenario.toml", days=60, species=["bryum_argenteum"])
+    model = SmoothMossModel(data, temperature=0.05)
+    out = model.run({"S1": 55.0})            # RunResult: out.cover (Float64 per triangle)
+"""
+from __future__ import annotations
+
+import copy
+import datetime as _dt
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .. import soil as soil_model
+from ..errors import ParameterError
+from ..moss.species import PARAMETER_FIELDS
+from . import relax
+from .dispersal import dispersal_kernel
+from .lifecycle import (GEMMA_STEP, SPORE_THRESHOLD, CohortLifeCycle, SpeciesState,
+                        real_type, species_fitness)
+from .photon_ad import PhotonPaths, irradiance, trace_paths
+
+__all__ = ["ModelData", "LightSetup", "prepare", "SmoothMossModel", "State", "SpeciesState",
+           "RunResult", "CLIMATE_PARAMS", "GEMMA_STEP", "SPORE_THRESHOLD", "NEIGHBOUR_CELLS"]
+
+NEIGHBOUR_CELLS = 8       # neighbour cells of a moss on a surface (in-plane part of the 26)
+#: climate parameters that can be tuned: name -> ClimateTable field (the value replaces the
+#: table's; a per-day series is shifted by the difference)
+CLIMATE_PARAMS = {"T": "temperature", "rh": "humidity"}
+_ALIASES = {"climate.temperature": "T", "climate.humidity": "rh"}
+
+
+def U32():
+    return dr.uint32_array_t(mi.Float)
+
+
+# ------------------------------------------------------------------------------------------
+# Static inputs from a scenario
+# ------------------------------------------------------------------------------------------
+@dataclass
+class LightSetup:
+    """Up-front photon passes: sun-path fractions on ``days`` (interpolated), one sky pass.
+
+    ``f_sun[k]``, ``f_sky``: NumPy per-element fractions of the unobstructed horizontal beam /
+    diffuse irradiance (front side) for the bare albedo; ``paths_sun[k]``, ``paths_sky``: the
+    recorded paths for differentiable replays (None when not kept).
+    """
+
+    days: list
+    f_sun: list
+    f_sky: np.ndarray
+    paths_sun: list | None = None
+    paths_sky: PhotonPaths | None = None
+    photons: int = 0
+    seconds: float = 0.0
+
+    def weights(self, day: int):
+        """(k0, k1, w): day's fractions = (1 - w) f[k0] + w f[k1]."""
+        ds = self.days
+        if day <= ds[0]:
+            return 0, 0, 0.0
+        for k in range(len(ds) - 1):
+            if ds[k] <= day <= ds[k + 1]:
+                return k, k + 1, (day - ds[k]) / float(ds[k + 1] - ds[k])
+        return len(ds) - 1, len(ds) - 1, 0.0
+
+
+@dataclass
+class ModelData:
+    """Everything of a scenario the relaxed model needs (no gradients here)."""
+
+    scenario: object
+    days: int
+    n: int
+    areas: np.ndarray
+    M: np.ndarray
+    living: np.ndarray
+    geology: np.ndarray
+    h: np.ndarray
+    O0: np.ndarray
+    base_albedo: np.ndarray
+    weather: object
+    climate: object
+    species: list
+    species_keys: list
+    moss_cfg: dict
+    cell: float
+    index: object
+    shape_slices: dict
+    regions: dict
+    kernels: dict
+    light: LightSetup
+    start: _dt.date
+    scene: object = None
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def ground_mask(self) -> np.ndarray:
+        m = np.zeros(self.n, bool)
+        gid = self.scenario.get("terrain.ground", "ground")
+        if gid in self.shape_slices:
+            m[self.shape_slices[gid]] = True
+        return m
+
+
+def prepare(scenario, days: int | None = None, overrides=(), species=None,
+            photons: int | None = None, light_every: int = 15, max_depth: int | None = None,
+            kernel_samples=(64, 256), differentiable_light: bool = False, seed: int | None = None,
+            progress: bool = False) -> ModelData:
+    """Set up a scenario for the relaxed model: terrain, soil, climate, species (through
+    :class:`~mitsuba_veg.simulation.MossSimulation`, so they are the discrete run's), the
+    dispersal kernels and the up-front light.
+
+    species: list of species keys replacing ``moss.species``; photons: per light pass (default
+    the scenario's ``light.photons``); light_every: days between sun-path passes;
+    differentiable_light: keep the photon paths so that albedo and emitter strengths can be
+    tuned (memory: ~ photons x max_depth x 5 bytes per pass).
+    """
+    from ..scenario import Scenario, load_scenario
+    from ..simulation import MossSimulation
+    from ..light.sunpath import day_sun_path
+
+    t0 = time.perf_counter()
+    scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
+    if species is not None:
+        data = copy.deepcopy(scn.data)
+        data.setdefault("moss", {})["species"] = list(species)
+        scn = Scenario(scn.path, data)
+    sim = MossSimulation(scn, tempfile.gettempdir(), days=days, progress=False)
+    sim.setup()
+    idx = sim.index
+    n_days = sim.days
+    seed = sim.seed if seed is None else int(seed)
+    timings = {"setup": time.perf_counter() - t0}
+
+    t1 = time.perf_counter()
+    cfg = sim.moss_cfg
+    kernels = {
+        "gemma": dispersal_kernel(sim.scene, idx, sim.living, "gemma",
+                                  float(cfg["gemma_distance"]), int(kernel_samples[0]), seed,
+                                  sim.grid),
+        "spore": dispersal_kernel(sim.scene, idx, sim.living, "spore",
+                                  float(cfg["spore_distance"]), int(kernel_samples[1]), seed,
+                                  sim.grid),
+    }
+    timings["kernels"] = time.perf_counter() - t1
+
+    t2 = time.perf_counter()
+    photons = int(photons if photons is not None else sim.light_cfg["photons"])
+    max_depth = int(max_depth if max_depth is not None else sim.light_cfg["max_depth"])
+    if not bool(sim.light_cfg["indirect"]):
+        max_depth = 1
+    light_every = max(int(light_every), 1)
+    ldays = list(range(0, n_days, light_every))
+    if ldays[-1] != n_days - 1:
+        ldays.append(n_days - 1)
+    alb = sim.base_albedo[:, 0].astype(float)
+    a_dr = dr.float64_array_t(mi.Float)(alb)
+    lat, lon = float(scn.get("site.latitude")), float(scn.get("site.longitude"))
+    f_sun, p_sun = [], []
+    it = ldays
+    if progress:
+        from tqdm.auto import tqdm
+        it = tqdm(ldays, desc="light passes", unit="pass")
+    for k, d in enumerate(it):
+        dirs, w, _ = day_sun_path(lat, lon, sim._date(d))
+        if len(w) == 0:
+            f_sun.append(np.zeros(idx.n_elements))
+            p_sun.append(None)
+            continue
+        sim.sun.set_day(dirs, w)
+        p = trace_paths(sim.scene, "sun", photons, idx, max_depth, seed * 7919 + 11 * k + 1)
+        f_sun.append(np.asarray(irradiance(p, a_dr)) / (p.band[1] - p.band[0]))
+        p_sun.append(p if differentiable_light else None)
+    p_sky = trace_paths(sim.scene, "sky", photons, idx, max_depth, seed * 7919 + 3)
+    f_sky = np.asarray(irradiance(p_sky, a_dr)) / (p_sky.band[1] - p_sky.band[0])
+    # band irradiance / band width = fraction of the unit (1 W m-2 nm-1) horizontal irradiance
+    light = LightSetup(ldays, f_sun, f_sky, p_sun if differentiable_light else None,
+                       p_sky if differentiable_light else None, photons,
+                       time.perf_counter() - t2)
+    timings["light"] = light.seconds
+
+    slices = {sid: idx.shape_slice(sid) for sid in idx.shape_ids}
+    return ModelData(scenario=scn, days=n_days, n=idx.n_elements,
+                     areas=np.asarray(idx.areas, float),
+                     M=np.asarray(sim.M, float), living=np.asarray(sim.living, bool),
+                     geology=np.asarray(sim.geology), h=np.asarray(sim.h, float),
+                     O0=np.asarray(sim.O, float), base_albedo=alb, weather=sim.weather,
+                     climate=sim.climate, species=list(sim.species),
+                     species_keys=list(cfg["species"]), moss_cfg=dict(cfg), cell=float(cfg["size"]),
+                     index=idx, shape_slices=slices, regions=dict(sim.regions), kernels=kernels,
+                     light=light, start=sim.start, scene=sim.scene, timings=timings)
+
+
+# ------------------------------------------------------------------------------------------
+# State
+# ------------------------------------------------------------------------------------------
+@dataclass
+class State:
+    day: int          # days done (the next day to simulate)
+    O: object         # (n_el) bucket water [mm]
+    species: list     # SpeciesState per species
+    per_species: int = 6      # arrays per species (SpeciesState.FIELDS)
+
+    def arrays(self) -> list:
+        out = [self.O]
+        for s in self.species:
+            out += s.arrays()
+        return out
+
+    def with_arrays(self, arrays, day=None) -> "State":
+        k = self.per_species
+        sp = [SpeciesState.from_arrays(arrays[1 + k * i:1 + k * (i + 1)])
+              for i in range(len(self.species))]
+        return State(self.day if day is None else day, arrays[0], sp, k)
+
+    def detached(self) -> "State":
+        arr = [dr.detach(a) for a in self.arrays()]
+        dr.make_opaque(arr)  # literals (e.g. zero slots) must not enter kernels as constants
+        return self.with_arrays(arr)
+
+    def nbytes(self) -> int:
+        return sum(dr.width(a) * (8 if dr.type_v(a) == dr.VarType.Float64 else 4)
+                   for a in self.arrays())
+
+
+@dataclass
+class RunResult:
+    """Output of :meth:`SmoothMossModel.run`."""
+
+    state: State
+    cover: object            # Float64 (n_el): covered fraction of each triangle (AD-tracked)
+    moss_density: object     # Float64 (n_el): moss per spot, all species
+    history: list = field(default_factory=list)
+    maps: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def covered_area(self, data: ModelData, mask=None) -> float:
+        c = np.asarray(self.cover) * data.areas
+        return float(c[mask].sum() if mask is not None else c.sum())
+
+
+@dataclass
+class Resolved:
+    """Parameters resolved for one evaluation (numbers or Float64 scalars with gradients)."""
+
+    species: list           # dict per species: field -> value
+    dT: object
+    drh: object
+    albedo: dict            # shape id -> value
+    strength: dict          # "sun"/"sky" -> value
+
+
+# ------------------------------------------------------------------------------------------
+# The model
+# ------------------------------------------------------------------------------------------
+class SmoothMossModel:
+    """Relaxed daily soil + moss model over ``data`` (see module docstring).
+
+    temperature: t of the relaxation (G units; 0 = exact thresholds, no gradients);
+    cohort_days: birth days merged into one moss cohort (1 = exact; larger saves memory);
+    dispersal / capacity / external: switch the spatial parts off for tests; precision:
+    "float32" (default, about twice as fast) or "float64".
+    """
+
+    def __init__(self, data: ModelData, temperature: float = 0.05, cohort_days: int = 1,
+                 dispersal: bool = True, capacity: bool = True, external: bool = True,
+                 days: int | None = None, precision: str = "float32"):
+        self.data = data
+        self.days = int(days if days is not None else data.days)
+        if self.days > data.days:
+            raise ParameterError("days", self.days, f"<= {data.days} (the prepared days)",
+                                 "prepare() the scenario for more days")
+        self.cohort_days = max(int(cohort_days), 1)
+        self.dispersal = bool(dispersal)
+        self.capacity_on = bool(capacity)
+        self.external = bool(external)
+        n = data.n
+        self.n = n
+        self.T = real_type(precision)
+        self.precision = precision
+        self.life = CohortLifeCycle(n, self.days, temperature, cohort_days, precision)
+        self.t = self.life.t_value
+        self.C, self.Rg, self.Rs = self.life.C, self.life.Rg, self.life.Rs
+        T = self.T
+        self.M = T(data.M)
+        self.h = data.h
+        self._h = T(data.h)
+        self.geology = data.geology
+        self.living = T(data.living.astype(float))
+        self.areas = T(data.areas)
+        self.cell2 = data.cell ** 2
+        liv_area = np.where(data.living, data.areas, 0.0)
+        self.area_frac = liv_area / max(liv_area.sum(), 1e-30)
+        self.n_sp = len(data.species)
+        cfg = data.moss_cfg
+        self.capacity = float(cfg["capacity"])
+        self.interval = int(cfg["external_spore_interval"])
+        self.clump = int(cfg["clump_neighbours"])
+        self.initial = float(min(cfg["initial"], cfg["capacity"]))
+        self.initial_growth = float(cfg["initial_growth"])
+        w = data.weather
+        self._weather = {k: np.asarray(getattr(w, k), float) for k in
+                         ("T", "rh", "P", "U", "A", "beam", "diffuse")}
+
+    # ---- parameters -------------------------------------------------------------------------
+    def parameter_names(self) -> list[str]:
+        """Names accepted in ``params`` (see :meth:`resolve`)."""
+        names = []
+        for k in self.data.species_keys:
+            names += [f"{k}.{f}" for f in PARAMETER_FIELDS]
+        if self.n_sp == 1:
+            names += list(PARAMETER_FIELDS)
+        names += list(CLIMATE_PARAMS) + [f"albedo.{s}" for s in self.data.shape_slices]
+        names += ["strength.sun", "strength.sky"]
+        return names
+
+    def _canonical(self, name: str):
+        name = _ALIASES.get(name, name)
+        if name in CLIMATE_PARAMS:
+            return ("climate", name)
+        if name.startswith("albedo."):
+            sid = name.split(".", 1)[1]
+            if sid not in self.data.shape_slices:
+                raise ParameterError(name, None, f"albedo.<shape> with a shape among "
+                                     f"{list(self.data.shape_slices)}")
+            return ("albedo", sid)
+        if name in ("strength.sun", "strength.sky"):
+            return ("strength", name.split(".")[1])
+        if "." in name:
+            key, f = name.split(".", 1)
+            if key not in self.data.species_keys or f not in PARAMETER_FIELDS:
+                raise ParameterError("params", name, "one of " + ", ".join(self.parameter_names()))
+            return ("species", self.data.species_keys.index(key), f)
+        if name in PARAMETER_FIELDS:
+            if self.n_sp != 1:
+                raise ParameterError("params", name, f"'<species>.{name}' with a species among "
+                                     f"{self.data.species_keys}",
+                                     "name the species (the model has several)")
+            return ("species", 0, name)
+        raise ParameterError("params", name, "one of " + ", ".join(self.parameter_names()))
+
+    def default_value(self, name: str) -> float:
+        """The scenario's value of a parameter."""
+        c = self._canonical(name)
+        if c[0] == "climate":
+            return float(getattr(self.data.climate, CLIMATE_PARAMS[c[1]]))
+        if c[0] == "albedo":
+            return float(np.mean(self.data.base_albedo[self.data.shape_slices[c[1]]]))
+        if c[0] == "strength":
+            return 1.0
+        return float(getattr(self.data.species[c[1]], c[2]))
+
+    def resolve(self, params: dict | None) -> Resolved:
+        sp = [{f: float(getattr(s, f)) for f in PARAMETER_FIELDS} for s in self.data.species]
+        dT, drh, albedo, strength = 0.0, 0.0, {}, {}
+        for name, v in (params or {}).items():
+            c = self._canonical(name)
+            if not dr.is_array_v(v):  # opaque: a new value must not recompile the kernels
+                v = dr.opaque(self.T, float(v))
+            if c[0] == "species":
+                sp[c[1]][c[2]] = v
+            elif c[0] == "climate":
+                ref = float(getattr(self.data.climate, CLIMATE_PARAMS[c[1]]))
+                if c[1] == "T":
+                    dT = v - ref
+                else:
+                    drh = v - ref
+            elif c[0] == "albedo":
+                albedo[c[1]] = v
+            else:
+                strength[c[1]] = v
+        return Resolved(sp, dT, drh, albedo, strength)
+
+    # ---- light ------------------------------------------------------------------------------
+    def light(self, P: Resolved):
+        """(list of f_sun per light day, f_sky) as Float64 arrays; differentiable w.r.t. albedo
+        (replays of the recorded paths) and emitter strengths."""
+        T = self.T
+        L = self.data.light
+        if P.albedo:
+            if L.paths_sky is None or L.paths_sun is None:
+                raise ParameterError("params", list(P.albedo),
+                                     "albedo parameters need prepare(..., "
+                                     "differentiable_light=True)")
+            from .photon_ad import albedo_array
+            a = albedo_array(self.n, self.data.base_albedo, P.albedo, self.data.shape_slices,
+                             self.T)
+            sun = []
+            for p in L.paths_sun:
+                sun.append(T(np.zeros(self.n)) if p is None else
+                           irradiance(p, a) / (p.band[1] - p.band[0]))
+            sky = irradiance(L.paths_sky, a) / (L.paths_sky.band[1] - L.paths_sky.band[0])
+        else:
+            sun = [T(f) for f in L.f_sun]
+            sky = T(L.f_sky)
+        s_sun, s_sky = P.strength.get("sun", 1.0), P.strength.get("sky", 1.0)
+        if not (isinstance(s_sun, float) and s_sun == 1.0):
+            sun = [f * s_sun for f in sun]
+        if not (isinstance(s_sky, float) and s_sky == 1.0):
+            sky = sky * s_sky
+        return sun, sky
+
+    def insolation(self, day: int, light):
+        """S per element on ``day`` [W m-2] (daily mean)."""
+        T = self.T
+        sun, sky = light
+        k0, k1, w = self.data.light.weights(day)
+        fs = sun[k0] if k0 == k1 else sun[k0] * dr.opaque(T, 1.0 - w) + sun[k1] * dr.opaque(T, w)
+        wd = self._weather
+        return fs * dr.opaque(T, wd["beam"][day]) + sky * dr.opaque(T, wd["diffuse"][day])
+
+    # ---- state ------------------------------------------------------------------------------
+    def initial_state(self) -> State:
+        """Day 0: saturated buckets, the initial moss as expected densities (area-weighted random
+        points, species drawn uniformly: ``initial / n_species`` each, G_moss = initial_growth)."""
+        T = self.T
+        dens = self.initial / self.n_sp * self.area_frac / self.data.M
+        sp = [self.life.seed_moss(self.life.empty(), dens, self.initial_growth)
+              for _ in range(self.n_sp)]
+        st = State(0, T(self.data.O0), sp, self.life.arrays_per_species)
+        dr.make_opaque(st.arrays())
+        return st
+
+    # ---- one day ----------------------------------------------------------------------------
+    def environment(self, st: State, P: Resolved, light):
+        """The day's light and soil (eqs 3.2-3.16, bucket 3.6) with the moss density at the start
+        of the day; returns (S, Ts, rhs, theta, O of the next day)."""
+        T = self.T
+        d = st.day
+        wd = self._weather
+        op = lambda v: dr.opaque(T, float(v))  # noqa: E731  day values: no recompilation
+        S = self.insolation(d, light)
+        c_tot = dr.zeros(T, self.n)
+        for s in st.species:
+            c_tot += self.life.moss(s)
+        C_H = soil_model.transfer_coefficient(dr.minimum(c_tot, 1.0))
+        theta = soil_model.water_content(st.O, self._h)
+        Td = op(wd["T"][d]) + P.dT
+        rhd = op(wd["rh"][d]) + P.drh
+        surf = soil_model.surface_state(S, Td, rhd, op(wd["U"][d]), op(wd["A"][d]), theta,
+                                        self.geology, C_H)
+        E = soil_model.evaporation_rate(surf.lE)
+        O = soil_model.bucket_step(st.O, E, op(wd["P"][d]), self._h, self.geology).O
+        return S, surf.Ts, surf.rhs, theta, O
+
+    def step(self, st: State, P: Resolved, light, record: dict | None = None) -> State:
+        """Advance one day in the discrete day's order: light, soil, then the moss (germination,
+        growth and death, gemmae, spores, landing and settling, a spore from outside)."""
+        T = self.T
+        d, n, M, life = st.day, self.n, self.M, self.life
+        S, Ts, rhs, theta, O = self.environment(st, P, light)
+        # ---- steps 1-2 per species
+        new_sp, Gms, Dgs, germinated = [], [], [], []
+        for i, s in enumerate(st.species):
+            G = species_fitness(P.species[i], Ts, rhs, S)
+            ns, Gm, Dg, ngerm = life.live(s, G, P.species[i], d)
+            new_sp.append(ns)
+            Gms.append(Gm)
+            Dgs.append(Dg)
+            germinated.append(ngerm)
+        # ---- steps 3-4: gemmae (only from the surface of clumps) and spores
+        c_after = dr.zeros(T, n)
+        occ = dr.zeros(T, n)
+        for s in new_sp:
+            m = life.moss(s)
+            c_after += m
+            occ += m + life.waiting(s)
+        surface = 1.0 - relax.binomial_tail(c_after, NEIGHBOUR_CELLS, self.clump)
+        made_g, made_s, arr_g, arr_s, settled = [], [], [], [], []
+        for i, s in enumerate(new_sp):
+            gem, spo = life.produce(s, Gms[i], Dgs[i], surface)
+            made_g.append(gem * M)
+            made_s.append(spo * M)
+        # ---- landing (expected: the kernels of eqs 3.22-3.23) and one individual per spot
+        if self.dispersal:
+            arr_g = [self.data.kernels["gemma"].apply(g) for g in made_g]
+            arr_s = [self.data.kernels["spore"].apply(x) for x in made_s]
+            A = dr.zeros(T, n)
+            for a, b in zip(arr_g, arr_s):
+                A += a + b
+            free = dr.maximum(1.0 - occ, 0.0)
+            acc = free * relax.settle_fraction(A / M) / M     # spots taken per arrival
+            scale = 1.0
+            if self.capacity_on:
+                room = dr.maximum(self.capacity - dr.sum(M * occ), 0.0)
+                scale = dr.minimum(1.0, room / dr.maximum(dr.sum(M * A * acc), 1e-12))
+            new_g = [a * acc * scale for a in arr_g]
+            new_s = [a * acc * scale for a in arr_s]
+            for ng, ns_ in zip(new_g, new_s):
+                settled.append(ng + ns_)
+                occ = occ + ng + ns_
+        else:
+            new_g = [dr.zeros(T, n) for _ in new_sp]
+            new_s = [dr.zeros(T, n) for _ in new_sp]
+        # ---- a spore from outside every `interval` days at a random point (area-weighted),
+        # random species; it stays only on a free spot and within the capacity
+        if self.external and self.interval and d % self.interval == self.interval - 1:
+            free2 = dr.maximum(1.0 - occ, 0.0)
+            room = 1.0
+            if self.capacity_on:
+                room = dr.clip(self.capacity - dr.sum(M * occ), 0.0, 1.0)
+            ext = T(self.area_frac / self.data.M / self.n_sp) * free2 * room
+            new_s = [x + ext for x in new_s]
+        for s, ng, ns_ in zip(new_sp, new_g, new_s):
+            life.push(s, "gemma", ng, d)
+            life.push(s, "spore", ns_, d)
+        out = State(d + 1, O, new_sp, st.per_species)
+        # opaque, not just evaluated: a slot that is still a literal 0 would enter the kernels as
+        # a constant, and the registers shift those constants around: a new kernel every day
+        dr.make_opaque(out.arrays())
+        if record is not None:
+            record.update(S=S, Ts=Ts, rhs=rhs, theta=theta, c=c_after, germinated=germinated,
+                          gemmae=made_g, spores=made_s, arrived=arr_g + arr_s, settled=settled)
+        return out
+
+    # ---- outputs ----------------------------------------------------------------------------
+    def moss_density(self, st: State):
+        c = dr.zeros(self.T, self.n)
+        for s in st.species:
+            c += self.life.moss(s)
+        return c
+
+    def cover(self, st: State):
+        """Covered fraction of each triangle: min(moss x size², area) / area (as simulation.py)."""
+        c = self.moss_density(st)
+        a = self.areas
+        return dr.minimum(c * self.M * self.cell2, a) / a
+
+    def propagules(self, st: State):
+        p = dr.zeros(self.T, self.n)
+        for s in st.species:
+            p += self.life.waiting(s)
+        return p
+
+    def _record(self, st: State, rec: dict) -> dict:
+        d = self.data
+        cov = np.asarray(self.cover(st)) * d.areas
+        c = np.asarray(self.moss_density(st)) * d.M
+        liv = d.living
+        a = d.areas[liv]
+
+        def amean(x):
+            return float(np.sum(np.asarray(x)[liv] * a) / a.sum())
+
+        def tot(xs, per_spot=False):
+            w = d.M if per_spot else 1.0
+            return float(sum(np.sum(np.asarray(x) * w) for x in xs))
+
+        per_sp = [float(np.sum(np.asarray(self.life.moss(s)) * d.M)) for s in st.species]
+        return {"day": st.day, "covered_area_m2": float(cov.sum()),
+                "moss_alive": float(c.sum()),
+                "alive": dict(zip([s.name for s in d.species], per_sp)),
+                "propagules": float(np.sum(np.asarray(self.propagules(st)) * d.M)),
+                "mean_S_W_m2": amean(rec["S"]), "mean_Ts_K": amean(rec["Ts"]),
+                "mean_rhs": amean(rec["rhs"]), "mean_theta": amean(rec["theta"]),
+                "regions": {k: float(cov[m].sum()) for k, m in d.regions.items()},
+                "events": {"germinated": tot(rec["germinated"], True),
+                           "gemmae": tot(rec["gemmae"]), "spores": tot(rec["spores"]),
+                           "arrived": tot(rec["arrived"]),
+                           "settled": tot(rec["settled"], True)}}
+
+    # ---- runs -------------------------------------------------------------------------------
+    def run(self, params: dict | None = None, days: int | None = None, state: State | None = None,
+            record: bool = False, maps_every: int = 0, light=None,
+            progress: bool = False) -> RunResult:
+        """Run ``days`` days (default the model's) from ``state`` (default day 0).
+
+        params: ``{name: value}`` (numbers, or width-1 Float64 with gradients enabled to
+        differentiate); record: per-day summary like the discrete run's ``days_record``;
+        maps_every: keep per-element cover every so many days (NumPy) in ``maps``.
+        """
+        t0 = time.perf_counter()
+        P = self.resolve(params)
+        light = self.light(P) if light is None else light
+        st = self.initial_state() if state is None else state
+        end = st.day + int(days if days is not None else self.days - st.day)
+        if end > self.days:
+            raise ParameterError("days", end, f"<= {self.days}")
+        hist, maps = [], {}
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
+            bar = tqdm(total=end - st.day, desc="relaxed days", unit="day")
+        while st.day < end:
+            rec = {} if record else None
+            st = self.step(st, P, light, rec)
+            if record:
+                hist.append(self._record(st, rec))
+            if maps_every and st.day % maps_every == 0:
+                maps[st.day] = np.asarray(self.cover(st))
+            if bar is not None:
+                bar.update(1)
+        if bar is not None:
+            bar.close()
+        return RunResult(st, self.cover(st), self.moss_density(st), hist, maps,
+                         time.perf_counter() - t0)
