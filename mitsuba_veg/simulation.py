@@ -36,9 +36,9 @@ from .climate import ClimateTable, daily_weather, load_csv
 from .errors import ParameterError, SceneError, check_range
 from .integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 from .light.sunpath import day_sun_path
-from .moss.population import FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
+from .moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
 from .moss.propagules import land, settle, spore_direction, uniform_sphere
-from .moss.spatial import CellGrid, max_per_element, per_element_count
+from .moss.spatial import SpotGrid, max_per_element, per_element_count
 from .moss.species import SPECIES, Species, load_species
 from .scenario import Scenario, load_scenario
 from .terrain import Terrain
@@ -176,8 +176,8 @@ class MossSimulation:
         self.index = SceneIndex.build(self.scene)
         self.integrator = PhotonIrradianceIntegrator()
         self._setup_terrain()
-        self.grid = CellGrid(np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max),
-                             float(self.moss_cfg["size"]))
+        self.grid = SpotGrid(np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max),
+                             float(self.moss_cfg["size"]), int(self.moss_cfg["capacity"]))
         self.pop = MossPopulation(int(self.moss_cfg["capacity"]),
                                   SpeciesTable(self.species, self.moss_cfg["priority"]))
         self.O = soil_model.bucket_capacity(self.h, self.geology).astype(np.float64)  # saturated
@@ -315,20 +315,19 @@ class MossSimulation:
         pop, grid, cfg = self.pop, self.grid, self.moss_cfg
         f = lambda a: mi.Float(np.asarray(a, np.float32))  # noqa: E731
         cand, spores, ev = pop.live_day(f(S), f(Ts), f(rhs))
+        grid.sync(pop.state)  # deaths, expiry, germination
         # only moss on the surface of a clump release gemmae: test the day's candidates only
         c_idx = dr.compress(cand)
         g_idx = c_idx
         if dr.width(c_idx):
-            occ = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity),
-                                 pop.state != FREE, name="occupancy")
             cp = dr.gather(mi.Point3f, pop.pos, c_idx)
-            inside = grid.neighbour_count(occ, cp, mi.Bool(True), pop.state, MOSS) >= \
+            inside = grid.neighbour_count(cp) >= \
                 dr.opaque(mi.UInt32, int(cfg["clump_neighbours"]))
-            # evaluate now: a lazy `inside` would keep the grid referenced, and the next write
-            # to the grid would then copy all of it
+            # evaluate now: a lazy `inside` would keep the population's arrays referenced, and
+            # the next write to them would then copy them
             dr.eval(inside)
             g_idx = dr.gather(mi.UInt32, c_idx, dr.compress(~inside))
-            del inside, occ
+            del inside
         ev.gemma_parents = int(dr.width(g_idx))
         # release and landing of the day's propagules (one batch: gemmae then spores)
         s_idx = dr.compress(spores)
@@ -356,9 +355,9 @@ class MossSimulation:
             k_idx = dr.compress(keep)
             if dr.width(k_idx):
                 gat = lambda t, a: dr.gather(t, a, k_idx)  # noqa: E731
-                pop.add(PROPAGULE, gat(mi.UInt32, species),
-                        dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE), mi.UInt32(GEMMA)),
-                        gat(mi.UInt32, elem), gat(mi.Point3f, p), gat(mi.Vector3f, nrm), 0.0)
+                self._add(PROPAGULE, gat(mi.UInt32, species),
+                          dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE), mi.UInt32(GEMMA)),
+                          gat(mi.UInt32, elem), gat(mi.Point3f, p), gat(mi.Vector3f, nrm), 0.0)
             landed_total = int(dr.width(k_idx))
         interval = int(cfg["external_spore_interval"])
         if interval and day % interval == interval - 1:
@@ -366,6 +365,15 @@ class MossSimulation:
         events = ev.__dict__.copy()
         events["propagules_settled"] = landed_total
         return events
+
+    def _add(self, state, species, kind, elem, pos, nrm, growth):
+        """Add settled individuals to the population and their spots to the grid."""
+        self.grid.sync(self.pop.state)  # evictions free cells before slots are reused
+        slots = self.pop.add(state, species, kind, elem, pos, nrm, growth)
+        k = dr.width(slots)
+        if k < dr.width(elem):  # the population was full: the first k were placed
+            pos = dr.gather(mi.Point3f, pos, dr.arange(mi.UInt32, k))
+        self.grid.insert(pos, slots, self.pop.state)
 
     def _land(self, origin, direction, dist, active):
         return land(self.scene, self.index.lookup, origin, direction, dist, active)
@@ -400,9 +408,9 @@ class MossSimulation:
         k = dr.compress(keep)
         if dr.width(k):
             g = lambda t, a: dr.gather(t, a, k)  # noqa: E731
-            self.pop.add(state, g(mi.UInt32, mi.UInt32(species.astype(np.uint32))), kind,
-                         g(mi.UInt32, mi.UInt32(tri.astype(np.uint32))), g(mi.Point3f, P),
-                         g(mi.Vector3f, N), growth)
+            self._add(state, g(mi.UInt32, mi.UInt32(species.astype(np.uint32))), kind,
+                      g(mi.UInt32, mi.UInt32(tri.astype(np.uint32))), g(mi.Point3f, P),
+                      g(mi.Vector3f, N), growth)
 
     # ---- run --------------------------------------------------------------------------------
     def step(self) -> dict:
@@ -484,6 +492,7 @@ class MossSimulation:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
                                  "delete it or use another --out folder to start afresh")
         self.pop.load_numpy(d)
+        self.grid.rebuild(self.pop.pos, self.pop.state)
         self._moss_version += 1
         self.day = int(d["day"])
         self.O = np.asarray(d["O"], np.float64)
@@ -534,11 +543,8 @@ class MossSimulation:
                              "start_date": self.start.isoformat(),
                              "checkpoint_every": self.checkpoint_every}},
             "species": [s.name for s in self.species],
-            "spot_grid": {"cell_m": self.grid.cell, "requested_cell_m": self.grid.requested_cell,
-                          "cells": self.grid.n_cells,
-                          "warning": (None if self.grid.cell == self.grid.requested_cell else
-                                      "the scene's volume needs more than 64M spots of the moss "
-                                      "size: spots were enlarged (coarser occupancy)")},
+            "spot_grid": {"cell_m": self.grid.cell, "cells_allocated": self.grid.n_cells,
+                          "blocks": self.grid.n_blocks},
             "final": {"covered_area_m2": float(cov.sum()),
                       "moss_alive": int(self.pop.count(MOSS)),
                       "propagules": int(self.pop.count(PROPAGULE)),

@@ -14,7 +14,7 @@ from mitsuba_veg.moss.fitness import fitness as g_fn
 from mitsuba_veg.moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation,
                                          SpeciesTable)
 from mitsuba_veg.moss.propagules import land, settle, spore_direction
-from mitsuba_veg.moss.spatial import CellGrid, per_element_count
+from mitsuba_veg.moss.spatial import SpotGrid, per_element_count
 from mitsuba_veg.integrators.photon_irradiance import SceneIndex
 from mitsuba_veg.light import validation as V
 
@@ -183,10 +183,11 @@ def test_propagules_land_fall_or_vanish():
 
 
 def test_occupancy_conflicts_and_priorities():
-    grid = CellGrid((-1, -1, -1), (1, 1, 1), 0.01)
+    grid = SpotGrid((-1, -1, -1), (1, 1, 1), 0.01, capacity=8)
     pop = pop_with(n_slots=8, species=(BRYUM, POLY), priority=[0.0, 5.0])
     add(pop, MOSS, 0.3, pos=(0.0, 0.0, 0.0), species=0)       # established Bryum at the origin
     add(pop, PROPAGULE, 0.0, pos=(0.2, 0.0, 0.0), species=0)  # a waiting Bryum gemma
+    grid.rebuild(pop.pos, pop.state)
     pts = mi.Point3f(mi.Float([0.001, 0.002, 0.2005, 0.5, 0.5005]), mi.Float([0.0] * 5),
                      mi.Float([0.0] * 5))
     species = mi.UInt32([0, 0, 1, 0, 0])
@@ -200,11 +201,87 @@ def test_occupancy_conflicts_and_priorities():
 
 
 def test_clump_interior_by_neighbour_count():
-    grid = CellGrid((-1, -1, -1), (1, 1, 1), 0.01)
+    grid = SpotGrid((-1, -1, -1), (1, 1, 1), 0.01, capacity=25)
     xs, zs = np.meshgrid(np.arange(-2, 3) * 0.01 + 0.005, np.arange(-2, 3) * 0.01 + 0.005)
     p = mi.Point3f(mi.Float(xs.ravel()), mi.Float(np.full(25, 0.001)), mi.Float(zs.ravel()))
-    flags = grid.occupancy(p, dr.arange(mi.UInt32, 25), mi.Bool(True))
-    count = np.asarray(grid.neighbour_count(flags, p, mi.Bool(True))).reshape(5, 5)
+    state = dr.full(mi.UInt32, MOSS, 25)
+    grid.insert(p, dr.arange(mi.UInt32, 25), state)
+    count = np.asarray(grid.neighbour_count(p)).reshape(5, 5)
     assert count[2, 2] == 8 and count[0, 0] == 3 and count[0, 2] == 5
+    # a freed slot no longer counts
+    grid.sync(dr.select(dr.arange(mi.UInt32, 25) == 7, 0, state))
+    count = np.asarray(grid.neighbour_count(p)).reshape(5, 5)
+    assert count[2, 2] == 7 and count[0, 0] == 3
+    assert np.asarray(grid.occupant(p)).tolist() == [i + 1 if i != 7 else 0 for i in range(25)]
     assert np.asarray(per_element_count(mi.UInt32([0, 2, 2]), mi.Bool(True), 3)).tolist() == \
         [1, 0, 2]
+
+
+def test_clump_counts_moss_only():
+    """Waiting propagules fill a spot but are not moss: they count for the clump test only
+    once they germinate."""
+    grid = SpotGrid((-1, -1, -1), (1, 1, 1), 0.01, capacity=9)
+    xs, zs = np.meshgrid(np.arange(-1, 2) * 0.01 + 0.005, np.arange(-1, 2) * 0.01 + 0.005)
+    p = mi.Point3f(mi.Float(xs.ravel()), mi.Float(np.full(9, 0.001)), mi.Float(zs.ravel()))
+    state = mi.UInt32([PROPAGULE] * 4 + [MOSS] + [PROPAGULE] * 4)
+    grid.insert(p, dr.arange(mi.UInt32, 9), state)
+    centre = dr.gather(mi.Point3f, p, mi.UInt32([4]))
+    assert np.asarray(grid.neighbour_count(centre)).tolist() == [0]
+    assert np.asarray(grid.neighbour_count(centre, moss_only=False)).tolist() == [8]
+    grid.sync(mi.UInt32([MOSS] * 3 + [PROPAGULE] * 6))  # three germinate
+    assert np.asarray(grid.neighbour_count(centre)).tolist() == [3]
+
+
+def test_spot_grid_against_brute_force():
+    """Days of random arrivals, germination, deaths and reuse of slots, spread so that blocks
+    are allocated, the pool grows and the block table is rehashed: every answer equals a
+    brute-force search over the population."""
+    rng = np.random.default_rng(5)
+    cap, cell = 3000, 0.01
+    grid = SpotGrid((0, 0, 0), (1.0, 0.05, 1.0), cell, capacity=cap)
+    state = np.zeros(cap, np.uint32)
+    pos = np.zeros((cap, 3), np.float32)
+
+    def cells(P):
+        c = np.floor((P - grid.lo.astype(np.float32)) * np.float32(1.0 / cell)).astype(np.int64)
+        return c[:, 0] + 1000 * c[:, 1] + 1000_000 * c[:, 2], c
+
+    to_p = lambda P: mi.Point3f(*[mi.Float(np.ascontiguousarray(P[:, k])) for k in range(3)])  # noqa: E731
+    for day in range(25):
+        n = 800
+        P = (rng.random((n, 3)) * [1.0, 0.05, 1.0]).astype(np.float32)
+        P[n // 2:] = P[rng.integers(0, n // 2, n - n // 2)]  # repeated cells
+        rank = rng.permutation(n).astype(np.uint64)
+        first = np.asarray(grid.first_per_cell(grid.key(to_p(P)), mi.UInt64(rank)))
+        c, _ = cells(P)
+        best = {}
+        for i in range(n):
+            if c[i] not in best or rank[i] < rank[best[c[i]]]:
+                best[c[i]] = i
+        assert first.tolist() == [best[c[i]] == i for i in range(n)]
+        live = {cc: s + 1 for s, cc in zip(np.flatnonzero(state), cells(pos[state > 0])[0])}
+        occ = np.asarray(grid.occupant(to_p(P)))
+        assert occ.tolist() == [live.get(cc, 0) for cc in c]
+        # moss neighbours of every occupied slot, brute force
+        occupied = np.flatnonzero(state)
+        if len(occupied):
+            _, co = cells(pos[occupied])
+            moss_cells = {tuple(x) for x in cells(pos[state == MOSS])[1]}
+            want = [sum((x + dx, y + dy, z + dz) in moss_cells for dx, dy, dz in NB)
+                    for x, y, z in co]
+            got = np.asarray(grid.neighbour_count(to_p(pos[occupied])))
+            assert got.tolist() == want
+        # winners in free cells settle into free slots; some germinate, some die
+        new = np.flatnonzero(first & (occ == 0))
+        free = np.flatnonzero(state == 0)[:len(new)]
+        new = new[:len(free)]
+        state[free], pos[free] = PROPAGULE, P[new]
+        grid.insert(to_p(P[new]), mi.UInt32(free.astype(np.uint32)), mi.UInt32(state.copy()))
+        state[(state == PROPAGULE) & (rng.random(cap) < 0.5)] = MOSS
+        state[rng.random(cap) < 0.3] = 0
+        grid.sync(mi.UInt32(state.copy()))  # a copy: mi.UInt32 of a NumPy array is a view
+    assert grid.rehashes >= 1 and grid.block_cap > cap // 8
+
+
+NB = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
+      if (dx, dy, dz) != (0, 0, 0)]

@@ -68,20 +68,19 @@ def land(scene: mi.Scene, lookup: mi.UInt32, origin: mi.Point3f, direction: mi.V
 def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt32,
            new_order: mi.UInt32, landed: mi.Bool):
     """Resolve where propagules may stay (one individual per cell, priority rule above).
+    ``grid``: the spot grid (:class:`~mitsuba_veg.moss.spatial.SpotGrid`), in step with ``pop``
+    (``grid.sync(pop.state)`` since the population last changed).
 
     Returns (keep mask over the new propagules, mask of existing slots that lose their cell).
     """
-    cells = grid.index(new_pos)
+    keys = grid.key(new_pos)
     # among the newcomers of one cell: highest species priority, then lowest order
     pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
-    rank = mi.UInt32(dr.clip(1000.0 - pri_new * 10.0, 0.0, 2000.0))  # higher priority first
-    key = (rank << 21) | dr.minimum(new_order, mi.UInt32((1 << 21) - 1))
-    best = grid.reduce_min(key, cells, landed)
-    first = landed & (dr.gather(mi.UInt32, best, cells, landed) == key)
+    rank = mi.UInt64(mi.UInt32(dr.clip(1000.0 - pri_new * 10.0, 0.0, 2000.0)))  # high first
+    dr.eval(keys, rank)
+    first = grid.first_per_cell(keys, (rank << 32) | mi.UInt64(new_order), landed)
     # against the individual already there
-    occ = grid.occupancy(pop.pos, dr.arange(mi.UInt32, pop.capacity), pop.state != FREE,
-                         name="occupancy")
-    there = dr.gather(mi.UInt32, occ, cells, first)
+    there = grid.occupant(new_pos, first)
     has = first & (there > 0)
     slot = dr.select(has, there - 1, 0)
     pri_old = dr.gather(mi.Float, pop.table.priority, dr.gather(mi.UInt32, pop.species, slot, has),

@@ -1,18 +1,27 @@
-"""Uniform cell grid over the scene: occupancy, neighbour counts and per-triangle moss density.
+"""Spot grid: uniform moss-sized cells in hashed blocks (occupancy, neighbour counts).
 
 Paper 000 (§3.8) keeps moss in a KD-tree to answer nearest-neighbour questions: is a spot already
 taken, is a moss inside a dense clump (then it makes no gemmae), how dense is moss around a soil
 element (m/M of eq 3.5). With every moss the same size (1 cm in the paper) a uniform grid whose
-cell is one moss wide answers all three in O(1) per moss, vectorised with Dr.Jit gathers and
-scatters (no tree to rebuild each day):
+cell is one moss wide answers them in O(1) per moss:
 
 - a cell holds at most one individual (moss or waiting propagule): the "spot";
 - a moss is *inside a clump* when at least ``clump_neighbours`` of its 26 neighbour cells hold
   moss (8 = every in-plane neighbour of a moss lying on a flat surface);
-- the density of a triangle is m/M with m the moss on it and M = area / cell² the most that fit.
+- the density of a triangle is m/M with m the moss on it and M = area / cell² the most that fit
+  (:func:`per_element_count`, :func:`max_per_element`).
 
-The grid is dense (one UInt32 per cell) up to ``max_cells``; beyond that the cell is enlarged
-(coarser spots) and a warning is recorded.
+Moss lives on surfaces, so almost every cell of a dense 3-D grid over the scene would stay empty
+(the garden at 1.5 mm spots: 1.2 billion cells for 2 million possible spots). Cells are
+therefore stored in blocks of 4 x 4 x 4, allocated when an individual first arrives in a block
+and found through an open-addressing hash table (linear probing) of block keys: memory grows
+with the surface that moss has reached, never with the scene's volume, and the spot size is
+never coarsened. A cell holds ``slot + 1`` of its occupant (0 = free) with the top bit set when
+the occupant is a moss, so a neighbour count reads 26 cells of at most 8 neighbouring blocks.
+
+The grid follows the population through :meth:`SpotGrid.sync` (slots freed, propagules that
+germinated) and :meth:`SpotGrid.insert` (newcomers); answers never depend on the order of
+blocks or table entries, so resumed runs stay bit-identical.
 """
 from __future__ import annotations
 
@@ -25,90 +34,320 @@ import numpy as np
 NEIGHBOURS = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
               if (dx, dy, dz) != (0, 0, 0)]
 
+_BITS = 21                      # bits per coordinate in a key
+_OFFSET = 1 << (_BITS - 1)      # cell coordinates -2^20 .. 2^20 - 1
+_USED = 1 << 63                 # marks a key (0 = empty table entry)
+_GOLDEN = 0x9E3779B97F4A7C15    # Fibonacci hashing multiplier
+_NONE64 = 0xFFFFFFFFFFFFFFFF
+_NONE32 = 0xFFFFFFFF
+_B = 4                          # cells per block edge
+_B3 = _B ** 3
+_MOSS_BIT = 1 << 31             # in a cell: the occupant is a moss
+_SLOT_MASK = _MOSS_BIT - 1
+_PROPAGULE, _MOSS = 1, 2        # population states (population.py)
 
-class CellGrid:
-    """Dense grid of cubic cells of side ``cell`` [m] covering ``bbox_min..bbox_max`` [m]."""
 
-    def __init__(self, bbox_min, bbox_max, cell: float, max_cells: int = 64_000_000):
-        lo = np.asarray(bbox_min, float) - 1.5 * cell
-        hi = np.asarray(bbox_max, float) + 1.5 * cell
-        self.requested_cell = float(cell)
-        dims = np.ceil((hi - lo) / cell).astype(np.int64)
-        while int(np.prod(dims)) > max_cells:
-            cell *= 1.25
-            dims = np.ceil((hi - lo) / cell).astype(np.int64)
-        self.cell = float(cell)
-        self.lo = lo
-        self.dims = dims
-        self.n_cells = int(np.prod(dims))
+def _pack(a, b, c) -> mi.UInt64:
+    f = lambda i: mi.UInt64(mi.UInt32(i))  # noqa: E731
+    return f(a) | (f(b) << _BITS) | (f(c) << (2 * _BITS)) | mi.UInt64(_USED)
 
+
+class SpotGrid:
+    """Cubic cells of side ``cell`` [m]; cell (0, 0, 0) starts at ``bbox_min - 1.5 cell``.
+    ``capacity``: the population's slots (``slot_cell`` keeps each slot's cell)."""
+
+    def __init__(self, bbox_min, bbox_max, cell: float, capacity: int):
+        if not (cell > 0 and math.isfinite(cell)):
+            raise ValueError("cell must be a positive length in metres")
+        self.lo = np.asarray(bbox_min, float) - 1.5 * cell
+        self.cell = self.requested_cell = float(cell)
+        self.capacity = int(capacity)
+        extent = (np.asarray(bbox_max, float) + 1.5 * cell - self.lo) / cell
+        if np.any(extent >= 2 * _OFFSET):
+            raise ValueError(f"the scene spans {extent.max():.3g} cells of {cell} m; at most "
+                             f"{2 * _OFFSET} per axis fit a cell key (use a larger moss size)")
+        self.bits = max(10, int(math.ceil(math.log2(max(self.capacity // 2, 512)))))
+        self.tab_keys = dr.zeros(mi.UInt64, 1 << self.bits)
+        self.tab_block = dr.zeros(mi.UInt32, 1 << self.bits)
+        self._claim = dr.full(mi.UInt32, _NONE32, 1 << self.bits)
+        self.n_blocks = 0
+        self.block_cap = max(64, self.capacity // 8)
+        self.pool = dr.zeros(mi.UInt32, self.block_cap * _B3)
+        self.block_key = dr.zeros(mi.UInt64, self.block_cap)
+        self.slot_cell = dr.zeros(mi.UInt32, self.capacity)
+        self._code = dr.zeros(mi.UInt32, self.capacity)  # state per slot at the last sync
+        self.rehashes = 0
+        dr.eval(self.tab_keys, self.tab_block, self._claim, self.pool, self.block_key,
+                self.slot_cell, self._code)
+
+    @property
+    def n_cells(self) -> int:
+        """Cells allocated (in blocks of 64)."""
+        return self.n_blocks * _B3
+
+    # ---- keys -------------------------------------------------------------------------------
     def coords(self, p: mi.Point3f):
-        """Integer cell coordinates (clamped into the grid) of points ``p``."""
+        """Integer cell coordinates of points ``p`` [m] (offset by 2^20: non-negative)."""
         out = []
         for k, c in enumerate((p.x, p.y, p.z)):
             i = mi.Int32(dr.floor((c - float(self.lo[k])) * (1.0 / self.cell)))
-            out.append(dr.clip(i, 0, int(self.dims[k]) - 1))
+            out.append(mi.UInt32(dr.clip(i, -_OFFSET, _OFFSET - 1) + _OFFSET))
         return out
 
-    def index(self, p: mi.Point3f) -> mi.UInt32:
+    def key(self, p: mi.Point3f) -> mi.UInt64:
+        """The cell key of points ``p`` (equal keys = same spot)."""
+        return _pack(*self.coords(p))
+
+    index = key  # the spot of a point (callers compare spots)
+
+    @staticmethod
+    def _block_key(ix, iy, iz) -> mi.UInt64:
+        return _pack(ix >> 2, iy >> 2, iz >> 2)
+
+    @staticmethod
+    def _local(ix, iy, iz) -> mi.UInt32:
+        return (ix & 3) | ((iy & 3) << 2) | ((iz & 3) << 4)
+
+    def _hash(self, key: mi.UInt64) -> mi.UInt32:
+        return mi.UInt32((key * mi.UInt64(_GOLDEN)) >> (64 - self.bits))
+
+    # ---- blocks -----------------------------------------------------------------------------
+    def _find_block(self, bkeys: mi.UInt64, active) -> mi.UInt32:
+        """Block + 1 of each block key (0 where the block does not exist)."""
+        tab_keys, tab_block, mask = self.tab_keys, self.tab_block, (1 << self.bits) - 1
+
+        def cond(pos, found, done):
+            return ~done
+
+        def body(pos, found, done):
+            at = dr.gather(mi.UInt64, tab_keys, pos, ~done)
+            hit = ~done & (at == bkeys)
+            found = dr.select(hit, dr.gather(mi.UInt32, tab_block, pos, hit) + 1, found)
+            done = done | hit | (at == 0)
+            return dr.select(done, pos, (pos + 1) & mask), found, done
+
+        n = dr.width(bkeys)
+        _, found, _ = dr.while_loop((self._hash(bkeys), dr.zeros(mi.UInt32, n),
+                                     ~(dr.full(mi.Bool, True, n) & active)), cond, body)
+        return found
+
+    def _ensure_blocks(self, bkeys: mi.UInt64) -> None:
+        """Allocate the blocks of ``bkeys`` that do not exist yet. Rounds of one probe step:
+        items with one key start at the same entry and move together; at an empty entry the
+        lowest item claims it for its key, the others of that key see it taken by their key."""
+        n = dr.width(bkeys)
+        if n == 0:
+            return
+        if self.n_blocks + n > (1 << self.bits) // 2:
+            self._rehash(max(self.bits + 1, int(math.ceil(math.log2(2 * (self.n_blocks + n))))))
+        mask = (1 << self.bits) - 1
+        k, it, pos = bkeys, dr.arange(mi.UInt32, n), self._hash(bkeys)
+        dr.eval(k, pos)
+        # every read of a table is evaluated before the table is written (a lazy read would
+        # make Dr.Jit copy the whole table at the write)
+        while True:
+            at = dr.gather(mi.UInt64, self.tab_keys, pos)
+            empty = at == 0
+            found = at == k
+            dr.eval(empty, found)
+            del at
+            dr.scatter_reduce(dr.ReduceOp.Min, self._claim, it, pos, empty)
+            dr.eval(self._claim)
+            win = empty & (dr.gather(mi.UInt32, self._claim, pos, empty) == it)
+            dr.eval(win)
+            dr.scatter(self._claim, mi.UInt32(_NONE32), pos, empty)
+            w = dr.compress(win)
+            m = dr.width(w)
+            if m:
+                wpos = dr.gather(mi.UInt32, pos, w)
+                wkey = dr.gather(mi.UInt64, k, w)
+                self._grow(self.n_blocks + m)
+                ids = dr.arange(mi.UInt32, m) + dr.opaque(mi.UInt32, self.n_blocks)
+                dr.scatter(self.tab_keys, wkey, wpos)
+                dr.scatter(self.tab_block, ids, wpos)
+                dr.scatter(self.block_key, wkey, ids)
+                self.n_blocks += m
+            dr.eval(self.tab_keys, self.tab_block, self.block_key, self._claim)
+            on = ~found & ~win & (dr.gather(mi.UInt64, self.tab_keys, pos) != k)
+            idx = dr.compress(on)
+            if dr.width(idx) == 0:
+                return
+            k = dr.gather(mi.UInt64, k, idx)
+            it = dr.gather(mi.UInt32, it, idx)
+            pos = (dr.gather(mi.UInt32, pos, idx) + 1) & mask
+            dr.eval(k, it, pos)
+
+    def _grow(self, blocks: int) -> None:
+        """Room for ``blocks`` blocks in the pool (doubling)."""
+        if blocks <= self.block_cap:
+            return
+        cap = max(blocks, 2 * self.block_cap)
+        pool = dr.zeros(mi.UInt32, cap * _B3)
+        dr.scatter(pool, self.pool, dr.arange(mi.UInt32, self.block_cap * _B3))
+        bk = dr.zeros(mi.UInt64, cap)
+        dr.scatter(bk, self.block_key, dr.arange(mi.UInt32, self.block_cap))
+        dr.eval(pool, bk)
+        self.pool, self.block_key, self.block_cap = pool, bk, cap
+
+    def _rehash(self, bits: int) -> None:
+        """A table of 2^bits entries holding the existing blocks."""
+        self.bits = bits
+        size = 1 << bits
+        self.tab_keys = dr.zeros(mi.UInt64, size)
+        self.tab_block = dr.zeros(mi.UInt32, size)
+        self._claim = dr.full(mi.UInt32, _NONE32, size)
+        dr.eval(self.tab_keys, self.tab_block, self._claim)
+        self.rehashes += 1
+        nb = self.n_blocks
+        if nb == 0:
+            return
+        keys = dr.gather(mi.UInt64, self.block_key, dr.arange(mi.UInt32, nb))
+        ids, pos = dr.arange(mi.UInt32, nb), self._hash(keys)
+        dr.eval(keys, pos)
+        while True:  # block keys are distinct: claim the first empty entry on the chain
+            empty = dr.gather(mi.UInt64, self.tab_keys, pos) == 0
+            dr.eval(empty)
+            dr.scatter_reduce(dr.ReduceOp.Min, self._claim, ids, pos, empty)
+            dr.eval(self._claim)
+            win = empty & (dr.gather(mi.UInt32, self._claim, pos, empty) == ids)
+            dr.eval(win)
+            dr.scatter(self._claim, mi.UInt32(_NONE32), pos, empty)
+            dr.scatter(self.tab_keys, keys, pos, win)
+            dr.scatter(self.tab_block, ids, pos, win)
+            dr.eval(self.tab_keys, self.tab_block, self._claim)
+            idx = dr.compress(~win)
+            if dr.width(idx) == 0:
+                return
+            keys = dr.gather(mi.UInt64, keys, idx)
+            ids = dr.gather(mi.UInt32, ids, idx)
+            pos = (dr.gather(mi.UInt32, pos, idx) + 1) & (size - 1)
+            dr.eval(keys, ids, pos)
+
+    def _cell(self, ix, iy, iz, active) -> tuple[mi.UInt32, mi.Bool]:
+        """Pool index of cells (and whether their block exists)."""
+        b = self._find_block(self._block_key(ix, iy, iz), active)
+        ok = b > 0
+        return (b - 1) * _B3 + self._local(ix, iy, iz), ok
+
+    # ---- following the population -----------------------------------------------------------
+    def insert(self, p: mi.Point3f, slots: mi.UInt32, state: mi.UInt32) -> None:
+        """Newcomers in ``slots`` occupy the cells of points ``p`` (one per cell: the caller
+        has resolved conflicts, see ``propagules.settle``). ``state``: the population's state
+        after adding them (kept until the next call: not a view of a NumPy array that changes).
+        Call :meth:`sync` before the population frees or reuses slots."""
+        if dr.width(slots):
+            ix, iy, iz = self.coords(p)
+            dr.eval(ix, iy, iz)
+            self._ensure_blocks(self._block_key(ix, iy, iz))
+            cell, _ = self._cell(ix, iy, iz, True)
+            moss = dr.gather(mi.UInt32, state, slots) == _MOSS
+            v = (slots + 1) | dr.select(moss, mi.UInt32(_MOSS_BIT), mi.UInt32(0))
+            dr.eval(cell, v)
+            dr.scatter(self.pool, v, cell)
+            dr.scatter(self.slot_cell, cell, slots)
+        self._code = state
+        dr.eval(self.pool, self.slot_cell)
+
+    def sync(self, state: mi.UInt32) -> None:
+        """Follow the population's changes since the last call: freed slots empty their cell,
+        propagules that germinated are marked as moss."""
+        prev = self._code
+        freed = (prev != 0) & (state == 0)
+        germ = (prev == _PROPAGULE) & (state == _MOSS)
+        cell = self.slot_cell
+        dr.eval(freed, germ)
+        dr.scatter(self.pool, mi.UInt32(0), cell, freed)
+        dr.scatter(self.pool, (dr.arange(mi.UInt32, self.capacity) + 1) | _MOSS_BIT, cell, germ)
+        self._code = state
+        dr.eval(self.pool)
+
+    def rebuild(self, pos: mi.Point3f, state: mi.UInt32) -> None:
+        """Empty every cell and insert all occupied slots (after loading a checkpoint)."""
+        self.pool = dr.zeros(mi.UInt32, self.block_cap * _B3)
+        self._code = dr.zeros(mi.UInt32, self.capacity)
+        s = dr.compress(state != 0)
+        self.insert(dr.gather(mi.Point3f, pos, s), s, state)
+
+    # ---- reading ----------------------------------------------------------------------------
+    def occupant(self, p: mi.Point3f, active=True) -> mi.UInt32:
+        """Slot + 1 of the individual in the cell of each point (0 = the spot is free)."""
         ix, iy, iz = self.coords(p)
-        return self._linear(ix, iy, iz)
+        cell, ok = self._cell(ix, iy, iz, active)
+        return dr.gather(mi.UInt32, self.pool, cell, ok & active) & _SLOT_MASK
 
-    def _linear(self, ix, iy, iz) -> mi.UInt32:
-        nx, ny = int(self.dims[0]), int(self.dims[1])
-        return mi.UInt32(ix) + nx * (mi.UInt32(iy) + ny * mi.UInt32(iz))
-
-    def _persistent(self, name: str, fill: int) -> mi.UInt32:
-        """A grid kept between calls (allocated and filled once): clearing a dense grid every
-        day would cost more than everything else; instead the cells written last time are reset."""
-        grid = getattr(self, f"_{name}", None)
-        if grid is None:
-            grid = dr.full(mi.UInt32, fill, self.n_cells)
-            dr.eval(grid)
-            setattr(self, f"_{name}", grid)
-            setattr(self, f"_{name}_last", None)
-        last = getattr(self, f"_{name}_last")
-        if last is not None:
-            dr.scatter(grid, mi.UInt32(fill), last[0], last[1])
-        return grid
-
-    def occupancy(self, p: mi.Point3f, slot: mi.UInt32, active: mi.Bool,
-                  name: str = "occupancy") -> mi.UInt32:
-        """Grid of ``slot + 1`` at the cells of the active points (0 = empty). Callers keep at
-        most one individual per cell, so the scatter has no conflicts. ``name`` selects one of
-        the persistent grids: the returned grid is valid until the next call with that name."""
-        grid = self._persistent(name, 0)
-        cells = self.index(p)
-        dr.scatter(grid, slot + 1, cells, active)
-        dr.eval(grid, cells, active)
-        setattr(self, f"_{name}_last", (cells, active))
-        return grid
-
-    def reduce_min(self, key: mi.UInt32, cells: mi.UInt32, active: mi.Bool) -> mi.UInt32:
-        """Per cell, the smallest ``key`` of the active entries (0xFFFFFFFF where none); the grid
-        is valid until the next call."""
-        grid = self._persistent("min", 0xFFFFFFFF)
-        dr.scatter_reduce(dr.ReduceOp.Min, grid, key, cells, active)
-        dr.eval(grid, cells, active)
-        self._min_last = (cells, active)
-        return grid
-
-    def neighbour_count(self, flags: mi.UInt32, p: mi.Point3f, active: mi.Bool,
-                        state: mi.UInt32 | None = None, wanted: int = 0) -> mi.UInt32:
-        """Number of the 26 neighbour cells of each point whose ``flags`` entry is non-zero
-        (with ``state``: whose occupant, slot = entry - 1, has ``state == wanted``)."""
+    def neighbour_count(self, p: mi.Point3f, active=True, moss_only: bool = True) -> mi.UInt32:
+        """Number of the 26 neighbour cells of each point that hold a moss (``moss_only``) or
+        any individual. The 3 x 3 x 3 neighbourhood spans at most 2 x 2 x 2 blocks: each is
+        looked up once, then the 26 cells are read from them."""
         ix, iy, iz = self.coords(p)
-        count = dr.zeros(mi.UInt32, dr.width(p.x))
+        n = dr.width(ix)
+        active = dr.full(mi.Bool, True, n) & active
+        w = lambda d: d % (1 << 32)  # noqa: E731  (-1 wraps: coordinates are unsigned)
+        lo = [(c + w(-1)) >> 2 for c in (ix, iy, iz)]
+        hi = [(c + 1) >> 2 for c in (ix, iy, iz)]
+        blocks = {}
+        for cx in (0, 1):
+            for cy in (0, 1):
+                for cz in (0, 1):
+                    need = active
+                    b = []
+                    for k, ck in enumerate((cx, cy, cz)):
+                        b.append(hi[k] if ck else lo[k])
+                        if ck:
+                            need = need & (hi[k] != lo[k])
+                    blocks[cx, cy, cz] = self._find_block(_pack(*b), need)
+        count = dr.zeros(mi.UInt32, n)
         for dx, dy, dz in NEIGHBOURS:
-            jx, jy, jz = ix + dx, iy + dy, iz + dz
-            inside = (jx >= 0) & (jy >= 0) & (jz >= 0) & (jx < int(self.dims[0])) & \
-                (jy < int(self.dims[1])) & (jz < int(self.dims[2]))
-            v = dr.gather(mi.UInt32, flags, self._linear(jx, jy, jz), active & inside)
-            hit = v > 0
-            if state is not None:
-                hit &= dr.gather(mi.UInt32, state, v - 1, hit) == wanted
+            j = [ix + w(dx), iy + w(dy), iz + w(dz)]
+            up = [(j[k] >> 2) != lo[k] for k in range(3)]
+            # the neighbour's block among the (up to) eight
+            by_x = {}
+            for cy in (0, 1):
+                for cz in (0, 1):
+                    by_x[cy, cz] = dr.select(up[0], blocks[1, cy, cz], blocks[0, cy, cz])
+            by_y = {cz: dr.select(up[1], by_x[1, cz], by_x[0, cz]) for cz in (0, 1)}
+            b = dr.select(up[2], by_y[1], by_y[0])
+            ok = active & (b > 0)
+            v = dr.gather(mi.UInt32, self.pool, (b - 1) * _B3 + self._local(*j), ok)
+            hit = (v & _MOSS_BIT) != 0 if moss_only else v != 0
             count += dr.select(hit, mi.UInt32(1), mi.UInt32(0))
         return count
+
+    @staticmethod
+    def first_per_cell(keys: mi.UInt64, rank: mi.UInt64, active=True) -> mi.Bool:
+        """Among the active items, the one of lowest (distinct) ``rank`` in each cell.
+
+        Rounds of bucketing by a hash of the key (4 buckets per item): an item with the lowest
+        rank of its bucket is the best of its cell (all items of a cell share a bucket); an
+        item whose bucket went to its own cell lost; the rest (their bucket went to another
+        cell) try again with another hash."""
+        active = dr.full(mi.Bool, True, dr.width(keys)) & active  # a scalar True: all
+        it = dr.compress(active)
+        out = dr.zeros(mi.Bool, dr.width(keys))
+        k = dr.gather(mi.UInt64, keys, it)
+        r = dr.gather(mi.UInt64, rank, it)
+        salt = 0
+        while dr.width(it):
+            bits = max(4, int(math.ceil(math.log2(4 * dr.width(it)))))
+            mult = (_GOLDEN + 2 * salt * 0x632BE59BD9B4E019) % (1 << 64) | 1
+            # opaque: the kernels do not depend on the round or the batch size
+            b = mi.UInt32((k * dr.opaque(mi.UInt64, mult)) >> dr.opaque(mi.UInt64, 64 - bits))
+            best = dr.full(mi.UInt64, _NONE64, 1 << bits)
+            dr.scatter_reduce(dr.ReduceOp.Min, best, r, b)
+            dr.eval(best, b)
+            win = dr.gather(mi.UInt64, best, b) == r
+            dr.eval(win)
+            bk = dr.zeros(mi.UInt64, 1 << bits)
+            dr.scatter(bk, k, b, win)
+            dr.scatter(out, True, it, win)
+            dr.eval(bk, out)
+            rest = dr.compress(~win & (dr.gather(mi.UInt64, bk, b) != k))
+            k = dr.gather(mi.UInt64, k, rest)
+            r = dr.gather(mi.UInt64, r, rest)
+            it = dr.gather(mi.UInt32, it, rest)
+            dr.eval(k, r, it)
+            salt += 1
+        return out
 
 
 def per_element_count(elem: mi.UInt32, active: mi.Bool, n_elements: int) -> mi.UInt32:
