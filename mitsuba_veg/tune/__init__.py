@@ -6,15 +6,21 @@
 - :mod:`.dispersal`  expected propagule landing kernels (eqs 3.22-3.23);
 - :mod:`.photon_ad`  a differentiable photon pass (weights instead of Russian roulette);
 - :mod:`.grad`       gradients through many days (optionally checkpointed), finite differences;
-- :mod:`.fit`        ``fit(scenario, target, params=[...], loss=..., steps=...)`` with Adam.
+- :mod:`.fit`        ``fit(scenario, target, params=[...], loss=..., steps=...)`` with Adam;
+- :mod:`.leaf_colour` ``fit_leaf_colour(target, params=("Cab", "Car", "Anth"), ...)``: pigment
+                     contents from a leaf colour or spectrum (PROSPECT-D in Dr.Jit).
 """
 from __future__ import annotations
 
 from . import dispersal, grad, lifecycle, photon_ad, relax, smooth  # noqa: F401
 from .fit import FitResult, coverage_figure, coverage_from_checkpoint, fit  # noqa: F401
 from .grad import finite_difference, value_and_grad  # noqa: F401
+from . import leaf_colour  # noqa: F401
+from .leaf_colour import (LeafColourFit, colour_sensitivity, fit_leaf_colour,  # noqa: F401
+                          predict_leaf_colour)
 from .smooth import ModelData, RunResult, SmoothMossModel, prepare  # noqa: F401
 
 __all__ = ["relax", "lifecycle", "smooth", "dispersal", "photon_ad", "grad", "prepare",
            "SmoothMossModel", "ModelData", "RunResult", "value_and_grad", "finite_difference",
-           "fit", "FitResult", "coverage_figure", "coverage_from_checkpoint"]
+           "fit", "FitResult", "coverage_figure", "coverage_from_checkpoint", "leaf_colour",
+           "fit_leaf_colour", "LeafColourFit", "colour_sensitivity", "predict_leaf_colour"]
