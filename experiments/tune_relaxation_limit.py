@@ -26,14 +26,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import drjit as dr  # noqa: E402
-import mitsuba as mi  # noqa: E402
 
 import mitsuba_veg as mv  # noqa: E402,F401
 from mitsuba_veg import tune  # noqa: E402
-from mitsuba_veg.moss.population import (GEMMA, MOSS, PROPAGULE, SPORE,  # noqa: E402
-                                         MossPopulation, SpeciesTable)
-from mitsuba_veg.moss.species import PARAMETER_FIELDS, SPECIES  # noqa: E402
-from mitsuba_veg.tune.lifecycle import CohortLifeCycle, real_type, species_fitness  # noqa: E402
+from mitsuba_veg.moss.species import SPECIES  # noqa: E402
+from mitsuba_veg.tune.lifecycle import discrete_life_cycle, relaxed_life_cycle  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -49,63 +46,14 @@ def random_environment(n, days, seed=1):
     return [x.astype(np.float32) for x in (S, Ts, rhs)], start
 
 
-def discrete_life(species, env, start, days):
-    """Per day and triangle: moss alive, gemmae and spores made (no landing)."""
-    (S, Ts, rhs), (m0, g0, s0) = env, start
-    n = S.shape[1]
-    pop = MossPopulation(4096, SpeciesTable([species]))
-
-    def add(state, kind, counts, growth):
-        el = np.repeat(np.arange(n), counts).astype(np.uint32)
-        z = mi.Float(np.zeros(len(el), np.float32))
-        pop.add(state, mi.UInt32(np.zeros(len(el), np.uint32)), kind, mi.UInt32(el),
-                mi.Point3f(z, z, z), mi.Vector3f(z, z, z), growth)
-
-    add(MOSS, GEMMA, m0, 1.0)
-    add(PROPAGULE, GEMMA, g0, 0.0)
-    add(PROPAGULE, SPORE, s0, 0.0)
-    out = {"moss": [], "gemmae": [], "spores": []}
-    for d in range(days):
-        gem, spo, _ = pop.live_day(mi.Float(S[d]), mi.Float(Ts[d]), mi.Float(rhs[d]))
-        el = np.asarray(pop.elem)
-        out["moss"].append(np.bincount(el[np.asarray(pop.state) == MOSS], minlength=n))
-        out["gemmae"].append(np.bincount(el[np.asarray(gem)], minlength=n))
-        out["spores"].append(np.bincount(el[np.asarray(spo)], minlength=n))
-    return {k: np.array(v, float) for k, v in out.items()}
-
-
-def relaxed_life(species, env, start, days, t, precision="float64"):
-    (S, Ts, rhs), (m0, g0, s0) = env, start
-    n = S.shape[1]
-    T = real_type(precision)
-    p = {f: float(getattr(species, f)) for f in PARAMETER_FIELDS}
-    life = CohortLifeCycle(n, days, t, precision=precision)
-    s = life.seed_moss(life.empty(), m0.astype(float), 1.0)
-    s = life.seed_propagules(s, "gemma", g0.astype(float))
-    s = life.seed_propagules(s, "spore", s0.astype(float))
-    out = {"moss": [], "gemmae": [], "spores": []}
-    zero = dr.zeros(T, n)
-    for d in range(days):
-        G = species_fitness(p, T(Ts[d]), T(rhs[d]), T(S[d]))
-        s, Gm, Dg, _ = life.live(s, G, p, d)
-        gem, spo = life.produce(s, Gm, Dg, 1.0)
-        life.push(s, "gemma", zero, d)
-        life.push(s, "spore", zero, d)
-        dr.make_opaque(s.arrays())
-        out["moss"].append(np.asarray(life.moss(s)))
-        out["gemmae"].append(np.asarray(gem))
-        out["spores"].append(np.asarray(spo))
-    return {k: np.array(v, float) for k, v in out.items()}
-
-
 def life_cycle_errors(temperatures=(0.1, 0.03, 0.01, 0.003, 0.001, 0.0), n=60, days=80,
                       species="bryum_argenteum", seed=1):
     sp = SPECIES[species]
     env, start = random_environment(n, days, seed)
-    disc = discrete_life(sp, env, start, days)
+    disc = discrete_life_cycle(sp, env, start)
     rows = []
     for t in temperatures:
-        rel = relaxed_life(sp, env, start, days, t)
+        rel = relaxed_life_cycle(sp, env, start, t)
         row = {"t": t}
         for k in disc:
             row[f"{k}_daily"] = float(np.abs(rel[k] - disc[k]).sum() / disc[k].sum())

@@ -221,7 +221,6 @@ def _cmd_demo(a) -> int:
 
 
 def main(argv=None) -> int:
-    from .errors import MitsubaVegError
     ap = argparse.ArgumentParser(prog="mitsuba-veg",
                                  description="Grow vegetation from light with Mitsuba 3.")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -262,13 +261,26 @@ def main(argv=None) -> int:
     _render_parsers(sub)
     from .tune.cli import add_parser as _add_tune
     _add_tune(sub)
-    a = ap.parse_args(argv)
+    return run_parsed(ap.parse_args(argv))
+
+
+def run_parsed(a) -> int:
+    """Run a parsed command: a library error becomes one line on stderr and exit code 2."""
+    from .errors import MitsubaVegError
     import mitsuba_veg  # noqa: F401  (variant + plugins)
     try:
         return a.func(a)
     except MitsubaVegError as e:
         print(f"mitsuba-veg: error: {e}", file=sys.stderr)
         return 2
+
+
+def standalone(command: str, add_parser, argv=None) -> int:
+    """Entry of one sub-command run on its own (``python -m ...``): ``argv`` without the
+    command's name."""
+    ap = argparse.ArgumentParser(prog="mitsuba-veg")
+    add_parser(ap.add_subparsers(dest="cmd", required=True))
+    return run_parsed(ap.parse_args([command, *(sys.argv[1:] if argv is None else argv)]))
 
 
 if __name__ == "__main__":

@@ -123,3 +123,28 @@ def result_geometry(result, shape_id: str):
     if geo is None:
         raise ValueError(f"no mesh geometry stored for '{shape_id}'")
     return geo
+
+
+def loss_curve_figure(history: list[dict], path, loss_name: str = "") -> str:
+    """Loss (log scale) and every fitted parameter against the optimiser step; ``history``:
+    one dict per step with ``step``, ``loss`` and ``params`` (name -> value)."""
+    plt = _mpl()
+    steps = [h["step"] for h in history]
+    names = list(history[0]["params"]) if history else []
+    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1 + len(names)), 3.4),
+                             squeeze=False)
+    ax = axes[0, 0]
+    ax.semilogy(steps, np.maximum([h["loss"] for h in history], 1e-300), "-o", ms=2)
+    ax.set_xlabel("Adam step")
+    ax.set_ylabel("loss")
+    ax.set_title(f"loss ({loss_name})" if loss_name else "loss")
+    ax.grid(True, which="both", alpha=0.3)
+    for ax, n in zip(axes[0, 1:], names):
+        ax.plot(steps, [h["params"][n] for h in history], "-", lw=1.5)
+        ax.set_xlabel("Adam step")
+        ax.set_title(n)
+        ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path)

@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 import mitsuba_veg  # noqa: F401  (variant)
-from mitsuba_veg.moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
-from mitsuba_veg.moss.species import PARAMETER_FIELDS, SPECIES
+from mitsuba_veg.moss.species import SPECIES
 from mitsuba_veg.tune import relax
-from mitsuba_veg.tune.lifecycle import CohortLifeCycle, real_type, species_fitness
+from mitsuba_veg.tune.lifecycle import discrete_life_cycle, relaxed_life_cycle
 
 F64 = dr.float64_array_t(mi.Float)
 
@@ -92,50 +91,12 @@ def discrete(environment):
 
 
 def run_discrete(environment):
-    (S, Ts, rhs), (m0, g0, s0) = environment
-    pop = MossPopulation(2048, SpeciesTable([SPECIES["bryum_argenteum"]]))
-
-    def add(state, kind, counts, growth):
-        el = np.repeat(np.arange(N), counts).astype(np.uint32)
-        z = mi.Float(np.zeros(len(el), np.float32))
-        pop.add(state, mi.UInt32(np.zeros(len(el), np.uint32)), kind, mi.UInt32(el),
-                mi.Point3f(z, z, z), mi.Vector3f(z, z, z), growth)
-
-    add(MOSS, GEMMA, m0, G0)
-    add(PROPAGULE, GEMMA, g0, 0.0)
-    add(PROPAGULE, SPORE, s0, 0.0)
-    out = {"moss": [], "gemmae": [], "spores": []}
-    for d in range(DAYS):
-        gem, spo, _ = pop.live_day(mi.Float(S[d]), mi.Float(Ts[d]), mi.Float(rhs[d]))
-        el = np.asarray(pop.elem)
-        out["moss"].append(np.bincount(el[np.asarray(pop.state) == MOSS], minlength=N))
-        out["gemmae"].append(np.bincount(el[np.asarray(gem)], minlength=N))
-        out["spores"].append(np.bincount(el[np.asarray(spo)], minlength=N))
-    return {k: np.array(v, float) for k, v in out.items()}
+    return discrete_life_cycle(SPECIES["bryum_argenteum"], *environment, growth0=G0,
+                               capacity=2048)
 
 
 def run_relaxed(environment, t):
-    (S, Ts, rhs), (m0, g0, s0) = environment
-    T = real_type("float64")
-    sp = SPECIES["bryum_argenteum"]
-    p = {f: float(getattr(sp, f)) for f in PARAMETER_FIELDS}
-    life = CohortLifeCycle(N, DAYS, t, precision="float64")
-    s = life.seed_moss(life.empty(), m0.astype(float), G0)
-    s = life.seed_propagules(s, "gemma", g0.astype(float))
-    s = life.seed_propagules(s, "spore", s0.astype(float))
-    out = {"moss": [], "gemmae": [], "spores": []}
-    zero = dr.zeros(T, N)
-    for d in range(DAYS):
-        G = species_fitness(p, T(Ts[d]), T(rhs[d]), T(S[d]))
-        s, Gm, Dg, _ = life.live(s, G, p, d)
-        gem, spo = life.produce(s, Gm, Dg, 1.0)
-        life.push(s, "gemma", zero, d)
-        life.push(s, "spore", zero, d)
-        dr.make_opaque(s.arrays())
-        out["moss"].append(np.asarray(life.moss(s)))
-        out["gemmae"].append(np.asarray(gem))
-        out["spores"].append(np.asarray(spo))
-    return {k: np.array(v, float) for k, v in out.items()}
+    return relaxed_life_cycle(SPECIES["bryum_argenteum"], *environment, t, growth0=G0)
 
 
 def test_discrete_run_has_all_events(discrete):

@@ -132,16 +132,21 @@ class SpotGrid:
         return found
 
     def _ensure_blocks(self, bkeys: mi.UInt64) -> None:
-        """Allocate the blocks of ``bkeys`` that do not exist yet. Rounds of one probe step:
-        items with one key start at the same entry and move together; at an empty entry the
-        lowest item claims it for its key, the others of that key see it taken by their key."""
+        """Allocate the blocks of ``bkeys`` that do not exist yet (ids in order of claiming)."""
         n = dr.width(bkeys)
         if n == 0:
             return
         if self.n_blocks + n > (1 << self.bits) // 2:
             self._rehash(max(self.bits + 1, int(math.ceil(math.log2(2 * (self.n_blocks + n))))))
+        self._place(bkeys)
+
+    def _place(self, keys: mi.UInt64, ids: mi.UInt32 | None = None) -> None:
+        """Enter ``keys`` into the table: with ``ids``, as those blocks (distinct keys); without,
+        as new blocks where a key is not present yet. Rounds of one probe step: items with one
+        key start at the same entry and move together; at an empty entry the lowest item claims
+        it for its key, the others of that key then see it taken by their key and stop."""
         mask = (1 << self.bits) - 1
-        k, it, pos = bkeys, dr.arange(mi.UInt32, n), self._hash(bkeys)
+        k, it, pos = keys, dr.arange(mi.UInt32, dr.width(keys)), self._hash(keys)
         dr.eval(k, pos)
         # every read of a table is evaluated before the table is written (a lazy read would
         # make Dr.Jit copy the whole table at the write)
@@ -161,12 +166,15 @@ class SpotGrid:
             if m:
                 wpos = dr.gather(mi.UInt32, pos, w)
                 wkey = dr.gather(mi.UInt64, k, w)
-                self._grow(self.n_blocks + m)
-                ids = dr.arange(mi.UInt32, m) + dr.opaque(mi.UInt32, self.n_blocks)
+                if ids is None:
+                    self._grow(self.n_blocks + m)
+                    wid = dr.arange(mi.UInt32, m) + dr.opaque(mi.UInt32, self.n_blocks)
+                    dr.scatter(self.block_key, wkey, wid)
+                    self.n_blocks += m
+                else:
+                    wid = dr.gather(mi.UInt32, ids, dr.gather(mi.UInt32, it, w))
                 dr.scatter(self.tab_keys, wkey, wpos)
-                dr.scatter(self.tab_block, ids, wpos)
-                dr.scatter(self.block_key, wkey, ids)
-                self.n_blocks += m
+                dr.scatter(self.tab_block, wid, wpos)
             dr.eval(self.tab_keys, self.tab_block, self.block_key, self._claim)
             on = ~found & ~win & (dr.gather(mi.UInt64, self.tab_keys, pos) != k)
             idx = dr.compress(on)
@@ -198,30 +206,9 @@ class SpotGrid:
         self._claim = dr.full(mi.UInt32, _NONE32, size)
         dr.eval(self.tab_keys, self.tab_block, self._claim)
         self.rehashes += 1
-        nb = self.n_blocks
-        if nb == 0:
-            return
-        keys = dr.gather(mi.UInt64, self.block_key, dr.arange(mi.UInt32, nb))
-        ids, pos = dr.arange(mi.UInt32, nb), self._hash(keys)
-        dr.eval(keys, pos)
-        while True:  # block keys are distinct: claim the first empty entry on the chain
-            empty = dr.gather(mi.UInt64, self.tab_keys, pos) == 0
-            dr.eval(empty)
-            dr.scatter_reduce(dr.ReduceOp.Min, self._claim, ids, pos, empty)
-            dr.eval(self._claim)
-            win = empty & (dr.gather(mi.UInt32, self._claim, pos, empty) == ids)
-            dr.eval(win)
-            dr.scatter(self._claim, mi.UInt32(_NONE32), pos, empty)
-            dr.scatter(self.tab_keys, keys, pos, win)
-            dr.scatter(self.tab_block, ids, pos, win)
-            dr.eval(self.tab_keys, self.tab_block, self._claim)
-            idx = dr.compress(~win)
-            if dr.width(idx) == 0:
-                return
-            keys = dr.gather(mi.UInt64, keys, idx)
-            ids = dr.gather(mi.UInt32, ids, idx)
-            pos = (dr.gather(mi.UInt32, pos, idx) + 1) & (size - 1)
-            dr.eval(keys, ids, pos)
+        if self.n_blocks:
+            ids = dr.arange(mi.UInt32, self.n_blocks)
+            self._place(dr.gather(mi.UInt64, self.block_key, ids), ids)
 
     def _cell(self, ix, iy, iz, active) -> tuple[mi.UInt32, mi.Bool]:
         """Pool index of cells (and whether their block exists)."""

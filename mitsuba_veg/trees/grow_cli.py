@@ -297,20 +297,8 @@ def add_parser(subparsers):
 
 def main(argv=None) -> int:
     """Stand-alone entry (``python -m mitsuba_veg.trees.grow_cli TREE.toml``)."""
-    import argparse
-    import sys
-
-    from mitsuba_veg.errors import MitsubaVegError
-    ap = argparse.ArgumentParser(prog="mitsuba-veg")
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    add_parser(sub)
-    a = ap.parse_args(["grow", *(sys.argv[1:] if argv is None else argv)])
-    import mitsuba_veg  # noqa: F401
-    try:
-        return a.func(a)
-    except MitsubaVegError as e:
-        print(f"mitsuba-veg: error: {e}", file=sys.stderr)
-        return 2
+    from mitsuba_veg.cli import standalone
+    return standalone("grow", add_parser, argv)
 
 
 if __name__ == "__main__":

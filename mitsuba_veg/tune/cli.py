@@ -11,7 +11,6 @@ file with one covered fraction per triangle (scene order, NaN = ignore), or
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 __all__ = ["add_parser", "main"]
@@ -100,16 +99,5 @@ def add_parser(subparsers):
 
 def main(argv=None) -> int:
     """Stand-alone entry (``python -m mitsuba_veg.tune SCENARIO.toml --target ...``)."""
-    import argparse
-
-    from ..errors import MitsubaVegError
-    ap = argparse.ArgumentParser(prog="mitsuba-veg")
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    add_parser(sub)
-    a = ap.parse_args(["tune", *(sys.argv[1:] if argv is None else argv)])
-    import mitsuba_veg  # noqa: F401  (variant + plugins)
-    try:
-        return a.func(a)
-    except MitsubaVegError as e:
-        print(f"mitsuba-veg: error: {e}", file=sys.stderr)
-        return 2
+    from ..cli import standalone
+    return standalone("tune", add_parser, argv)

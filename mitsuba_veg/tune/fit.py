@@ -278,27 +278,8 @@ def write_outputs(res: FitResult, out: Path, target: np.ndarray, plots: bool = T
     files["fitted"] = str(p)
     if not plots:
         return files
-    from ..plots import _mpl
-    plt = _mpl()
-    steps = [h["step"] for h in res.history]
-    losses = [h["loss"] for h in res.history]
-    names = list(res.values)
-    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.2 * (1 + len(names)), 3.4))
-    ax = axes[0]
-    ax.semilogy(steps, np.maximum(losses, 1e-300), "-o", ms=2)
-    ax.set_xlabel("Adam step")
-    ax.set_ylabel("loss")
-    ax.set_title("loss")
-    ax.grid(True, which="both", alpha=0.3)
-    for ax, n in zip(axes[1:], names):
-        ax.plot(steps, [h["params"][n] for h in res.history], "-", lw=1.5)
-        ax.set_xlabel("Adam step")
-        ax.set_title(n)
-        ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    p = out / "loss_curve.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
+    from ..plots import loss_curve_figure
+    p = loss_curve_figure(res.history, out / "loss_curve.png")
     files["loss_curve"] = str(p)
     m = res.model
     if m is not None:

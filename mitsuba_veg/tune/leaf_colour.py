@@ -595,32 +595,11 @@ def write_outputs(res: LeafColourFit, out: Path, plots: bool = True) -> dict:
     files = {"fitted": str(p)}
     if not plots:
         return files
-    files["loss_curve"] = str(loss_curve_figure(res, out / "loss_curve.png"))
+    from ..plots import loss_curve_figure
+    files["loss_curve"] = loss_curve_figure(res.history, out / "loss_curve.png",
+                                            res.stats.get("loss", ""))
     files["leaf_colour"] = str(leaf_colour_figure(res, out / "leaf_colour.png"))
     return files
-
-
-def loss_curve_figure(res: LeafColourFit, path) -> str:
-    """Loss and every fitted parameter against the Adam step."""
-    from ..plots import _mpl
-    plt = _mpl()
-    steps = [h["step"] for h in res.history]
-    names = list(res.values)
-    fig, axes = plt.subplots(1, 1 + len(names), figsize=(3.6 * (1 + len(names)), 3.2))
-    ax = axes[0]
-    ax.semilogy(steps, np.maximum([h["loss"] for h in res.history], 1e-300), "-", lw=1.5)
-    ax.set_xlabel("Adam step")
-    ax.set_title(f"loss ({res.stats.get('loss', '')})")
-    ax.grid(True, which="both", alpha=0.3)
-    for ax, n in zip(axes[1:], names):
-        ax.plot(steps, [h["params"][n] for h in res.history], "-", lw=1.5)
-        ax.set_xlabel("Adam step")
-        ax.set_title(n)
-        ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return str(path)
 
 
 def leaf_colour_figure(res: LeafColourFit, path) -> str:

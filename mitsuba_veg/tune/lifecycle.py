@@ -43,7 +43,7 @@ import numpy as np
 from ..moss.fitness import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
 from . import relax
 
-__all__ = ["SpeciesState", "CohortLifeCycle", "GEMMA_STEP", "SPORE_THRESHOLD",
+__all__ = ["SpeciesState", "CohortLifeCycle", "relaxed_life_cycle", "discrete_life_cycle", "GEMMA_STEP", "SPORE_THRESHOLD",
            "species_fitness", "real_type"]
 
 GEMMA_STEP = 0.5          # G_moss per gemma (population.py)
@@ -221,3 +221,61 @@ class CohortLifeCycle:
         spo = dr.block_sum(s.n * relax.heaviside(Gm - SPORE_THRESHOLD, t, strict=False),
                            self.C) * relax.heaviside(Dg, t)
         return gem, spo
+
+
+# ---- the life cycle alone, relaxed and discrete (the t -> 0 limit) ---------------------------
+def relaxed_life_cycle(species, env, start, t: float, growth0: float = 1.0,
+                       precision: str = "float64") -> dict:
+    """One species on n triangles for the days of ``env`` = (S [W m-2], Ts [K], rhs [-]), each
+    an array [days, n], without space (no landing): ``start`` = (moss, gemmae, spores) per
+    triangle, the moss at G_moss = ``growth0``. Returns per day and triangle the moss alive and
+    the gemmae and spores made (arrays [days, n])."""
+    from ..moss.species import PARAMETER_FIELDS
+    (S, Ts, rhs), (m0, g0, s0) = env, start
+    days, n = S.shape
+    T = real_type(precision)
+    p = {f: float(getattr(species, f)) for f in PARAMETER_FIELDS}
+    life = CohortLifeCycle(n, days, t, precision=precision)
+    s = life.seed_moss(life.empty(), np.asarray(m0, float), growth0)
+    s = life.seed_propagules(s, "gemma", np.asarray(g0, float))
+    s = life.seed_propagules(s, "spore", np.asarray(s0, float))
+    out = {"moss": [], "gemmae": [], "spores": []}
+    zero = dr.zeros(T, n)
+    for d in range(days):
+        G = species_fitness(p, T(Ts[d]), T(rhs[d]), T(S[d]))
+        s, Gm, Dg, _ = life.live(s, G, p, d)
+        gem, spo = life.produce(s, Gm, Dg, 1.0)
+        life.push(s, "gemma", zero, d)
+        life.push(s, "spore", zero, d)
+        dr.make_opaque(s.arrays())
+        out["moss"].append(np.asarray(life.moss(s)))
+        out["gemmae"].append(np.asarray(gem))
+        out["spores"].append(np.asarray(spo))
+    return {k: np.array(v, float) for k, v in out.items()}
+
+
+def discrete_life_cycle(species, env, start, growth0: float = 1.0,
+                        capacity: int = 4096) -> dict:
+    """The same with the discrete population (``MossPopulation.live_day``, individuals)."""
+    from ..moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
+    (S, Ts, rhs), (m0, g0, s0) = env, start
+    days, n = S.shape
+    pop = MossPopulation(capacity, SpeciesTable([species]))
+
+    def add(state, kind, counts, growth):
+        el = np.repeat(np.arange(n), counts).astype(np.uint32)
+        z = mi.Float(np.zeros(len(el), np.float32))
+        pop.add(state, mi.UInt32(np.zeros(len(el), np.uint32)), kind, mi.UInt32(el),
+                mi.Point3f(z, z, z), mi.Vector3f(z, z, z), growth)
+
+    add(MOSS, GEMMA, m0, growth0)
+    add(PROPAGULE, GEMMA, g0, 0.0)
+    add(PROPAGULE, SPORE, s0, 0.0)
+    out = {"moss": [], "gemmae": [], "spores": []}
+    for d in range(days):
+        gem, spo, _ = pop.live_day(mi.Float(S[d]), mi.Float(Ts[d]), mi.Float(rhs[d]))
+        el = np.asarray(pop.elem)
+        out["moss"].append(np.bincount(el[np.asarray(pop.state) == MOSS], minlength=n))
+        out["gemmae"].append(np.bincount(el[np.asarray(gem)], minlength=n))
+        out["spores"].append(np.bincount(el[np.asarray(spo)], minlength=n))
+    return {k: np.array(v, float) for k, v in out.items()}
