@@ -1,36 +1,13 @@
 """Paper 004 §4: smooth branch junctions (eqs 4.1-4.2) and the bark / leaf meshes."""
 from __future__ import annotations
 
-import importlib
-import sys
-import types
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _import(name):
-    try:
-        return importlib.import_module(f"mitsuba_veg.trees.{name}")
-    except Exception:  # pragma: no cover - only while other modules are half-written
-        for k in [k for k in sys.modules if k == "mitsuba_veg" or k.startswith("mitsuba_veg.")]:
-            del sys.modules[k]
-        pkg = types.ModuleType("mitsuba_veg")
-        pkg.__path__ = [str(ROOT / "mitsuba_veg")]
-        sys.modules["mitsuba_veg"] = pkg
-        sub = types.ModuleType("mitsuba_veg.trees")
-        sub.__path__ = [str(ROOT / "mitsuba_veg" / "trees")]
-        sys.modules["mitsuba_veg.trees"] = sub
-        return importlib.import_module(f"mitsuba_veg.trees.{name}")
-
-
-J = _import("junction")
-wp = _import("weber_penn")
-from mitsuba_veg.errors import ParameterError  # noqa: E402
-from mitsuba_veg.trees.structure import Tree  # noqa: E402
+from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.trees import junction as J
+from mitsuba_veg.trees import weber_penn as wp
+from mitsuba_veg.trees.structure import Tree
 
 
 # ---- synthetic trees -------------------------------------------------------------------------

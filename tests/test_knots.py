@@ -1,38 +1,13 @@
 """Paper 004 §3.3: knot equations 3.1-3.4, the knot rate and dormancy, against hand values."""
 from __future__ import annotations
 
-import importlib
-import sys
-import types
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _import(name):
-    """``mitsuba_veg.trees.<name>``; if the package __init__ cannot import (a module being
-    edited elsewhere), load the modules by path under bare packages."""
-    try:
-        return importlib.import_module(f"mitsuba_veg.trees.{name}")
-    except Exception:  # pragma: no cover - only while other modules are half-written
-        for k in [k for k in sys.modules if k == "mitsuba_veg" or k.startswith("mitsuba_veg.")]:
-            del sys.modules[k]
-        pkg = types.ModuleType("mitsuba_veg")
-        pkg.__path__ = [str(ROOT / "mitsuba_veg")]
-        sys.modules["mitsuba_veg"] = pkg
-        sub = types.ModuleType("mitsuba_veg.trees")
-        sub.__path__ = [str(ROOT / "mitsuba_veg" / "trees")]
-        sys.modules["mitsuba_veg.trees"] = sub
-        return importlib.import_module(f"mitsuba_veg.trees.{name}")
-
-
-kn = _import("knots")
-wp = _import("weber_penn")
-from mitsuba_veg.errors import ParameterError  # noqa: E402
-from mitsuba_veg.trees.structure import KNOT, NORMAL, SPROUTED_KNOT  # noqa: E402
+from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.trees import knots as kn
+from mitsuba_veg.trees import weber_penn as wp
+from mitsuba_veg.trees.structure import KNOT, NORMAL, SPROUTED_KNOT
 
 
 # ---- eqs 3.1 - 3.4 ----------------------------------------------------------------------------
