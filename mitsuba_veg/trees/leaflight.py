@@ -42,6 +42,7 @@ import mitsuba as mi
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.trees.voxel import dda_start
 
 #: "no triangle" marker of the kernels
 _NONE = 0xFFFFFFFF
@@ -185,22 +186,7 @@ def _grid_loop(o, d, own, tmax, kmax, q, cell_start, cell_items, centers, r2, h,
     Each iteration either tests one sphere listed in the current cell or steps to the next
     cell. A sphere is counted in the cell that contains its entry point (t = 0 for a sphere
     containing the origin), so spheres listed in several cells count once."""
-    ix = mi.Int32(dr.floor(q.x))
-    iy = mi.Int32(dr.floor(q.y))
-    iz = mi.Int32(dr.floor(q.z))
-    sx = dr.select(d.x > 0, mi.Int32(1), mi.Int32(-1))
-    sy = dr.select(d.y > 0, mi.Int32(1), mi.Int32(-1))
-    sz = dr.select(d.z > 0, mi.Int32(1), mi.Int32(-1))
-    big = mi.Float(1e30)
-    tdx = dr.select(dr.abs(d.x) > 1e-12, h / dr.abs(d.x), big)
-    tdy = dr.select(dr.abs(d.y) > 1e-12, h / dr.abs(d.y), big)
-    tdz = dr.select(dr.abs(d.z) > 1e-12, h / dr.abs(d.z), big)
-    tmx = dr.select(dr.abs(d.x) > 1e-12,
-                    (mi.Float(ix) + dr.select(d.x > 0, 1.0, 0.0) - q.x) * h / d.x, big)
-    tmy = dr.select(dr.abs(d.y) > 1e-12,
-                    (mi.Float(iy) + dr.select(d.y > 0, 1.0, 0.0) - q.y) * h / d.y, big)
-    tmz = dr.select(dr.abs(d.z) > 1e-12,
-                    (mi.Float(iz) + dr.select(d.z > 0, 1.0, 0.0) - q.z) * h / d.z, big)
+    (ix, iy, iz), (sx, sy, sz), (tdx, tdy, tdz), (tmx, tmy, tmz) = dda_start(q, d, h)
     inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & (iz >= 0) & (iz < nz)
     cidx = mi.UInt32(ix + nx * (iy + ny * iz))
     j = dr.gather(mi.UInt32, cell_start, cidx, inside)

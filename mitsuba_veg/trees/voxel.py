@@ -42,25 +42,23 @@ def sky_rays(azimuths: int = 12, elevations: int = 3):
     return d, w / w.sum()
 
 
+def dda_start(q, d, h=1.0):
+    """Start of a 3D-DDA walk (Amanatides & Woo) from q (in cell units) along unit directions d
+    in cells of side h [m]: the cell (ix, iy, iz), the step signs, the ray length per cell
+    along each axis (td) and to the first boundary on each axis (tm)."""
+    ix, iy, iz = (mi.Int32(dr.floor(c)) for c in (q.x, q.y, q.z))
+    sx, sy, sz = (dr.select(c > 0, mi.Int32(1), mi.Int32(-1)) for c in (d.x, d.y, d.z))
+    big = mi.Float(1e30)
+    td = [dr.select(dr.abs(c) > 1e-12, h / dr.abs(c), big) for c in (d.x, d.y, d.z)]
+    tm = [dr.select(dr.abs(dc) > 1e-12, (mi.Float(i) + dr.select(dc > 0, 1.0, 0.0) - qc) * h / dc,
+                    big) for i, dc, qc in ((ix, d.x, q.x), (iy, d.y, q.y), (iz, d.z, q.z))]
+    return (ix, iy, iz), (sx, sy, sz), td, tm
+
+
 @dr.syntax
 def _dda(q, d, tau_grid, nx, ny, nz, tau_stop):
     """Optical depth along rays starting at q (in voxel units) in unit directions d."""
-    ix = mi.Int32(dr.floor(q.x))
-    iy = mi.Int32(dr.floor(q.y))
-    iz = mi.Int32(dr.floor(q.z))
-    sx = dr.select(d.x > 0, mi.Int32(1), mi.Int32(-1))
-    sy = dr.select(d.y > 0, mi.Int32(1), mi.Int32(-1))
-    sz = dr.select(d.z > 0, mi.Int32(1), mi.Int32(-1))
-    big = mi.Float(1e30)
-    tdx = dr.select(dr.abs(d.x) > 1e-12, 1.0 / dr.abs(d.x), big)
-    tdy = dr.select(dr.abs(d.y) > 1e-12, 1.0 / dr.abs(d.y), big)
-    tdz = dr.select(dr.abs(d.z) > 1e-12, 1.0 / dr.abs(d.z), big)
-    tmx = dr.select(dr.abs(d.x) > 1e-12,
-                    (mi.Float(ix) + dr.select(d.x > 0, 1.0, 0.0) - q.x) / d.x, big)
-    tmy = dr.select(dr.abs(d.y) > 1e-12,
-                    (mi.Float(iy) + dr.select(d.y > 0, 1.0, 0.0) - q.y) / d.y, big)
-    tmz = dr.select(dr.abs(d.z) > 1e-12,
-                    (mi.Float(iz) + dr.select(d.z > 0, 1.0, 0.0) - q.z) / d.z, big)
+    (ix, iy, iz), (sx, sy, sz), (tdx, tdy, tdz), (tmx, tmy, tmz) = dda_start(q, d)
     t = mi.Float(0.0)
     tau = mi.Float(0.0)
     steps = mi.UInt32(0)
