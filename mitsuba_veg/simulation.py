@@ -36,7 +36,8 @@ from .climate import ClimateTable, daily_weather, load_csv
 from .errors import ParameterError, SceneError, check_range
 from .integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 from .light.sunpath import day_sun_path
-from .moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
+from .moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
+                               SpeciesTable, concat_u32)
 from .moss.propagules import land, settle, spore_direction, uniform_sphere
 from .moss.spatial import SpotGrid, max_per_element, per_element_count
 from .moss.species import SPECIES, Species, load_species
@@ -44,6 +45,7 @@ from .scenario import Scenario, load_scenario
 from .terrain import Terrain
 
 BANDS = ("total", "par", "red", "far_red")
+_PCG_STREAM = 0xDA3E39CB94B95BDB  # Dr.Jit's default PCG32 stream (lane i adds i)
 
 #: [moss] defaults (scenario fields, documented in docs/moss.md)
 MOSS_DEFAULTS = {
@@ -82,6 +84,10 @@ class DayRecord:
 
 class MossSimulation:
     """Build from a :class:`~mitsuba_veg.scenario.Scenario`; :meth:`run` the days."""
+
+    #: smallest batch of propagules traced at a time while the population is full (the batch
+    #: doubles until the free slots are used up; results do not depend on it)
+    release_batch = 4096
 
     def __init__(self, scenario: Scenario, out_dir, days: int | None = None,
                  progress: bool = True):
@@ -263,10 +269,13 @@ class MossSimulation:
     def _date(self, day: int) -> _dt.date:
         return self.start + _dt.timedelta(days=day)
 
-    def _rng(self, day: int, n: int, stream: int) -> mi.PCG32:
+    def _rng(self, day: int, n: int, stream: int, offset: int = 0) -> mi.PCG32:
+        """Lanes offset .. offset + n - 1 of the day's generator for ``stream`` (a batch of a
+        larger draw gets the numbers the whole draw would give it)."""
         init = (self.seed * 1_000_003 + day * 7919 + stream * 104_729) & 0xFFFFFFFFFFFF
         # opaque: a literal seed would be baked into the kernel and recompiled every day
-        return mi.PCG32(size=max(n, 1), initstate=dr.opaque(mi.UInt64, init))
+        return mi.PCG32(size=max(n, 1), initstate=dr.opaque(mi.UInt64, init + offset),
+                        initseq=dr.opaque(mi.UInt64, (_PCG_STREAM + offset) % (1 << 64)))
 
     def _counts(self):
         """Live moss per element (cached until the population changes, i.e. per day step)."""
@@ -315,65 +324,105 @@ class MossSimulation:
         pop, grid, cfg = self.pop, self.grid, self.moss_cfg
         f = lambda a: mi.Float(np.asarray(a, np.float32))  # noqa: E731
         cand, spores, ev = pop.live_day(f(S), f(Ts), f(rhs))
-        grid.sync(pop.state)  # deaths, expiry, germination
-        # only moss on the surface of a clump release gemmae: test the day's candidates only
-        c_idx = dr.compress(cand)
-        g_idx = c_idx
-        if dr.width(c_idx):
-            cp = dr.gather(mi.Point3f, pop.pos, c_idx)
-            inside = grid.neighbour_count(cp) >= \
-                dr.opaque(mi.UInt32, int(cfg["clump_neighbours"]))
-            # evaluate now: a lazy `inside` would keep the population's arrays referenced, and
-            # the next write to them would then copy them
-            dr.eval(inside)
-            g_idx = dr.gather(mi.UInt32, c_idx, dr.compress(~inside))
-            del inside
-        ev.gemma_parents = int(dr.width(g_idx))
-        # release and landing of the day's propagules (one batch: gemmae then spores)
-        s_idx = dr.compress(spores)
-        n_g, n_s = dr.width(g_idx), dr.width(s_idx)
-        landed_total = 0
-        if n_g + n_s:
-            parents = mi.UInt32(np.concatenate([np.asarray(g_idx), np.asarray(s_idx)])
-                                .astype(np.uint32))
-            n = n_g + n_s
-            rng = self._rng(day, n, 1)
-            is_spore = dr.arange(mi.UInt32, n) >= dr.opaque(mi.UInt32, n_g)
-            u = mi.Point2f(rng.next_float32(), rng.next_float32())
-            side = rng.next_float32()
-            M = dr.gather(mi.Point3f, pop.pos, parents)
-            N = dr.gather(mi.Vector3f, pop.nrm, parents)
-            d = dr.select(is_spore, spore_direction(N, u, side), uniform_sphere(u))
-            dist = dr.select(is_spore, float(cfg["spore_distance"]), float(cfg["gemma_distance"]))
-            landed, elem, p, nrm = self._land(M + N * 2e-3, d, dist, mi.Bool(True))
-            landed &= dr.gather(mi.Bool, self.living_dr, elem, landed)
-            species = dr.gather(mi.UInt32, pop.species, parents)
-            dr.eval(landed, elem, p, nrm, species, is_spore)  # once, not once per gather below
-            keep, evict = settle(pop, grid, p, species, dr.arange(mi.UInt32, n), landed)
-            dr.eval(keep, evict)
-            pop.remove(evict)
-            k_idx = dr.compress(keep)
-            if dr.width(k_idx):
-                gat = lambda t, a: dr.gather(t, a, k_idx)  # noqa: E731
-                self._add(PROPAGULE, gat(mi.UInt32, species),
-                          dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE), mi.UInt32(GEMMA)),
-                          gat(mi.UInt32, elem), gat(mi.Point3f, p), gat(mi.Vector3f, nrm), 0.0)
-            landed_total = int(dr.width(k_idx))
+        grid.sync(pop.state)  # deaths, expiry, germination (and the moss-neighbour counts)
+        # only moss on the surface of a clump release gemmae: the grid keeps every moss's count
+        # of moss neighbours, so the test is one read per moss
+        gemma = cand & (grid.nb < dr.opaque(mi.UInt32, int(cfg["clump_neighbours"])))
+        dr.eval(gemma)
+        n_g = int(np.asarray(dr.count(gemma))[0])
+        n_s = ev.spore_parents
+        ev.gemma_parents = n_g
+        n = n_g + n_s
+        placed = unresolved = 0
+        if n:
+            # the day's propagules in one order: gemmae, then spores (each by parent slot)
+            placed, unresolved = self._release(day, SlotQueue(gemma, n_g),
+                                               SlotQueue(spores, n_s))
         interval = int(cfg["external_spore_interval"])
         if interval and day % interval == interval - 1:
             self._place_random(1, day, state=PROPAGULE, kind=SPORE, growth=0.0, stream=2)
         events = ev.__dict__.copy()
-        events["propagules_settled"] = landed_total
+        events["propagules_released"] = n
+        events["propagules_settled"] = placed
+        events["propagules_unresolved"] = unresolved
+        pop.unresolved += unresolved
         return events
 
-    def _add(self, state, species, kind, elem, pos, nrm, growth):
-        """Add settled individuals to the population and their spots to the grid."""
-        self.grid.sync(self.pop.state)  # evictions free cells before slots are reused
+    def _release(self, day: int, gemmae: SlotQueue, spores: SlotQueue) -> tuple[int, int]:
+        """Release, land and settle the day's propagules (``gemmae``, ``spores``: their parent
+        slots, gemmae first). Returns (placed, unresolved).
+
+        Newcomers are placed in their order while free slots last. When no newcomer can evict
+        anyone (every species has the same priority and no occupant has a negative G_moss:
+        an incumbent then always keeps its spot), a propagule can only matter by taking a free
+        slot, so the propagules are resolved in order, in batches, until the free slots are
+        used up; the rest (``unresolved``) could not have been placed and are not traced. The
+        state that results is the one of resolving all of them at once (the batches see the
+        earlier batches' newcomers in the grid, which win their cells by order)."""
+        pop = self.pop
+        n_g = gemmae.count
+        n = n_g + spores.count
+        pri = np.asarray(pop.table.priority)
+        exclusive = bool(np.all(pri == pri[0])) and pop.negative_growth == 0
+        free = pop.count(FREE) if exclusive else n
+        batch = n if not exclusive or free >= n else min(n, max(self.release_batch, 2 * free))
+        start = placed = 0
+        while start < n and (not exclusive or placed < free):
+            m = min(batch, n - start)
+            par = gemmae.take(m)
+            if dr.width(par) < m:
+                par = concat_u32(par, spores.take(m - dr.width(par)))
+            order, landed, elem, p, nrm, species, is_spore = self._fly(day, par, n_g, start)
+            keep, evict = settle(pop, self.grid, p, species, order, landed)
+            dr.eval(keep, evict)
+            if not exclusive:
+                pop.remove(evict)
+            k_idx = dr.compress(keep)
+            if dr.width(k_idx):
+                gat = lambda t, a: dr.gather(t, a, k_idx)  # noqa: E731
+                # the grid is in step unless this batch evicted someone
+                placed += self._add(PROPAGULE, gat(mi.UInt32, species),
+                                    dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE),
+                                              mi.UInt32(GEMMA)),
+                                    gat(mi.UInt32, elem), gat(mi.Point3f, p),
+                                    gat(mi.Vector3f, nrm), 0.0, sync=not exclusive)
+            start += m
+            batch *= 2
+        return placed, n - start
+
+    def _fly(self, day: int, par: mi.UInt32, n_g: int, start: int):
+        """Propagules start .. start + m - 1 of the day (``par`` their parent slots; the day's
+        first ``n_g`` are gemmae): release direction, path and landing (evaluated arrays: no
+        lazy read of the population stays behind to make later writes copy it)."""
+        pop, cfg = self.pop, self.moss_cfg
+        m = dr.width(par)
+        # lane i of the day's generator (the same numbers whatever the batches)
+        rng = self._rng(day, m, 1, offset=start)
+        order = dr.arange(mi.UInt32, m) + dr.opaque(mi.UInt32, start)
+        is_spore = order >= dr.opaque(mi.UInt32, n_g)
+        u = mi.Point2f(rng.next_float32(), rng.next_float32())
+        side = rng.next_float32()
+        M = dr.gather(mi.Point3f, pop.pos, par)
+        N = dr.gather(mi.Vector3f, pop.nrm, par)
+        d = dr.select(is_spore, spore_direction(N, u, side), uniform_sphere(u))
+        dist = dr.select(is_spore, float(cfg["spore_distance"]), float(cfg["gemma_distance"]))
+        landed, elem, p, nrm = self._land(M + N * 2e-3, d, dist, mi.Bool(True))
+        landed &= dr.gather(mi.Bool, self.living_dr, elem, landed)
+        species = dr.gather(mi.UInt32, pop.species, par)
+        dr.eval(order, landed, elem, p, nrm, species, is_spore)
+        return order, landed, elem, p, nrm, species, is_spore
+
+    def _add(self, state, species, kind, elem, pos, nrm, growth, sync: bool = True):
+        """Add settled individuals to the population and their spots to the grid (``sync``:
+        first let the grid follow slots freed since it last did, e.g. by evictions)."""
+        if sync:
+            self.grid.sync(self.pop.state)  # evictions free cells before slots are reused
         slots = self.pop.add(state, species, kind, elem, pos, nrm, growth)
         k = dr.width(slots)
         if k < dr.width(elem):  # the population was full: the first k were placed
             pos = dr.gather(mi.Point3f, pos, dr.arange(mi.UInt32, k))
         self.grid.insert(pos, slots, self.pop.state)
+        return k
 
     def _land(self, origin, direction, dist, active):
         return land(self.scene, self.index.lookup, origin, direction, dist, active)
@@ -549,7 +598,8 @@ class MossSimulation:
                       "moss_alive": int(self.pop.count(MOSS)),
                       "propagules": int(self.pop.count(PROPAGULE)),
                       "alive_by_species": last.get("alive", {}), "regions": regions,
-                      "capacity_overflow": int(self.pop.overflow)},
+                      "capacity_overflow": int(self.pop.overflow),
+                      "propagules_unresolved": int(self.pop.unresolved)},
             "timings_s": {**self.timings, "per_day": {k: self.timings[k] / n_days
                                                       for k in ("light", "soil", "moss")}},
             "days_record": self.history, "versions": versions()}

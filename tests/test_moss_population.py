@@ -271,16 +271,28 @@ def test_spot_grid_against_brute_force():
                     for x, y, z in co]
             got = np.asarray(grid.neighbour_count(to_p(pos[occupied])))
             assert got.tolist() == want
-        # winners in free cells settle into free slots; some germinate, some die
+            # the counts the grid keeps per moss slot, updated as cells change
+            is_moss = state[occupied] == MOSS
+            kept = np.asarray(grid.moss_neighbours(mi.UInt32(occupied[is_moss].astype(np.uint32))))
+            assert kept.tolist() == np.asarray(want)[is_moss].tolist()
+        # winners in free cells settle into free slots (a fifth of them as moss at once, like
+        # the initial moss); some germinate, some die
         new = np.flatnonzero(first & (occ == 0))
         free = np.flatnonzero(state == 0)[:len(new)]
         new = new[:len(free)]
         state[free], pos[free] = PROPAGULE, P[new]
+        state[free[rng.random(len(free)) < 0.2]] = MOSS
         grid.insert(to_p(P[new]), mi.UInt32(free.astype(np.uint32)), mi.UInt32(state.copy()))
         state[(state == PROPAGULE) & (rng.random(cap) < 0.5)] = MOSS
         state[rng.random(cap) < 0.3] = 0
         grid.sync(mi.UInt32(state.copy()))  # a copy: mi.UInt32 of a NumPy array is a view
     assert grid.rehashes >= 1 and grid.block_cap > cap // 8
+    # a grid rebuilt from the population (checkpoint load) keeps the same counts
+    moss = np.flatnonzero(state == MOSS).astype(np.uint32)
+    before = np.asarray(grid.moss_neighbours(mi.UInt32(moss)))
+    grid.rebuild(to_p(pos), mi.UInt32(state.copy()))
+    assert np.asarray(grid.moss_neighbours(mi.UInt32(moss))).tolist() == before.tolist()
+    assert before.max() >= 3  # dense enough for the counts to mean something
 
 
 NB = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)

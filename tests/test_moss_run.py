@@ -87,3 +87,47 @@ def test_missing_mesh_and_nan_csv(tmp_path):
     with pytest.raises(ParameterError, match=r"w\.csv row 3 column rh"):
         mv.run(SCEN, out=tmp_path / "o2", days=2, overrides=SMALL + [f"climate.csv='{csv}'"],
                progress=False)
+
+
+def _grow(tmp, days, monkeypatch, all_at_once=False):
+    from mitsuba_veg.moss import population
+    from mitsuba_veg.simulation import MossSimulation
+    monkeypatch.setattr(MossSimulation, "release_batch", 1)  # many batches at this scale
+    if all_at_once:  # "an occupant might be evicted": every propagule is traced, none batched
+        live_day = population.MossPopulation.live_day
+
+        def traced(self, *a, **k):
+            out = live_day(self, *a, **k)
+            self.negative_growth = -1
+            return out
+        monkeypatch.setattr(population.MossPopulation, "live_day", traced)
+    scn = load_scenario(SCEN, SMALL + ["moss.capacity=600", "moss.initial=300"])
+    sim = MossSimulation(scn, tmp, days=days, progress=False)
+    sim.setup()
+    sim.initialise()
+    for _ in range(days):
+        sim.step()
+    return sim
+
+
+def test_full_population_traces_only_what_can_settle(tmp_path, monkeypatch):
+    """Once the slots are full, propagules are resolved in batches until the free slots are
+    used up: the population that results equals tracing every propagule at once."""
+    import drjit as dr
+    import mitsuba as mi
+    days = 20
+    a = _grow(tmp_path / "a", days, monkeypatch)
+    released = sum(r["events"]["propagules_released"] for r in a.history)
+    unresolved = sum(r["events"]["propagules_unresolved"] for r in a.history)
+    assert a.pop.count(0) < 10 and 0 < unresolved < released  # full, and batches were cut short
+    b = _grow(tmp_path / "b", days, monkeypatch, all_at_once=True)
+    assert sum(r["events"]["propagules_unresolved"] for r in b.history) == 0
+    pa, pb = a.pop.to_numpy(), b.pop.to_numpy()
+    for k in ("state", "species", "kind", "elem", "growth", "age", "gemmae", "pos"):
+        assert np.array_equal(pa[k], pb[k]), k
+    assert [r["alive"] for r in a.history] == [r["alive"] for r in b.history]
+    # the moss-neighbour counts the grid keeps equal a fresh count at every moss
+    moss = mi.UInt32(np.flatnonzero(pa["state"] == 2).astype(np.uint32))
+    kept = np.asarray(a.grid.moss_neighbours(moss))
+    fresh = np.asarray(a.grid.neighbour_count(dr.gather(mi.Point3f, a.pop.pos, moss)))
+    assert kept.tolist() == fresh.tolist() and kept.max() >= 4

@@ -48,6 +48,63 @@ class DayEvents:
     spore_parents: int = 0
 
 
+class SlotQueue:
+    """The slots where ``mask`` is set, in slot order, handed out on demand.
+
+    ``take(m)`` returns the next m of them, compressing only a window of slots large enough
+    for them (sized from the mask's density): a day that needs the first few thousand of
+    300,000 parents does not list them all. Taking everything is one ``dr.compress``."""
+
+    def __init__(self, mask: mi.Bool, count: int):
+        self.mask, self.count = mask, int(count)
+        self.size = dr.width(mask)
+        self.cursor = 0             # slots [0, cursor) have been listed
+        self.listed = 0             # set slots among them
+        self.buf = mi.UInt32()      # listed, not yet taken
+
+    @property
+    def left(self) -> int:
+        """Set slots not yet taken."""
+        return self.count - self.listed + dr.width(self.buf)
+
+    def take(self, m: int) -> mi.UInt32:
+        m = min(int(m), self.left)
+        while dr.width(self.buf) < m:
+            need = m - dr.width(self.buf)
+            rest = self.size - self.cursor
+            unlisted = self.count - self.listed
+            window = rest if 2 * need >= unlisted else \
+                min(rest, int(need * rest / unlisted * 1.25) + 1024)
+            if window == self.size:
+                idx = dr.compress(self.mask)
+            else:
+                at = dr.arange(mi.UInt32, window) + dr.opaque(mi.UInt32, self.cursor)
+                idx = dr.gather(mi.UInt32, at, dr.compress(dr.gather(mi.Bool, self.mask, at)))
+            self.cursor += window
+            self.listed += dr.width(idx)
+            self.buf = concat_u32(self.buf, idx)
+        out = self.buf
+        if dr.width(out) > m:
+            out = dr.gather(mi.UInt32, self.buf, dr.arange(mi.UInt32, m))
+            self.buf = dr.gather(mi.UInt32, self.buf, dr.arange(mi.UInt32, dr.width(self.buf) - m)
+                                 + dr.opaque(mi.UInt32, m))
+        else:
+            self.buf = mi.UInt32()
+        dr.eval(out, self.buf)
+        return out
+
+
+def concat_u32(a: mi.UInt32, b: mi.UInt32) -> mi.UInt32:
+    """a followed by b (UInt32 arrays)."""
+    na, nb = dr.width(a), dr.width(b)
+    if na == 0 or nb == 0:
+        return b if na == 0 else a
+    out = dr.zeros(mi.UInt32, na + nb)
+    dr.scatter(out, a, dr.arange(mi.UInt32, na))
+    dr.scatter(out, b, dr.arange(mi.UInt32, nb) + dr.opaque(mi.UInt32, na))
+    return out
+
+
 class SpeciesTable:
     """Per-species parameters as small Dr.Jit arrays, gathered per individual."""
 
@@ -102,6 +159,11 @@ class MossPopulation:
         self.age = dr.zeros(mi.Float, c)
         self.gemmae = dr.zeros(mi.UInt32, c)
         self.overflow = 0  # individuals that found no free slot, over the whole run
+        # propagules released while the population was full and never traced (simulation)
+        self.unresolved = 0
+        # occupants with G_moss < 0 at the end of the last day (-1: not known yet); with equal
+        # species priorities, none means no newcomer can evict anyone
+        self.negative_growth = -1
 
     # ---- bookkeeping ------------------------------------------------------------------------
     @property
@@ -123,10 +185,12 @@ class MossPopulation:
 
     def to_numpy(self) -> dict:
         """All state as NumPy arrays (checkpoints, outputs)."""
-        d = {k: np.asarray(getattr(self, k)) for k in _FIELDS}
+        # copies: a NumPy view would follow the in-place writes of later days
+        d = {k: np.array(getattr(self, k)) for k in _FIELDS}
         d["pos"] = np.stack([np.asarray(c) for c in (self.pos.x, self.pos.y, self.pos.z)], 1)
         d["nrm"] = np.stack([np.asarray(c) for c in (self.nrm.x, self.nrm.y, self.nrm.z)], 1)
         d["overflow"] = np.array(self.overflow)
+        d["unresolved"] = np.array(self.unresolved)
         return d
 
     def load_numpy(self, d: dict) -> None:
@@ -139,6 +203,8 @@ class MossPopulation:
         self.pos = mi.Point3f(*[mi.Float(np.ascontiguousarray(d["pos"][:, k])) for k in range(3)])
         self.nrm = mi.Vector3f(*[mi.Float(np.ascontiguousarray(d["nrm"][:, k])) for k in range(3)])
         self.overflow = int(d["overflow"])
+        self.unresolved = int(d.get("unresolved", 0))
+        self.negative_growth = -1
 
     # ---- adding individuals -----------------------------------------------------------------
     def add(self, state, species, kind, elem, pos, nrm, growth) -> mi.UInt32:
@@ -157,33 +223,24 @@ class MossPopulation:
             return mi.UInt32()
         src = dr.arange(mi.UInt32, k)
         slots = dr.gather(mi.UInt32, free, src)
-        # Map every slot to its newcomer (or none) with one scatter into a fresh array, then
-        # update all fields with gathers and selects fused into one kernel: scattering into the
-        # state arrays themselves would copy each of them first (copy-on-write).
-        inv = dr.full(mi.UInt32, 0xFFFFFFFF, self.capacity)
-        dr.scatter(inv, src, slots)
-        is_new = inv != 0xFFFFFFFF
-        j = dr.select(is_new, inv, 0)
 
         def col(value, t):
-            if not dr.is_array_v(value):
-                return dr.select(is_new, value, 0)
-            return dr.gather(t, value, j, is_new)
+            return dr.gather(t, value, src) if dr.is_array_v(value) else t(value)
 
-        growth = col(growth, mi.Float)
-        self.state = dr.select(is_new, col(state, mi.UInt32), self.state)
-        self.species = dr.select(is_new, col(species, mi.UInt32), self.species)
-        self.kind = dr.select(is_new, col(kind, mi.UInt32), self.kind)
-        self.elem = dr.select(is_new, col(elem, mi.UInt32), self.elem)
-        self.growth = dr.select(is_new, growth, self.growth)
-        self.age = dr.select(is_new, 0.0, self.age)
+        vals = {"state": col(state, mi.UInt32), "species": col(species, mi.UInt32),
+                "kind": col(kind, mi.UInt32), "elem": col(elem, mi.UInt32),
+                "growth": col(growth, mi.Float), "age": mi.Float(0.0)}
         # a moss placed with some growth has already passed its gemma thresholds
-        self.gemmae = dr.select(is_new, mi.UInt32(dr.floor(dr.maximum(growth, 0.0) / GEMMA_STEP)),
-                                self.gemmae)
-        self.pos = mi.Point3f(*[dr.select(is_new, col(pos[c], mi.Float), self.pos[c])
-                                for c in range(3)])
-        self.nrm = mi.Vector3f(*[dr.select(is_new, col(nrm[c], mi.Float), self.nrm[c])
-                                 for c in range(3)])
+        vals["gemmae"] = mi.UInt32(dr.floor(dr.maximum(vals["growth"], 0.0) / GEMMA_STEP))
+        p = mi.Point3f(*[col(pos[c], mi.Float) for c in range(3)])
+        q = mi.Vector3f(*[col(nrm[c], mi.Float) for c in range(3)])
+        dr.eval(slots, *vals.values(), p, q)
+        # in place: k writes instead of rewriting every array (Dr.Jit copies an array first
+        # if anything else still refers to it: the spot grid's copy of the state does)
+        for name, v in vals.items():
+            dr.scatter(getattr(self, name), v, slots)
+        dr.scatter(self.pos, p, slots)
+        dr.scatter(self.nrm, q, slots)
         dr.eval(self.state, self.species, self.kind, self.elem, self.growth, self.age,
                 self.gemmae, self.pos, self.nrm)
         return slots
@@ -236,13 +293,17 @@ class MossPopulation:
         self.gemmae = dr.select(live & (steps > self.gemmae), steps, self.gemmae)
         # 4. spores: G_moss >= 2.0 and growing (eq 3.23)
         spores = live & (growth >= SPORE_THRESHOLD) & (D > 0)
-        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores)
-        # all five counts in one go: one synchronisation instead of five
-        c = [dr.count(m) for m in (germ, died, expired, gemma, spores)]
+        negative = (self.state != FREE) & (self.growth < 0.0)
+        # the masks are evaluated with the state: counted lazily, each would be recomputed
+        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores, germ, died,
+                expired, negative)
+        # all counts in one go: one synchronisation instead of six
+        c = [dr.count(m) for m in (germ, died, expired, gemma, spores, negative)]
         dr.eval(*c)
         c = [int(np.asarray(v).ravel()[0]) for v in c]
         ev = DayEvents(germinated=c[0], died=c[1], expired=c[2], gemma_parents=c[3],
                        spore_parents=c[4])
+        self.negative_growth = c[5]
         return gemma, spores, ev
 
 

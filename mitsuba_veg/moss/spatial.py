@@ -22,6 +22,12 @@ the occupant is a moss, so a neighbour count reads 26 cells of at most 8 neighbo
 The grid follows the population through :meth:`SpotGrid.sync` (slots freed, propagules that
 germinated) and :meth:`SpotGrid.insert` (newcomers); answers never depend on the order of
 blocks or table entries, so resumed runs stay bit-identical.
+
+The clump test is asked of every moss that passes a gemma step, 100,000s a day in a population
+of a million, while only a few cells change from or to moss on most days. The grid therefore
+keeps each moss's count of moss neighbours (``nb``, per slot) and updates it where cells change:
+a cell that becomes moss adds one to its moss neighbours and counts its own; a moss cell that
+empties subtracts one. :meth:`moss_neighbours` is then one gather per moss.
 """
 from __future__ import annotations
 
@@ -76,9 +82,10 @@ class SpotGrid:
         self.block_key = dr.zeros(mi.UInt64, self.block_cap)
         self.slot_cell = dr.zeros(mi.UInt32, self.capacity)
         self._code = dr.zeros(mi.UInt32, self.capacity)  # state per slot at the last sync
+        self.nb = dr.zeros(mi.UInt32, self.capacity)  # moss among the 26 neighbours (moss slots)
         self.rehashes = 0
         dr.eval(self.tab_keys, self.tab_block, self._claim, self.pool, self.block_key,
-                self.slot_cell, self._code)
+                self.slot_cell, self._code, self.nb)
 
     @property
     def n_cells(self) -> int:
@@ -222,6 +229,7 @@ class SpotGrid:
         has resolved conflicts, see ``propagules.settle``). ``state``: the population's state
         after adding them (kept until the next call: not a view of a NumPy array that changes).
         Call :meth:`sync` before the population frees or reuses slots."""
+        prev = self._code
         if dr.width(slots):
             ix, iy, iz = self.coords(p)
             dr.eval(ix, iy, iz)
@@ -229,31 +237,88 @@ class SpotGrid:
             cell, _ = self._cell(ix, iy, iz, True)
             moss = dr.gather(mi.UInt32, state, slots) == _MOSS
             v = (slots + 1) | dr.select(moss, mi.UInt32(_MOSS_BIT), mi.UInt32(0))
-            dr.eval(cell, v)
+            dr.eval(cell, v, moss)
             dr.scatter(self.pool, v, cell)
             dr.scatter(self.slot_cell, cell, slots)
-        self._code = state
+            dr.eval(self.pool, self.slot_cell)
+            new_moss = dr.gather(mi.UInt32, slots, dr.compress(moss))
+            self._moss_changed(mi.UInt32(), new_moss, prev)
+        # a new array object: the population writes its state in place (Dr.Jit then copies)
+        self._code = mi.UInt32(state)
         dr.eval(self.pool, self.slot_cell)
 
     def sync(self, state: mi.UInt32) -> None:
         """Follow the population's changes since the last call: freed slots empty their cell,
         propagules that germinated are marked as moss."""
         prev = self._code
-        freed = (prev != 0) & (state == 0)
-        germ = (prev == _PROPAGULE) & (state == _MOSS)
-        cell = self.slot_cell
-        dr.eval(freed, germ)
-        dr.scatter(self.pool, mi.UInt32(0), cell, freed)
-        dr.scatter(self.pool, (dr.arange(mi.UInt32, self.capacity) + 1) | _MOSS_BIT, cell, germ)
-        self._code = state
+        # one pass over the slots finds the few that changed; the rest works on those
+        changed = dr.compress(prev != state)
+        if dr.width(changed):
+            was = dr.gather(mi.UInt32, prev, changed)
+            now = dr.gather(mi.UInt32, state, changed)
+            cell = dr.gather(mi.UInt32, self.slot_cell, changed)
+            freed = (was != 0) & (now == 0)
+            germ = (was == _PROPAGULE) & (now == _MOSS)
+            gone = (was == _MOSS) & (now == 0)
+            dr.eval(cell, freed, germ, gone)
+            dr.scatter(self.pool, mi.UInt32(0), cell, freed)
+            dr.scatter(self.pool, (changed + 1) | _MOSS_BIT, cell, germ)
+            dr.eval(self.pool)
+            self._moss_changed(dr.gather(mi.UInt32, changed, dr.compress(gone)),
+                               dr.gather(mi.UInt32, changed, dr.compress(germ)), prev)
+        # a new array object: the population writes its state in place (Dr.Jit then copies)
+        self._code = mi.UInt32(state)
         dr.eval(self.pool)
 
     def rebuild(self, pos: mi.Point3f, state: mi.UInt32) -> None:
         """Empty every cell and insert all occupied slots (after loading a checkpoint)."""
         self.pool = dr.zeros(mi.UInt32, self.block_cap * _B3)
         self._code = dr.zeros(mi.UInt32, self.capacity)
+        self.nb = dr.zeros(mi.UInt32, self.capacity)
         s = dr.compress(state != 0)
         self.insert(dr.gather(mi.Point3f, pos, s), s, state)
+
+    def _slot_coords(self, slots: mi.UInt32):
+        """Cell coordinates of the cells held by ``slots`` (from their block's key)."""
+        cell = dr.gather(mi.UInt32, self.slot_cell, slots)
+        bk = dr.gather(mi.UInt64, self.block_key, cell // _B3)
+        local = cell % _B3
+        m = (1 << _BITS) - 1
+        return [(mi.UInt32((bk >> (k * _BITS)) & m) << 2) | ((local >> (2 * k)) & 3)
+                for k in range(3)]
+
+    def _moss_changed(self, gone: mi.UInt32, new: mi.UInt32, prev: mi.UInt32) -> None:
+        """Update the moss-neighbour counts after the pool has changed: ``gone``, slots whose
+        cell stopped holding a moss; ``new``, slots that became moss; ``prev``, the state per
+        slot before the change. Moss that were moss before gain or lose one per changed
+        neighbour; a new moss counts its moss neighbours afresh (new ones included)."""
+        n_gone, n_new = dr.width(gone), dr.width(new)
+        if n_gone + n_new == 0:
+            return
+        ev = dr.zeros(mi.UInt32, n_gone + n_new)
+        split = dr.opaque(mi.UInt32, n_gone)  # opaque: one kernel whatever the day's numbers
+        if n_gone:
+            dr.scatter(ev, gone, dr.arange(mi.UInt32, n_gone))
+        if n_new:
+            dr.scatter(ev, new, dr.arange(mi.UInt32, n_new) + split)
+        grow = dr.arange(mi.UInt32, n_gone + n_new) >= split
+        if n_new:
+            dr.scatter(self.nb, mi.UInt32(0), new)
+        ix, iy, iz = self._slot_coords(ev)
+        dr.eval(ev, grow, ix, iy, iz, self.nb)
+        step = dr.select(grow, mi.UInt32(1), mi.UInt32(_NONE32))  # +1 or -1 (mod 2^32)
+        own = dr.zeros(mi.UInt32, n_gone + n_new)
+        for v, ok in self._neighbour_values(ix, iy, iz, True):
+            moss = ok & ((v & _MOSS_BIT) != 0)
+            t = (v & _SLOT_MASK) - 1
+            old = moss & (dr.gather(mi.UInt32, prev, t, moss) == _MOSS)
+            # Direct (atomics): few writes into a large array; the default would expand the
+            # array per thread and reduce it afterwards
+            dr.scatter_add(self.nb, step, t, old, mode=dr.ReduceMode.Direct)
+            own += dr.select(moss & grow, mi.UInt32(1), mi.UInt32(0))
+        dr.eval(own)
+        dr.scatter_add(self.nb, own, ev, grow, mode=dr.ReduceMode.Direct)
+        dr.eval(self.nb)
 
     # ---- reading ----------------------------------------------------------------------------
     def occupant(self, p: mi.Point3f, active=True) -> mi.UInt32:
@@ -262,11 +327,25 @@ class SpotGrid:
         cell, ok = self._cell(ix, iy, iz, active)
         return dr.gather(mi.UInt32, self.pool, cell, ok & active) & _SLOT_MASK
 
+    def moss_neighbours(self, slots: mi.UInt32) -> mi.UInt32:
+        """Moss among the 26 neighbour cells of the moss in ``slots`` (kept up to date by
+        :meth:`sync` and :meth:`insert`; equal to ``neighbour_count`` at their positions)."""
+        return dr.gather(mi.UInt32, self.nb, slots)
+
     def neighbour_count(self, p: mi.Point3f, active=True, moss_only: bool = True) -> mi.UInt32:
         """Number of the 26 neighbour cells of each point that hold a moss (``moss_only``) or
-        any individual. The 3 x 3 x 3 neighbourhood spans at most 2 x 2 x 2 blocks: each is
-        looked up once, then the 26 cells are read from them."""
+        any individual, read from the pool."""
         ix, iy, iz = self.coords(p)
+        count = dr.zeros(mi.UInt32, dr.width(ix))
+        for v, ok in self._neighbour_values(ix, iy, iz, active):
+            hit = ok & (((v & _MOSS_BIT) != 0) if moss_only else (v != 0))
+            count += dr.select(hit, mi.UInt32(1), mi.UInt32(0))
+        return count
+
+    def _neighbour_values(self, ix, iy, iz, active):
+        """(cell value, block exists) of the 26 neighbour cells of cells (ix, iy, iz). The
+        3 x 3 x 3 neighbourhood spans at most 2 x 2 x 2 blocks: each is looked up once, then
+        the 26 cells are read from them."""
         n = dr.width(ix)
         active = dr.full(mi.Bool, True, n) & active
         w = lambda d: d % (1 << 32)  # noqa: E731  (-1 wraps: coordinates are unsigned)
@@ -283,7 +362,6 @@ class SpotGrid:
                         if ck:
                             need = need & (hi[k] != lo[k])
                     blocks[cx, cy, cz] = self._find_block(_pack(*b), need)
-        count = dr.zeros(mi.UInt32, n)
         for dx, dy, dz in NEIGHBOURS:
             j = [ix + w(dx), iy + w(dy), iz + w(dz)]
             up = [(j[k] >> 2) != lo[k] for k in range(3)]
@@ -295,10 +373,7 @@ class SpotGrid:
             by_y = {cz: dr.select(up[1], by_x[1, cz], by_x[0, cz]) for cz in (0, 1)}
             b = dr.select(up[2], by_y[1], by_y[0])
             ok = active & (b > 0)
-            v = dr.gather(mi.UInt32, self.pool, (b - 1) * _B3 + self._local(*j), ok)
-            hit = (v & _MOSS_BIT) != 0 if moss_only else v != 0
-            count += dr.select(hit, mi.UInt32(1), mi.UInt32(0))
-        return count
+            yield dr.gather(mi.UInt32, self.pool, (b - 1) * _B3 + self._local(*j), ok), ok
 
     @staticmethod
     def first_per_cell(keys: mi.UInt64, rank: mi.UInt64, active=True) -> mi.Bool:
