@@ -49,7 +49,8 @@ _NONE32 = 0xFFFFFFFF
 _B = 4                          # cells per block edge
 _B3 = _B ** 3
 _MOSS_BIT = 1 << 31             # in a cell: the occupant is a moss
-_SLOT_MASK = _MOSS_BIT - 1
+_NEW_BIT = 1 << 30              # ... that became one in the update under way
+_SLOT_MASK = _NEW_BIT - 1       # slot + 1 (capacity < 2^30)
 _PROPAGULE, _MOSS = 1, 2        # population states (population.py)
 
 
@@ -229,20 +230,18 @@ class SpotGrid:
         has resolved conflicts, see ``propagules.settle``). ``state``: the population's state
         after adding them (kept until the next call: not a view of a NumPy array that changes).
         Call :meth:`sync` before the population frees or reuses slots."""
-        prev = self._code
         if dr.width(slots):
             ix, iy, iz = self.coords(p)
             dr.eval(ix, iy, iz)
             self._ensure_blocks(self._block_key(ix, iy, iz))
             cell, _ = self._cell(ix, iy, iz, True)
             moss = dr.gather(mi.UInt32, state, slots) == _MOSS
-            v = (slots + 1) | dr.select(moss, mi.UInt32(_MOSS_BIT), mi.UInt32(0))
+            v = (slots + 1) | dr.select(moss, mi.UInt32(_MOSS_BIT | _NEW_BIT), mi.UInt32(0))
             dr.eval(cell, v, moss)
             dr.scatter(self.pool, v, cell)
             dr.scatter(self.slot_cell, cell, slots)
             dr.eval(self.pool, self.slot_cell)
-            new_moss = dr.gather(mi.UInt32, slots, dr.compress(moss))
-            self._moss_changed(mi.UInt32(), new_moss, prev)
+            self._moss_changed(mi.UInt32(), dr.gather(mi.UInt32, slots, dr.compress(moss)))
         # a new array object: the population writes its state in place (Dr.Jit then copies)
         self._code = mi.UInt32(state)
         dr.eval(self.pool, self.slot_cell)
@@ -262,10 +261,10 @@ class SpotGrid:
             gone = (was == _MOSS) & (now == 0)
             dr.eval(cell, freed, germ, gone)
             dr.scatter(self.pool, mi.UInt32(0), cell, freed)
-            dr.scatter(self.pool, (changed + 1) | _MOSS_BIT, cell, germ)
+            dr.scatter(self.pool, (changed + 1) | (_MOSS_BIT | _NEW_BIT), cell, germ)
             dr.eval(self.pool)
             self._moss_changed(dr.gather(mi.UInt32, changed, dr.compress(gone)),
-                               dr.gather(mi.UInt32, changed, dr.compress(germ)), prev)
+                               dr.gather(mi.UInt32, changed, dr.compress(germ)))
         # a new array object: the population writes its state in place (Dr.Jit then copies)
         self._code = mi.UInt32(state)
         dr.eval(self.pool)
@@ -287,10 +286,10 @@ class SpotGrid:
         return [(mi.UInt32((bk >> (k * _BITS)) & m) << 2) | ((local >> (2 * k)) & 3)
                 for k in range(3)]
 
-    def _moss_changed(self, gone: mi.UInt32, new: mi.UInt32, prev: mi.UInt32) -> None:
+    def _moss_changed(self, gone: mi.UInt32, new: mi.UInt32) -> None:
         """Update the moss-neighbour counts after the pool has changed: ``gone``, slots whose
-        cell stopped holding a moss; ``new``, slots that became moss; ``prev``, the state per
-        slot before the change. Moss that were moss before gain or lose one per changed
+        cell stopped holding a moss; ``new``, slots that became moss (their cells carry the
+        "new" bit until this returns). Moss that were moss before gain or lose one per changed
         neighbour; a new moss counts its moss neighbours afresh (new ones included)."""
         n_gone, n_new = dr.width(gone), dr.width(new)
         if n_gone + n_new == 0:
@@ -302,23 +301,33 @@ class SpotGrid:
         if n_new:
             dr.scatter(ev, new, dr.arange(mi.UInt32, n_new) + split)
         grow = dr.arange(mi.UInt32, n_gone + n_new) >= split
+        dr.eval(ev, grow)
+        own = self._pass_changes(ev, grow)
         if n_new:
-            dr.scatter(self.nb, mi.UInt32(0), new)
+            dr.scatter(self.nb, own, ev, grow)
+            # the new moss are moss like the others from now on
+            cell = dr.gather(mi.UInt32, self.slot_cell, new)
+            dr.scatter(self.pool, (new + 1) | _MOSS_BIT, cell)
+        dr.eval(self.nb, self.pool)
+
+    def _pass_changes(self, ev: mi.UInt32, grow: mi.Bool) -> mi.UInt32:
+        """+1 (``grow``) or -1 to the moss neighbours of the cells of slots ``ev`` that were
+        moss before; returns the moss neighbours of each (for the new moss). A function of its
+        own: its lazy reads of the pool end with it, so a later write to the pool is in place."""
         ix, iy, iz = self._slot_coords(ev)
-        dr.eval(ev, grow, ix, iy, iz, self.nb)
+        dr.eval(ix, iy, iz)
         step = dr.select(grow, mi.UInt32(1), mi.UInt32(_NONE32))  # +1 or -1 (mod 2^32)
-        own = dr.zeros(mi.UInt32, n_gone + n_new)
+        own = dr.zeros(mi.UInt32, dr.width(ev))
         for v, ok in self._neighbour_values(ix, iy, iz, True):
             moss = ok & ((v & _MOSS_BIT) != 0)
-            t = (v & _SLOT_MASK) - 1
-            old = moss & (dr.gather(mi.UInt32, prev, t, moss) == _MOSS)
+            # the cell says whether its moss is new: no lookup of the neighbour's slot
+            old = moss & ((v & _NEW_BIT) == 0)
             # Direct (atomics): few writes into a large array; the default would expand the
             # array per thread and reduce it afterwards
-            dr.scatter_add(self.nb, step, t, old, mode=dr.ReduceMode.Direct)
+            dr.scatter_add(self.nb, step, (v & _SLOT_MASK) - 1, old, mode=dr.ReduceMode.Direct)
             own += dr.select(moss & grow, mi.UInt32(1), mi.UInt32(0))
-        dr.eval(own)
-        dr.scatter_add(self.nb, own, ev, grow, mode=dr.ReduceMode.Direct)
-        dr.eval(self.nb)
+        dr.eval(self.nb, own)
+        return own
 
     # ---- reading ----------------------------------------------------------------------------
     def occupant(self, p: mi.Point3f, active=True) -> mi.UInt32:
