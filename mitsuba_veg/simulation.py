@@ -373,10 +373,9 @@ class MossSimulation:
             if dr.width(par) < m:
                 par = concat_u32(par, spores.take(m - dr.width(par)))
             order, landed, elem, p, nrm, species, is_spore = self._fly(day, par, n_g, start)
-            keep, evict = settle(pop, self.grid, p, species, order, landed)
-            dr.eval(keep, evict)
-            if not exclusive:
-                pop.remove(evict)
+            keep, evicted = settle(pop, self.grid, p, species, order, landed)
+            dr.eval(keep, evicted)
+            pop.remove(evicted)  # none when no newcomer can evict anyone
             k_idx = dr.compress(keep)
             if dr.width(k_idx):
                 gat = lambda t, a: dr.gather(t, a, k_idx)  # noqa: E731
@@ -385,7 +384,7 @@ class MossSimulation:
                                     dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE),
                                               mi.UInt32(GEMMA)),
                                     gat(mi.UInt32, elem), gat(mi.Point3f, p),
-                                    gat(mi.Vector3f, nrm), 0.0, sync=not exclusive)
+                                    gat(mi.Vector3f, nrm), 0.0, sync=dr.width(evicted) > 0)
             start += m
             batch *= 2
         return placed, n - start
@@ -451,15 +450,15 @@ class MossSimulation:
         species = rng.integers(0, len(self.species), n)
         P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
         N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
-        keep, evict = settle(self.pop, self.grid, P, mi.UInt32(species.astype(np.uint32)),
-                             dr.arange(mi.UInt32, n), dr.full(mi.Bool, True, n))
-        self.pop.remove(evict)
+        keep, evicted = settle(self.pop, self.grid, P, mi.UInt32(species.astype(np.uint32)),
+                               dr.arange(mi.UInt32, n), dr.full(mi.Bool, True, n))
+        self.pop.remove(evicted)
         k = dr.compress(keep)
         if dr.width(k):
             g = lambda t, a: dr.gather(t, a, k)  # noqa: E731
             self._add(state, g(mi.UInt32, mi.UInt32(species.astype(np.uint32))), kind,
                       g(mi.UInt32, mi.UInt32(tri.astype(np.uint32))), g(mi.Point3f, P),
-                      g(mi.Vector3f, N), growth)
+                      g(mi.Vector3f, N), growth, sync=dr.width(evicted) > 0)
 
     # ---- run --------------------------------------------------------------------------------
     def step(self) -> dict:

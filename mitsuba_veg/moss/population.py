@@ -245,8 +245,11 @@ class MossPopulation:
                 self.gemmae, self.pos, self.nrm)
         return slots
 
-    def remove(self, mask: mi.Bool) -> None:
-        self.state = dr.select(mask, mi.UInt32(FREE), self.state)
+    def remove(self, slots: mi.UInt32) -> None:
+        """Free ``slots`` (written in place)."""
+        if dr.width(slots):
+            dr.scatter(self.state, mi.UInt32(FREE), slots)
+            dr.eval(self.state)
 
     # ---- the daily life cycle ---------------------------------------------------------------
     def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None):

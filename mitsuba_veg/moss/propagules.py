@@ -71,7 +71,8 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
     ``grid``: the spot grid (:class:`~mitsuba_veg.moss.spatial.SpotGrid`), in step with ``pop``
     (``grid.sync(pop.state)`` since the population last changed).
 
-    Returns (keep mask over the new propagules, mask of existing slots that lose their cell).
+    Returns (keep mask over the new propagules, the slots of existing individuals that lose
+    their cell).
     """
     keys = grid.key(new_pos)
     # among the newcomers of one cell: highest species priority, then lowest order
@@ -87,6 +88,6 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
                         has) + dr.gather(mi.Float, pop.growth, slot, has)
     wins = ~has | (pri_new > pri_old)
     keep = first & wins
-    evict = dr.zeros(mi.Bool, pop.capacity)
-    dr.scatter(evict, True, slot, has & wins)
-    return keep, evict
+    # each cell has one newcomer at most, so no occupant is evicted twice
+    evicted = dr.gather(mi.UInt32, slot, dr.compress(has & wins))
+    return keep, evicted
