@@ -48,10 +48,8 @@ class DayFrames:
             self.frames.append(self.write_day(sim, rec))
 
     def write_day(self, sim, rec) -> Path:
-        import matplotlib
-        matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-        from .plots import plan_map
+        from .plots import _mpl, plan_map
+        plt = _mpl()
 
         self.dir.mkdir(parents=True, exist_ok=True)
         idx = sim.index

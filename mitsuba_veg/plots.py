@@ -11,8 +11,8 @@ import numpy as np
 
 
 def _mpl():
-    import matplotlib
-    matplotlib.use("Agg", force=False)
+    """pyplot, with the backend matplotlib chose: Agg without a display, the notebook's own
+    inline backend in Jupyter (forcing Agg here would leave later plt.show() calls blank)."""
     import matplotlib.pyplot as plt
     return plt
 

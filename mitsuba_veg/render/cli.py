@@ -285,7 +285,9 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
         timings["write"] += time.perf_counter() - t2
         if bar is not None:
             bar.update(1)
-            bar.set_postfix(day=day, moss=len(fr.moss))
+            # the first frame rendered is the last day's (it fixes the exposure): say so
+            bar.set_postfix(day=day, moss=len(fr.moss),
+                            **({"frame": "last, for the exposure"} if k == order[0] else {}))
     if bar is not None:
         bar.close()
     t3 = time.perf_counter()

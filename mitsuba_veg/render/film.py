@@ -175,10 +175,10 @@ def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None 
     """An RGB uint8 image of the red:far-red ratio on a log scale (``lo``..``hi``) with a colour
     bar: low ratios (light filtered or reflected by vegetation) purple-blue, daylight's ~1.15
     yellow-orange. ``luminance`` (optional) shades the colours so that shapes stay readable."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
+
+    from ..plots import _mpl
+    plt = _mpl()
 
     r = np.asarray(r_fr, np.float64)
     h, w = r.shape

@@ -17,10 +17,8 @@ VIEWS = {
 
 
 def _plt():
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    return plt
+    from ..plots import _mpl
+    return _mpl()
 
 
 def draw(ax, trees, view="side", env=None, spheres=True, dead=False, colors=None,
