@@ -333,32 +333,34 @@ class MossSimulation:
         n_s = ev.spore_parents
         ev.gemma_parents = n_g
         n = n_g + n_s
-        placed = unresolved = 0
+        placed = traced = crowded = 0
         if n:
             # the day's propagules in one order: gemmae, then spores (each by parent slot)
-            placed, unresolved = self._release(day, SlotQueue(gemma, n_g),
-                                               SlotQueue(spores, n_s))
+            placed, traced, crowded = self._release(day, SlotQueue(gemma, n_g),
+                                                    SlotQueue(spores, n_s))
         interval = int(cfg["external_spore_interval"])
         if interval and day % interval == interval - 1:
             self._place_random(1, day, state=PROPAGULE, kind=SPORE, growth=0.0, stream=2)
         events = ev.__dict__.copy()
         events["propagules_released"] = n
+        events["propagules_traced"] = traced
         events["propagules_settled"] = placed
-        events["propagules_unresolved"] = unresolved
-        pop.unresolved += unresolved
+        events["propagules_crowded_out"] = crowded
         return events
 
-    def _release(self, day: int, gemmae: SlotQueue, spores: SlotQueue) -> tuple[int, int]:
+    def _release(self, day: int, gemmae: SlotQueue, spores: SlotQueue) -> tuple[int, int, int]:
         """Release, land and settle the day's propagules (``gemmae``, ``spores``: their parent
-        slots, gemmae first). Returns (placed, unresolved).
+        slots, gemmae first). Returns (placed, traced, crowded out).
 
-        Newcomers are placed in their order while free slots last. When no newcomer can evict
-        anyone (every species has the same priority and no occupant has a negative G_moss:
-        an incumbent then always keeps its spot), a propagule can only matter by taking a free
-        slot, so the propagules are resolved in order, in batches, until the free slots are
-        used up; the rest (``unresolved``) could not have been placed and are not traced. The
-        state that results is the one of resolving all of them at once (the batches see the
-        earlier batches' newcomers in the grid, which win their cells by order)."""
+        Newcomers are placed in their order while free slots last; the propagules released
+        after the last free slot was taken are *crowded out* (whether they would have landed
+        or not). When no newcomer can evict anyone (every species has the same priority and no
+        occupant has a negative G_moss: an incumbent then always keeps its spot), a propagule
+        can only matter by taking a free slot, so the propagules are traced in order, in
+        batches, until the free slots are used up, and the rest are not traced at all. The
+        state that results is the one of tracing all of them at once (the batches see the
+        earlier batches' newcomers in the grid, which win their cells by order), and so are the
+        numbers placed and crowded out."""
         pop = self.pop
         n_g = gemmae.count
         n = n_g + spores.count
@@ -367,7 +369,9 @@ class MossSimulation:
         free = pop.count(FREE) if exclusive else n
         batch = n if not exclusive or free >= n else min(n, max(self.release_batch, 2 * free))
         start = placed = 0
-        while start < n and (not exclusive or placed < free):
+        last = -1       # order of the last newcomer placed
+        full = exclusive and free == 0
+        while start < n and not full:
             m = min(batch, n - start)
             par = gemmae.take(m)
             if dr.width(par) < m:
@@ -380,14 +384,19 @@ class MossSimulation:
             if dr.width(k_idx):
                 gat = lambda t, a: dr.gather(t, a, k_idx)  # noqa: E731
                 # the grid is in step unless this batch evicted someone
-                placed += self._add(PROPAGULE, gat(mi.UInt32, species),
-                                    dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE),
-                                              mi.UInt32(GEMMA)),
-                                    gat(mi.UInt32, elem), gat(mi.Point3f, p),
-                                    gat(mi.Vector3f, nrm), 0.0, sync=dr.width(evicted) > 0)
+                k = self._add(PROPAGULE, gat(mi.UInt32, species),
+                              dr.select(gat(mi.Bool, is_spore), mi.UInt32(SPORE), mi.UInt32(GEMMA)),
+                              gat(mi.UInt32, elem), gat(mi.Point3f, p), gat(mi.Vector3f, nrm), 0.0,
+                              sync=dr.width(evicted) > 0)
+                if k:
+                    last = start + int(np.asarray(k_idx)[k - 1])
+                placed += k
+                full = pop.free_after_add == 0
             start += m
             batch *= 2
-        return placed, n - start
+        if not full and start == n:
+            full = pop.count(FREE) == 0
+        return placed, start, (n - 1 - last) if full else 0
 
     def _fly(self, day: int, par: mi.UInt32, n_g: int, start: int):
         """Propagules start .. start + m - 1 of the day (``par`` their parent slots; the day's
@@ -597,8 +606,8 @@ class MossSimulation:
                       "moss_alive": int(self.pop.count(MOSS)),
                       "propagules": int(self.pop.count(PROPAGULE)),
                       "alive_by_species": last.get("alive", {}), "regions": regions,
-                      "capacity_overflow": int(self.pop.overflow),
-                      "propagules_unresolved": int(self.pop.unresolved)},
+                      "propagules_crowded_out": sum(r["events"].get("propagules_crowded_out", 0)
+                                                    for r in self.history)},
             "timings_s": {**self.timings, "per_day": {k: self.timings[k] / n_days
                                                       for k in ("light", "soil", "moss")}},
             "days_record": self.history, "versions": versions()}

@@ -117,15 +117,20 @@ def test_full_population_traces_only_what_can_settle(tmp_path, monkeypatch):
     import mitsuba as mi
     days = 20
     a = _grow(tmp_path / "a", days, monkeypatch)
-    released = sum(r["events"]["propagules_released"] for r in a.history)
-    unresolved = sum(r["events"]["propagules_unresolved"] for r in a.history)
-    assert a.pop.count(0) < 10 and 0 < unresolved < released  # full, and batches were cut short
+    ev = lambda sim, k: [r["events"][k] for r in sim.history]  # noqa: E731
+    traced, released = sum(ev(a, "propagules_traced")), sum(ev(a, "propagules_released"))
+    assert a.pop.count(0) < 10 and 0 < traced < released  # full, and batches were cut short
+    assert sum(ev(a, "propagules_crowded_out")) > 0
     b = _grow(tmp_path / "b", days, monkeypatch, all_at_once=True)
-    assert sum(r["events"]["propagules_unresolved"] for r in b.history) == 0
+    assert ev(b, "propagules_traced") == ev(b, "propagules_released")
     pa, pb = a.pop.to_numpy(), b.pop.to_numpy()
     for k in ("state", "species", "kind", "elem", "growth", "age", "gemmae", "pos"):
         assert np.array_equal(pa[k], pb[k]), k
-    assert [r["alive"] for r in a.history] == [r["alive"] for r in b.history]
+    for k in ("alive", "propagules"):
+        assert [r[k] for r in a.history] == [r[k] for r in b.history]
+    # what was placed and what was crowded out do not depend on the batches
+    for k in ("propagules_settled", "propagules_crowded_out"):
+        assert ev(a, k) == ev(b, k), k
     # the moss-neighbour counts the grid keeps equal a fresh count at every moss
     moss = mi.UInt32(np.flatnonzero(pa["state"] == 2).astype(np.uint32))
     kept = np.asarray(a.grid.moss_neighbours(moss))

@@ -159,8 +159,7 @@ class MossPopulation:
         self.age = dr.zeros(mi.Float, c)
         self.gemmae = dr.zeros(mi.UInt32, c)
         self.overflow = 0  # individuals that found no free slot, over the whole run
-        # propagules released while the population was full and never traced (simulation)
-        self.unresolved = 0
+        self.free_after_add = -1  # free slots left by the last add (-1: none yet)
         # occupants with G_moss < 0 at the end of the last day (-1: not known yet); with equal
         # species priorities, none means no newcomer can evict anyone
         self.negative_growth = -1
@@ -190,7 +189,6 @@ class MossPopulation:
         d["pos"] = np.stack([np.asarray(c) for c in (self.pos.x, self.pos.y, self.pos.z)], 1)
         d["nrm"] = np.stack([np.asarray(c) for c in (self.nrm.x, self.nrm.y, self.nrm.z)], 1)
         d["overflow"] = np.array(self.overflow)
-        d["unresolved"] = np.array(self.unresolved)
         return d
 
     def load_numpy(self, d: dict) -> None:
@@ -203,7 +201,6 @@ class MossPopulation:
         self.pos = mi.Point3f(*[mi.Float(np.ascontiguousarray(d["pos"][:, k])) for k in range(3)])
         self.nrm = mi.Vector3f(*[mi.Float(np.ascontiguousarray(d["nrm"][:, k])) for k in range(3)])
         self.overflow = int(d["overflow"])
-        self.unresolved = int(d.get("unresolved", 0))
         self.negative_growth = -1
 
     # ---- adding individuals -----------------------------------------------------------------
@@ -219,6 +216,7 @@ class MossPopulation:
         free = dr.compress(self.state == FREE)
         k = min(n, dr.width(free))
         self.overflow += n - k
+        self.free_after_add = dr.width(free) - k
         if k == 0:
             return mi.UInt32()
         src = dr.arange(mi.UInt32, k)
