@@ -81,12 +81,14 @@ class SpotGrid:
         self.block_cap = max(64, self.capacity // 8)
         self.pool = dr.zeros(mi.UInt32, self.block_cap * _B3)
         self.block_key = dr.zeros(mi.UInt64, self.block_cap)
+        # per block: block id + 1 of the 27 blocks around it (itself at 13; 0 = none)
+        self.block_nbr = dr.zeros(mi.UInt32, self.block_cap * 27)
         self.slot_cell = dr.zeros(mi.UInt32, self.capacity)
         self._code = dr.zeros(mi.UInt32, self.capacity)  # state per slot at the last sync
         self.nb = dr.zeros(mi.UInt32, self.capacity)  # moss among the 26 neighbours (moss slots)
         self.rehashes = 0
         dr.eval(self.tab_keys, self.tab_block, self._claim, self.pool, self.block_key,
-                self.slot_cell, self._code, self.nb)
+                self.block_nbr, self.slot_cell, self._code, self.nb)
 
     @property
     def n_cells(self) -> int:
@@ -154,6 +156,7 @@ class SpotGrid:
         key start at the same entry and move together; at an empty entry the lowest item claims
         it for its key, the others of that key then see it taken by their key and stop."""
         mask = (1 << self.bits) - 1
+        first_new = self.n_blocks
         k, it, pos = keys, dr.arange(mi.UInt32, dr.width(keys)), self._hash(keys)
         dr.eval(k, pos)
         # every read of a table is evaluated before the table is written (a lazy read would
@@ -187,6 +190,8 @@ class SpotGrid:
             on = ~found & ~win & (dr.gather(mi.UInt64, self.tab_keys, pos) != k)
             idx = dr.compress(on)
             if dr.width(idx) == 0:
+                if self.n_blocks > first_new:
+                    self._link(first_new, self.n_blocks)
                 return
             k = dr.gather(mi.UInt64, k, idx)
             it = dr.gather(mi.UInt32, it, idx)
@@ -202,8 +207,28 @@ class SpotGrid:
         dr.scatter(pool, self.pool, dr.arange(mi.UInt32, self.block_cap * _B3))
         bk = dr.zeros(mi.UInt64, cap)
         dr.scatter(bk, self.block_key, dr.arange(mi.UInt32, self.block_cap))
-        dr.eval(pool, bk)
-        self.pool, self.block_key, self.block_cap = pool, bk, cap
+        nbr = dr.zeros(mi.UInt32, cap * 27)
+        dr.scatter(nbr, self.block_nbr, dr.arange(mi.UInt32, self.block_cap * 27))
+        dr.eval(pool, bk, nbr)
+        self.pool, self.block_key, self.block_nbr, self.block_cap = pool, bk, nbr, cap
+
+    def _link(self, first: int, end: int) -> None:
+        """Fill the neighbour-block table for the new blocks first .. end - 1 (and the back
+        links of the blocks around them): 27 table lookups per new block, once."""
+        # all 27 neighbours of all new blocks in one lookup: item i = block i // 27, offset i % 27
+        j = dr.arange(mi.UInt32, (end - first) * 27)
+        ids = j // 27 + dr.opaque(mi.UInt32, first)
+        o = j % 27
+        bk = dr.gather(mi.UInt64, self.block_key, ids)
+        m = (1 << _BITS) - 1
+        d = (o // 9, (o // 3) % 3, o % 3)  # offset + 1 per axis
+        # block coordinate + offset, modulo 2^21 (m = 2^21 - 1 stands for -1)
+        c = [(mi.UInt32((bk >> (k * _BITS)) & m) + d[k] + m) & m for k in range(3)]
+        f = self._find_block(_pack(*c), True)
+        dr.eval(ids, o, f)
+        dr.scatter(self.block_nbr, f, ids * 27 + o)
+        dr.scatter(self.block_nbr, ids + 1, (f - 1) * 27 + (26 - o), f > 0)
+        dr.eval(self.block_nbr)
 
     def _rehash(self, bits: int) -> None:
         """A table of 2^bits entries holding the existing blocks."""
@@ -315,10 +340,11 @@ class SpotGrid:
         moss before; returns the moss neighbours of each (for the new moss). A function of its
         own: its lazy reads of the pool end with it, so a later write to the pool is in place."""
         ix, iy, iz = self._slot_coords(ev)
-        dr.eval(ix, iy, iz)
+        block = dr.gather(mi.UInt32, self.slot_cell, ev) // _B3 + 1
+        dr.eval(ix, iy, iz, block)
         step = dr.select(grow, mi.UInt32(1), mi.UInt32(_NONE32))  # +1 or -1 (mod 2^32)
         own = dr.zeros(mi.UInt32, dr.width(ev))
-        for v, ok in self._neighbour_values(ix, iy, iz, True):
+        for v, ok in self._neighbour_values(ix, iy, iz, True, block):
             moss = ok & ((v & _MOSS_BIT) != 0)
             # the cell says whether its moss is new: no lookup of the neighbour's slot
             old = moss & ((v & _NEW_BIT) == 0)
@@ -351,15 +377,17 @@ class SpotGrid:
             count += dr.select(hit, mi.UInt32(1), mi.UInt32(0))
         return count
 
-    def _neighbour_values(self, ix, iy, iz, active):
+    def _neighbour_values(self, ix, iy, iz, active, own=None):
         """(cell value, block exists) of the 26 neighbour cells of cells (ix, iy, iz). The
-        3 x 3 x 3 neighbourhood spans at most 2 x 2 x 2 blocks: each is looked up once, then
-        the 26 cells are read from them."""
+        3 x 3 x 3 neighbourhood spans at most 2 x 2 x 2 blocks: each is found once (from the
+        neighbour-block table when ``own``, the block + 1 of each cell, is given; else in the
+        hash table), then the 26 cells are read from them."""
         n = dr.width(ix)
         active = dr.full(mi.Bool, True, n) & active
         w = lambda d: d % (1 << 32)  # noqa: E731  (-1 wraps: coordinates are unsigned)
         lo = [(c + w(-1)) >> 2 for c in (ix, iy, iz)]
         hi = [(c + 1) >> 2 for c in (ix, iy, iz)]
+        base = [c >> 2 for c in (ix, iy, iz)]
         blocks = {}
         for cx in (0, 1):
             for cy in (0, 1):
@@ -370,7 +398,12 @@ class SpotGrid:
                         b.append(hi[k] if ck else lo[k])
                         if ck:
                             need = need & (hi[k] != lo[k])
-                    blocks[cx, cy, cz] = self._find_block(_pack(*b), need)
+                    if own is None:
+                        blocks[cx, cy, cz] = self._find_block(_pack(*b), need)
+                    else:  # offsets -1 .. 1 per axis -> entry 0 .. 26 of the table
+                        o = [b[k] + 1 - base[k] for k in range(3)]
+                        at = (own - 1) * 27 + o[0] * 9 + o[1] * 3 + o[2]
+                        blocks[cx, cy, cz] = dr.gather(mi.UInt32, self.block_nbr, at, need)
         for dx, dy, dz in NEIGHBOURS:
             j = [ix + w(dx), iy + w(dy), iz + w(dz)]
             up = [(j[k] >> 2) != lo[k] for k in range(3)]
