@@ -42,7 +42,7 @@ import mitsuba as mi
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError
-from mitsuba_veg.trees.voxel import dda_start
+from mitsuba_veg.trees.voxel import dda_advance, dda_start
 
 #: "no triangle" marker of the kernels
 _NONE = 0xFFFFFFFF
@@ -212,15 +212,8 @@ def _grid_loop(o, d, own, tmax, kmax, q, cell_start, cell_items, centers, r2, h,
         k = dr.select(hit, k + 1, k)
         j = dr.select(item, j + 1, j)
         adv = active & ~item
-        bx = adv & (tmx <= tmy) & (tmx <= tmz)
-        by = adv & ~bx & (tmy <= tmz)
-        bz = adv & ~bx & ~by
-        ix = dr.select(bx, ix + sx, ix)
-        tmx = dr.select(bx, tmx + tdx, tmx)
-        iy = dr.select(by, iy + sy, iy)
-        tmy = dr.select(by, tmy + tdy, tmy)
-        iz = dr.select(bz, iz + sz, iz)
-        tmz = dr.select(bz, tmz + tdz, tmz)
+        (ix, iy, iz), (tmx, tmy, tmz) = dda_advance((ix, iy, iz), (sx, sy, sz),
+                                                    (tdx, tdy, tdz), (tmx, tmy, tmz), adv)
         t_in = dr.select(adv, t_out, t_in)
         t_out = dr.select(adv, dr.minimum(tmx, dr.minimum(tmy, tmz)), t_out)
         ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & (iz >= 0) & (iz < nz)

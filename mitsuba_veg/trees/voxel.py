@@ -55,6 +55,18 @@ def dda_start(q, d, h=1.0):
     return (ix, iy, iz), (sx, sy, sz), td, tm
 
 
+def dda_advance(i, s, td, tm, active=True):
+    """One step of the walk of :func:`dda_start`: where ``active``, move to the neighbour cell
+    across the nearest boundary. Returns the new cell and distances to the next boundaries."""
+    (ix, iy, iz), (sx, sy, sz), (tdx, tdy, tdz), (tmx, tmy, tmz) = i, s, td, tm
+    bx = active & (tmx <= tmy) & (tmx <= tmz)
+    by = active & ~bx & (tmy <= tmz)
+    bz = active & ~bx & ~by
+    return ((dr.select(bx, ix + sx, ix), dr.select(by, iy + sy, iy), dr.select(bz, iz + sz, iz)),
+            (dr.select(bx, tmx + tdx, tmx), dr.select(by, tmy + tdy, tmy),
+             dr.select(bz, tmz + tdz, tmz)))
+
+
 @dr.syntax
 def _dda(q, d, tau_grid, nx, ny, nz, tau_stop):
     """Optical depth along rays starting at q (in voxel units) in unit directions d."""
@@ -70,15 +82,8 @@ def _dda(q, d, tau_grid, nx, ny, nz, tau_stop):
         tau += s * (tn - t)
         t = tn
         steps += 1
-        bx = (tmx <= tmy) & (tmx <= tmz)
-        by = ~bx & (tmy <= tmz)
-        bz = ~bx & ~by
-        ix = dr.select(bx, ix + sx, ix)
-        tmx = dr.select(bx, tmx + tdx, tmx)
-        iy = dr.select(by, iy + sy, iy)
-        tmy = dr.select(by, tmy + tdy, tmy)
-        iz = dr.select(bz, iz + sz, iz)
-        tmz = dr.select(bz, tmz + tdz, tmz)
+        (ix, iy, iz), (tmx, tmy, tmz) = dda_advance((ix, iy, iz), (sx, sy, sz),
+                                                    (tdx, tdy, tdz), (tmx, tmy, tmz))
         active = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & (iz >= 0) & (iz < nz) \
             & (tau < tau_stop)
     return tau, steps
