@@ -69,6 +69,9 @@ class SpotGrid:
         self.lo = np.asarray(bbox_min, float) - 1.5 * cell
         self.cell = self.requested_cell = float(cell)
         self.capacity = int(capacity)
+        if not 0 < self.capacity < _NEW_BIT:
+            raise ValueError(f"capacity {self.capacity}: a cell holds slot + 1 in 30 bits, so "
+                             f"1 .. {_NEW_BIT - 1} slots")
         extent = (np.asarray(bbox_max, float) + 1.5 * cell - self.lo) / cell
         if np.any(extent >= 2 * _OFFSET):
             raise ValueError(f"the scene spans {extent.max():.3g} cells of {cell} m; at most "
@@ -303,13 +306,14 @@ class SpotGrid:
         self.insert(dr.gather(mi.Point3f, pos, s), s, state)
 
     def _slot_coords(self, slots: mi.UInt32):
-        """Cell coordinates of the cells held by ``slots`` (from their block's key)."""
+        """Cell coordinates of the cells held by ``slots`` (from their block's key), and their
+        block + 1."""
         cell = dr.gather(mi.UInt32, self.slot_cell, slots)
         bk = dr.gather(mi.UInt64, self.block_key, cell // _B3)
         local = cell % _B3
         m = (1 << _BITS) - 1
         return [(mi.UInt32((bk >> (k * _BITS)) & m) << 2) | ((local >> (2 * k)) & 3)
-                for k in range(3)]
+                for k in range(3)], cell // _B3 + 1
 
     def _moss_changed(self, gone: mi.UInt32, new: mi.UInt32) -> None:
         """Update the moss-neighbour counts after the pool has changed: ``gone``, slots whose
@@ -339,8 +343,7 @@ class SpotGrid:
         """+1 (``grow``) or -1 to the moss neighbours of the cells of slots ``ev`` that were
         moss before; returns the moss neighbours of each (for the new moss). A function of its
         own: its lazy reads of the pool end with it, so a later write to the pool is in place."""
-        ix, iy, iz = self._slot_coords(ev)
-        block = dr.gather(mi.UInt32, self.slot_cell, ev) // _B3 + 1
+        (ix, iy, iz), block = self._slot_coords(ev)
         dr.eval(ix, iy, iz, block)
         step = dr.select(grow, mi.UInt32(1), mi.UInt32(_NONE32))  # +1 or -1 (mod 2^32)
         own = dr.zeros(mi.UInt32, dr.width(ev))
