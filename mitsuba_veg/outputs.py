@@ -20,6 +20,163 @@ def write_json(path, data, indent: int = 2) -> None:
     os.replace(tmp, path)
 
 
+# --------------------------------------------------------------------------------------------
+# Output folders: one kind of result per folder, one writer at a time
+# --------------------------------------------------------------------------------------------
+MARKER = ".mitsuba-veg.json"
+LOCK = ".mitsuba-veg.lock"
+#: what each command leaves in its folder (used to recognise folders written before markers)
+_KIND_FILES = {"run": ("checkpoint.npz",), "irradiance": ("irradiance.npz",),
+               "render": ("render.json",), "animate": ("animate.json",),
+               "light-study": ("light_study.npz",), "grow": ("metrics.json",),
+               "tune": ("fitted.json",)}
+#: files and folders of a moss run that belong to one run (cleared when a run starts afresh)
+RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.json.tmp",
+               "days.gif", "days.tmp.gif", "maps", "snapshots", "render", "animation")
+
+
+def folder_kind(path) -> str | None:
+    """The kind of result a folder holds (its marker, else recognised by its files)."""
+    path = Path(path)
+    m = path / MARKER
+    if m.exists():
+        try:
+            return str(json.loads(m.read_text()).get("kind"))
+        except (ValueError, OSError, AttributeError):
+            return None
+    for kind, files in _KIND_FILES.items():
+        if any((path / f).exists() for f in files):
+            return kind
+    if (path / "summary.json").exists():
+        try:
+            return str(json.loads((path / "summary.json").read_text()).get("command", "")) or None
+        except (ValueError, OSError, AttributeError):
+            return "unknown"
+    return None
+
+
+class OutputFolder:
+    """An output folder claimed by one command: created if needed, checked to be writable,
+    marked with its kind (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an
+    advisory ``flock`` the kernel drops when the process ends, also on SIGKILL) so that a second
+    process writing into it is refused instead of interleaving. Use as a context manager or
+    call :meth:`release`."""
+
+    def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None):
+        from .errors import ParameterError
+        self.path = Path(path)
+        self.kind = kind
+        self._fh = None
+        p = self.path
+        if p.exists() and not p.is_dir():
+            raise ParameterError(option, str(p), "a folder (this is a file)",
+                                 "choose another output folder")
+        try:
+            p.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise ParameterError(option, str(p), "a folder that can be created and written",
+                                 f"{e.strerror}: choose a writable location") from None
+        held = folder_kind(p)
+        if held is not None and held != kind:
+            raise ParameterError(option, str(p), f"an empty folder or one holding a `{kind}` "
+                                 f"result (it holds a `{held}` result)",
+                                 f"choose another {option} folder; this one is not changed")
+        try:
+            import fcntl
+            self._fh = open(p / LOCK, "a+")
+            try:
+                fcntl.flock(self._fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                self._fh.seek(0)
+                other = self._fh.read().strip() or "?"
+                self._fh.close()
+                self._fh = None
+                raise ParameterError(option, str(p), "a folder no other mitsuba-veg process "
+                                     f"is writing (process {other} holds it)",
+                                     "wait for that process to finish, or choose another "
+                                     f"{option} folder") from None
+            self._fh.seek(0)
+            self._fh.truncate()
+            self._fh.write(str(os.getpid()))
+            self._fh.flush()
+            if not (p / MARKER).exists():
+                write_json(p / MARKER, {"kind": kind, **(info or {})})
+        except PermissionError as e:
+            if self._fh is not None:
+                self._fh.close()
+                self._fh = None
+            raise ParameterError(option, str(p), "a writable folder",
+                                 f"{e.strerror}: choose a writable location") from None
+
+    def clear(self, names) -> None:
+        """Remove stale outputs (files or folders named in ``names``) of an earlier result."""
+        clear_outputs(self.path, names)
+
+    def release(self) -> None:
+        if self._fh is not None:
+            self._fh.close()  # closing drops the flock
+            self._fh = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    def __del__(self):
+        self.release()
+
+
+def clear_outputs(folder, names) -> None:
+    """Remove the files or folders ``names`` from ``folder`` (those that exist)."""
+    import shutil
+    for n in names:
+        q = Path(folder) / n
+        if q.is_dir():
+            shutil.rmtree(q)
+        elif q.exists():
+            q.unlink()
+
+
+# --------------------------------------------------------------------------------------------
+# Moss snapshots (living moss on frame days, read by the render's animation)
+# --------------------------------------------------------------------------------------------
+SNAPSHOT_DIR = "snapshots"
+
+
+# ---- writing snapshots during a run -------------------------------------------------------------
+class SnapshotWriter:
+    """``on_day`` hook for :meth:`mitsuba_veg.simulation.MossSimulation.run`: writes the living
+    moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days (default: the run's
+    ``frame_every``) and on the last day. About 0.3 MB per 16,000 moss (compressed)."""
+
+    def __init__(self, every: int | None = None):
+        self.every = every
+
+    def __call__(self, sim, rec) -> None:
+        every = max(int(self.every or getattr(sim, "frame_every", 10) or 10), 1)
+        if sim.day % every == 0 or sim.day == sim.days or sim.day == 1:
+            write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
+                           date=rec.get("date"))
+
+
+def write_snapshot(directory, day: int, population: dict, date: str | None = None) -> Path:
+    """Write the living moss of a population dict (``MossPopulation.to_numpy()``)."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    m = np.asarray(population["state"]) == 2
+    path = d / f"day_{int(day):04d}.npz"
+    tmp = d / f".day_{int(day):04d}.tmp.npz"
+    np.savez_compressed(tmp, day=np.array(int(day)), date=np.array(str(date or "")),
+                        pos=np.asarray(population["pos"])[m].astype(np.float32),
+                        nrm=np.asarray(population["nrm"])[m].astype(np.float16),
+                        species=np.asarray(population["species"])[m].astype(np.uint8),
+                        growth=np.asarray(population["growth"])[m].astype(np.float16))
+    os.replace(tmp, path)
+    return path
+
+
+
 def write_summary(path, summary: dict) -> None:
     write_json(path, summary, indent=1)
 
@@ -85,7 +242,8 @@ class DayFrames:
 
     def finish(self) -> dict:
         files = {"maps": [str(p) for p in sorted(set(self.frames))]}
-        frames = sorted(set(self.dir.glob("day_*.png")))
+        frames = sorted(p for p in set(self.dir.glob("day_*.png"))
+                        if p.stem[4:].isdigit() and int(p.stem[4:]) <= self.sim.days)
         if len(frames) >= 2:
             from PIL import Image
             imgs = [Image.open(p).convert("P", palette=Image.ADAPTIVE) for p in frames]

@@ -24,18 +24,252 @@ from pathlib import Path
 
 from .errors import ParameterError, SceneError, check_range
 
-#: field -> (type, lower, upper) for the numeric fields checked here
-_NUMERIC = {
-    "site.latitude": (float, -90.0, 90.0),
-    "site.longitude": (float, -180.0, 180.0),
-    "light.photons": (int, 1, 10**10),
-    "light.max_depth": (int, 1, 1000),
-    "light.seed": (int, 0, 2**31 - 1),
-}
+#: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
+#: (more gains little: the estimate's noise falls as 1/sqrt(N) and a day has other errors)
+MAX_PHOTONS = 1_000_000_000
+
 _DEFAULTS = {
     "light": {"photons": 1_000_000, "max_depth": 8, "seed": 0, "indirect": True},
     "site": {"latitude": 35.0, "longitude": 139.0},
 }
+
+
+# --------------------------------------------------------------------------------------------
+# The schema: every field a scenario may hold. Unknown fields are refused (with the closest
+# known names), so that a typo never runs silently with a default.
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Field:
+    """One scenario field: ``kind`` is int, float, bool, str, date, datetime, file, vec3,
+    floats (a list of numbers), strs (a list of strings), choice, table (fixed ``fields``),
+    map (user-named keys, each value checked against ``item``) or tables (an array of tables
+    with ``fields``). ``lo``/``hi`` bound numbers (and list lengths via ``length``)."""
+
+    kind: str
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple = ()
+    fields: dict | None = None
+    item: "Field | None" = None
+    length: int | None = None
+    doc: str = ""
+
+
+def _num(kind, lo, hi, doc=""):
+    return Field(kind, lo, hi, doc=doc)
+
+
+_GEOLOGIES = ("humus", "sand", "asphalt")
+_VEC3 = Field("vec3", doc="[x, y, z] in metres")
+
+SCHEMA: dict[str, Field] = {
+    "scene": Field("table", fields={"file": Field("file", doc="Mitsuba XML scene")}),
+    "site": Field("table", fields={
+        "latitude": _num("float", -90.0, 90.0, "[deg] north positive"),
+        "longitude": _num("float", -180.0, 180.0, "[deg] east positive"),
+        "timezone": _num("float", -14.0, 14.0, "[h] offset from UTC"),
+    }),
+    "light": Field("table", fields={
+        "photons": _num("int", 1, MAX_PHOTONS, "photons per light pass"),
+        "max_depth": _num("int", 1, 1000, "bounces per photon"),
+        "seed": _num("int", 0, 2**31 - 1),
+        "indirect": Field("bool"),
+        "when": Field("datetime", doc="ISO 8601 date-time, e.g. 2026-04-20T10:00:00+09:00"),
+    }),
+    "terrain": Field("table", fields={
+        "ground": Field("str", doc="shape id of the soil-bearing terrain"),
+        "geology_texture": Field("file"),
+        "soil_base_y": _num("float", -1e4, 1e4, "[m]"),
+        "soil_depth_mm": Field("map", item=_num("float", 1.0, 1000.0, "[mm]")),
+        "geology": Field("map", item=Field("choice", choices=_GEOLOGIES)),
+    }),
+    "regions": Field("map", item=Field("table", fields={
+        "shapes": Field("strs", doc="shape ids"), "min": _VEC3, "max": _VEC3})),
+    "simulation": Field("table", fields={
+        "days": _num("int", 1, 100_000),
+        "start_date": Field("date", doc="YYYY-MM-DD"),
+        "checkpoint_every": _num("int", 0, 100_000, "days (0: only at the end)"),
+        "frame_every": _num("int", 1, 100_000, "days"),
+    }),
+    "climate": Field("table", fields={
+        "temperature": _num("float", 200.0, 340.0, "[K]"),
+        "humidity": _num("float", 0.0, 1.0, "[-]"),
+        "precipitation": _num("float", 0.0, 20000.0, "[mm/yr]"),
+        "rain_days": _num("int", 0, 365, "[days/yr]"),
+        "wind": _num("float", 0.0, 60.0, "[m/s]"),
+        "possible_sunshine": _num("float", 0.0, 24.0, "[h]"),
+        "sunshine": _num("float", 0.0, 24.0, "[h]"),
+        "angstrom_a": _num("float", 0.0, 1.0),
+        "angstrom_b": _num("float", 0.0, 1.0),
+        "csv": Field("file"),
+    }),
+    "moss": Field("table", fields={
+        "species": Field("strs", doc="species keys"),
+        "capacity": _num("int", 16, 50_000_000),
+        "initial": _num("int", 0, 50_000_000),
+        "initial_growth": _num("float", 0.0, 1000.0, "G_moss [-]"),
+        "size": _num("float", 1e-4, 1.0, "[m]"),
+        "gemma_distance": _num("float", 0.0, 100.0, "[m]"),
+        "spore_distance": _num("float", 0.0, 100.0, "[m]"),
+        "external_spore_interval": _num("int", 0, 100_000, "[days]"),
+        "clump_neighbours": _num("int", 1, 26),
+        "albedo": Field("floats", 0.0, 1.0, length=4, doc="total, PAR, red, far-red"),
+        "priority": Field("floats", -1e6, 1e6, doc="one per species"),
+        "shapes": Field("strs", doc="shape ids moss may live on"),
+    }),
+    "species_file": Field("file"),
+    "render": Field("table", fields={
+        "when": Field("datetime"),
+        "materials": Field("map", item=Field("str")),
+        "cameras": Field("map", item=Field("table", fields={
+            "origin": _VEC3, "target": _VEC3, "up": _VEC3,
+            "fov": _num("float", 1.0, 170.0, "[deg]"),
+            "fov_axis": Field("choice", choices=("x", "y", "smaller", "larger", "diagonal"))})),
+        "trees": Field("tables", fields={
+            "preset": Field("str"), "model": Field("choice", choices=("weber_penn", "growth",
+                                                                       "simple")),
+            "seed": _num("int", 0, 2**31 - 1), "position": _VEC3,
+            "height": _num("float", 0.05, 200.0, "[m]"), "autumn": Field("bool"),
+            "overrides": Field("any"), "generations": _num("int", 0, 20),
+            "growth": Field("any")}),
+    }),
+}
+
+
+def known_fields(schema: dict | None = None, prefix: str = "") -> list[str]:
+    """Every dotted field name of the schema (user-named map keys shown as ``NAME``)."""
+    out = []
+    for k, f in (SCHEMA if schema is None else schema).items():
+        name = f"{prefix}{k}"
+        out.append(name)
+        if f.kind in ("table", "tables") and f.fields:
+            out += known_fields(f.fields, name + ".")
+        elif f.kind == "map" and f.item is not None and f.item.fields:
+            out += known_fields(f.item.fields, name + ".NAME.")
+    return out
+
+
+def _unknown(field: str, value, known: list[str], source):
+    import difflib
+    parts = field.split(".")
+
+    def concrete(k):  # "regions.NAME.min" -> "regions.open.min" for field regions.open.x
+        kp = k.split(".")
+        return ".".join(parts[i] if p == "NAME" and i < len(parts) else p
+                        for i, p in enumerate(kp))
+    known = [concrete(k) for k in known]
+    close = difflib.get_close_matches(field, known, n=3, cutoff=0.6)
+    if not close:  # a misspelt last part: compare within the same table
+        head, _, last = field.rpartition(".")
+        sib = [k for k in known if k.rpartition(".")[0] == head]
+        close = [f"{head}.{m}" if head else m for m in difflib.get_close_matches(
+            last, [k.rpartition(".")[2] for k in sib], n=3, cutoff=0.5)]
+    fix = ("did you mean " + " or ".join(f"`{c}`" for c in close) + "?") if close else \
+        "remove it, or see docs/scenario.md for the fields a scenario may hold"
+    head = field.rpartition(".")[0]
+    pool = [k for k in known if k.rpartition(".")[0] == head] or known
+    return ParameterError(field, value, "a known field (" + ", ".join(sorted(pool)[:12]) +
+                          (", ..." if len(pool) > 12 else "") + ")", fix, source)
+
+
+def _check_value(name: str, f: Field, v, source, known: list[str]):
+    """Check one value against its field (recursively for tables)."""
+    import datetime as _dt
+    import math
+
+    def bad(allowed, fix=None):
+        return ParameterError(name, v, allowed, fix or f"set {name} to a value in the allowed "
+                              "range (docs/scenario.md lists every field)", source)
+
+    k = f.kind
+    if k == "any":
+        return
+    if k in ("int", "float"):
+        rng = f"[{f.lo:g}, {f.hi:g}]" + (f" {f.doc}" if f.doc else "")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (k == "int" and
+                                                                      not isinstance(v, int)):
+            raise bad(f"{'an integer' if k == 'int' else 'a number'} in {rng}")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise bad(f"a finite number in {rng}")
+        if not f.lo <= v <= f.hi:
+            fix = ("at most 1e9 photons per pass (about 2 minutes on 2 CPU cores); run more "
+                   "days or seeds to average the noise") if name == "light.photons" else None
+            raise bad(f"{'an integer' if k == 'int' else 'a number'} in {rng}", fix)
+    elif k == "bool":
+        if not isinstance(v, bool):
+            raise bad("true or false")
+    elif k in ("str", "file"):
+        if not isinstance(v, str) or not v.strip():
+            raise bad("a non-empty string" + (" (a path relative to the scenario)"
+                                              if k == "file" else ""))
+    elif k == "choice":
+        if v not in f.choices:
+            raise bad("one of " + ", ".join(map(str, f.choices)))
+    elif k == "date":
+        try:
+            _dt.date.fromisoformat(str(v))
+        except ValueError:
+            raise bad("a date YYYY-MM-DD", 'e.g. "2026-03-01"') from None
+    elif k == "datetime":
+        try:
+            t = str(v).strip()
+            _dt.datetime.fromisoformat(t[:-1] + "+00:00" if t.endswith(("Z", "z")) else t)
+        except ValueError:
+            raise bad("an ISO 8601 date-time", 'e.g. "2026-04-20T10:00:00+09:00"') from None
+    elif k == "vec3":
+        if not (isinstance(v, list) and len(v) == 3 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in v)):
+            raise bad("[x, y, z]: three finite numbers in metres")
+    elif k == "floats":
+        ok = isinstance(v, list) and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                         and math.isfinite(x) for x in v)
+        if ok and f.length is not None:
+            ok = len(v) == f.length
+        if ok and f.lo is not None:
+            ok = all(f.lo <= x <= f.hi for x in v)
+        if not ok:
+            n = f" of {f.length}" if f.length is not None else ""
+            raise bad(f"a list{n} numbers in [{f.lo:g}, {f.hi:g}]" + (f" ({f.doc})" if f.doc
+                                                                       else ""))
+    elif k == "strs":
+        if not (isinstance(v, list) and v and all(isinstance(x, str) for x in v)):
+            raise bad("a non-empty list of strings" + (f" ({f.doc})" if f.doc else ""))
+    elif k == "table":
+        if not isinstance(v, dict):
+            raise bad("a table with fields " + ", ".join(f.fields), f"write {name}.FIELD = ...")
+        for key, val in v.items():
+            sub = f"{name}.{key}"
+            if key not in f.fields:
+                raise _unknown(sub, val, known, source)
+            _check_value(sub, f.fields[key], val, source, known)
+    elif k == "tables":
+        items = [v] if isinstance(v, dict) else v
+        if not isinstance(items, list) or not all(isinstance(t, dict) for t in items):
+            raise bad("an array of tables ([[" + name + "]] entries)")
+        for t in items:
+            _check_value(name, Field("table", fields=f.fields), t, source, known)
+    elif k == "map":
+        if not isinstance(v, dict):
+            raise bad("a table of NAME = value entries", f"write {name}.NAME = ...")
+        for key, val in v.items():
+            _check_value(f"{name}.{key}", f.item, val, source, known)
+
+
+def field_spec(dotted: str) -> Field:
+    """The schema entry of a dotted field name (user-named map keys allowed); raises
+    :class:`ParameterError` (with the closest known names) for an unknown field."""
+    parts = dotted.split(".")
+    node = Field("table", fields=SCHEMA)
+    known = known_fields()
+    for i, p in enumerate(parts):
+        if node.kind in ("table", "tables") and node.fields is not None and p in node.fields:
+            node = node.fields[p]
+        elif node.kind == "map" and node.item is not None:
+            node = node.item
+        else:
+            raise _unknown(".".join(parts[:i + 1]), None, known, None)
+    return node
 
 
 @dataclass
@@ -121,40 +355,45 @@ def apply_overrides(data: dict, overrides, source: str = "--set") -> dict:
         for p in parts[:-1]:
             node = node.setdefault(p, {})
             if not isinstance(node, dict):
-                raise ParameterError(source, key, "a key inside a table", None)
+                raise ParameterError(key.strip(), text.strip(), "a field inside a table (not "
+                                     "inside an array or a value)", "edit array entries such "
+                                     "as [[render.trees]] in the file itself", source)
         node[parts[-1]] = _parse_value(text.strip())
     return data
 
 
 def validate(data: dict, source: str) -> dict:
+    """Check every field of ``data`` against :data:`SCHEMA` (unknown fields refused) and fill
+    in the defaults; returns ``data``."""
+    known = known_fields()
+    if "scene" not in data or not isinstance(data.get("scene"), dict) or \
+            "file" not in data["scene"]:
+        raise ParameterError("scene.file", None, "a Mitsuba XML file path",
+                             "add [scene] file = \"scene.xml\"", source)
+    for key, val in data.items():
+        if key not in SCHEMA:
+            raise _unknown(key, val, known, source)
+        _check_value(key, SCHEMA[key], val, source, known)
     for sec, vals in _DEFAULTS.items():
         data.setdefault(sec, {})
         for k, v in vals.items():
             data[sec].setdefault(k, v)
-    if "scene" not in data or "file" not in data.get("scene", {}):
-        raise ParameterError("scene.file", None, "a Mitsuba XML file path",
-                             "add [scene] file = \"scene.xml\"", source)
-    for key, (typ, lo, hi) in _NUMERIC.items():
-        sec, name = key.split(".")
-        v = data[sec].get(name)
-        if isinstance(v, bool) or (typ is int and not isinstance(v, int)) or \
-                (typ is float and not isinstance(v, (int, float))):
-            raise ParameterError(key, v, f"{'an integer' if typ is int else 'a number'} in "
-                                 f"[{lo}, {hi}]", None, source)
-        check_range(key, v, lo, hi, source=source)
-    if not isinstance(data["light"]["indirect"], bool):
-        raise ParameterError("light.indirect", data["light"]["indirect"], "true or false", None,
-                             source)
     for name, reg in data.get("regions", {}).items():
         for k in ("shapes", "min", "max"):
             if k not in reg:
                 raise ParameterError(f"regions.{name}.{k}", None, "present",
                                      "a region needs shapes, min and max", source)
-        for k in ("min", "max"):
-            v = reg[k]
-            if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float))
-                                                                for x in v)):
-                raise ParameterError(f"regions.{name}.{k}", v, "[x, y, z] in metres", None, source)
+    moss = data.get("moss", {})
+    if moss.get("priority") is not None:
+        n = len(moss.get("species", ("bryum_argenteum", "hypnum_plumaeforme", "polytrichum")))
+        if len(moss["priority"]) != n:
+            raise ParameterError("moss.priority", moss["priority"],
+                                 f"one number per species ({n} values)",
+                                 "give as many priorities as moss.species has entries", source)
+    if "initial" in moss and "capacity" in moss and moss["initial"] > moss["capacity"]:
+        raise ParameterError("moss.initial", moss["initial"], f"<= moss.capacity "
+                             f"({moss['capacity']})", "no more initial moss than the capacity",
+                             source)
     return data
 
 
@@ -164,9 +403,23 @@ def load_scenario(path, overrides=None) -> Scenario:
     if not path.exists():
         raise ParameterError("scenario", str(path), "an existing TOML file",
                              "check the path (e.g. scenes/moss_garden/scenario.toml)")
+    if not path.is_file():
+        raise ParameterError("scenario", str(path), "a TOML file (not a folder)",
+                             "pass the scenario file, e.g. scenes/moss_garden/scenario.toml")
     try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ParameterError("scenario", str(path), "valid TOML", str(e)) from None
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ParameterError("scenario", str(path), "a valid TOML text file",
+                             f"fix the syntax: {e}") from None
+    except OSError as e:
+        raise ParameterError("scenario", str(path), "a readable file", e.strerror) from None
+    for item in overrides or ():
+        key = str(item).split("=", 1)[0].strip()
+        if "=" in str(item):
+            try:
+                field_spec(key)
+            except ParameterError as e:
+                raise ParameterError(e.field, _parse_value(str(item).split("=", 1)[1].strip()),
+                                     e.allowed, e.fix, f"{path} (--set)") from None
     data = apply_overrides(data, overrides, source=f"{path} (--set)")
     return Scenario(path, validate(data, str(path)))

@@ -23,7 +23,10 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import os
+import signal
+import threading
 import time
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,7 +36,7 @@ import numpy as np
 
 from . import soil as soil_model
 from .climate import ClimateTable, daily_weather, load_csv
-from .errors import ParameterError, SceneError, check_range
+from .errors import MitsubaVegError, ParameterError, SceneError, check_range
 from .integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 from .light.sunpath import day_sun_path
 from .moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
@@ -197,6 +200,20 @@ class MossSimulation:
         idx = self.index
         n = idx.n_elements
         ground = self.scn.get("terrain.ground", "ground")
+        meshes = [s for s in idx.shape_ids if s in idx.geometry]
+
+        def need_shape(field, sid):
+            if sid not in idx.geometry:
+                raise ParameterError(field, sid, "a mesh id of the scene: " + ", ".join(meshes),
+                                     "use one of the scene's shape ids (loaded with "
+                                     "optimize=False)", src)
+        need_shape("terrain.ground", ground)
+        for sec in ("geology", "soil_depth_mm"):
+            for sid in (self.scn.get(f"terrain.{sec}", {}) or {}):
+                need_shape(f"terrain.{sec}.{sid}", sid)
+        for name, reg in (self.scn.get("regions", {}) or {}).items():
+            for sid in reg["shapes"]:
+                need_shape(f"regions.{name}.shapes", sid)
         self.geology = np.full(n, soil_model.geology_code("asphalt"), np.int64)
         self.h = np.ones(n)
         geo_over = self.scn.get("terrain.geology", {}) or {}
@@ -214,7 +231,12 @@ class MossSimulation:
                 terr = Terrain.from_mitsuba(shape)
                 tex = self.scn.get("terrain.geology_texture")
                 if tex:
-                    self.geology[sl] = terr.geology_from_texture(self.scn.file("terrain.geology_texture"))
+                    path = self.scn.file("terrain.geology_texture")
+                    try:
+                        self.geology[sl] = terr.geology_from_texture(path)
+                    except (OSError, ValueError, SyntaxError) as e:  # PIL: unreadable image
+                        raise ParameterError("terrain.geology_texture", tex, "a readable PNG/JPEG "
+                                             "image", f"replace {path.name} ({e})", src) from None
                 base_y = self.scn.get("terrain.soil_base_y")
                 self.h[sl] = terr.soil_depth_mm(base_y)
             if sid in geo_over:
@@ -544,10 +566,21 @@ class MossSimulation:
         p = self.checkpoint_path
         if not p.exists():
             return False
-        d = dict(np.load(p, allow_pickle=False))
-        if str(d["fingerprint"]) != self._fingerprint():
+        try:
+            d = dict(np.load(p, allow_pickle=False))
+            fingerprint, day = str(d["fingerprint"]), int(d["day"])
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
+            raise ParameterError("checkpoint", str(p), "a complete checkpoint written by "
+                                 "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
+                                 "run again with --fresh to start over") from None
+        if fingerprint != self._fingerprint():
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
-                                 "delete it or use another --out folder to start afresh")
+                                 "use --fresh (or another --out folder) to start afresh")
+        if day > self.days:
+            raise ParameterError("--days", self.days, f">= {day}: the checkpoint in "
+                                 f"{self.out} already holds day {day}",
+                                 f"pass --days {day} or more to resume, or --fresh to start "
+                                 "over with fewer days")
         self.pop.load_numpy(d)
         self.grid.rebuild(self.pop.pos, self.pop.state)
         self._moss_version += 1
@@ -559,28 +592,40 @@ class MossSimulation:
 
     def run(self, resume: bool = True, on_day=None) -> dict:
         """Run (or resume) to ``self.days`` days; returns the summary dict."""
+        from .outputs import RUN_OUTPUTS, clear_outputs
         self.out.mkdir(parents=True, exist_ok=True)
         self.setup()
         resumed = resume and self.load_checkpoint()
         if not resumed:
+            # a run that starts at day 0 owns the folder: maps, snapshots, renders and the GIF
+            # of an earlier run would otherwise be shown as this run's
+            clear_outputs(self.out, RUN_OUTPUTS)
             self.initialise()
         bar = None
         if self.progress:
             from tqdm.auto import tqdm
             bar = tqdm(total=self.days, initial=self.day, unit="day", desc="moss days")
-        while self.day < self.days:
-            rec = self.step()
+        stop = _InterruptFlag()
+        try:
+            with stop:
+                while self.day < self.days:
+                    rec = self.step()
+                    if bar is not None:
+                        bar.update(1)
+                        bar.set_postfix(moss=rec["moss_alive"],
+                                        cover=f"{rec['covered_area_m2']:.3f}m2")
+                    t0 = time.perf_counter()
+                    if on_day is not None:
+                        on_day(self, rec)
+                    if self.checkpoint_every and self.day % self.checkpoint_every == 0:
+                        self.save_checkpoint()
+                    self.timings["output"] += time.perf_counter() - t0
+                    if stop.requested:
+                        self.save_checkpoint()
+                        raise Interrupted(self.day, self.checkpoint_path)
+        finally:
             if bar is not None:
-                bar.update(1)
-                bar.set_postfix(moss=rec["moss_alive"], cover=f"{rec['covered_area_m2']:.3f}m2")
-            t0 = time.perf_counter()
-            if on_day is not None:
-                on_day(self, rec)
-            if self.checkpoint_every and self.day % self.checkpoint_every == 0:
-                self.save_checkpoint()
-            self.timings["output"] += time.perf_counter() - t0
-        if bar is not None:
-            bar.close()
+                bar.close()
         self.save_checkpoint()
         return self.summary(resumed)
 
@@ -613,25 +658,68 @@ class MossSimulation:
             "days_record": self.history, "versions": versions()}
 
 
+class Interrupted(MitsubaVegError):
+    """The run was interrupted (Ctrl-C / SIGINT) after a day; its checkpoint was written."""
+
+    def __init__(self, day: int, checkpoint: Path):
+        self.day, self.checkpoint = day, checkpoint
+        super().__init__(f"interrupted after day {day}; checkpoint written to {checkpoint}. "
+                         "Run the same command again to resume")
+
+
+class _InterruptFlag:
+    """While active (main thread only), Ctrl-C sets ``requested`` instead of raising, so the
+    day in progress ends and a consistent checkpoint is written; a second Ctrl-C raises."""
+
+    requested = False
+
+    def __enter__(self):
+        self._old = None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.getsignal(signal.SIGINT)
+
+            def handler(signum, frame):
+                if self.requested:
+                    raise KeyboardInterrupt
+                self.requested = True
+            signal.signal(signal.SIGINT, handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+
+
 def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: bool = True,
-        progress: bool = True, frames: bool = True) -> dict:
+        progress: bool = True, frames: bool = True, snapshot_every: int | None = None) -> dict:
     """Run a moss scenario (TOML path or Scenario) into ``out``; returns the summary dict
-    (also written to ``out/summary.json``)."""
-    from .outputs import DayFrames, write_summary
+    (also written to ``out/summary.json``).
+
+    The folder is claimed for the run (:class:`~mitsuba_veg.outputs.OutputFolder`: a second
+    process writing into it is refused; a folder holding another kind of result is refused).
+    ``resume=False`` (``--fresh``) discards the checkpoint and every output of an earlier run
+    in the folder (maps, snapshots, GIF, renders); so does a run that finds no checkpoint.
+    ``snapshot_every``: days between moss snapshots for exact animations (default: the
+    scenario's ``simulation.frame_every``)."""
+    from .outputs import RUN_OUTPUTS, DayFrames, OutputFolder, SnapshotWriter, write_summary
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
     sim = MossSimulation(scn, out, days=days, progress=progress)
-    from .render.history import SnapshotWriter
-    frames_writer = DayFrames(sim) if frames else None
-    snapshots = SnapshotWriter() if frames else None  # living moss on frame days (animation)
+    with OutputFolder(out, "run", info={"scenario": str(scn.path)}) as folder:
+        if not resume:
+            folder.clear(RUN_OUTPUTS)
+        frames_writer = DayFrames(sim) if frames else None
+        # living moss on frame days (exact animations)
+        snapshots = SnapshotWriter(snapshot_every) if frames else None
 
-    def on_day(s, rec):
+        def on_day(s, rec):
+            if frames_writer is not None:
+                frames_writer(s, rec)
+            if snapshots is not None:
+                snapshots(s, rec)
+
+        summary = sim.run(resume=resume, on_day=on_day)
         if frames_writer is not None:
-            frames_writer(s, rec)
-        if snapshots is not None:
-            snapshots(s, rec)
-
-    summary = sim.run(resume=resume, on_day=on_day)
-    if frames_writer is not None:
-        summary["files"] = frames_writer.finish()
-    write_summary(Path(out) / "summary.json", summary)
+            summary["files"] = frames_writer.finish()
+            summary["files"]["snapshots"] = str(Path(out) / "snapshots")
+        write_summary(Path(out) / "summary.json", summary)
     return summary

@@ -23,41 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..outputs import SNAPSHOT_DIR, SnapshotWriter, write_snapshot  # noqa: F401 (re-exported)
 from .moss import MossSet, live_moss
-
-SNAPSHOT_DIR = "snapshots"
-
-
-# ---- writing snapshots during a run -------------------------------------------------------------
-class SnapshotWriter:
-    """``on_day`` hook for :meth:`mitsuba_veg.simulation.MossSimulation.run`: writes the living
-    moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days (default: the run's
-    ``frame_every``) and on the last day. About 0.3 MB per 16,000 moss (compressed)."""
-
-    def __init__(self, every: int | None = None):
-        self.every = every
-
-    def __call__(self, sim, rec) -> None:
-        every = max(int(self.every or getattr(sim, "frame_every", 10) or 10), 1)
-        if sim.day % every == 0 or sim.day == sim.days or sim.day == 1:
-            write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
-                           date=rec.get("date"))
-
-
-def write_snapshot(directory, day: int, population: dict, date: str | None = None) -> Path:
-    """Write the living moss of a population dict (``MossPopulation.to_numpy()``)."""
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
-    m = np.asarray(population["state"]) == 2
-    path = d / f"day_{int(day):04d}.npz"
-    tmp = d / f".day_{int(day):04d}.tmp.npz"
-    np.savez_compressed(tmp, day=np.array(int(day)), date=np.array(str(date or "")),
-                        pos=np.asarray(population["pos"])[m].astype(np.float32),
-                        nrm=np.asarray(population["nrm"])[m].astype(np.float16),
-                        species=np.asarray(population["species"])[m].astype(np.uint8),
-                        growth=np.asarray(population["growth"])[m].astype(np.float16))
-    os.replace(tmp, path)
-    return path
 
 
 # ---- reading a run ------------------------------------------------------------------------------
@@ -218,24 +185,8 @@ def load_run(run_dir, scenario=None) -> Run:
 
 def run_with_snapshots(scenario, out, days: int | None = None, overrides=(),
                        resume: bool = True, progress: bool = True, every: int | None = None):
-    """:func:`mitsuba_veg.simulation.run` plus moss snapshots for exact animations: the same
-    run (maps, days.gif, summary.json, checkpoints) with :class:`SnapshotWriter` as an extra
-    ``on_day`` hook. Returns the run's summary dict."""
-    from ..outputs import DayFrames, write_summary
-    from ..scenario import Scenario, load_scenario
-    from ..simulation import MossSimulation
-
-    scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
-    sim = MossSimulation(scn, out, days=days, progress=progress)
-    frames = DayFrames(sim)
-    snaps = SnapshotWriter(every)
-
-    def on_day(s, rec):
-        frames(s, rec)
-        snaps(s, rec)
-
-    summary = sim.run(resume=resume, on_day=on_day)
-    summary["files"] = frames.finish()
-    summary["files"]["snapshots"] = str(Path(out) / SNAPSHOT_DIR)
-    write_summary(Path(out) / "summary.json", summary)
-    return summary
+    """:func:`mitsuba_veg.simulation.run` with moss snapshots every ``every`` days (default:
+    the scenario's ``frame_every``) for exact animations. Returns the run's summary dict."""
+    from ..simulation import run
+    return run(scenario, out, days=days, overrides=overrides, resume=resume,
+               progress=progress, snapshot_every=every)
