@@ -10,7 +10,6 @@ SCENE is a Mitsuba XML file or a scenario TOML (which names the XML and the ligh
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -23,8 +22,9 @@ def _default_scenario() -> Path:
     for p in (here.parent / "scenes", here / "scenes"):
         if (p / "moss_garden" / "scenario.toml").exists():
             return p / "moss_garden" / "scenario.toml"
-    raise SystemExit("mitsuba-veg: the shipped scenes are missing from this installation; "
-                     "pass a scenario file explicitly")
+    from .errors import SceneError
+    raise SceneError("the shipped scenes are missing from this installation; pass a scenario "
+                     "file explicitly (mitsuba-veg run SCENARIO.toml)")
 
 
 DEFAULT_SCENARIO = None  # resolved lazily by _default_scenario()
@@ -33,16 +33,7 @@ DEMO_WHEN = "2026-04-20T10:00:00+09:00"
 
 
 from .outputs import write_json as _write_json  # noqa: E402
-
-
-def versions() -> dict:
-    import drjit
-    import mitsuba
-    import numpy
-    import mitsuba_veg
-    return {"mitsuba_veg": mitsuba_veg.__version__, "mitsuba": mitsuba.__version__,
-            "drjit": drjit.__version__, "numpy": numpy.__version__, "variant": mitsuba.variant(),
-            "python": sys.version.split()[0]}
+from .variant import versions  # noqa: E402,F401 (re-exported)
 
 
 def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, indirect=None,
@@ -54,9 +45,24 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
     from .plots import irradiance_figure
     from .scenario import load_scenario
 
+    from .errors import ParameterError, SceneError
+    from .outputs import OutputFolder
+    from .scenario import MAX_PHOTONS
+    from .errors import check_range
+
     scene_path = Path(scene_path)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if scene_path.suffix.lower() not in (".toml", ".xml") or not scene_path.is_file():
+        raise ParameterError("SCENE", str(scene_path), "an existing .xml scene or .toml "
+                             "scenario file", "check the path")
+    if when is not None and scene_path.suffix.lower() != ".toml":
+        raise ParameterError("--when", when, "a scenario (.toml) with a [site] as SCENE",
+                             "pass the scenario instead of the XML: --when replaces the "
+                             "scene's emitters by daylight for the scenario's site")
+    for k, v, lo, hi in (("--photons", photons, 1, MAX_PHOTONS), ("--seed", seed, 0, 2**31 - 1),
+                         ("--max-depth", max_depth, 1, 1000)):
+        if v is not None:
+            check_range(k, v, lo, hi)
     regions = {}
     ground = "ground"
     settings = {"photons": 1_000_000, "seed": 0, "max_depth": 8, "indirect": True}
@@ -72,15 +78,13 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         ground = scn.get("terrain.ground", ground)
         when = scn.get("light.when")
     else:
-        if not scene_path.exists():
-            from .errors import ParameterError
-            raise ParameterError("SCENE", str(scene_path), "an existing .xml or .toml file",
-                                 "check the path")
-        scene = mi.load_file(str(scene_path), optimize=False)
-        if when is not None:
-            raise SystemExit("--when needs a scenario (.toml) with a [site]: it replaces the "
-                             "scene's emitters by daylight for that place")
+        try:
+            scene = mi.load_file(str(scene_path), optimize=False)
+        except Exception as e:  # Mitsuba's parser names the XML problem
+            raise SceneError(f"SCENE = {scene_path}: Mitsuba could not load it: "
+                             f"{' '.join(str(e).split())[:400]}. Fix: correct the XML") from None
     t_load = time.perf_counter() - t0
+    folder = OutputFolder(out, "irradiance", info={"scene": str(scene_path)})
     for k, v in {"photons": photons, "seed": seed, "max_depth": max_depth,
                  "indirect": indirect}.items():
         if v is not None:
@@ -135,6 +139,7 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         "shapes": shapes, "regions": reg_out, "files": {
             "npz": str(out / "irradiance.npz"), "png": pngs}, "versions": versions()}
     _write_json(out / "summary.json", summary)
+    folder.release()
     return summary
 
 
@@ -220,38 +225,50 @@ def _cmd_demo(a) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="mitsuba-veg",
-                                 description="Grow vegetation from light with Mitsuba 3.")
-    sub = ap.add_subparsers(dest="cmd", required=True)
+def build_parser():
+    """The ``mitsuba-veg`` argument parser with every sub-command."""
+    import mitsuba_veg
+    from .cliargs import Parser, add_out, add_photons, add_quiet, add_set, ranged
+    ap = Parser(prog="mitsuba-veg", description="Grow vegetation from light with Mitsuba 3.")
+    ap.add_argument("--version", action="version",
+                    version=f"mitsuba-veg {mitsuba_veg.__version__}")
+    ap.add_argument("-v", "--verbose", action="store_true",
+                    help="log more (level info) and show tracebacks of internal errors")
+    ap.add_argument("--log-level", choices=("debug", "info", "warning", "error"),
+                    help="logging level (default: warning; info with --verbose)")
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
     d = sub.add_parser("demo", help="run the default scenario end to end")
-    d.add_argument("--out", default="out/demo")
-    d.add_argument("--photons", type=int, default=4_000_000,
-                   help="photons of the light study (the moss run uses the scenario's)")
-    d.add_argument("--days", type=int, default=300, help="days of the moss run")
-    d.add_argument("--quiet", action="store_true")
+    add_out(d, "out/demo", "the light study, the moss run, render and animation")
+    add_photons(d, 4_000_000, "of the light study (the moss run uses the scenario's)")
+    d.add_argument("--days", type=ranged(int, 1, 100_000, "days"), default=300,
+                   help="days of the moss run")
+    add_quiet(d)
     d.set_defaults(func=_cmd_demo)
     r = sub.add_parser("run", help="run a moss scenario day by day (paper 000)")
     r.add_argument("scenario", help="scenario TOML, e.g. scenes/moss_garden/scenario.toml")
-    r.add_argument("--out", default="out/run")
-    r.add_argument("--days", type=int, help="simulated days (default: the scenario's)")
-    r.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a scenario field, e.g. --set light.indirect=false")
+    add_out(r, "out/run", "the run (summary.json, maps, checkpoint)")
+    r.add_argument("--days", type=ranged(int, 1, 100_000, "days"),
+                   help="simulated days (default: the scenario's simulation.days)")
+    add_set(r, "scenario", "light.indirect=false")
     r.add_argument("--fresh", action="store_true",
-                   help="ignore a checkpoint in --out and start from day 1")
-    r.add_argument("--quiet", action="store_true")
+                   help="discard the checkpoint and every output of an earlier run in --out "
+                        "and start from day 1 (default: resume from the checkpoint)")
+    add_quiet(r)
     r.set_defaults(func=_cmd_run)
     p = sub.add_parser("irradiance", help="photon pass: irradiance per triangle (npz + PNG)")
     p.add_argument("scene", help="Mitsuba XML scene or scenario TOML")
-    p.add_argument("--photons", type=int)
-    p.add_argument("--seed", type=int)
-    p.add_argument("--max-depth", type=int)
+    add_photons(p, None, "(default: the scenario's light.photons, else 1000000)")
+    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
+                   help="random seed (default: the scenario's, else 0)")
+    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
+                   help="bounces per photon (default: the scenario's, else 8)")
     p.add_argument("--no-indirect", action="store_true", help="direct light only (paper fig 4.2)")
-    p.add_argument("--when", help="ISO date-time: daylight for the scenario's site (TOML only)")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a scenario field, e.g. --set light.photons=2000000")
-    p.add_argument("--out", default="out/irradiance")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--when", metavar="ISO-DATETIME",
+                   help="daylight for the scenario's site at this time, e.g. "
+                        "2026-04-20T10:00:00+09:00 (scenario .toml only)")
+    add_set(p, "scenario")
+    add_out(p, "out/irradiance", "irradiance.npz, PNG maps and summary.json")
+    add_quiet(p)
     p.set_defaults(func=_cmd_irradiance)
     from .foliage.light_study import add_parser as _add_light_study
     _add_light_study(sub)
@@ -261,24 +278,65 @@ def main(argv=None) -> int:
     _render_parsers(sub)
     from .tune.cli import add_parser as _add_tune
     _add_tune(sub)
-    return run_parsed(ap.parse_args(argv))
+    return ap
+
+
+def main(argv=None) -> int:
+    return run_parsed(build_parser().parse_args(argv))
+
+
+def _setup_logging(a) -> None:
+    import logging
+    level = (getattr(a, "log_level", None) or ("info" if getattr(a, "verbose", False)
+                                               else "warning")).upper()
+    log = logging.getLogger("mitsuba_veg")
+    log.setLevel(level)
+    if not any(getattr(h, "_mitsuba_veg", False) for h in log.handlers):
+        h = logging.StreamHandler(sys.stderr)
+        h.setFormatter(logging.Formatter("mitsuba-veg: %(levelname)s: %(message)s"))
+        h._mitsuba_veg = True
+        log.addHandler(h)
+        log.propagate = False
 
 
 def run_parsed(a) -> int:
-    """Run a parsed command: a library error becomes one line on stderr and exit code 2."""
+    """Run a parsed command. A library error (bad input) becomes one line on stderr and exit
+    code 2; an interrupted run exit code 130; an unexpected error one line and exit code 1
+    (``--verbose`` adds the traceback)."""
     from .errors import MitsubaVegError
+    from .simulation import Interrupted
     import mitsuba_veg  # noqa: F401  (variant + plugins)
+    _setup_logging(a)
     try:
         return a.func(a)
+    except Interrupted as e:
+        print(f"\nmitsuba-veg: {e}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print("\nmitsuba-veg: interrupted", file=sys.stderr)
+        return 130
     except MitsubaVegError as e:
-        print(f"mitsuba-veg: error: {e}", file=sys.stderr)
+        print(f"mitsuba-veg: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 2
+    except OSError as e:  # a file that cannot be read or written
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"mitsuba-veg: error: {where}{e.strerror or e} (check the path and its "
+              "permissions)", file=sys.stderr)
+        return 2
+    except Exception as e:  # noqa: BLE001 - the command line's last resort
+        if getattr(a, "verbose", False):
+            raise
+        msg = " ".join(str(e).split())[:300]
+        print(f"mitsuba-veg: internal error: {type(e).__name__}: {msg} (run again with "
+              "--verbose for the traceback, and please report it)", file=sys.stderr)
+        return 1
 
 
 def standalone(command: str, add_parser, argv=None) -> int:
     """Entry of one sub-command run on its own (``python -m ...``): ``argv`` without the
     command's name."""
-    ap = argparse.ArgumentParser(prog="mitsuba-veg")
+    from .cliargs import Parser
+    ap = Parser(prog="mitsuba-veg")
     add_parser(ap.add_subparsers(dest="cmd", required=True))
     return run_parsed(ap.parse_args([command, *(sys.argv[1:] if argv is None else argv)]))
 

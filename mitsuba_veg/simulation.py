@@ -630,7 +630,7 @@ class MossSimulation:
         return self.summary(resumed)
 
     def summary(self, resumed=False) -> dict:
-        from .cli import versions
+        from .variant import versions
         counts = self._counts()
         cov = self.covered_area(counts)
         regions = {k: {"covered_area_m2": float(cov[m].sum()),

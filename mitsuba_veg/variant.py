@@ -67,3 +67,16 @@ def select_variant(preferred: str | None = None) -> str:
 def variant() -> str:
     """The active Mitsuba variant (after :func:`select_variant`)."""
     return mi.variant()
+
+
+def versions() -> dict:
+    """Versions of mitsuba-veg, Mitsuba, Dr.Jit, NumPy and Python and the active variant (for
+    every ``summary.json``)."""
+    import sys
+
+    import numpy
+
+    from . import __version__
+    return {"mitsuba_veg": __version__, "mitsuba": mi.__version__, "drjit": dr.__version__,
+            "numpy": numpy.__version__, "variant": mi.variant(),
+            "python": sys.version.split()[0]}

@@ -20,7 +20,6 @@ here they carry the ``veg_leaf`` BSDF with PROSPECT-D spectra of their autumn st
 """
 from __future__ import annotations
 
-import json
 import os
 import time
 from pathlib import Path
@@ -28,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
+from mitsuba_veg.outputs import write_json
 
 BANDS = ("total", "par", "red", "far_red")
 DEFAULT_WHEN = "2026-07-15T12:00:00+09:00"
@@ -216,8 +216,13 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
         info["ground"] = scn.get("terrain.ground", "ground")
         return scene, None, info
     if when is not None:
-        raise SystemExit("--when needs a scenario (.toml) with a [site], or a tree")
-    return mi.load_file(str(p), optimize=False), None, info
+        raise ParameterError("--when", when, "a scenario (.toml) with a [site], or a tree, as "
+                             "SCENE", "pass the scenario instead of the XML")
+    try:
+        return mi.load_file(str(p), optimize=False), None, info
+    except Exception as e:  # Mitsuba's parser names the XML problem
+        raise SceneError(f"SCENE = {p}: Mitsuba could not load it: "
+                         f"{' '.join(str(e).split())[:400]}. Fix: correct the XML") from None
 
 
 def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, seed: int = 0,
@@ -233,13 +238,23 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
     """
     from mitsuba_veg.light import photon_irradiance
 
-    check_range("photons", photons, 1, 10**10)
+    from mitsuba_veg.outputs import OutputFolder
+    from mitsuba_veg.scenario import MAX_PHOTONS
+
+    check_range("photons", photons, 1, MAX_PHOTONS)
+    check_range("max_depth", max_depth, 1, 1000)
+    check_range("seed", seed, 0, 2**31 - 1)
+    check_range("leaves", tree_leaves, 1, 1_000_000)
+    if when is not None and isinstance(scene_or_scenario, (str, Path)) and \
+            Path(scene_or_scenario).suffix.lower() == ".xml":
+        raise ParameterError("--when", when, "a scenario (.toml) with a [site], or a tree, as "
+                             "SCENE", "pass the scenario instead of the XML")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     scene, leaf_map, info = _load(scene_or_scenario, when, latitude, longitude, overrides, tau,
                                   tree_leaves)
     t_load = time.perf_counter() - t0
+    folder = OutputFolder(out, "light-study")
     res = photon_irradiance(scene, photons=int(photons), seed=int(seed),
                             max_depth=int(max_depth), bands=BANDS, indirect=bool(indirect),
                             progress=progress)
@@ -292,7 +307,7 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                     "ppfd_p90": float(np.nanpercentile(lv["ppfd"], 90)),
                     "rfr_mean": float(np.nanmean(lv["rfr"])),
                     "rfr_min": float(np.nanmin(lv["rfr"]))}
-    from mitsuba_veg.cli import versions
+    from mitsuba_veg.variant import versions
     summary = {"command": "light-study", **{k: v for k, v in info.items() if k != "_tree"},
                "settings": {"photons": int(photons), "seed": int(seed), "max_depth": int(max_depth),
                             "indirect": bool(indirect), "bands_nm": dict(zip(res.bands,
@@ -305,19 +320,10 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                          "red_W_m2": "W m-2 (655-665 nm)", "far_red_W_m2": "W m-2 (725-735 nm)",
                          "rfr": "photon ratio red:far-red"},
                "files": files, "versions": versions()}
-    tmpj = out / "summary.json.tmp"
-    tmpj.write_text(json.dumps(summary, indent=2, default=_jsonable))
-    os.replace(tmpj, out / "summary.json")
+    write_json(out / "summary.json", summary)
     files["summary"] = str(out / "summary.json")
+    folder.release()
     return summary
-
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return str(x)
 
 
 def _title(info, res):
@@ -383,20 +389,26 @@ def add_parser(subparsers):
         description="Photon pass with PAR/red/far-red bands: ground maps (PNG + npz), per-leaf "
                     "values (CSV) and summary.json. SCENE: scenario .toml, scene .xml, or "
                     "'sphere-tree' (built-in test tree under daylight).")
+    from mitsuba_veg.cliargs import add_out, add_photons, add_quiet, add_set, ranged
     p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
-    p.add_argument("--photons", type=int, default=2_000_000)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--max-depth", type=int, default=8)
+    add_photons(p, 2_000_000)
+    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1), default=0, help="random seed")
+    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"), default=8,
+                   help="bounces per photon")
     p.add_argument("--no-indirect", action="store_true", help="first hits only")
-    p.add_argument("--when", help="ISO date-time (scenario or tree): daylight at that time")
-    p.add_argument("--latitude", type=float, help="tree scenes: site latitude [deg]")
-    p.add_argument("--longitude", type=float, help="tree scenes: site longitude [deg]")
+    p.add_argument("--when", metavar="ISO-DATETIME",
+                   help="daylight at this time, e.g. 2026-07-15T12:00:00+09:00 (scenario or "
+                        "tree; default for trees: mid-July noon)")
+    p.add_argument("--latitude", type=ranged(float, -90, 90, "deg"),
+                   help="tree scenes: site latitude [deg] (default 35)")
+    p.add_argument("--longitude", type=ranged(float, -180, 180, "deg"),
+                   help="tree scenes: site longitude [deg] (default 139)")
     p.add_argument("--ground", help="shape id of the ground (default: scenario's or 'ground')")
-    p.add_argument("--leaves", type=int, default=3000, help="'sphere-tree': number of leaves")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a scenario field")
-    p.add_argument("--out", default="out/light_study")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--leaves", type=ranged(int, 1, 1_000_000, "leaves"), default=3000,
+                   help="'sphere-tree': number of leaves")
+    add_set(p, "scenario")
+    add_out(p, "out/light_study", "maps, light_study.npz, leaves.csv and summary.json")
+    add_quiet(p)
     p.set_defaults(func=_cmd)
     return p
 

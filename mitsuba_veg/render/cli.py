@@ -33,11 +33,8 @@ from ..outputs import write_json as _write_json  # noqa: E402
 
 
 def _versions() -> dict:
-    try:
-        from ..cli import versions
-        return versions()
-    except Exception:  # pragma: no cover
-        return {}
+    from ..variant import versions
+    return versions()
 
 
 def _cameras(camera) -> list[str]:
@@ -79,14 +76,16 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
     from . import RenderOptions, build_scene, load_run, render, write_outputs
     from .scene import Terrain
 
+    from ..outputs import OutputFolder
     t0 = time.perf_counter()
+    _check_image(width, height, spp, max_depth)
     run = load_run(run_dir, scenario)
     out = Path(out) if out is not None else Path(run_dir) / "render"
-    out.mkdir(parents=True, exist_ok=True)
     last = run.final_day
     day = last if day is None else int(day)
     check_range("day", day, 1, max(last, 1), fix=f"a simulated day of the run (1-{last})")
     frame = run.frame(day)
+    folder = OutputFolder(out, "render", info={"run": str(run.dir)})
     opts = dict(width=width or RENDER_DEFAULTS["width"],
                 height=height or RENDER_DEFAULTS["height"], spp=spp or RENDER_DEFAULTS["spp"],
                 when=when, seed=int(seed))
@@ -106,6 +105,37 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
         from tqdm.auto import tqdm
         bar = tqdm(total=len(cams), unit="image", desc="render")
     tree_cache = {}
+    try:
+        _render_cameras(cams, opts, run, frame, tree_list, terrain, tree_cache, out, day, bar,
+                        results, files)
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = {"command": "render", "run": str(run.dir), "day": day,
+               "date": frame.date.isoformat(), "moss_exact": frame.exact,
+               "moss": len(frame.moss), "trees": len(tree_list),
+               "settings": {**opts, "cameras": cams, "max_depth": RenderOptions().max_depth
+                            if max_depth is None else max_depth},
+               "cameras": results, "files": files,
+               "seconds": time.perf_counter() - t0, "versions": _versions()}
+    _write_json(out / "render.json", summary)
+    folder.release()
+    return summary
+
+
+def _check_image(width, height, spp, max_depth=None, frames=None, every=None, fps=None):
+    """Refuse image settings out of range (``None`` = the default)."""
+    for name, v, lo, hi in (("--width", width, 16, 16384), ("--height", height, 16, 16384),
+                            ("--spp", spp, 1, 65536), ("--max-depth", max_depth, 1, 1000),
+                            ("--frames", frames, 2, 10000), ("--every", every, 1, 100_000),
+                            ("--fps", fps, 1, 120)):
+        if v is not None:
+            check_range(name, v, lo, hi)
+
+
+def _render_cameras(cams, opts, run, frame, tree_list, terrain, tree_cache, out, day, bar,
+                    results, files):
+    from . import RenderOptions, build_scene, render, write_outputs
     for cam in cams:
         o = RenderOptions(camera=cam, **opts)
         rs = build_scene(run.scenario, frame.moss, moss_size=run.moss_size, trees=tree_list,
@@ -129,17 +159,6 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
         if bar is not None:
             bar.update(1)
             bar.set_postfix(camera=cam, s=f"{results[cam]['render_s']:.1f}")
-    if bar is not None:
-        bar.close()
-    summary = {"command": "render", "run": str(run.dir), "day": day,
-               "date": frame.date.isoformat(), "moss_exact": frame.exact,
-               "moss": len(frame.moss), "trees": len(tree_list),
-               "settings": {**opts, "cameras": cams, "max_depth": RenderOptions().max_depth
-                            if max_depth is None else max_depth},
-               "cameras": results, "files": files,
-               "seconds": time.perf_counter() - t0, "versions": _versions()}
-    _write_json(out / "render.json", summary)
-    return summary
 
 
 # ---- animation ----------------------------------------------------------------------------------
@@ -215,23 +234,26 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     from .film import to_srgb8, write_png
     from .scene import Terrain, render_time, sky_emitters
 
+    from ..outputs import OutputFolder
     if light not in ("fixed", "daily"):
         raise ParameterError("light", light, "'fixed' or 'daily'")
+    _check_image(width, height, spp, None, frames, every, fps)
+    if gif_width is not None:
+        check_range("gif_width", gif_width, 0, 16384)
     t0 = time.perf_counter()
     run = load_run(run_dir, scenario)
     out = Path(out) if out is not None else Path(run_dir) / "animation"
+    n_frames = int(ANIMATE_DEFAULTS["frames"] if frames is None else frames)
+    fps = int(ANIMATE_DEFAULTS["fps"] if fps is None else fps)
+    days = run.frame_days(count=n_frames, every=every)
+    if len(days) < 2:
+        raise ParameterError("RUN_DIR", str(run.dir), "a run with at least 2 days to animate",
+                             "run more days")
+    folder = OutputFolder(out, "animate", info={"run": str(run.dir)})
     fdir = out / "frames"
     fdir.mkdir(parents=True, exist_ok=True)
     for old in fdir.glob("frame_*.png"):
         old.unlink()
-    n_frames = int(frames or ANIMATE_DEFAULTS["frames"])
-    check_range("frames", n_frames, 2, 10000)
-    fps = int(fps or ANIMATE_DEFAULTS["fps"])
-    check_range("fps", fps, 1, 120)
-    days = run.frame_days(count=n_frames, every=every)
-    if len(days) < 2:
-        raise ParameterError("run", str(run.dir), "a run with at least 2 days to animate",
-                             "run more days")
     opts = dict(width=width or ANIMATE_DEFAULTS["width"],
                 height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
                 camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
@@ -256,40 +278,42 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     exposure = None
     paths = [None] * len(days)
     records = [None] * len(days)
-    for k in order:
-        day = days[k]
-        fr = last if k == len(days) - 1 else run.frame(day)
-        for s in seasons:
-            s.apply(fr.date)
-        t1 = time.perf_counter()
-        if rs is None or light == "daily":
-            rs = None
-            gc.collect()
-            rs = build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=tree_list,
-                             date=fr.date, options=o, terrain=terrain, emitters=emitters,
-                             species=run.species)
-            timings["build"] += time.perf_counter() - t1
-        else:
-            rs.update(fr.moss, tree_list if tree_list else None)
-            timings["update"] += time.perf_counter() - t1
-        images = render(rs, seed=int(seed) + k)
-        timings["render"] += images["seconds"]
-        t2 = time.perf_counter()
-        img8, exp = to_srgb8(images["rgb"], exposure)
-        exposure = exp if exposure is None else exposure
-        text = f"day {day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
-        p = write_png(fdir / f"frame_{k:04d}.png", _label(img8, text))
-        paths[k] = p
-        records[k] = {"day": day, "date": fr.date.isoformat(), "moss": len(fr.moss),
-                      "exact": fr.exact, "render_s": images["seconds"]}
-        timings["write"] += time.perf_counter() - t2
+    try:
+        for k in order:
+            day = days[k]
+            fr = last if k == len(days) - 1 else run.frame(day)
+            for s in seasons:
+                s.apply(fr.date)
+            t1 = time.perf_counter()
+            if rs is None or light == "daily":
+                rs = None
+                gc.collect()
+                rs = build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=tree_list,
+                                 date=fr.date, options=o, terrain=terrain, emitters=emitters,
+                                 species=run.species)
+                timings["build"] += time.perf_counter() - t1
+            else:
+                rs.update(fr.moss, tree_list if tree_list else None)
+                timings["update"] += time.perf_counter() - t1
+            images = render(rs, seed=int(seed) + k)
+            timings["render"] += images["seconds"]
+            t2 = time.perf_counter()
+            img8, exp = to_srgb8(images["rgb"], exposure)
+            exposure = exp if exposure is None else exposure
+            text = f"day {day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
+            p = write_png(fdir / f"frame_{k:04d}.png", _label(img8, text))
+            paths[k] = p
+            records[k] = {"day": day, "date": fr.date.isoformat(), "moss": len(fr.moss),
+                          "exact": fr.exact, "render_s": images["seconds"]}
+            timings["write"] += time.perf_counter() - t2
+            if bar is not None:
+                bar.update(1)
+                # the first frame rendered is the last day's (it fixes the exposure): say so
+                bar.set_postfix(day=day, moss=len(fr.moss),
+                                **({"frame": "last, for the exposure"} if k == order[0] else {}))
+    finally:
         if bar is not None:
-            bar.update(1)
-            # the first frame rendered is the last day's (it fixes the exposure): say so
-            bar.set_postfix(day=day, moss=len(fr.moss),
-                            **({"frame": "last, for the exposure"} if k == order[0] else {}))
-    if bar is not None:
-        bar.close()
+            bar.close()
     t3 = time.perf_counter()
     mp4 = write_mp4(fdir, "frame_%04d.png", out / "animation.mp4", fps)
     gif = write_gif(paths, out / "animation.gif", fps,
@@ -306,48 +330,64 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     if mp4 is None:
         summary["warning"] = "ffmpeg not found: no MP4 written (install ffmpeg)"
     _write_json(out / "animate.json", summary)
+    folder.release()
     return summary
 
 
 # ---- argparse -----------------------------------------------------------------------------------
 def add_parsers(subparsers) -> None:
     """Add ``render`` and ``animate`` to the ``mitsuba-veg`` sub-command parsers."""
+    from ..cliargs import add_quiet, ranged
+
+    def common(p, what, spp):
+        p.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
+        p.add_argument("--out", metavar="DIR", help=f"output folder (default RUN_DIR/{what})")
+        p.add_argument("--scenario", metavar="TOML",
+                       help="scenario file of the run (default: the one summary.json names)")
+        p.add_argument("--width", type=ranged(int, 16, 16384, "pixels"),
+                       help="image width [pixels] (default "
+                            f"{(RENDER_DEFAULTS if what == 'render' else ANIMATE_DEFAULTS)['width']})")
+        p.add_argument("--height", type=ranged(int, 16, 16384, "pixels"),
+                       help="image height [pixels] (default "
+                            f"{(RENDER_DEFAULTS if what == 'render' else ANIMATE_DEFAULTS)['height']})")
+        p.add_argument("--spp", type=ranged(int, 1, 65536, "samples"),
+                       help=f"samples per pixel (default {spp})")
+        p.add_argument("--hour", type=ranged(float, 0, 24, "h"),
+                       help="local hour of the daylight [h] (default 10)")
+        add_quiet(p)
+
     r = subparsers.add_parser("render", help="spectral render of a moss run (EXR, PNG, R:FR)")
-    r.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
-    r.add_argument("--out", help="output folder (default RUN_DIR/render)")
+    common(r, "render", RENDER_DEFAULTS["spp"])
     r.add_argument("--camera", help="camera preset(s), comma-separated: overview, shelter, top, "
                    "scene or a [render.cameras.NAME] of the scenario (default overview,shelter)")
-    r.add_argument("--width", type=int)
-    r.add_argument("--height", type=int)
-    r.add_argument("--spp", type=int, help="samples per pixel (default 24)")
-    r.add_argument("--day", type=int, help="simulated day to show (default: the last)")
-    r.add_argument("--when", help="ISO date-time of the daylight (default: that day at --hour)")
-    r.add_argument("--hour", type=float, help="local hour of the daylight (default 10)")
-    r.add_argument("--max-depth", type=int)
-    r.add_argument("--quiet", action="store_true")
+    r.add_argument("--day", type=ranged(int, 1, 100_000, "day"),
+                   help="simulated day to show (default: the last)")
+    r.add_argument("--when", metavar="ISO-DATETIME",
+                   help="date-time of the daylight, e.g. 2026-06-21T10:00:00+09:00 (default: "
+                        "the day shown at --hour)")
+    r.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
+                   help="path length of the render (default 8)")
     r.set_defaults(func=_cmd_render)
     a = subparsers.add_parser("animate", help="animate the days of a moss run (MP4 + GIF)")
-    a.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
-    a.add_argument("--out", help="output folder (default RUN_DIR/animation)")
-    a.add_argument("--camera", help="camera preset (default overview)")
-    a.add_argument("--width", type=int)
-    a.add_argument("--height", type=int)
-    a.add_argument("--spp", type=int, help="samples per pixel per frame (default 8)")
-    a.add_argument("--frames", type=int, help="at most this many frames (default 31)")
-    a.add_argument("--every", type=int, help="a frame every N days (of the snapshot days)")
-    a.add_argument("--fps", type=int, help="frames per second (default 6)")
+    common(a, "animation", ANIMATE_DEFAULTS["spp"])
+    a.add_argument("--camera", help=f"camera preset (default {ANIMATE_DEFAULTS['camera']})")
+    a.add_argument("--frames", type=ranged(int, 2, 10000, "frames"),
+                   help=f"at most this many frames (default {ANIMATE_DEFAULTS['frames']})")
+    a.add_argument("--every", type=ranged(int, 1, 100_000, "days"),
+                   help="a frame every N days of the snapshot days (default: spread --frames "
+                        "over the run)")
+    a.add_argument("--fps", type=ranged(int, 1, 120, "frames/s"),
+                   help=f"frames per second (default {ANIMATE_DEFAULTS['fps']})")
     a.add_argument("--light", choices=("fixed", "daily"), default="fixed",
                    help="fixed: the last day's light in every frame (fast); daily: each "
                         "frame's date (slower)")
-    a.add_argument("--hour", type=float, help="local hour of the daylight (default 10)")
-    a.add_argument("--quiet", action="store_true")
     a.set_defaults(func=_cmd_animate)
 
 
 def _cmd_render(a) -> int:
     s = run_render(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height, spp=a.spp,
                    day=a.day, when=a.when, hour=a.hour, max_depth=a.max_depth,
-                   progress=not a.quiet)
+                   scenario=a.scenario, progress=not a.quiet)
     print(f"rendered day {s['day']} ({s['date']}): {s['moss']:,d} moss, {s['trees']} trees, "
           f"{s['seconds']:.1f} s")
     print("wrote:")
@@ -361,7 +401,7 @@ def _cmd_render(a) -> int:
 def _cmd_animate(a) -> int:
     s = run_animate(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height,
                     spp=a.spp, frames=a.frames, every=a.every, fps=a.fps, light=a.light,
-                    hour=a.hour, progress=not a.quiet)
+                    hour=a.hour, scenario=a.scenario, progress=not a.quiet)
     t = s["timings_s"]
     print(f"animated {len(s['frames'])} days in {t['total']:.1f} s (render {t['render']:.1f} s)"
           + ("" if s["exact"] else "; moss of past days approximated from the last checkpoint "

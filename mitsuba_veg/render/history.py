@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
-import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -117,18 +117,25 @@ def _resolve_scenario(summary: dict, checkpoint, run_dir: Path):
     from ..scenario import Scenario, load_scenario
 
     raw = summary.get("scenario")
-    cands = []
+    cands, shipped = [], []
     if raw:
         p = Path(raw)
         cands += [p] if p.is_absolute() else [Path.cwd() / p, run_dir / p, run_dir.parent / p]
         here = Path(__file__).resolve().parents[1]
         for base in (here.parent / "scenes", here / "scenes"):
-            cands.append(base / p.parent.name / p.name)
+            shipped.append(base / p.parent.name / p.name)
     path = next((c for c in cands if c.exists()), None)
+    if path is None:
+        path = next((c for c in shipped if c.exists()), None)
+        if path is not None:
+            import logging
+            logging.getLogger("mitsuba_veg").warning(
+                "the run's scenario %s is gone; using the shipped %s instead (pass --scenario "
+                "to choose)", raw, path)
     if path is None:
         raise ParameterError("summary.json scenario", raw, "an existing scenario file",
                              "run the command from the folder the run was started in, or pass "
-                             "the scenario explicitly (scenario=...)")
+                             "the scenario explicitly (--scenario TOML, or scenario=...)")
     if checkpoint is not None and "fingerprint" in checkpoint:
         try:
             fp = json.loads(str(checkpoint["fingerprint"]))
@@ -151,14 +158,28 @@ def load_run(run_dir, scenario=None) -> Run:
     if not d.is_dir() or not (sp.exists() or cp.exists()):
         raise ParameterError("RUN_DIR", str(d), "a moss run folder with summary.json and "
                              "checkpoint.npz", "run `mitsuba-veg run SCENARIO --out DIR` first")
-    ck = dict(np.load(cp, allow_pickle=False)) if cp.exists() else None
-    summary = json.loads(sp.read_text()) if sp.exists() else {}
+    try:
+        ck = dict(np.load(cp, allow_pickle=False)) if cp.exists() else None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise ParameterError("RUN_DIR checkpoint.npz", str(cp), "a complete checkpoint",
+                             f"it cannot be read ({type(e).__name__}); resume the run with "
+                             "`mitsuba-veg run SCENARIO --out RUN_DIR --fresh`") from None
+    try:
+        summary = json.loads(sp.read_text()) if sp.exists() else {}
+    except (ValueError, OSError) as e:
+        raise ParameterError("RUN_DIR summary.json", str(sp), "a complete JSON file",
+                             f"it cannot be read ({type(e).__name__}); run `mitsuba-veg run "
+                             "SCENARIO --out RUN_DIR` again to rewrite it (it resumes from the "
+                             "checkpoint)") from None
+    if not isinstance(summary, dict):
+        raise ParameterError("RUN_DIR summary.json", str(sp), "a run summary (a JSON object)",
+                             "point RUN_DIR at a folder written by `mitsuba-veg run`")
     if not summary and ck is not None and "history" in ck:
         summary = {"days_record": json.loads(str(ck["history"]))}
     if scenario is None:
         if not summary.get("scenario"):
             raise ParameterError("RUN_DIR", str(d), "a run with summary.json",
-                                 "wait for the run to write summary.json or pass scenario=")
+                                 "wait for the run to write summary.json or pass --scenario")
         scn = _resolve_scenario(summary, ck, d)
     else:
         scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)

@@ -47,6 +47,17 @@ from mitsuba_veg.errors import ParameterError
 _TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
              "environment", "nongrowth", "output", "weber_penn", "name", "description"}
 _MODELS = ("growth", "branching", "weber_penn")
+_OUTPUT_KEYS = ("formats", "leaves", "picture")
+
+
+def _unknown(field, value, known, source):
+    """An unknown TREE.toml field, with the closest known names."""
+    import difflib
+    close = difflib.get_close_matches(field, sorted(known), n=3, cutoff=0.5)
+    fix = ("did you mean " + " or ".join(f"`{c}`" for c in close) + "?") if close else \
+        "remove it (docs/trees.md lists the fields)"
+    return ParameterError(field, value, "a known field (" + ", ".join(sorted(known)) + ")", fix,
+                          source)
 _FORMATS = ("ply", "obj", "glb", "stl")
 
 
@@ -64,11 +75,37 @@ def load_tree_toml(path, overrides=()) -> dict:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise ParameterError("TREE", src, "valid TOML", f"fix the syntax: {e}") from None
-    data = apply_overrides(data, overrides)
+    for item in overrides or ():
+        top = str(item).split("=", 1)[0].strip().split(".")[0]
+        if top not in _TOP_KEYS:
+            raise _unknown(top, str(item).split("=", 1)[-1], _TOP_KEYS, f"{src} (--set)")
+    data = apply_overrides(data, overrides, source=f"{src} (--set)")
     bad = [k for k in data if k not in _TOP_KEYS]
     if bad:
-        raise ParameterError(bad[0], data[bad[0]], f"top-level keys {sorted(_TOP_KEYS)}",
-                             "check the spelling", src)
+        raise _unknown(bad[0], data[bad[0]], _TOP_KEYS, src)
+    oc = data.get("output", {})
+    if not isinstance(oc, dict):
+        raise ParameterError("output", oc, "a table with formats, leaves, picture", None, src)
+    for k in oc:
+        if k not in _OUTPUT_KEYS:
+            raise _unknown(f"output.{k}", oc[k], {f"output.{o}" for o in _OUTPUT_KEYS}, src)
+    if "positions" in data or "position" in data:
+        pos = data.get("positions", [data.get("position")])
+        env = data.get("environment") or {}
+        flat = isinstance(pos, list) and len(pos) and isinstance(pos[0], (int, float))
+        items = [pos] if flat else pos
+        if not isinstance(items, list) or not items or any(
+                not isinstance(it, list) or len(it) not in (2, 3) or not all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) for x in it)
+                for it in items):
+            raise ParameterError("positions", pos, "a list of [x, y, z] points, or [x, z] "
+                                 "points with an [environment] ground or slope, in metres",
+                                 "e.g. positions = [[0.0, 0.0, 0.0], [6.0, 0.0, 0.0]]", src)
+        if any(len(it) == 2 for it in items) and not ({"ground", "slope", "meshes"} & set(env)):
+            raise ParameterError("positions", pos, "[x, y, z] points (an [x, z] point stands on "
+                                 "the terrain, and this file has no [environment] ground, slope "
+                                 "or meshes)", "give the height: [x, y, z], or add "
+                                 "[environment] ground = {}", src)
     model = data.get("model", "growth")
     if model not in _MODELS:
         raise ParameterError("model", model, f"one of {_MODELS}", source=src)
@@ -147,9 +184,10 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     t_start = time.perf_counter()
     path = Path(tree_toml_path)
     src = str(path)
+    from ..outputs import OutputFolder
     data = load_tree_toml(path, overrides)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    folder = OutputFolder(out, "grow", info={"tree_file": src})
     model = data.get("model", "growth")
     seed = int(data.get("seed", 0))
     gens = int(data.get("generations", 10))
@@ -196,11 +234,8 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     if oc.get("picture", True):
         files["picture"] = picture(trees, out / "picture.png", env=env,
                                    title=f"{path.stem}: {model}, {len(trees)} tree(s)")
-    try:
-        from mitsuba_veg.cli import versions
-        vers = versions()
-    except Exception:  # pragma: no cover
-        vers = {}
+    from mitsuba_veg.variant import versions
+    vers = versions()
     summary = {
         "command": "grow", "tree_file": src, "model": model, "seed": seed,
         "generations": gens, "positions": positions,
@@ -214,6 +249,7 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     }
     _write_json(out / "summary.json", summary)
     files["summary"] = str(out / "summary.json")
+    folder.release()
     return summary
 
 
@@ -284,13 +320,15 @@ def add_parser(subparsers):
     """Add the ``grow`` command to an argparse sub-parser set (``mitsuba-veg grow``)."""
     p = subparsers.add_parser("grow", help="grow trees from light (paper 001/002) or make a "
                               "Weber-Penn tree: mesh, metrics, picture")
+    from ..cliargs import add_out, add_quiet, add_set, ranged
     p.add_argument("tree", help="TREE.toml (see scenes/trees/)")
-    p.add_argument("--out", default="out/grow")
-    p.add_argument("--seed", type=int)
-    p.add_argument("--generations", type=int)
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a TREE.toml field, e.g. --set growth.branch_angle=45")
-    p.add_argument("--quiet", action="store_true")
+    add_out(p, "out/grow", "tree meshes, metrics.json, picture.png and summary.json")
+    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
+                   help="random seed (default: the file's seed, else 0)")
+    p.add_argument("--generations", type=ranged(int, 0, 20, "generations"),
+                   help="growth generations G (default: the file's, else 10)")
+    add_set(p, "TREE.toml", "growth.branch_angle=45")
+    add_quiet(p)
     p.set_defaults(func=_cmd_grow)
     return p
 

@@ -11,6 +11,7 @@ file with one covered fraction per triangle (scene order, NaN = ignore), or
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 __all__ = ["add_parser", "main"]
@@ -30,7 +31,10 @@ def _pairs(text: str | None, what: str) -> dict:
         try:
             out[k.strip()] = float(v)
         except ValueError:
-            raise ParameterError(f"{what} {k.strip()}", v, "a number") from None
+            out[k.strip()] = float("nan")
+        if not math.isfinite(out[k.strip()]):
+            raise ParameterError(f"{what} {k.strip()}", v.strip(), "a finite number",
+                                 f"e.g. {what} {k.strip()}=42")
     return out
 
 
@@ -41,26 +45,65 @@ def _cmd_tune(a) -> int:
     from ..errors import ParameterError
     from . import coverage_from_checkpoint, fit, prepare
     from .smooth import SmoothMossModel
+    from ..outputs import OutputFolder
+    from ..scenario import load_scenario
     species = [s.strip() for s in a.species.split(",")] if a.species else None
     params = [p.strip() for p in a.params.split(",") if p.strip()]
+    if not params:
+        raise ParameterError("--params", a.params, "comma-separated parameter names",
+                             "e.g. --params S1,T1")
+    init = _pairs(a.init, "--init")
+    for k in init:
+        if k not in params:
+            raise ParameterError("--init", f"{k}={init[k]}", "starting values of the fitted "
+                                 f"parameters ({', '.join(params)})",
+                                 f"add {k} to --params or remove it from --init")
+    load_scenario(a.scenario, a.set or ())  # bad fields refused before any work
+    t = a.target
+    target = None
+    if t.startswith("synthetic:"):
+        synthetic = _pairs(t.split(":", 1)[1], "--target synthetic")
+        if not synthetic:
+            raise ParameterError("--target", t, "synthetic:NAME=VALUE,...",
+                                 "e.g. --target synthetic:S1=60")
+    else:
+        p = Path(t)
+        if not p.is_file() or p.suffix not in (".npz", ".npy"):
+            raise ParameterError("--target", t, "an existing .npz checkpoint, .npy file or "
+                                 "synthetic:NAME=VALUE,...", "check the path")
+        if p.suffix == ".npy":
+            try:
+                target = np.load(p, allow_pickle=False)
+            except (OSError, ValueError, EOFError) as e:
+                raise ParameterError("--target", t, "a NumPy .npy file of covered fractions "
+                                     "(one per triangle)", f"it cannot be read "
+                                     f"({type(e).__name__}); write it with numpy.save") from None
+            if target.ndim != 1 or not np.issubdtype(target.dtype, np.floating):
+                raise ParameterError("--target", t, "a 1-D float array of covered fractions "
+                                     f"(got shape {target.shape}, dtype {target.dtype})",
+                                     "one value in [0, 1] per triangle, NaN = ignore")
+            fin = target[np.isfinite(target)]
+            if fin.size == 0 or fin.min() < 0 or fin.max() > 1:
+                raise ParameterError("--target", t, "covered fractions in [0, 1] (NaN = "
+                                     "ignore), at least one finite", "check the array")
+    folder = OutputFolder(a.out, "tune")
     albedo = any(p.startswith(("albedo.", "strength.")) for p in params)
     data = prepare(a.scenario, days=a.days, overrides=a.set or (), species=species,
                    photons=a.photons, light_every=a.light_every, differentiable_light=albedo,
                    progress=not a.quiet)
     model = SmoothMossModel(data, temperature=a.temperature, precision=a.precision)
-    t = a.target
     if t.startswith("synthetic:"):
         with dr.suspend_grad():
-            target = np.asarray(model.run(_pairs(t.split(":", 1)[1], "--target synthetic")).cover)
-    else:
-        p = Path(t)
-        if not p.exists():
-            raise ParameterError("--target", t, "an existing .npz checkpoint, .npy file or "
-                                 "synthetic:NAME=VALUE,...")
-        target = (coverage_from_checkpoint(p, data) if p.suffix == ".npz"
-                  else np.load(p, allow_pickle=False))
+            target = np.asarray(model.run(synthetic).cover)
+    elif target is None:
+        target = coverage_from_checkpoint(Path(t), data)
+    if target.shape != (data.n,):
+        raise ParameterError("--target", t, f"one covered fraction per triangle ({data.n} "
+                             f"values; got {target.shape[0]})", "use a target made for this "
+                             "scenario's scene")
     res = fit(model, target, params=params, loss=a.loss, steps=a.steps, lr=a.lr,
-              init=_pairs(a.init, "--init"), out=a.out, progress=not a.quiet)
+              init=init, out=a.out, progress=not a.quiet)
+    folder.release()
     if not a.quiet:
         for k, v in res.values.items():
             print(f"{k}: {res.initial[k]:.6g} -> {v:.6g}")
@@ -72,27 +115,40 @@ def _cmd_tune(a) -> int:
 
 def add_parser(subparsers):
     """Add the ``tune`` command to an argparse sub-parser set (``mitsuba-veg tune``)."""
+    from ..cliargs import add_out, add_photons, add_quiet, add_set, ranged
     p = subparsers.add_parser("tune", help="fit model parameters to a target coverage map "
                               "(differentiable relaxed moss model, Dr.Jit AD)")
     p.add_argument("scenario", help="scenario TOML, e.g. scenes/moss_garden/scenario.toml")
     p.add_argument("--target", required=True,
                    help="checkpoint.npz of a run, a .npy per-triangle cover, or "
                         "synthetic:S1=60,T1=299.15")
-    p.add_argument("--params", default="S1,T1", help="comma-separated parameter names")
-    p.add_argument("--init", help="starting values, e.g. S1=42,T1=306.65")
+    p.add_argument("--params", default="S1,T1", help="comma-separated parameter names "
+                   "(species thresholds S1, T1, alpha_g, ...; T, rh; albedo.SHAPE; "
+                   "strength.sun, strength.sky)")
+    p.add_argument("--init", help="starting values of fitted parameters, e.g. S1=42,T1=306.65 "
+                   "(default: the species table's)")
     p.add_argument("--species", help="comma-separated species keys (default: the scenario's)")
-    p.add_argument("--days", type=int, default=30)
-    p.add_argument("--steps", type=int, default=80)
-    p.add_argument("--lr", type=float, default=0.08)
-    p.add_argument("--loss", default="sqrt", choices=("sqrt", "mse", "l1"))
-    p.add_argument("--temperature", type=float, default=0.05)
-    p.add_argument("--precision", default="float32", choices=("float32", "float64"))
-    p.add_argument("--photons", type=int, help="photons per up-front light pass")
-    p.add_argument("--light-every", type=int, default=15, help="days between sun-path passes")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a scenario field, e.g. --set climate.temperature=290")
-    p.add_argument("--out", default="out/tune")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--days", type=ranged(int, 1, 100_000, "days"), default=30,
+                   help="simulated days")
+    p.add_argument("--steps", type=ranged(int, 1, 100_000, "steps"), default=80,
+                   help="optimiser steps")
+    p.add_argument("--lr", type=ranged(float, 1e-9, 10.0), default=0.08,
+                   help="Adam learning rate (in units of each parameter's scale)")
+    p.add_argument("--loss", default="sqrt", choices=("sqrt", "mse", "l1"),
+                   help="loss between covered fractions")
+    p.add_argument("--relax-temperature", "--temperature", dest="temperature",
+                   type=ranged(float, 0.0, 10.0), default=0.05,
+                   help="relaxation temperature t of the smoothed thresholds (dimensionless; "
+                        "0 = the discrete life cycle; not the air temperature, which is "
+                        "climate.temperature)")
+    p.add_argument("--precision", default="float32", choices=("float32", "float64"),
+                   help="floating-point precision of the relaxed model")
+    add_photons(p, None, "per up-front light pass (default: the scenario's light.photons)")
+    p.add_argument("--light-every", type=ranged(int, 1, 100_000, "days"), default=15,
+                   help="days between sun-path light passes")
+    add_set(p, "scenario", "climate.temperature=290")
+    add_out(p, "out/tune", "fitted.json, loss_curve.png and coverage.png")
+    add_quiet(p)
     p.set_defaults(func=_cmd_tune)
     return p
 

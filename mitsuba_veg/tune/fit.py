@@ -188,6 +188,10 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
         raise ParameterError("params", params, "at least one parameter name")
     if steps < 1:
         raise ParameterError("steps", steps, ">= 1")
+    for k in (init or {}):
+        if k not in params:
+            raise ParameterError("init", k, f"one of the fitted parameters {params}",
+                                 "fit it (params=...) or drop its starting value")
     if any(p.startswith(("albedo.", "strength.")) for p in params):
         prepare_kw.setdefault("differentiable_light", True)
     model = _as_model(scenario, days, species, temperature, precision, prepare_kw)

@@ -1,0 +1,90 @@
+"""Command-line arguments shared by every ``mitsuba-veg`` sub-command.
+
+One parser class (errors on one line, exit code 2), one help formatter (every option shows its
+default), typed and range-checked option values, and the options that several commands share
+(``--out``, ``--set``, ``--quiet``, ``--photons``).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from .scenario import MAX_PHOTONS
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Help that shows each option's default (when it has one) after its text."""
+
+    def _get_help_string(self, action):
+        h = action.help or ""
+        if action.default not in (None, False, argparse.SUPPRESS) and "%(default)" not in h \
+                and action.option_strings and "default" not in h:
+            h += " (default: %(default)s)"
+        return h
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line (``PROG: error: ...``, exit code 2)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message):  # noqa: D401 - argparse API
+        msg = " ".join(str(message).split())
+        sys.stderr.write(f"{self.prog}: error: {msg} (see `{self.prog} --help`)\n")
+        sys.exit(2)
+
+
+def ranged(kind, lo=None, hi=None, unit: str = "", name: str | None = None):
+    """An argparse ``type``: parse ``kind`` (int or float) and check ``lo <= v <= hi``
+    (finite); the error names the value, the allowed range and the fix."""
+
+    def parse(text: str):
+        what = "an integer" if kind is int else "a number"
+        lo_s = "-inf" if lo is None else f"{lo:g}"
+        hi_s = "inf" if hi is None else f"{hi:g}"
+        allowed = f"{what} in [{lo_s}, {hi_s}]" + (f" {unit}" if unit else "")
+        try:
+            v = kind(text)
+        except (TypeError, ValueError):
+            v = None
+            if kind is int:  # 1e6 is a fine photon count
+                try:
+                    f = float(text)
+                    v = int(f) if math.isfinite(f) and f == int(f) else None
+                except (TypeError, ValueError, OverflowError):
+                    v = None
+        ok = v is not None and math.isfinite(v) and (lo is None or v >= lo) and \
+            (hi is None or v <= hi)
+        if not ok:
+            raise argparse.ArgumentTypeError(f"{text!r} is invalid (allowed: {allowed}). Fix: "
+                                             "give a value in the allowed range")
+        return v
+
+    parse.__name__ = name or ("integer" if kind is int else "number")
+    return parse
+
+
+def add_out(p, default: str | None, what: str) -> None:
+    """``--out DIR``: the output folder of ``what``."""
+    p.add_argument("--out", default=default, metavar="DIR",
+                   help=f"output folder for {what} (created; refused if another process is "
+                        "writing it or it holds another kind of result)")
+
+
+def add_set(p, what: str = "scenario", example: str = "light.photons=2000000") -> None:
+    """``--set KEY=VALUE`` (repeatable): override a field of the ``what`` file."""
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help=f"override a {what} field by its dotted name (TOML value syntax), "
+                        f"e.g. --set {example}; unknown fields are refused")
+
+
+def add_quiet(p) -> None:
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_photons(p, default: int | None, what: str = "per light pass") -> None:
+    p.add_argument("--photons", type=ranged(int, 1, MAX_PHOTONS, "photons"), default=default,
+                   metavar="N", help=f"photons {what} (1 .. 1e9)")
