@@ -40,7 +40,7 @@ def main(argv=None):
     times, stats = [], None
     for _ in range(a.reps):
         t = time.perf_counter()
-        r = nongrowth.deform(trees, death_threshold=0.25)
+        r = nongrowth.deform(trees, death_threshold=0.5)
         times.append(time.perf_counter() - t)
         stats = r.stats
     wall = float(np.median(times))

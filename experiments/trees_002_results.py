@@ -5,7 +5,7 @@ branch-death and heliotropism rules in voxel-space light.
 
 Sample tree: the pure binary branching model of paper 001 (G = 7, θ = 45°, L_t = 4, L_l = 5,
 unit 0.25 m: 255 branches, ~8 m tall), copied onto a 4 m grid. Voxels 0.5 m, shading 0.3 per
-tip, death threshold 0.25 (T/N, bottom-up), heliotropism constant 1 rad, cap 30°. Writes:
+tip, death threshold 0.5 (T/N with N = tips, bottom-up), heliotropism constant 1 rad, cap 30°. Writes:
 
 - ``fig_stand.png``: top views of the stand as placed, after the death rule (paper fig 1) and
   after heliotropism (fig 3), with live-branch counts and lean arrows;
@@ -42,7 +42,7 @@ def main(argv=None):
     sp = a.spacing
     trees = [sample.translated((sp * i, 0.0, sp * j)) for j in range(5) for i in range(5)]
     t0 = time.perf_counter()
-    death = nongrowth.deform(trees, rules=("death",), death_threshold=0.25)
+    death = nongrowth.deform(trees, rules=("death",), death_threshold=0.5)
     helio = nongrowth.deform(death.trees, rules=("heliotropism",))
     seconds = time.perf_counter() - t0
     live = np.array([t.metrics()["live_branches"] for t in death.trees]).reshape(5, 5)

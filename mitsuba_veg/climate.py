@@ -178,11 +178,25 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
     path = Path(path)
     if not path.exists():
         raise ParameterError("climate.csv", str(path), "an existing CSV file", "check the path")
-    with path.open(newline="") as f:
-        rows = list(csv.DictReader(f))
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (UnicodeDecodeError, csv.Error, OSError) as e:
+        raise ParameterError("climate.csv", str(path), "a UTF-8 text CSV file with a header",
+                             f"it cannot be read as CSV ({type(e).__name__}); export it as "
+                             "CSV") from None
     if not rows:
         raise ParameterError("climate.csv", str(path), "a CSV with a header and >= 1 row")
-    cols = {c.strip(): c for c in rows[0].keys()}
+    cols = {(c or "").strip(): c for c in rows[0].keys()}
+    known = set(_CSV_FIELDS) | {"N", "N0"}
+    unknown = [c for c in cols if c not in known]
+    if unknown:
+        import difflib
+        close = difflib.get_close_matches(unknown[0], sorted(known), n=2, cutoff=0.4)
+        raise ParameterError(f"{path.name} column", unknown[0], "one of " +
+                             ", ".join(sorted(known)), ("did you mean " + " or ".join(
+                                 f"`{c}`" for c in close) + "?") if close else
+                             "rename or remove the column", str(path))
     n = len(rows)
 
     def column(name, default):

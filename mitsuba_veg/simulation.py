@@ -185,8 +185,17 @@ class MossSimulation:
         self.index = SceneIndex.build(self.scene)
         self.integrator = PhotonIrradianceIntegrator()
         self._setup_terrain()
-        self.grid = SpotGrid(np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max),
-                             float(self.moss_cfg["size"]), int(self.moss_cfg["capacity"]))
+        lo, hi = np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max)
+        size = float(self.moss_cfg["size"])
+        span = float(np.max(hi - lo))
+        smallest = span / (SpotGrid.max_cells_per_axis - 3)
+        if size < smallest:
+            raise ParameterError("moss.size", size, f">= {smallest:.3g} m for this scene "
+                                 f"({span:.3g} m across: the spot grid holds at most "
+                                 f"{SpotGrid.max_cells_per_axis:,d} cells per axis)",
+                                 "use a larger moss size or a smaller scene",
+                                 str(self.scn.path))
+        self.grid = SpotGrid(lo, hi, size, int(self.moss_cfg["capacity"]))
         self.pop = MossPopulation(int(self.moss_cfg["capacity"]),
                                   SpeciesTable(self.species, self.moss_cfg["priority"]))
         self.O = soil_model.bucket_capacity(self.h, self.geology).astype(np.float64)  # saturated

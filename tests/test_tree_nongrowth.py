@@ -37,16 +37,20 @@ class _FakeLight:
         return self.values
 
 
-@pytest.mark.parametrize("order,alive_tips", [("bottom_up", 3), ("simultaneous", 2)])
-def test_death_rule_t_over_n(order, alive_tips):
-    """Tips lit 0.5, 0.5, 0.5, 0.0, threshold 0.2. Simultaneous: the right subtree has
-    T/N = 0.5/3 < 0.2 and dies whole. Bottom up: the dark tip dies first, then the right
-    subtree has T/N = 0.5/2 = 0.25 and lives."""
+@pytest.mark.parametrize("order,count,alive_tips", [("bottom_up", "branches", 3),
+                                                     ("simultaneous", "branches", 2),
+                                                     ("bottom_up", "tips", 3),
+                                                     ("simultaneous", "tips", 3)])
+def test_death_rule_t_over_n(order, count, alive_tips):
+    """Tips lit 0.5, 0.5, 0.5, 0.0, threshold 0.2. N = branches, simultaneous: the right
+    subtree has T/N = 0.5/3 < 0.2 and dies whole; bottom up: the dark tip dies first, then
+    the right subtree has T/N = 0.5/2 = 0.25 and lives. N = tips: the right subtree has
+    T/N = 0.5/2 = 0.25 in both orders and lives; only the dark tip (0/1) dies."""
     t = _binary(2)
     stand = nongrowth._Stand([t])
     tips = stand.tips()
     assert len(tips) == 4
-    st = nongrowth._death(stand, _FakeLight([0.5, 0.5, 0.5, 0.0]), tips, 0.2, order)
+    st = nongrowth._death(stand, _FakeLight([0.5, 0.5, 0.5, 0.0]), tips, 0.2, order, count)
     assert stand.alive[0]
     assert np.isin(tips, np.nonzero(stand.alive)[0]).sum() == alive_tips
     assert st["died"] == 7 - stand.alive.sum()
@@ -97,7 +101,7 @@ def stand_5x5():
     """Paper 002 §6: 25 identical binary-branching sample trees on a 4 m grid."""
     sample = branching(GrowthParams(branch_angle=45, lateral_length=5, random_phase=False), 7)
     trees = [sample.translated((4.0 * i, 0.0, 4.0 * j)) for j in range(5) for i in range(5)]
-    death = nongrowth.deform(trees, rules=("death",), death_threshold=0.25)
+    death = nongrowth.deform(trees, rules=("death",), death_threshold=0.5)
     helio = nongrowth.deform(death.trees, rules=("heliotropism",))
     return trees, death, helio
 
@@ -110,8 +114,8 @@ def _ring(values):
 
 
 def test_paper002_death_thins_the_inside_of_the_stand(stand_5x5):
-    """Fig 1-2: after the death rule the inner trees keep fewer branches (~140 of 255) than
-    the edge trees (~205); the centre tree fewest (~100), corners most (~225)."""
+    """Fig 1-2: after the death rule the inner trees keep fewer branches (~153 of 255) than
+    the edge trees (~204); the centre tree fewest (123), corners most (218-239)."""
     trees, death, _ = stand_5x5
     live = [t.metrics()["live_branches"] for t in death.trees]
     inner, edge, v = _ring(live)
@@ -150,3 +154,37 @@ def test_weber_penn_trees_deform_with_leaf_shading():
     assert res.stats[1]["rotations"] > 0
     for x in res.trees:
         assert np.all(x.alive[x.leaves.segment])        # leaves of dead branches are gone
+
+
+@pytest.mark.parametrize("spacing, sample_kw", [(6.0, {}),
+                                                (4.0, dict(branch_angle=45, lateral_length=5,
+                                                           random_phase=False))])
+def test_death_rule_has_no_cliff(spacing, sample_kw):
+    """Issue: with N = branches a whole tree's T/N is about half its mean tip light, so on a
+    5 x 5 stand of default trees 6 m apart nothing dies at 0.25 and every tree dies whole at
+    0.4. With N = tips (the default) the thresholds 0.2-0.5 thin the stand gradually: no tree
+    dies whole, live branches never increase with the threshold, and where branches die the
+    inner trees lose more than the edge trees."""
+    sample = branching(GrowthParams(**sample_kw), 7)
+    trees = [sample.translated((spacing * i, 0.0, spacing * j))
+             for j in range(5) for i in range(5)]
+    prev = None
+    table = {}
+    for th in (0.2, 0.3, 0.4, 0.5):
+        res = nongrowth.deform(trees, rules=("death",), death_threshold=th)
+        live = np.array([t.metrics()["live_branches"] for t in res.trees])
+        assert all(t.alive[0] for t in res.trees)            # trunks kept
+        assert live.min() > 0.25 * len(sample)                # no tree dies whole
+        if prev is not None:
+            assert np.all(live <= prev)
+        inner, edge, _ = _ring(live)
+        if live.min() < len(sample):                          # partial death: inside first
+            assert inner.mean() < edge.mean()
+        table[th] = (inner.mean(), edge.mean())
+        prev = live
+    print(table)
+    # the printed reading (N = branches) is the cliff: every tree dies whole at 0.4
+    cliff = nongrowth.deform(trees, rules=("death",), death_threshold=0.4,
+                             death_count="branches")
+    if spacing == 6.0:
+        assert sum(t.metrics()["live_branches"] for t in cliff.trees) == 0

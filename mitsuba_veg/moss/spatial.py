@@ -63,6 +63,9 @@ class SpotGrid:
     """Cubic cells of side ``cell`` [m]; cell (0, 0, 0) starts at ``bbox_min - 1.5 cell``.
     ``capacity``: the population's slots (``slot_cell`` keeps each slot's cell)."""
 
+    #: cells per axis that a block key can address
+    max_cells_per_axis = 2 * _OFFSET
+
     def __init__(self, bbox_min, bbox_max, cell: float, capacity: int):
         if not (cell > 0 and math.isfinite(cell)):
             raise ValueError("cell must be a positive length in metres")

@@ -7,7 +7,9 @@ environment would give them, by rules applied to the finished trees:
   adds shading to its voxel, obstacles are opaque voxels, light at a point = 36 sky rays
   attenuated voxel by voxel (vectorised 3D-DDA).
 - **Branch death** (§5.1): for every subtree, T/N < threshold → the subtree dies, with T the
-  total light at its tips and N its number of branches (segments).
+  total light at its tips and N its number of tips (``death_count="tips"``: T/N is the mean
+  light of the subtree's leaves, comparable between a twig and a whole tree) or, as printed,
+  its number of branches (``death_count="branches"``; see docs/deviations.md).
 - **Heliotropism** (§5.2): for every branch, root first, its whole subtree is rotated about the
   branch's base: (1a) brightness gradient at each tip of the subtree by finite differences on
   the voxel lattice, (1b) times the tip's distance from the rotation centre, (2) averaged over
@@ -163,21 +165,26 @@ def _leaf_points(stand, shade_from, shading, size):
 
 
 def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: float = 0.5,
-           shading="auto", death_threshold: float = 0.25, helio_constant: float = 1.0,
+           shading="auto", death_threshold: float = 0.5, helio_constant: float = 1.0,
            max_angle: float = 30.0, shade_from: str = "tips", iterations: int = 1,
-           death_order: str = "bottom_up", copy: bool = True) -> DeformResult:
+           death_order: str = "bottom_up", death_count: str = "tips",
+           copy: bool = True) -> DeformResult:
     """Deform placed sample ``trees`` (a Tree or a list) by the rules of paper 002.
 
     obstacles: None or anything :meth:`Environment.coerce` takes (opaque voxels).
     voxel_size [m]; shading: fraction of the light crossing its voxel (along a voxel edge) that
     one tip / leaf removes, or "auto": 0.3 per tip (``shade_from="tips"``, the paper's fixed
     amount), half the blade area over the voxel face area per leaf (``"leaves"``);
-    death_threshold: T/N below which a subtree dies [light units, open sky = 1];
+    death_threshold: T/N below which a subtree dies [light units, open sky = 1]; with N = tips
+    it is the subtree's mean leaf light (0.5 = half the open sky; the paper's 0.25 with N =
+    branches is about the same, since a binary subtree has 2 x tips - 1 branches);
     helio_constant [rad]: the constant of the rotation angle constant x sqrt(L/N);
     max_angle [deg]: cap of one rotation; shade_from: "tips" (paper) or "leaves" (a tree's
     leaf blades, e.g. Weber-Penn trees); iterations: how often the whole rule list is applied;
     death_order: "bottom_up" (deepest subtrees first, T and N over what is still alive) or
-    "simultaneous" (every subtree judged on the intact tree).
+    "simultaneous" (every subtree judged on the intact tree); death_count: N of T/N, "tips"
+    (the subtree's live tips: T/N is their mean light) or "branches" (its branches, as printed;
+    a whole tree's T/N is then about half its mean tip light, so trees die whole).
     Returns a :class:`DeformResult` (the input trees are copied unless ``copy=False``).
     """
     from .environment import Environment
@@ -202,6 +209,8 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
     check_range("max_angle", max_angle, 0.0, 180.0)
     if death_order not in ("bottom_up", "simultaneous"):
         raise ParameterError("death_order", death_order, "'bottom_up' or 'simultaneous'")
+    if death_count not in ("tips", "branches"):
+        raise ParameterError("death_count", death_count, "'tips' or 'branches'")
     if shade_from not in ("tips", "leaves"):
         raise ParameterError("shade_from", shade_from, "'tips' or 'leaves'")
     env = Environment.coerce(obstacles)
@@ -217,7 +226,7 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
                       np.maximum(stand.start.max(0), stand.end.max(0)))
             vs = _voxels(pts, voxel_size, sh, env, bounds)
             if rule == "death":
-                st = _death(stand, vs, tips, death_threshold, death_order)
+                st = _death(stand, vs, tips, death_threshold, death_order, death_count)
             else:
                 st = _heliotropism(stand, vs, helio_constant, math.radians(max_angle))
             stand.write_back()
@@ -234,25 +243,30 @@ def _voxels(pts, size, shading, env, bounds):
     return VoxelSpace.build(pts, size, shading, env, bounds)
 
 
-def _death(stand, vs, tips, threshold, order="bottom_up"):
+def _death(stand, vs, tips, threshold, order="bottom_up", count="tips"):
     light = vs.light(stand.end[tips])
     n = len(stand.parent)
     tip_light = np.zeros(n)
     tip_light[tips] = light
     before = stand.alive.copy()
     alive = stand.alive.copy()
-    units = stand.unit_start(before)      # branches as they are when the rule starts
+    if count == "tips":
+        units = np.zeros(n, bool)
+        units[tips] = True                # N = the subtree's tips (its leaves)
+    else:
+        units = stand.unit_start(before)  # branches as they are when the rule starts
     if order == "simultaneous":
         T = _subtree_sum(stand, tip_light, alive)
         N = _subtree_sum(stand, (alive & units).astype(float), alive)
-        alive &= ~(T < threshold * N)
+        alive &= ~((T < threshold * N) | (N == 0))
     else:
         # deepest subtrees first; a subtree's T and N count only what is still alive
         for d in range(int(stand.depth.max()) if n else -1, -1, -1):
             T = _subtree_sum(stand, tip_light * alive, alive)
             N = _subtree_sum(stand, (alive & units).astype(float), alive)
             idx = np.nonzero((stand.depth == d) & alive)[0]
-            alive[idx[T[idx] < threshold * N[idx]]] = False
+            # N = 0: every tip of the subtree is dead, it has no leaves left (N = tips)
+            alive[idx[(T[idx] < threshold * N[idx]) | (N[idx] == 0)]] = False
     # a dead subtree root kills its descendants (parents first, level by level)
     for d in range(1, int(stand.depth.max()) + 1 if n else 0):
         idx = np.nonzero(stand.depth == d)[0]
@@ -262,6 +276,7 @@ def _death(stand, vs, tips, threshold, order="bottom_up"):
     per_tree = np.bincount(stand.tree_of[died], minlength=len(stand.trees))
     return {"tips": int(len(tips)), "tip_light_mean": float(light.mean()) if len(light) else 0.0,
             "died": int(died.sum()), "died_per_tree": per_tree.tolist(), "order": order,
+            "count": count,
             "rays": vs.stats.get("rays", 0), "dda_steps": vs.stats.get("dda_steps", 0),
             "light_s": vs.stats.get("light_s", 0.0)}
 
