@@ -537,7 +537,11 @@ class MossSimulation:
             return float(np.sum(np.asarray(x)[soil] * a) / a.sum())
 
         alive = dict(zip([s.name for s in self.species], self.pop.count_by_species(MOSS)))
+        # where eq 3.16's linearised q_SAT(Ts) is off by > 10 % (cold shaded surfaces)
+        off = np.abs(np.asarray(soil_model.linearisation_error(self.weather.T[day],
+                                                               np.asarray(st.Ts)))) > 0.1
         return {"day": day + 1, "date": self._date(day).isoformat(), "alive": alive,
+                "soil_linearisation_off": amean(off.astype(float)),
                 "moss_alive": int(sum(alive.values())),
                 "propagules": self.pop.count(PROPAGULE), "covered_area_m2": float(cov.sum()),
                 "mean_S_W_m2": amean(S), "mean_Ts_K": amean(st.Ts), "mean_rhs": amean(st.rhs),

@@ -55,7 +55,7 @@ __all__ = [
     "soil_depth", "bucket_capacity", "water_content", "bucket_step", "BucketStep", "SoilState",
     "evaporation_F", "evaporation_efficiency", "e_sat", "q_sat", "dq_sat_dT",
     "surface_temperature_offset", "latent_heat_flux", "evaporation_rate", "surface_humidity",
-    "surface_state", "SurfaceState",
+    "surface_state", "SurfaceState", "linearisation_error",
 ]
 
 # ------------------------------------------------------------------------------------------
@@ -489,6 +489,19 @@ def surface_humidity(T, rh, beta, dT):
     """
     rh, beta, dT, q, D = _prep(rh, beta, dT, q_sat(T), dq_sat_dT(T))
     return _finish(beta + rh * q * (1.0 - beta) / (q + D * dT))
+
+
+def linearisation_error(T, Ts):
+    """Relative error of the linearised saturation humidity of eqs 3.11-3.16,
+    ``(q_SAT(T) + Delta (Ts - T)) / q_SAT(Ts) - 1`` [-] (T, Ts [K]).
+
+    Within 10 % for Ts - T in [-5.8, +8.3] K at 278 K, [-6.3, +9.0] K at 288 K and
+    [-6.7, +9.7] K at 298 K; the linearised value reaches 0 at Ts - T = -q_SAT/Delta
+    (-14.3 / -15.4 / -16.6 K) and is negative below, where eq 3.16 gives rhs -> +inf and
+    then negative values (docs/deviations.md, "000 eq 3.16")."""
+    T, Ts = _prep(T, Ts)
+    lin = q_sat(T) + dq_sat_dT(T) * (Ts - T)
+    return lin / q_sat(Ts) - 1.0
 
 
 class SurfaceState(NamedTuple):

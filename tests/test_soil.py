@@ -333,3 +333,20 @@ def test_invalid_geology_rejected():
         soil.evaporation_F(0.2, np.nan)
     with pytest.raises(ParameterError, match="geology"):
         soil.bucket_step(1.0, 0.0, 0.0, 10.0, UInt32([0, 7]))
+
+
+def test_eq_3_16_linearisation_range_and_outside():
+    """docs/deviations.md (000 eq 3.16): the linearised q_SAT(Ts) is within 10 % for
+    dT in [-6.3, +9.0] K at 288 K, reaches 0 at -q_SAT/Delta = -15.4 K, and a cold dry bare
+    surface at night-like S = 0, 278 K gives Ts = 264.8 K and the printed rhs = 7.61."""
+    import numpy as np
+    from mitsuba_veg import soil as s
+    T = 288.15
+    dT = np.linspace(-12, 12, 2401)
+    err = np.abs(s.linearisation_error(T, T + dT))
+    ok = dT[err < 0.1]
+    assert abs(ok.min() + 6.27) < 0.02 and abs(ok.max() - 9.02) < 0.02
+    assert abs(-s.q_sat(T) / s.dq_sat_dT(T) + 15.43) < 0.01
+    st = s.surface_state(0.0, 278.15, 0.73, 0.2, 0.75, 0.0, 0, s.transfer_coefficient(0.0))
+    assert abs(float(st.Ts) - 264.83) < 0.01 and abs(float(st.rhs) - 7.613) < 0.001
+    assert abs(float(s.linearisation_error(278.15, float(st.Ts)))) > 0.1
