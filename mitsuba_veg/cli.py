@@ -228,7 +228,7 @@ def _cmd_demo(a) -> int:
 def build_parser():
     """The ``mitsuba-veg`` argument parser with every sub-command."""
     import mitsuba_veg
-    from .cliargs import Parser, add_out, add_photons, add_quiet, add_set, ranged
+    from .cliargs import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
     ap = Parser(prog="mitsuba-veg", description="Grow vegetation from light with Mitsuba 3.")
     ap.add_argument("--version", action="version",
                     version=f"mitsuba-veg {mitsuba_veg.__version__}")
@@ -263,7 +263,7 @@ def build_parser():
     p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
                    help="bounces per photon (default: the scenario's, else 8)")
     p.add_argument("--no-indirect", action="store_true", help="direct light only (paper fig 4.2)")
-    p.add_argument("--when", metavar="ISO-DATETIME",
+    p.add_argument("--when", metavar="ISO-DATETIME", type=iso_datetime,
                    help="daylight for the scenario's site at this time, e.g. "
                         "2026-04-20T10:00:00+09:00 (scenario .toml only)")
     add_set(p, "scenario")

@@ -67,6 +67,20 @@ def ranged(kind, lo=None, hi=None, unit: str = "", name: str | None = None):
     return parse
 
 
+def iso_datetime(text: str) -> str:
+    """An argparse ``type`` for ``--when``: an ISO 8601 date-time (returned as given)."""
+    import datetime as _dt
+    t = text.strip()
+    try:
+        _dt.datetime.fromisoformat(t[:-1] + "+00:00" if t.endswith(("Z", "z")) else t)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is invalid (allowed: an ISO 8601 date-time). Fix: write it like "
+            "2026-04-20T10:00:00+09:00 (local time with its UTC offset) or 2026-04-20T01:00:00Z"
+        ) from None
+    return t
+
+
 def add_out(p, default: str | None, what: str) -> None:
     """``--out DIR``: the output folder of ``what``."""
     p.add_argument("--out", default=default, metavar="DIR",

@@ -72,24 +72,27 @@ SCHEMA: dict[str, Field] = {
     "light": Field("table", fields={
         "photons": _num("int", 1, MAX_PHOTONS, "photons per light pass"),
         "max_depth": _num("int", 1, 1000, "bounces per photon"),
-        "seed": _num("int", 0, 2**31 - 1),
-        "indirect": Field("bool"),
+        "seed": _num("int", 0, 2**31 - 1, "random seed of the light, weather and moss"),
+        "indirect": Field("bool", doc="false: direct light only (paper 000 fig 4.2)"),
         "when": Field("datetime", doc="ISO 8601 date-time, e.g. 2026-04-20T10:00:00+09:00"),
     }),
     "terrain": Field("table", fields={
         "ground": Field("str", doc="shape id of the soil-bearing terrain"),
-        "geology_texture": Field("file"),
+        "geology_texture": Field("file", doc="image over the ground's UVs: humus (70,50,35), sand "
+                                 "(200,160,80), asphalt (110,110,110)"),
         "soil_base_y": _num("float", -1e4, 1e4, "[m]"),
-        "soil_depth_mm": Field("map", item=_num("float", 1.0, 1000.0, "[mm]")),
-        "geology": Field("map", item=Field("choice", choices=_GEOLOGIES)),
+        "soil_depth_mm": Field("map", item=_num("float", 1.0, 1000.0, "[mm]"),
+                               doc="soil depth h [mm] per shape id, 1-1000"),
+        "geology": Field("map", item=Field("choice", choices=_GEOLOGIES),
+                         doc="geology per shape id: humus, sand or asphalt"),
     }),
     "regions": Field("map", item=Field("table", fields={
         "shapes": Field("strs", doc="shape ids"), "min": _VEC3, "max": _VEC3})),
     "simulation": Field("table", fields={
-        "days": _num("int", 1, 100_000),
+        "days": _num("int", 1, 100_000, "simulated days"),
         "start_date": Field("date", doc="YYYY-MM-DD"),
-        "checkpoint_every": _num("int", 0, 100_000, "days (0: only at the end)"),
-        "frame_every": _num("int", 1, 100_000, "days"),
+        "checkpoint_every": _num("int", 0, 100_000, "days between checkpoints (0: at the end)"),
+        "frame_every": _num("int", 1, 100_000, "days between maps and snapshots"),
     }),
     "climate": Field("table", fields={
         "temperature": _num("float", 200.0, 340.0, "[K]"),
@@ -99,34 +102,36 @@ SCHEMA: dict[str, Field] = {
         "wind": _num("float", 0.0, 60.0, "[m/s]"),
         "possible_sunshine": _num("float", 0.0, 24.0, "[h]"),
         "sunshine": _num("float", 0.0, 24.0, "[h]"),
-        "angstrom_a": _num("float", 0.0, 1.0),
-        "angstrom_b": _num("float", 0.0, 1.0),
-        "csv": Field("file"),
+        "angstrom_a": _num("float", 0.0, 1.0, "Angstrom-Prescott a_s [-]"),
+        "angstrom_b": _num("float", 0.0, 1.0, "Angstrom-Prescott b_s [-]"),
+        "csv": Field("file", doc="daily weather CSV (T, rh, P, U, A or N and N0, ghi, day_of_year)"),
     }),
     "moss": Field("table", fields={
         "species": Field("strs", doc="species keys"),
-        "capacity": _num("int", 16, 50_000_000),
-        "initial": _num("int", 0, 50_000_000),
+        "capacity": _num("int", 16, 50_000_000, "individuals (moss + waiting propagules)"),
+        "initial": _num("int", 0, 50_000_000, "moss placed at random on day 0"),
         "initial_growth": _num("float", 0.0, 1000.0, "G_moss [-]"),
-        "size": _num("float", 1e-4, 1.0, "[m]"),
-        "gemma_distance": _num("float", 0.0, 100.0, "[m]"),
-        "spore_distance": _num("float", 0.0, 100.0, "[m]"),
-        "external_spore_interval": _num("int", 0, 100_000, "[days]"),
-        "clump_neighbours": _num("int", 1, 26),
-        "albedo": Field("floats", 0.0, 1.0, length=4, doc="total, PAR, red, far-red"),
-        "priority": Field("floats", -1e6, 1e6, doc="one per species"),
+        "size": _num("float", 1e-4, 1.0, "[m] moss size = spot of the occupancy grid"),
+        "gemma_distance": _num("float", 0.0, 100.0, "k of eq 3.22 [m]"),
+        "spore_distance": _num("float", 0.0, 100.0, "l of eq 3.23 [m]"),
+        "external_spore_interval": _num("int", 0, 100_000, "days between spores from outside "
+                                        "(0: none)"),
+        "clump_neighbours": _num("int", 1, 26, "moss neighbours that make a clump"),
+        "albedo": Field("floats", 0.0, 1.0, length=4, doc="moss reflectance: total, PAR, red, "
+                                                          "far-red"),
+        "priority": Field("floats", -1e6, 1e6, doc="occupancy priority, one per species"),
         "shapes": Field("strs", doc="shape ids moss may live on"),
     }),
-    "species_file": Field("file"),
+    "species_file": Field("file", doc="TOML of extra species (docs/moss.md)"),
     "render": Field("table", fields={
-        "when": Field("datetime"),
-        "materials": Field("map", item=Field("str")),
+        "when": Field("datetime", doc="daylight of the render (default: the day at 10:00)"),
+        "materials": Field("map", item=Field("str"), doc="render material per shape id"),
         "cameras": Field("map", item=Field("table", fields={
             "origin": _VEC3, "target": _VEC3, "up": _VEC3,
             "fov": _num("float", 1.0, 170.0, "[deg]"),
             "fov_axis": Field("choice", choices=("x", "y", "smaller", "larger", "diagonal"))})),
         "trees": Field("tables", fields={
-            "preset": Field("str"), "model": Field("choice", choices=("weber_penn", "growth",
+            "preset": Field("str", doc="Weber-Penn preset"), "model": Field("choice", choices=("weber_penn", "growth",
                                                                        "simple")),
             "seed": _num("int", 0, 2**31 - 1), "position": _VEC3,
             "height": _num("float", 0.05, 200.0, "[m]"), "autumn": Field("bool"),
@@ -147,6 +152,40 @@ def known_fields(schema: dict | None = None, prefix: str = "") -> list[str]:
         elif f.kind == "map" and f.item is not None and f.item.fields:
             out += known_fields(f.item.fields, name + ".NAME.")
     return out
+
+
+def schema_markdown() -> str:
+    """The table of every scenario field (docs/scenario.md holds it; a test keeps them equal)."""
+    rows = ["| field | kind | allowed | meaning |", "|---|---|---|---|"]
+
+    def walk(schema, prefix):
+        for k, f in schema.items():
+            name = f"{prefix}{k}"
+            if f.kind in ("int", "float"):
+                fmt = (lambda x: f"{int(x):,d}") if f.kind == "int" else (lambda x: f"{x:g}")
+                allowed = f"[{fmt(f.lo)}, {fmt(f.hi)}]"
+            elif f.kind == "floats":
+                allowed = (f"{f.length} numbers" if f.length else "numbers") + \
+                    f" in [{f.lo:g}, {f.hi:g}]"
+            elif f.kind == "choice":
+                allowed = ", ".join(map(str, f.choices))
+            else:
+                allowed = {"bool": "true, false", "str": "text", "file": "path (relative to the "
+                           "scenario)", "date": "YYYY-MM-DD", "datetime": "ISO 8601",
+                           "vec3": "[x, y, z]", "strs": "list of text", "table": "table",
+                           "map": "table of NAME = ...", "tables": "array of tables",
+                           "any": "table (checked by the model)"}[f.kind]
+            kind = {"tables": "[[array]]", "map": "table", "strs": "list", "floats": "list",
+                    "vec3": "list", "choice": "text", "file": "text", "date": "text",
+                    "datetime": "text"}.get(f.kind, f.kind)
+            if f.kind not in ("table", "map") or f.item is not None and not f.item.fields:
+                rows.append(f"| `{name}` | {kind} | {allowed} | {f.doc} |".replace("|  |", "| |"))
+            if f.kind in ("table", "tables") and f.fields:
+                walk(f.fields, name + ".")
+            elif f.kind == "map" and f.item is not None and f.item.fields:
+                walk(f.item.fields, name + ".NAME.")
+    walk(SCHEMA, "")
+    return "\n".join(rows) + "\n"
 
 
 def _unknown(field: str, value, known: list[str], source):

@@ -136,3 +136,9 @@ def test_full_population_traces_only_what_can_settle(tmp_path, monkeypatch):
     kept = np.asarray(a.grid.moss_neighbours(moss))
     fresh = np.asarray(a.grid.neighbour_count(dr.gather(mi.Point3f, a.pop.pos, moss)))
     assert kept.tolist() == fresh.tolist() and kept.max() >= 4
+
+
+def test_docs_list_every_scenario_field():
+    """docs/scenario.md holds the schema's table as generated (one source for the fields)."""
+    from mitsuba_veg.scenario import schema_markdown
+    assert schema_markdown() in (ROOT / "docs" / "scenario.md").read_text()

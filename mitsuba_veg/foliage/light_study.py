@@ -389,14 +389,14 @@ def add_parser(subparsers):
         description="Photon pass with PAR/red/far-red bands: ground maps (PNG + npz), per-leaf "
                     "values (CSV) and summary.json. SCENE: scenario .toml, scene .xml, or "
                     "'sphere-tree' (built-in test tree under daylight).")
-    from mitsuba_veg.cliargs import add_out, add_photons, add_quiet, add_set, ranged
+    from mitsuba_veg.cliargs import add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
     p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
     add_photons(p, 2_000_000)
     p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1), default=0, help="random seed")
     p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"), default=8,
                    help="bounces per photon")
     p.add_argument("--no-indirect", action="store_true", help="first hits only")
-    p.add_argument("--when", metavar="ISO-DATETIME",
+    p.add_argument("--when", metavar="ISO-DATETIME", type=iso_datetime,
                    help="daylight at this time, e.g. 2026-07-15T12:00:00+09:00 (scenario or "
                         "tree; default for trees: mid-July noon)")
     p.add_argument("--latitude", type=ranged(float, -90, 90, "deg"),

@@ -337,7 +337,7 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
 # ---- argparse -----------------------------------------------------------------------------------
 def add_parsers(subparsers) -> None:
     """Add ``render`` and ``animate`` to the ``mitsuba-veg`` sub-command parsers."""
-    from ..cliargs import add_quiet, ranged
+    from ..cliargs import add_quiet, iso_datetime, ranged
 
     def common(p, what, spp):
         p.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
@@ -362,7 +362,7 @@ def add_parsers(subparsers) -> None:
                    "scene or a [render.cameras.NAME] of the scenario (default overview,shelter)")
     r.add_argument("--day", type=ranged(int, 1, 100_000, "day"),
                    help="simulated day to show (default: the last)")
-    r.add_argument("--when", metavar="ISO-DATETIME",
+    r.add_argument("--when", metavar="ISO-DATETIME", type=iso_datetime,
                    help="date-time of the daylight, e.g. 2026-06-21T10:00:00+09:00 (default: "
                         "the day shown at --hour)")
     r.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
