@@ -10,8 +10,6 @@ SCENE is a Mitsuba XML file or a scenario TOML (which names the XML and the ligh
 """
 from __future__ import annotations
 
-import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -45,7 +43,7 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
     from .plots import irradiance_figure
     from .scenario import load_scenario
 
-    from .errors import ParameterError, SceneError
+    from .errors import ParameterError
     from .outputs import OutputFolder
     from .scenario import MAX_PHOTONS
     from .errors import check_range
@@ -81,8 +79,8 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         try:
             scene = mi.load_file(str(scene_path), optimize=False)
         except Exception as e:  # Mitsuba's parser names the XML problem
-            raise SceneError(f"SCENE = {scene_path}: Mitsuba could not load it: "
-                             f"{' '.join(str(e).split())[:400]}. Fix: correct the XML") from None
+            raise ParameterError("SCENE", str(scene_path), "a Mitsuba 3 XML scene that loads",
+                                 f"correct the XML: {' '.join(str(e).split())[:400]}") from None
     t_load = time.perf_counter() - t0
     folder = OutputFolder(out, "irradiance", info={"scene": str(scene_path)})
     for k, v in {"photons": photons, "seed": seed, "max_depth": max_depth,

@@ -22,7 +22,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ParameterError, SceneError, check_range
+from .errors import ParameterError
 
 #: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
 #: (more gains little: the estimate's noise falls as 1/sqrt(N) and a day has other errors)
@@ -351,8 +351,9 @@ class Scenario:
         try:
             scene = mi.load_file(str(path), optimize=False)
         except Exception as e:  # Mitsuba's own message names the XML problem
-            raise SceneError(f"{self.path}: scene.file = {path.name}: Mitsuba could not load it: "
-                             f"{e}") from None
+            raise ParameterError("scene.file", str(path), "a Mitsuba 3 XML scene that loads",
+                                 f"correct the XML: {' '.join(str(e).split())[:400]}",
+                                 str(self.path)) from None
         when = self.get("light.when")
         if daylight is False or (daylight is None and when is None):
             return scene

@@ -36,7 +36,7 @@ import numpy as np
 
 from . import soil as soil_model
 from .climate import ClimateTable, daily_weather, load_csv
-from .errors import MitsubaVegError, ParameterError, SceneError, check_range
+from .errors import MitsubaVegError, ParameterError, check_range
 from .integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 from .light.sunpath import day_sun_path
 from .moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
@@ -609,6 +609,12 @@ class MossSimulation:
         self.out.mkdir(parents=True, exist_ok=True)
         self.setup()
         resumed = resume and self.load_checkpoint()
+        # half-written files of a process killed while writing (the real files are replaced
+        # atomically, so these are never read)
+        for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
+                        "snapshots/.day_*.tmp.npz", "days.tmp.gif"):
+            for q in self.out.glob(pattern):
+                q.unlink()
         if not resumed:
             # a run that starts at day 0 owns the folder: maps, snapshots, renders and the GIF
             # of an earlier run would otherwise be shown as this run's

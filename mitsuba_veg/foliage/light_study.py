@@ -221,8 +221,8 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
     try:
         return mi.load_file(str(p), optimize=False), None, info
     except Exception as e:  # Mitsuba's parser names the XML problem
-        raise SceneError(f"SCENE = {p}: Mitsuba could not load it: "
-                         f"{' '.join(str(e).split())[:400]}. Fix: correct the XML") from None
+        raise ParameterError("SCENE", str(p), "a Mitsuba 3 XML scene that loads",
+                             f"correct the XML: {' '.join(str(e).split())[:400]}") from None
 
 
 def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, seed: int = 0,

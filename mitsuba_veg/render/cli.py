@@ -13,7 +13,6 @@ writes ``frames/frame_NNNN.png``, ``animation.mp4`` (H.264, ffmpeg), ``animation
 from __future__ import annotations
 
 import gc
-import json
 import os
 import shutil
 import subprocess
@@ -73,7 +72,7 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
     light (default: that day at ``hour``, 10:00 local); ``trees``: a list of Tree to add
     instead of the scenario's ``[[render.trees]]``. Returns the summary written to
     ``render.json``."""
-    from . import RenderOptions, build_scene, load_run, render, write_outputs
+    from . import RenderOptions, load_run
     from .scene import Terrain
 
     from ..outputs import OutputFolder

@@ -34,7 +34,6 @@ queries, or every cast of the ``mitsuba`` engine), versions, files).
 """
 from __future__ import annotations
 
-import json
 import os
 import time
 import tomllib
