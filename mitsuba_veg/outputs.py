@@ -214,7 +214,7 @@ class DayFrames:
         sl = idx.shape_slice(ground)
         v, f = idx.geometry[ground]
         counts = sim._counts()
-        cover = np.minimum(counts * sim.grid_cell() ** 2 / idx.areas, 1.0)
+        cover = np.minimum(counts * sim.grid_cell() ** 2 / np.maximum(idx.areas, 1e-30), 1.0)
         last = sim.last
         fig, axs = plt.subplots(1, 4, figsize=(17, 4.1), constrained_layout=True)
         plan_map(axs[0], v, f, cover[sl], title="moss cover (fraction of each triangle)",

@@ -177,6 +177,8 @@ class MossSimulation:
         d = {"type": "scene"}
         for sh in base.shapes():
             d[sh.id()] = sh
+        self.terrain_shapes = [sh.id() for sh in base.shapes() if sh.is_mesh()]
+        d.update(self._extra_shapes(base))
         d["sun"] = {"type": "veg_sun_path", "id": "sun"}
         d["sky"] = {"type": "veg_sky", "id": "sky", "distribution": "uniform",
                     "radiance": {"type": "uniform", "value": 1.0 / np.pi}}
@@ -202,7 +204,15 @@ class MossSimulation:
         self.history: list[dict] = []
         self.day = 0
         self._moss_version = 0
+        self._setup_extra()
         self.timings["setup"] += time.perf_counter() - t0
+
+    def _extra_shapes(self, base) -> dict:
+        """Shapes added to the light scene besides the scenario's (a world adds its trees)."""
+        return {}
+
+    def _setup_extra(self) -> None:
+        """Set-up after the scene, terrain and population exist (a world: its canopy)."""
 
     def _setup_terrain(self):
         src = str(self.scn.path)
@@ -227,7 +237,7 @@ class MossSimulation:
         self.h = np.ones(n)
         geo_over = self.scn.get("terrain.geology", {}) or {}
         depth_over = self.scn.get("terrain.soil_depth_mm", {}) or {}
-        living = self.moss_cfg["shapes"] or [s for s in idx.shape_ids if s in idx.geometry]
+        living = self.moss_cfg["shapes"] or [s for s in self.terrain_shapes if s in idx.geometry]
         self.living = np.zeros(n, bool)
         for sid in idx.shape_ids:
             if sid not in idx.geometry:
@@ -282,6 +292,8 @@ class MossSimulation:
         from .integrators.photon_irradiance import BANDS as B
         lam = [0.5 * (B[b][0] + B[b][1]) for b in BANDS]
         for sh in self.scene.shapes():
+            if sh.id() not in self.terrain_shapes:
+                continue  # only the terrain's albedo is replaced (moss cover)
             sl = self.index.shape_slice(sh.id())
             m = sl.stop - sl.start
             si = dr.zeros(mi.SurfaceInteraction3f, m)
@@ -322,10 +334,11 @@ class MossSimulation:
         dirs, w, _ = day_sun_path(float(self.scn.get("site.latitude")),
                                   float(self.scn.get("site.longitude")), self._date(day))
         self.sun.set_day(dirs, w)
-        cover = np.minimum(counts * self.grid_cell() ** 2 / self.index.areas, 1.0)[:, None]
+        cover = np.minimum(counts * self.grid_cell() ** 2 / np.maximum(self.index.areas, 1e-30),
+                           1.0)[:, None]
         albedo = (1 - cover) * self.base_albedo + cover * np.asarray(self.moss_cfg["albedo"])[None]
         refl = {}
-        for sid in self.index.shape_ids:
+        for sid in self.terrain_shapes:  # trees keep their BSDFs (leaves transmit)
             sl = self.index.shape_slice(sid)
             if sid in self.index.geometry:
                 refl[sid] = albedo[sl]
@@ -561,6 +574,7 @@ class MossSimulation:
 
     def save_checkpoint(self):
         d = self.pop.to_numpy()
+        d.update(self._checkpoint_extra())
         d.update({"day": np.array(self.day), "O": self.O,
                   "history": np.array(json.dumps(self.history)),
                   "timings": np.array(json.dumps(self.timings)),
@@ -568,6 +582,13 @@ class MossSimulation:
         tmp = self.out / "checkpoint.tmp.npz"
         np.savez_compressed(tmp, **d)
         os.replace(tmp, self.checkpoint_path)
+
+    def _checkpoint_extra(self) -> dict:
+        """Arrays of the state beyond soil and moss (a world: its leaves)."""
+        return {}
+
+    def _load_extra(self, d: dict) -> None:
+        """Restore what :meth:`_checkpoint_extra` saved."""
 
     def _fingerprint(self) -> str:
         """What must match for a checkpoint to be resumed: the settings of the run."""
@@ -595,6 +616,7 @@ class MossSimulation:
                                  f"pass --days {day} or more to resume, or --fresh to start "
                                  "over with fewer days")
         self.pop.load_numpy(d)
+        self._load_extra(d)
         self.grid.rebuild(self.pop.pos, self.pop.state)
         self._moss_version += 1
         self.day = int(d["day"])
@@ -722,7 +744,11 @@ def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: 
     scenario's ``simulation.frame_every``)."""
     from .outputs import RUN_OUTPUTS, DayFrames, OutputFolder, SnapshotWriter, write_summary
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
-    sim = MossSimulation(scn, out, days=days, progress=progress)
+    if scn.get("trees"):
+        from .world import WorldSimulation
+        sim = WorldSimulation(scn, out, days=days, progress=progress)
+    else:
+        sim = MossSimulation(scn, out, days=days, progress=progress)
     with OutputFolder(out, "run", info={"scenario": str(scn.path)}) as folder:
         if not resume:
             folder.clear(RUN_OUTPUTS)

@@ -102,17 +102,32 @@ def autumn_time(daily_insolation, params: AutumnParams = AutumnParams(), seed=0)
         raise ParameterError("daily_insolation", "negative or non-finite values",
                              "finite values >= 0 [MJ m-2]")
     n, nd = daily.shape
-    rng = np.random.default_rng(seed)
-    rate = np.exp(params.rate_sigma * rng.standard_normal(n))
-    fall_thr = (params.fall_tau * np.exp(params.fall_sigma * rng.standard_normal(n))
-                if params.fall else np.full(n, np.inf))
+    rate, fall_thr = leaf_factors(n, params, seed)
     d = np.arange(nd)
     after = d >= params.onset_day
     H = np.cumsum(np.where(after[None, :], daily, 0.0), axis=1)
     t = np.where(after, d - params.onset_day + 1, 0).astype(float)
-    raw = rate[:, None] * ((1 - params.time_weight) * H / params.insolation_full
-                           + params.time_weight * t[None, :] / params.days_full)
+    raw = tau_raw(H, t[None, :], rate[:, None], params)
     return AutumnState(raw, rate, fall_thr, params)
+
+
+def tau_raw(H, days_since_onset, rate, params: AutumnParams):
+    """The unclipped logical time of the module docstring, τ_raw = ξ [(1 − β) H / H_full +
+    β t / D_full], from the insolation H summed since the onset [MJ m-2] and the days t since
+    the onset (onset day = 1). Arrays broadcast."""
+    return rate * ((1 - params.time_weight) * np.asarray(H, float) / params.insolation_full
+                   + params.time_weight * np.asarray(days_since_onset, float)
+                   / params.days_full)
+
+
+def leaf_factors(n: int, params: AutumnParams, seed=0) -> tuple[np.ndarray, np.ndarray]:
+    """Per-leaf rate factors ξ and fall thresholds φ (inf without leaf fall), drawn as
+    :func:`autumn_time` draws them."""
+    rng = np.random.default_rng(seed)
+    rate = np.exp(params.rate_sigma * rng.standard_normal(n))
+    fall_thr = (params.fall_tau * np.exp(params.fall_sigma * rng.standard_normal(n))
+                if params.fall else np.full(n, np.inf))
+    return rate, fall_thr
 
 
 def params_dict(p: AutumnParams) -> dict:

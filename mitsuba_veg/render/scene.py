@@ -34,6 +34,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, SceneError
+from ..meshes import make_mesh  # noqa: F401 (re-exported)
 from . import materials as mat
 from .moss import MossSet, growth_scale, place_tufts
 from .noise import pink_noise_image
@@ -140,30 +141,6 @@ class RenderScene:
 
 
 # ---- meshes ------------------------------------------------------------------------------------
-def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
-              attributes: dict | None = None) -> mi.Mesh:
-    """An in-memory Mitsuba mesh (float32 vertices, uint32 faces) with optional UVs, vertex
-    normals, a BSDF (dict or object) and per-vertex float attributes (``vertex_<name>``)."""
-    v = np.ascontiguousarray(np.asarray(vertices, np.float32).reshape(-1, 3))
-    f = np.ascontiguousarray(np.asarray(faces, np.uint32).reshape(-1, 3))
-    props = mi.Properties()
-    if bsdf is not None:
-        props["bsdf"] = bsdf if isinstance(bsdf, mi.BSDF) else mi.load_dict(bsdf)
-    m = mi.Mesh(name, len(v), len(f), props, has_vertex_normals=normals is not None,
-                has_vertex_texcoords=uv is not None)
-    p = mi.traverse(m)
-    p["vertex_positions"] = mi.Float(v.ravel())
-    p["faces"] = mi.UInt32(f.ravel())
-    if uv is not None:
-        p["vertex_texcoords"] = mi.Float(np.asarray(uv, np.float32).ravel())
-    if normals is not None:
-        p["vertex_normals"] = mi.Float(np.asarray(normals, np.float32).ravel())
-    p.update()
-    for k, a in (attributes or {}).items():
-        m.add_attribute(k, 1, mi.Float(np.asarray(a, np.float32).ravel()))
-    return m
-
-
 def _mesh_arrays(shape):
     p = mi.traverse(shape)
     v = np.asarray(p["vertex_positions"], np.float32).reshape(-1, 3)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
+from ..trees.structure import scaled_tree  # noqa: F401 (re-exported)
 from . import materials as mat
 
 
@@ -219,28 +220,6 @@ def simple_tree(height: float = 3.0, seed: int = 0, leaves_per_twig: int = 12):
     leaves = Leaves(np.array(pos), np.array(nrm), np.array(size), np.array(seg), np.array(up))
     return Tree(np.array(start), np.array(end), np.array(r0), np.array(r1), np.array(parent),
                 np.array(level), leaves=leaves, name="simple")
-
-
-def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
-    """A copy of ``tree`` scaled about its base by ``factor`` and moved by ``offset`` [m]."""
-    t = tree.copy()
-    base = t.start[0].copy() if len(t) else np.zeros(3)
-    o = np.asarray(offset, float)
-    t.start = (t.start - base) * factor + base + o
-    t.end = (t.end - base) * factor + base + o
-    t.radius_start = t.radius_start * factor
-    t.radius_end = t.radius_end * factor
-    lv = t.leaves
-    lv.position = (lv.position - base) * factor + base + o
-    lv.size = lv.size * factor
-    if "width" in lv.attrs:
-        lv.attrs["width"] = np.asarray(lv.attrs["width"]) * factor
-    for k in ("leaf_sphere_center",):
-        if k in t.attrs:
-            t.attrs[k] = (np.asarray(t.attrs[k]) - base) * factor + base + o
-    if getattr(tree, "weber_penn", None) is not None:
-        t.weber_penn = tree.weber_penn
-    return t
 
 
 def make_tree(cfg: dict, source: str | None = None):

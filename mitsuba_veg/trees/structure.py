@@ -240,6 +240,28 @@ class Tree:
         return path
 
 
+def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
+    """A copy of ``tree`` scaled about its base by ``factor`` and moved by ``offset`` [m]."""
+    t = tree.copy()
+    base = t.start[0].copy() if len(t) else np.zeros(3)
+    o = np.asarray(offset, float)
+    t.start = (t.start - base) * factor + base + o
+    t.end = (t.end - base) * factor + base + o
+    t.radius_start = t.radius_start * factor
+    t.radius_end = t.radius_end * factor
+    lv = t.leaves
+    lv.position = (lv.position - base) * factor + base + o
+    lv.size = lv.size * factor
+    if "width" in lv.attrs:
+        lv.attrs["width"] = np.asarray(lv.attrs["width"]) * factor
+    for k in ("leaf_sphere_center",):
+        if k in t.attrs:
+            t.attrs[k] = (np.asarray(t.attrs[k]) - base) * factor + base + o
+    if getattr(tree, "weber_penn", None) is not None:
+        t.weber_penn = tree.weber_penn
+    return t
+
+
 def segment_depth(parent) -> np.ndarray:
     """Ancestor count per segment for a parents-first ``parent`` array."""
     parent = np.asarray(parent, np.int64)

@@ -1,0 +1,144 @@
+"""Leaf phenology of the world's trees, day by day: leaf-out, autumn colour, leaf fall.
+
+Each leaf i carries (all NumPy arrays over the leaves, updated by one vectorised step a day):
+
+- **leaf-out** (spring; documented parameters, not from the papers): leaves grow from nothing to
+  full size between day of year ``leaf_out_doy`` and ``leaf_out_doy + leaf_out_days`` (a
+  smoothstep of the blade size). Leaves that fell the year before come back then, green
+  (stage 1), their autumn clock reset.
+- **autumn** (paper 003 §3.3, :mod:`mitsuba_veg.foliage.autumn`): from day of year
+  ``autumn_onset_doy`` the leaf's insolation H_i [MJ m-2] accumulates the light it received
+  that day **in the world's photon pass** (the same pass that lights the terrain); the logical
+  time τ_raw = ξ_i [(1 − β) H_i / H_full + β t / D_full] (t: days since the onset), τ = clip(τ_raw,
+  0, 1) and the Ishikura stage = 1 + 6 τ.
+- **leaf fall**: a leaf falls when τ_raw reaches its threshold φ_i (log-normal around
+  ``fall_tau``); a fallen leaf no longer blocks light (its blade is collapsed in the light
+  scene) until it grows again next spring.
+
+Before the first leaf-out of a run that starts in winter or early spring the trees are bare.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..errors import check_range
+from ..foliage.autumn import AutumnParams, leaf_factors, tau_raw
+from ..foliage.pigments import stage_from_tau
+
+
+@dataclass(frozen=True)
+class PhenologyParams:
+    """Scenario ``[phenology]`` (days of year are 1-366)."""
+
+    leaf_out_doy: int = 95          # first day of leaf-out (early April)
+    leaf_out_days: int = 30         # days from bud to full blade
+    autumn_onset_doy: int = 258     # mid-September: the abscission layer forms
+    insolation_full: float = 250.0  # H_full [MJ m-2] (paper 003 §3.3, AutumnParams)
+    time_weight: float = 0.2        # β [-]
+    days_full: float = 60.0         # D_full [days]
+    rate_sigma: float = 0.15        # log-sd of ξ
+    fall_tau: float = 1.25          # median τ_raw at which a leaf falls
+    fall_sigma: float = 0.1         # log-sd of φ
+
+    def validate(self, source: str | None = None) -> "PhenologyParams":
+        check_range("phenology.leaf_out_doy", self.leaf_out_doy, 1, 366, source=source)
+        check_range("phenology.leaf_out_days", self.leaf_out_days, 1, 180, source=source)
+        check_range("phenology.autumn_onset_doy", self.autumn_onset_doy, 1, 366, source=source)
+        self.autumn().validate()
+        return self
+
+    def autumn(self) -> AutumnParams:
+        return AutumnParams(insolation_full=self.insolation_full, time_weight=self.time_weight,
+                            days_full=self.days_full, rate_sigma=self.rate_sigma,
+                            pigment_sigma=0.0, fall=True, fall_tau=self.fall_tau,
+                            fall_sigma=self.fall_sigma)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class Phenology:
+    """The state of ``n`` leaves (see the module docstring); :meth:`step` advances one day."""
+
+    FIELDS = ("H", "t", "tau_raw", "fallen", "grown", "rate", "fall_threshold")
+
+    def __init__(self, n: int, params: PhenologyParams = PhenologyParams(), seed: int = 0,
+                 leaf_out_shift: np.ndarray | None = None):
+        self.params = params
+        self.n = int(n)
+        self.autumn_params = params.autumn()
+        self.rate, self.fall_threshold = leaf_factors(self.n, self.autumn_params, seed)
+        # sunnier leaves unfold a few days earlier (leaf_out_shift [days], <= 0)
+        self.shift = np.zeros(self.n) if leaf_out_shift is None else \
+            np.asarray(leaf_out_shift, float)
+        self.H = np.zeros(self.n)           # insolation since the onset [MJ m-2]
+        self.t = np.zeros(self.n)           # days since the onset
+        self.tau_raw = np.zeros(self.n)
+        self.fallen = np.zeros(self.n, bool)
+        self.grown = np.zeros(self.n)       # blade size 0..1 (leaf-out)
+
+    # ---- one day ------------------------------------------------------------------------
+    def start_of_day(self, date: _dt.date) -> None:
+        """Leaf-out (blade size) for ``date``; a new leaf-out season resets last year's
+        autumn (fallen leaves grow again, green)."""
+        p = self.params
+        doy = date.timetuple().tm_yday
+        x = np.clip((doy - (p.leaf_out_doy + self.shift)) / p.leaf_out_days, 0.0, 1.0)
+        if doy == p.leaf_out_doy:
+            new = self.fallen | (self.tau_raw > 0)
+            self.H[new] = 0.0
+            self.t[new] = 0.0
+            self.tau_raw[new] = 0.0
+            self.fallen[new] = False
+        grown = x * x * (3 - 2 * x)
+        # after midsummer a leaf keeps its full size until it falls (no shrinking in autumn)
+        self.grown = np.where(doy > p.leaf_out_doy + p.leaf_out_days, np.maximum(self.grown,
+                                                                                 grown), grown)
+        self.grown = np.where(self.fallen, 0.0, self.grown)
+
+    def end_of_day(self, date: _dt.date, insolation_mj: np.ndarray) -> np.ndarray:
+        """Add the day's insolation of each leaf [MJ m-2] (after the autumn onset), update τ and
+        leaf fall. Returns the leaves that fell today (bool)."""
+        doy = date.timetuple().tm_yday
+        p = self.params
+        autumn = doy >= p.autumn_onset_doy or doy < p.leaf_out_doy
+        if not autumn:
+            return np.zeros(self.n, bool)
+        on = (self.grown > 0) & ~self.fallen
+        self.H = self.H + np.where(on, np.maximum(insolation_mj, 0.0), 0.0)
+        self.t = self.t + on
+        self.tau_raw = np.where(on, tau_raw(self.H, self.t, self.rate, self.autumn_params),
+                                self.tau_raw)
+        fell = on & (self.tau_raw >= self.fall_threshold)
+        self.fallen |= fell
+        self.grown = np.where(self.fallen, 0.0, self.grown)
+        return fell
+
+    # ---- views --------------------------------------------------------------------------
+    @property
+    def tau(self) -> np.ndarray:
+        return np.clip(self.tau_raw, 0.0, 1.0)
+
+    @property
+    def stage(self) -> np.ndarray:
+        """Continuous Ishikura stage 1..7 per leaf."""
+        return stage_from_tau(self.tau)
+
+    @property
+    def on_tree(self) -> np.ndarray:
+        """Leaves that are out and have not fallen."""
+        return (self.grown > 1e-3) & ~self.fallen
+
+    # ---- checkpoints --------------------------------------------------------------------
+    def to_numpy(self, prefix: str = "phen_") -> dict:
+        return {prefix + k: np.asarray(getattr(self, k)) for k in self.FIELDS}
+
+    def load_numpy(self, d: dict, prefix: str = "phen_") -> None:
+        for k in self.FIELDS:
+            v = np.asarray(d[prefix + k])
+            if v.shape != (self.n,):
+                raise ValueError(f"{prefix + k}: {v.shape} != ({self.n},)")
+            setattr(self, k, v.copy())

@@ -1,0 +1,235 @@
+"""One living world: terrain, buildings, trees, foliage and moss in one daily photon loop.
+
+A scenario with ``[[trees]]`` runs this loop (:func:`mitsuba_veg.run` chooses it). Each day:
+
+1. **leaves** — phenology (:mod:`.phenology`): leaf-out in spring, the leaves' autumn stage from
+   their accumulated light, leaf fall; the canopy's meshes follow (:mod:`.canopy`: a leaf is
+   shown in the mesh of its stage with that stage's PROSPECT-D reflectance and transmittance, or
+   collapsed once fallen);
+2. **light** — one photon pass over terrain, buildings, wood and leaves (the day's sun path and
+   the sky, as in the moss loop): per-triangle irradiance of the terrain **and** the light on
+   every leaf from the same pass. Bands total, PAR, red and far-red; the unit-spectrum emitters
+   are scaled per band by the day's clear-sky beam and diffuse spectra (SPCTRAL2 at the noon
+   sun) and the climate's beam and diffuse irradiance, so PAR [W m-2] and the red:far-red
+   photon ratio under the crowns are those of daylight filtered by the leaves;
+3. **soil and moss** — as in paper 000's loop, under the trees' shade;
+4. the day's leaf insolation S_leaf [W m-2] x 86 400 s advances each leaf's autumn clock.
+
+Per day the record adds, per tree: leaves on the tree, mean stage, absorbed PAR [W], the
+ground's PAR and red:far-red under its crown; and the ground's PAR and R:FR in the open.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..light.daylight import clear_sky_spectra
+from ..simulation import BANDS, MossSimulation
+from .canopy import Canopy
+from .phenology import Phenology, PhenologyParams
+from .trees import build_trees
+
+_H_C = 6.62607015e-34 * 2.99792458e8
+_CENTRE_NM = {"red": 660.0, "far_red": 730.0, "par": 550.0, "total": 595.0}
+
+
+def band_shapes(latitude: float, day_of_year: int) -> dict:
+    """Band-mean spectral irradiance per W m-2 of broadband (300-4000 nm) irradiance [nm-1] of
+    clear-sky beam and diffuse light at the day's noon sun (SPCTRAL2): ``{"beam": {band: s},
+    "diffuse": {...}}``. Multiplied by a broadband daily mean [W m-2] they give the band-mean
+    spectral irradiance [W m-2 nm-1]."""
+    from ..light.photon import band_range
+    dec = 23.45 * np.sin(np.radians(360.0 * (284 + day_of_year) / 365.0))
+    el = float(np.clip(90.0 - abs(latitude - dec), 1.0, 90.0))
+    s = clear_sky_spectra(el, day_of_year=day_of_year)
+    out = {}
+    for comp, arr in (("beam", s.dni), ("diffuse", s.dhi)):
+        total = float(np.trapezoid(arr, s.wavelengths))
+        out[comp] = {}
+        for b in BANDS:
+            lo, hi = band_range(b)
+            m = (s.wavelengths >= lo) & (s.wavelengths <= hi)
+            out[comp][b] = float(arr[m].mean()) / total if total > 0 else 0.0
+    return out
+
+
+class WorldSimulation(MossSimulation):
+    """The moss loop of paper 000 with the scenario's trees in the light (module docstring)."""
+
+    def __init__(self, scenario, out_dir, days=None, progress=True):
+        super().__init__(scenario, out_dir, days=days, progress=progress)
+        src = str(scenario.path)
+        ph = dict(scenario.get("phenology", {}) or {})
+        bins = int(ph.pop("stage_bins", 4))
+        try:
+            self.phen_params = PhenologyParams(**ph).validate(src)
+        except ParameterError as e:
+            if e.source:
+                raise
+            raise ParameterError(f"phenology.{e.field}", e.value, e.allowed, e.fix,
+                                 src) from None
+        self.stage_bins = bins
+        self.timings["leaves"] = 0.0
+
+    # ---- set-up -------------------------------------------------------------------------
+    def _extra_shapes(self, base) -> dict:
+        t0 = time.perf_counter()
+        self.trees = build_trees(self.scn.get("trees"), base, self.scn.root,
+                                 str(self.scn.path), progress=False)
+        self.tree_seconds = time.perf_counter() - t0
+        self.canopy = Canopy(self.trees, self.stage_bins)
+        return self.canopy.shapes()
+
+    def _setup_extra(self) -> None:
+        import mitsuba as mi
+        self.params = mi.traverse(self.scene)
+        c = self.canopy
+        # sunnier (higher, outer) leaves unfold a few days earlier
+        shift = np.zeros(c.n_leaves)
+        for t_i, wt in enumerate(self.trees):
+            m = c.tree_of == t_i
+            if m.any():
+                p = c.centre[m]
+                h = (p[:, 1] - p[:, 1].min()) / max(float(np.ptp(p[:, 1])), 1e-9)
+                shift[m] = -4.0 * h
+        self.phen = Phenology(c.n_leaves, self.phen_params, seed=self.seed, leaf_out_shift=shift)
+        # ground triangles under each crown (centroid within the crown radius of the trunk)
+        ground = self.scn.get("terrain.ground", "ground")
+        sl = self.index.shape_slice(ground)
+        cen = self.index.centroids[sl]
+        self.ground_slice = sl
+        self.crowns = []
+        for wt in self.trees:
+            r = wt.crown_radius()
+            d = np.hypot(cen[:, 0] - wt.position[0], cen[:, 2] - wt.position[2])
+            self.crowns.append(d <= max(0.75 * r, 1e-6))
+        self.open_ground = ~np.any(self.crowns, axis=0) if self.crowns else \
+            np.ones(len(cen), bool)
+        self.leaf_light = {"S": np.zeros(c.n_leaves), "par_W_m2": np.zeros(c.n_leaves)}
+        self.ground_bands = {}
+
+    # ---- a day --------------------------------------------------------------------------
+    def step(self) -> dict:
+        t0 = time.perf_counter()
+        date = self._date(self.day)
+        self.phen.start_of_day(date)
+        self.canopy.update(self.scene, self.params, self.phen.tau, self.phen.grown,
+                           self.phen.on_tree)
+        self.timings["leaves"] += time.perf_counter() - t0
+        self._leaf_seconds = time.perf_counter() - t0
+        return super().step()
+
+    def light(self, day: int, counts: np.ndarray):
+        S, f_sun, f_sky, res = super().light(day, counts)
+        t0 = time.perf_counter()
+        date = self._date(day)
+        wd = self.weather
+        shapes = band_shapes(float(self.scn.get("site.latitude")), date.timetuple().tm_yday)
+        B, D = float(wd.beam[day]), float(wd.diffuse[day])
+        from ..light.photon import band_range
+        c = self.canopy
+        # the blades as they were in the pass (grown from their centres during leaf-out)
+        area = np.maximum(c.area * self.phen.grown ** 2 * self.phen.on_tree, 1e-12)
+        width = {b: band_range(b)[1] - band_range(b)[0] for b in BANDS}
+        # unit emitters: 1 W m-2 nm-1 horizontal -> fraction g = E / width
+        ie = [res.emitters.index("sun"), res.emitters.index("sky")]
+        both = res.flux[ie].sum(axis=(2, 3))                 # (2, n_el, n_b): both sides
+        if not hasattr(self, "_leaf_elements"):
+            self._leaf_elements = c.leaf_elements(res.index)
+        lf = c.leaf_flux(np.moveaxis(both, 0, 1), self._leaf_elements)   # (n_leaves, 2, n_b)
+        gsl = self.ground_slice
+        front = res.flux[ie][:, gsl].sum(axis=2)[:, :, 0]    # (2, n_ground, n_b): front side
+        garea = np.maximum(self.index.areas[gsl], 1e-30)
+        leaf, ground, ground_sky = {}, {}, {}
+        for k, b in enumerate(res.bands):
+            w = width[b]
+            sb, sd = B * shapes["beam"][b], D * shapes["diffuse"][b]
+            # band-mean spectral irradiance [W m-2 nm-1] x band width -> [W m-2]
+            leaf[b] = (sb * lf[:, 0, k] + sd * lf[:, 1, k]) / area
+            ground[b] = (sb * front[0, :, k] + sd * front[1, :, k]) / garea
+            ground_sky[b] = sd * front[1, :, k] / garea
+        # the leaves' insolation as the terrain's S (total band, flat unit spectrum)
+        kt = res.bands.index("total")
+        S_leaf = (B * lf[:, 0, kt] + D * lf[:, 1, kt]) / area / width["total"]
+        self.leaf_light = {"S": S_leaf, "par_W_m2": leaf["par"], "red_W_m2": leaf["red"],
+                           "far_red_W_m2": leaf["far_red"]}
+        self.ground_bands = ground
+        self.ground_sky_bands = ground_sky
+        self.leaf_area_in_pass = np.where(self.phen.on_tree, c.area * self.phen.grown ** 2, 0.0)
+        self.phen.end_of_day(date, S_leaf * 86400.0 / 1e6)
+        dt = time.perf_counter() - t0
+        self.timings["leaves"] += dt
+        self.timings["light"] -= dt   # counted as leaves, not as the photon pass
+        self.last_result = res
+        return S, f_sun, f_sky, res
+
+    # ---- records ------------------------------------------------------------------------
+    def _record(self, day, S, st, theta, events, secs) -> dict:
+        rec = super()._record(day, S, st, theta, events, secs)
+        c, ph = self.canopy, self.phen
+        on = ph.on_tree
+        from ..foliage import leaf_spectra
+        # PAR absorptance per leaf from its stage's spectra (bin centres, as the light scene)
+        bins = c.leaf_bins(ph.tau)
+        a_par = np.zeros(c.n_leaves)
+        for b in np.unique(bins):
+            R, T = leaf_spectra(stage=c.bin_stage(int(b))).band_mean(400, 700)
+            a_par[bins == b] = 1.0 - float(R) - float(T)
+        absorbed = self.leaf_light["par_W_m2"] * self.leaf_area_in_pass * a_par
+        area = self.index.areas[self.ground_slice]
+        g, gs = self.ground_bands, self.ground_sky_bands
+
+        def rfr(bands, mask, w):
+            red = float((bands["red"][mask] * w).sum()) * _CENTRE_NM["red"]
+            fr = float((bands["far_red"][mask] * w).sum()) * _CENTRE_NM["far_red"]
+            return red / fr if fr > 0 else None
+
+        def ground_stats(mask):
+            if not mask.any():
+                return {"area_m2": 0.0, "par_W_m2": None, "red_far_red": None,
+                        "red_far_red_sky": None}
+            w = area[mask]
+            return {"area_m2": float(w.sum()),
+                    "par_W_m2": float((g["par"][mask] * w).sum() / w.sum()),
+                    "red_far_red": rfr(g, mask, w), "red_far_red_sky": rfr(gs, mask, w)}
+
+        trees = {}
+        for t_i, wt in enumerate(self.trees):
+            m = c.tree_of == t_i
+            mo = m & on
+            trees[wt.name] = {
+                "leaves": int(m.sum()), "leaves_on_tree": int(mo.sum()),
+                "mean_stage": float(ph.stage[mo].mean()) if mo.any() else None,
+                "absorbed_par_W": float(absorbed[m].sum()),
+                "ground_under_crown": ground_stats(self.crowns[t_i])}
+        rec["trees"] = trees
+        rec["ground_open"] = ground_stats(self.open_ground)
+        rec["seconds"]["leaves"] = getattr(self, "_leaf_seconds", 0.0)
+        return rec
+
+    # ---- checkpoints --------------------------------------------------------------------
+    def _checkpoint_extra(self) -> dict:
+        return self.phen.to_numpy()
+
+    def _load_extra(self, d: dict) -> None:
+        try:
+            self.phen.load_numpy(d)
+        except (KeyError, ValueError) as e:
+            raise ParameterError("checkpoint", str(self.checkpoint_path), "a checkpoint of the "
+                                 "same world (its leaves)", f"use --fresh ({e})") from None
+
+    def summary(self, resumed=False) -> dict:
+        s = super().summary(resumed)
+        s["world"] = {"trees": [{"name": wt.name, "model": wt.model,
+                                 "position": wt.position.tolist(),
+                                 "leaves": int(len(wt.leaf_area)),
+                                 "crown_radius_m": wt.crown_radius(), **wt.info}
+                                for wt in self.trees],
+                      "leaf_elements": int(self.canopy.n_leaves),
+                      "stage_bins": self.stage_bins,
+                      "phenology": self.phen_params.to_dict(),
+                      "trees_built_s": getattr(self, "tree_seconds", 0.0)}
+        s["timings_s"]["per_day"]["leaves"] = self.timings["leaves"] / max(len(self.history), 1)
+        return s

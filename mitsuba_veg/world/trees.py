@@ -1,0 +1,169 @@
+"""The trees of a world scenario (``[[trees]]``): part of the simulated world, not decoration.
+
+Each entry is one tree at ``position`` [m] (trunk base):
+
+- ``model = "growth"``: grown by paper 001's model **in the scene's light**: the scene's meshes
+  (terrain, buildings) and the trees built before it are obstacles of its sky light, so a tree
+  beside a wall grows away from it. ``generations``, ``[trees.growth]`` (GrowthParams fields;
+  ``unit`` [m] sets the size), ``seed``.
+- ``model = "weber_penn"``: a Weber-Penn preset (paper 004, with knots and smooth junctions),
+  ``preset``, ``seed``, ``overrides`` (Weber-Penn parameters), ``height`` [m] to scale it;
+  ``adapt = true`` deforms it by paper 002's non-growth rules (branch death, heliotropism) in
+  the voxel light of the scene's meshes and the other trees.
+- ``model = "mesh"``: a user's own tree: ``file`` (PLY/OBJ/GLB, read by trimesh) is the wood,
+  ``leaves_file`` the foliage (each triangle one leaf element); ``scale`` multiplies both.
+
+Trees are built in the order of the entries; every tree is an obstacle for the ones after it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..trees.structure import Tree, leaf_quads, scaled_tree, tube_mesh
+
+MODELS = ("growth", "weber_penn", "mesh")
+
+
+@dataclass
+class WorldTree:
+    """One tree of the world: its name, model, wood mesh and leaf blades.
+
+    ``leaf_vertices`` (m, k, 3): the k corners of each leaf element's blade (quads from a Tree's
+    leaves, triangles from a user's mesh); ``leaf_centre`` (m, 3) [m]; ``leaf_area`` (m,) [m2].
+    """
+
+    name: str
+    model: str
+    position: np.ndarray
+    bark: tuple                      # (vertices (n, 3), faces (f, 3))
+    leaf_vertices: np.ndarray
+    leaf_area: np.ndarray
+    tree: Tree | None = None         # the branch structure (growth / Weber-Penn)
+    info: dict = field(default_factory=dict)
+
+    @property
+    def leaf_centre(self) -> np.ndarray:
+        return self.leaf_vertices.mean(axis=1)
+
+    def crown_radius(self) -> float:
+        """Horizontal radius of the crown around the trunk [m] (90th percentile of the leaves'
+        distances)."""
+        c = self.leaf_centre
+        if len(c) == 0:
+            return 0.0
+        d = np.hypot(c[:, 0] - self.position[0], c[:, 2] - self.position[2])
+        return float(np.percentile(d, 90))
+
+
+def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
+    a = tree.alive if tree.alive is not None else np.ones(len(tree), bool)
+    if getattr(tree, "weber_penn", None) is not None:
+        from ..trees.junction import tree_mesh
+        b, _ = tree_mesh(tree, smooth=True, leaves=False)
+        bark = (np.asarray(b.vertices, float), np.asarray(b.faces, np.int64))
+    else:
+        bark = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], 6)
+    if len(tree.leaves):
+        v, _f = leaf_quads(tree.leaves)
+        quads = np.asarray(v, float).reshape(-1, 4, 3)
+        area = 0.6 * tree.leaves.size ** 2          # quad: length x 0.6 length
+    else:
+        quads, area = np.zeros((0, 4, 3)), np.zeros(0)
+    return WorldTree(name, model, np.asarray(position, float), bark, quads, area, tree, info)
+
+
+def _obstacles(base_scene, built: list[WorldTree]):
+    """Environment of the scene's meshes plus the trees built so far (wood and leaves)."""
+    from ..trees.environment import Environment
+    env = Environment.from_mitsuba(base_scene)
+    for wt in built:
+        env.add(wt.bark, name=f"{wt.name}.bark")
+        if len(wt.leaf_vertices):
+            k = wt.leaf_vertices.shape[1]
+            v = wt.leaf_vertices.reshape(-1, 3)
+            base = k * np.arange(len(wt.leaf_vertices))[:, None, None]
+            tri = np.array([[0, 1, 2]] if k == 3 else [[0, 1, 2], [0, 2, 3]])[None]
+            f = (base + tri).reshape(-1, 3)
+            env.add((v, f), name=f"{wt.name}.leaves", light_factor=0.5)
+    return env
+
+
+def build_trees(entries, base_scene, root: Path, source: str | None = None,
+                progress: bool = False) -> list[WorldTree]:
+    """Build the ``[[trees]]`` entries (already checked against the scenario schema) in order,
+    each in the light of the scene and of the trees before it."""
+    out: list[WorldTree] = []
+    for i, cfg in enumerate(entries or []):
+        name = str(cfg.get("name", f"tree{i}"))
+        field_ = f"trees[{i}]"
+        model = cfg.get("model", "weber_penn")
+        pos = np.asarray(cfg.get("position", [0.0, 0.0, 0.0]), float)
+        seed = int(cfg.get("seed", i))
+        if model == "growth":
+            from ..trees.growth import GrowthParams, grow
+            params = GrowthParams.from_dict(dict(cfg.get("growth", {}) or {}), source,
+                                            prefix=f"{field_}.growth.")
+            env = _obstacles(base_scene, out)
+            tree = grow(params, int(cfg.get("generations", 8)), pos, scene=env, seed=seed,
+                        progress=progress)
+            tree.drop_dead_leaves()
+            wt = _tree_to_world(name, model, tree, pos, {"generations": int(cfg.get(
+                "generations", 8)), "unit_m": params.unit})
+        elif model == "weber_penn":
+            from ..trees import weber_penn as wp
+            try:
+                tree = wp.generate(cfg.get("preset", "quaking_aspen"), seed=seed,
+                                   overrides=cfg.get("overrides"))
+            except ParameterError as e:
+                raise ParameterError(f"{field_}.{e.field}", e.value, e.allowed, e.fix,
+                                     source) from None
+            h = tree.metrics()["height"]
+            f = float(cfg["height"]) / h if cfg.get("height") and h > 0 else 1.0
+            base = tree.start[0] if len(tree) else np.zeros(3)
+            tree = scaled_tree(tree, f, pos - base)
+            info = {"preset": cfg.get("preset", "quaking_aspen"), "scale": f}
+            if cfg.get("adapt", False):
+                from ..trees.nongrowth import deform
+                res = deform([tree], _obstacles(base_scene, out), shade_from="leaves",
+                             voxel_size=float(cfg.get("voxel_size", 0.25)))
+                tree = res.trees[0]
+                info["nongrowth"] = [{k: s[k] for k in ("rule", "seconds") if k in s}
+                                     for s in res.stats]
+            wt = _tree_to_world(name, model, tree, pos, info)
+        elif model == "mesh":
+            wt = _mesh_tree(name, cfg, pos, root, field_, source)
+        else:  # the schema refuses other names; a direct caller gets the same message
+            raise ParameterError(f"{field_}.model", model, ", ".join(MODELS), None, source)
+        out.append(wt)
+    return out
+
+
+def _load_mesh(path: Path, field_: str, source):
+    import trimesh
+    if not path.is_file():
+        raise ParameterError(field_, str(path), "an existing PLY/OBJ/GLB file (relative to the "
+                             "scenario)", "check the path", source)
+    try:
+        m = trimesh.load(path, force="mesh")
+    except Exception as e:  # trimesh raises many types for unreadable files
+        raise ParameterError(field_, str(path), "a mesh trimesh can read (PLY, OBJ, GLB)",
+                             f"{type(e).__name__}: {e}", source) from None
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+def _mesh_tree(name, cfg, pos, root: Path, field_, source) -> WorldTree:
+    s = float(cfg.get("scale", 1.0))
+    v, f = _load_mesh(root / str(cfg["file"]), f"{field_}.file", source)
+    bark = (v * s + pos, f)
+    if cfg.get("leaves_file"):
+        lv, lf = _load_mesh(root / str(cfg["leaves_file"]), f"{field_}.leaves_file", source)
+        tri = lv[lf] * s + pos                                  # (m, 3, 3)
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                    axis=1)
+    else:
+        tri, area = np.zeros((0, 3, 3)), np.zeros(0)
+    return WorldTree(name, "mesh", pos, bark, tri, area, None, {"file": str(cfg["file"])})

@@ -1,0 +1,214 @@
+"""One living world (trees, foliage, moss in one daily photon loop): phenology, canopy meshes,
+shade and red:far-red under a crown, leaf fall, energy bookkeeping, checkpoints."""
+import datetime as dt
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mitsuba_veg as mv
+from mitsuba_veg.foliage.autumn import AutumnParams, autumn_time
+from mitsuba_veg.world import Phenology, PhenologyParams
+
+ROOT = Path(__file__).resolve().parent.parent
+COURTYARD = ROOT / "scenes" / "courtyard"
+
+
+def test_autumn_clock_day_by_day_equals_paper_003_vectorised():
+    """The daily phenology (leaf insolation added day by day) gives the τ of
+    foliage.autumn_time on the same insolation matrix (one model, two drivers)."""
+    p = PhenologyParams(autumn_onset_doy=250, leaf_out_doy=95)
+    n, days = 50, 40
+    rng = np.random.default_rng(1)
+    daily = rng.uniform(0, 12, (n, days))                       # MJ m-2 per day
+    ph = Phenology(n, p, seed=4)
+    start = dt.date(2026, 9, 7)                                 # day of year 250
+    taus = []
+    for d in range(days):
+        date = start + dt.timedelta(days=d)
+        ph.start_of_day(date)
+        ph.end_of_day(date, daily[:, d])
+        taus.append(ph.tau_raw.copy())
+    ref = autumn_time(daily, AutumnParams(onset_day=0, fall=True, fall_tau=p.fall_tau,
+                                          fall_sigma=p.fall_sigma, pigment_sigma=0.0), seed=4)
+    raw = np.array(taus).T
+    fell = ref.fall_day()
+    for i in range(n):   # equal until the leaf falls (then its clock stops)
+        stop = days if fell[i] < 0 else fell[i] + 1
+        np.testing.assert_allclose(raw[i, :stop], ref.tau_raw[i, :stop], rtol=1e-12)
+    assert np.array_equal(ph.fallen, fell >= 0)
+
+
+def test_leaf_out_and_regrowth():
+    p = PhenologyParams(leaf_out_doy=100, leaf_out_days=20)
+    ph = Phenology(3, p)
+    ph.start_of_day(dt.date(2026, 3, 1))
+    assert np.all(ph.grown == 0) and not ph.on_tree.any()        # bare in early spring
+    ph.start_of_day(dt.date(2026, 4, 20))                        # doy 110: half grown
+    assert np.allclose(ph.grown, 0.5)
+    ph.start_of_day(dt.date(2026, 6, 1))
+    assert np.allclose(ph.grown, 1.0)
+    ph.fallen[:] = True
+    ph.tau_raw[:] = 1.3
+    ph.start_of_day(dt.date(2027, 4, 10))                        # doy 100: a new season
+    assert not ph.fallen.any() and np.all(ph.tau_raw == 0)
+
+
+def _world(tmp_path, trees_toml: str, phenology: str = "", start="2026-07-01"):
+    """A copy of the courtyard scenario with other trees and phenology."""
+    d = tmp_path / "scen"
+    shutil.copytree(COURTYARD, d)
+    text = (d / "scenario.toml").read_text()
+    text = text[:text.index("# ---- the trees of the world")]
+    text = text.replace('start_date = "2026-03-01"', f'start_date = "{start}"')
+    (d / "scenario.toml").write_text(text + trees_toml + "\n[phenology]\n" + phenology)
+    return d / "scenario.toml"
+
+
+ONE_TREE = """
+[[trees]]
+name = "oak"
+model = "weber_penn"
+preset = "quaking_aspen"
+position = [0.0, 0.0, 0.0]
+height = 4.0
+seed = 3
+"""
+SMALL = ["light.photons=300000", "simulation.checkpoint_every=2", "simulation.frame_every=5",
+         "moss.initial=50"]
+
+
+@pytest.fixture(scope="module")
+def summer(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("world")
+    scen = _world(tmp, ONE_TREE)
+    s = mv.run(scen, out=tmp / "run", days=2, overrides=SMALL, progress=False)
+    return s, tmp
+
+
+def test_summer_crown_shades_ground_and_lowers_red_far_red(summer):
+    """An isolated tree: less PAR and a lower R:FR under its crown than in the open. As a daily
+    mean the drop in R:FR is small: the moving sun reaches under a small crown from the side for
+    much of the day, and those sunflecks carry daylight's R:FR (docs/world.md)."""
+    s, _ = summer
+    rec = s["days_record"][-1]
+    oak = rec["trees"]["oak"]
+    under, open_ = oak["ground_under_crown"], rec["ground_open"]
+    assert oak["leaves_on_tree"] == oak["leaves"] > 5000
+    assert abs(oak["mean_stage"] - 1.0) < 1e-9                    # green in July
+    assert under["par_W_m2"] < 0.85 * open_["par_W_m2"]
+    assert 1.1 <= open_["red_far_red"] <= 1.25                    # daylight
+    assert under["red_far_red"] < open_["red_far_red"]
+    assert under["red_far_red_sky"] < open_["red_far_red_sky"]
+    assert oak["absorbed_par_W"] > 0
+
+
+def test_closed_canopy_red_far_red_below_half(tmp_path):
+    """A closed canopy (a user's mesh: a 7 m x 7 m layer of leaves at 1-2.5 m, LAI 6) over the
+    courtyard: under its middle the ground gets light mostly through leaves, which pass far-red
+    and absorb red: the day's R:FR (sunflecks through the gaps, ~5 % of the beam at LAI 6,
+    included) < 0.6 and < half the open ground's (> 1.05); PAR < 15 % of the open ground's."""
+    import trimesh
+    rng = np.random.default_rng(0)
+    n = 60_000                                             # leaf area 6 x 49 m2
+    c = np.column_stack([rng.uniform(-3.5, 3.5, n), rng.uniform(1.0, 2.5, n),
+                         rng.uniform(-3.5, 3.5, n)])
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    a = np.cross(nrm, rng.normal(size=(n, 3)))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = np.cross(nrm, a)
+    r = np.sqrt(6 * 49.0 / n / (0.75 * np.sqrt(3)))        # equilateral triangles of that area
+    tri = np.stack([c + r * a, c + r * (-0.5 * a + 0.866 * b), c + r * (-0.5 * a - 0.866 * b)],
+                   1)
+    d = tmp_path / "meshes"
+    d.mkdir()
+    trimesh.Trimesh(tri.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3),
+                    process=False).export(d / "leaves.ply")
+    trimesh.creation.cylinder(radius=0.1, height=2.5).apply_translation(
+        [0, 1.25, 0]).export(d / "trunk.ply")
+    canopy = f"""
+[[trees]]
+name = "canopy"
+model = "mesh"
+position = [0.0, 0.0, 0.0]
+file = "{d / 'trunk.ply'}"
+leaves_file = "{d / 'leaves.ply'}"
+"""
+    scen = _world(tmp_path, canopy)
+    from mitsuba_veg.scenario import load_scenario
+    from mitsuba_veg.world import WorldSimulation
+    scn = load_scenario(scen, SMALL)
+    sim = WorldSimulation(scn, tmp_path / "run", days=1, progress=False)
+    sim.setup()
+    sim.initialise()
+    sim.step()
+    cen = sim.index.centroids[sim.ground_slice]
+    mid = np.hypot(cen[:, 0], cen[:, 2]) < 1.0
+    edge = (np.abs(cen[:, 0]) > 3.8) | (np.abs(cen[:, 2]) > 3.8)
+    g, gs = sim.ground_bands, sim.ground_sky_bands
+
+    def rfr(bands, m):
+        return (bands["red"][m].sum() * 660) / (bands["far_red"][m].sum() * 730)
+    print("R:FR mid", rfr(g, mid), "sky", rfr(gs, mid), "edge", rfr(g, edge),
+          "PAR", g["par"][mid].mean() / g["par"][edge].mean())
+    assert rfr(g, mid) < 0.6                   # measured 0.51 (sunflecks included)
+    assert rfr(g, mid) < 0.5 * rfr(g, edge)    # measured 0.47 of the open ground's
+    assert g["par"][mid].mean() < 0.15 * g["par"][edge].mean()
+    assert 1.05 < rfr(g, edge)
+
+
+def test_energy_bookkeeping_with_trees(summer, tmp_path):
+    """emitted = absorbed + escaped (+ truncated at max_depth) within 0.5 % in the world pass."""
+    _, tmp = summer
+    from mitsuba_veg.scenario import load_scenario
+    from mitsuba_veg.world import WorldSimulation
+    scn = load_scenario(tmp / "scen" / "scenario.toml", SMALL)
+    sim = WorldSimulation(scn, tmp_path / "e", days=1, progress=False)
+    sim.setup()
+    sim.initialise()
+    sim.step()
+    res = sim.last_result
+    e, a, x, t = (res.emitted.sum(), res.absorbed.sum(), res.escaped.sum(), res.truncated.sum())
+    assert abs(e - (a + x + t)) / e < 0.005
+    leaf = sim.leaf_light["S"][sim.phen.on_tree]
+    assert leaf.mean() > 0
+
+
+def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
+    """A fast autumn (onset on the first day, leaves fall within days): under the crown the
+    ground's PAR and R:FR come back to the open values once the leaves are down; a run stopped
+    and resumed gives the same records."""
+    ph = "autumn_onset_doy = 250\ninsolation_full = 60.0\ntime_weight = 0.5\ndays_full = 3.0\n"
+    scen = _world(tmp_path, ONE_TREE, ph, start="2026-09-07")
+    a = mv.run(scen, out=tmp_path / "a", days=8, overrides=SMALL, progress=False, frames=False)
+    first, last = a["days_record"][0], a["days_record"][-1]
+    o0, o1 = first["trees"]["oak"], last["trees"]["oak"]
+    assert o0["leaves_on_tree"] > 0.95 * o0["leaves"]
+    assert o1["leaves_on_tree"] < 0.15 * o1["leaves"]
+    u0, open0 = o0["ground_under_crown"], first["ground_open"]
+    u1, open1 = o1["ground_under_crown"], last["ground_open"]
+    frac0, frac1 = u0["par_W_m2"] / open0["par_W_m2"], u1["par_W_m2"] / open1["par_W_m2"]
+    print("PAR under/open", frac0, frac1, "R:FR under", u0["red_far_red"], u1["red_far_red"],
+          "open", open0["red_far_red"], open1["red_far_red"])
+    assert frac0 < frac1 and frac1 > 0.93
+    assert abs(u1["red_far_red"] - open1["red_far_red"]) < \
+        abs(u0["red_far_red"] - open0["red_far_red"])
+    stages = [r["trees"]["oak"]["mean_stage"] for r in a["days_record"]
+              if r["trees"]["oak"]["mean_stage"] is not None]
+    assert stages[-1] > stages[0]
+    b = mv.run(scen, out=tmp_path / "b", days=5, overrides=SMALL, progress=False, frames=False)
+    b = mv.run(scen, out=tmp_path / "b", days=8, overrides=SMALL, progress=False, frames=False)
+    strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa
+    assert b["resumed"] and strip(b["days_record"]) == strip(a["days_record"])
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["world"]["trees"][0][
+        "name"] == "oak"
+
+
+def test_courtyard_scenario_is_valid():
+    from mitsuba_veg.scenario import load_scenario
+    scn = load_scenario(COURTYARD / "scenario.toml")
+    assert len(scn.get("trees")) == 3
+    assert {t["model"] for t in scn.get("trees")} == {"growth", "weber_penn"}
