@@ -156,12 +156,20 @@ class SnapshotWriter:
     def __call__(self, sim, rec) -> None:
         every = max(int(self.every or getattr(sim, "frame_every", 10) or 10), 1)
         if sim.day % every == 0 or sim.day == sim.days or sim.day == 1:
+            extra = None
+            phen = getattr(sim, "phen", None)
+            if phen is not None:   # a world: every leaf's state (the render draws it)
+                extra = {"leaf_tau": phen.tau.astype(np.float16),
+                         "leaf_grown": phen.grown.astype(np.float16),
+                         "leaf_on": phen.on_tree}
             write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
-                           date=rec.get("date"))
+                           date=rec.get("date"), extra=extra)
 
 
-def write_snapshot(directory, day: int, population: dict, date: str | None = None) -> Path:
-    """Write the living moss of a population dict (``MossPopulation.to_numpy()``)."""
+def write_snapshot(directory, day: int, population: dict, date: str | None = None,
+                   extra: dict | None = None) -> Path:
+    """Write the living moss of a population dict (``MossPopulation.to_numpy()``) and the
+    arrays of ``extra`` (a world's leaf state)."""
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     m = np.asarray(population["state"]) == 2
@@ -171,7 +179,8 @@ def write_snapshot(directory, day: int, population: dict, date: str | None = Non
                         pos=np.asarray(population["pos"])[m].astype(np.float32),
                         nrm=np.asarray(population["nrm"])[m].astype(np.float16),
                         species=np.asarray(population["species"])[m].astype(np.uint8),
-                        growth=np.asarray(population["growth"])[m].astype(np.float16))
+                        growth=np.asarray(population["growth"])[m].astype(np.float16),
+                        **(extra or {}))
     os.replace(tmp, path)
     return path
 

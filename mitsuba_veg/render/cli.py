@@ -44,13 +44,66 @@ def _cameras(camera) -> list[str]:
     return list(camera)
 
 
+class WorldLeaves:
+    """The leaf state of a world run's trees on a frame's date (from the run's snapshots):
+    ``apply(date)`` writes ``autumn_tau``, ``leaf_scale`` and ``fallen`` into the trees'
+    leaves, as the daily loop had them that day."""
+
+    def __init__(self, run, trees, offsets):
+        self.run, self.trees, self.offsets = run, trees, offsets
+
+    def apply(self, date) -> None:
+        day = (date - self.run.start).days + 1
+        st = self.run.leaf_state(day)
+        for t, (a, b) in zip(self.trees, self.offsets):
+            lv = t.leaves
+            if st is None or len(st["leaf_tau"]) < b:
+                lv.attrs["autumn_tau"] = np.zeros(len(lv))
+                lv.attrs["leaf_scale"] = np.ones(len(lv))
+                lv.attrs["fallen"] = np.zeros(len(lv), bool)
+                continue
+            lv.attrs["autumn_tau"] = st["leaf_tau"][a:b].astype(float)
+            lv.attrs["leaf_scale"] = st["leaf_grown"][a:b].astype(float)
+            lv.attrs["fallen"] = ~st["leaf_on"][a:b].astype(bool)
+
+
+def world_trees(run):
+    """The trees of a world run (``[[trees]]``), rebuilt from its scenario as the run built
+    them (same seeds), and their leaves' offsets in the run's leaf arrays. Trees given as
+    meshes are drawn by the light scene only (not by the render)."""
+    import logging
+
+    from ..world import build_trees
+    entries = run.scenario.get("trees") or []
+    if not entries:
+        return [], []
+    base = run.scenario.load_scene(daylight=False)
+    built = build_trees(entries, base, run.scenario.root, str(run.scenario.path))
+    trees, offsets, n = [], [], 0
+    for wt in built:
+        m = len(wt.leaf_area)
+        if wt.tree is not None:
+            trees.append(wt.tree)
+            offsets.append((n, n + m))
+        else:
+            logging.getLogger("mitsuba_veg").warning(
+                "tree '%s' (a mesh) is in the run's light but not drawn by the render", wt.name)
+        n += m
+    return trees, offsets
+
+
 def _trees_for(run, trees):
-    """Trees of the render: ``trees`` if given (a list of Tree; [] for none), else the
-    scenario's ``[[render.trees]]``; with their seasonal model over the run's dates."""
+    """Trees of the render: ``trees`` if given (a list of Tree; [] for none), else a world
+    run's ``[[trees]]`` (in each frame's leaf state) and the scenario's ``[[render.trees]]``
+    (decoration, with their calendar phenology)."""
     from .seasons import TreeSeasons
     from .trees import scenario_trees
+    world, seasons = [], []
+    if trees is None:
+        world, offsets = world_trees(run)
+        if world:
+            seasons.append(WorldLeaves(run, world, offsets))
     tl = scenario_trees(run.scenario) if trees is None else list(trees)
-    seasons = []
     if tl:
         lat = float(run.scenario.get("site.latitude"))
         cfgs = run.scenario.get("render.trees", []) or []
@@ -60,7 +113,7 @@ def _trees_for(run, trees):
             auto = cfgs[i].get("autumn", True) if i < len(cfgs) else True
             if auto and trees is None and len(t.leaves):
                 seasons.append(TreeSeasons(t, lat, run.start, max(run.final_day, 1) + 1, seed=i))
-    return tl, seasons
+    return world + tl, seasons
 
 
 def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,

@@ -72,6 +72,20 @@ class Run:
             return MossSet(z["pos"], z["nrm"].astype(np.float64), z["species"],
                            z["growth"].astype(np.float64), list(self.species))
 
+    def leaf_state(self, day: int) -> dict | None:
+        """A world run's leaf state (``leaf_tau``, ``leaf_grown``, ``leaf_on``, one entry per
+        leaf of its trees) at the latest snapshot on or before ``day`` (None without one)."""
+        best = None
+        for d, p in self.snapshots:
+            if d <= day:
+                best = p
+        if best is None:
+            return None
+        with np.load(best) as z:
+            if "leaf_tau" not in z:
+                return None
+            return {k: np.asarray(z[k]) for k in ("leaf_tau", "leaf_grown", "leaf_on")}
+
     def frame_days(self, count: int | None = None, every: int | None = None) -> list[int]:
         """Days to animate: the snapshot days (or every ``every`` days), thinned to at most
         ``count`` frames, always including the last day."""

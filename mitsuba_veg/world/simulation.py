@@ -20,6 +20,7 @@ ground's PAR and red:far-red under its crown; and the ground's PAR and R:FR in t
 """
 from __future__ import annotations
 
+import functools
 import time
 
 import numpy as np
@@ -35,6 +36,7 @@ _H_C = 6.62607015e-34 * 2.99792458e8
 _CENTRE_NM = {"red": 660.0, "far_red": 730.0, "par": 550.0, "total": 595.0}
 
 
+@functools.lru_cache(maxsize=1024)
 def band_shapes(latitude: float, day_of_year: int) -> dict:
     """Band-mean spectral irradiance per W m-2 of broadband (300-4000 nm) irradiance [nm-1] of
     clear-sky beam and diffuse light at the day's noon sun (SPCTRAL2): ``{"beam": {band: s},
@@ -134,13 +136,14 @@ class WorldSimulation(MossSimulation):
         area = np.maximum(c.area * self.phen.grown ** 2 * self.phen.on_tree, 1e-12)
         width = {b: band_range(b)[1] - band_range(b)[0] for b in BANDS}
         # unit emitters: 1 W m-2 nm-1 horizontal -> fraction g = E / width
-        ie = [res.emitters.index("sun"), res.emitters.index("sky")]
-        both = res.flux[ie].sum(axis=(2, 3))                 # (2, n_el, n_b): both sides
+        ie = (res.emitters.index("sun"), res.emitters.index("sky"))
         if not hasattr(self, "_leaf_elements"):
             self._leaf_elements = c.leaf_elements(res.index)
-        lf = c.leaf_flux(np.moveaxis(both, 0, 1), self._leaf_elements)   # (n_leaves, 2, n_b)
+        # (n_leaf_slots, 2 emitters, n_b): both sides, both components, of the leaf slots only
+        slots = np.stack([res.flux[e][self._leaf_elements].sum(axis=(1, 2)) for e in ie], 1)
+        lf = c.leaf_flux(slots, np.arange(len(slots)))      # (n_leaves, 2, n_b)
         gsl = self.ground_slice
-        front = res.flux[ie][:, gsl].sum(axis=2)[:, :, 0]    # (2, n_ground, n_b): front side
+        front = np.stack([res.flux[e][gsl].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
         garea = np.maximum(self.index.areas[gsl], 1e-30)
         leaf, ground, ground_sky = {}, {}, {}
         for k, b in enumerate(res.bands):
@@ -170,13 +173,8 @@ class WorldSimulation(MossSimulation):
         rec = super()._record(day, S, st, theta, events, secs)
         c, ph = self.canopy, self.phen
         on = ph.on_tree
-        from ..foliage import leaf_spectra
         # PAR absorptance per leaf from its stage's spectra (bin centres, as the light scene)
-        bins = c.leaf_bins(ph.tau)
-        a_par = np.zeros(c.n_leaves)
-        for b in np.unique(bins):
-            R, T = leaf_spectra(stage=c.bin_stage(int(b))).band_mean(400, 700)
-            a_par[bins == b] = 1.0 - float(R) - float(T)
+        a_par = self._bin_par_absorptance()[c.leaf_bins(ph.tau)]
         absorbed = self.leaf_light["par_W_m2"] * self.leaf_area_in_pass * a_par
         area = self.index.areas[self.ground_slice]
         g, gs = self.ground_bands, self.ground_sky_bands
@@ -208,6 +206,16 @@ class WorldSimulation(MossSimulation):
         rec["ground_open"] = ground_stats(self.open_ground)
         rec["seconds"]["leaves"] = getattr(self, "_leaf_seconds", 0.0)
         return rec
+
+    def _bin_par_absorptance(self) -> np.ndarray:
+        if getattr(self, "_a_par", None) is None:
+            from ..foliage import leaf_spectra
+            a = []
+            for b in range(self.canopy.bins):
+                R, T = leaf_spectra(stage=self.canopy.bin_stage(b)).band_mean(400, 700)
+                a.append(1.0 - float(R) - float(T))
+            self._a_par = np.array(a)
+        return self._a_par
 
     # ---- checkpoints --------------------------------------------------------------------
     def _checkpoint_extra(self) -> dict:
