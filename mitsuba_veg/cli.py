@@ -14,20 +14,21 @@ import sys
 import time
 from pathlib import Path
 
-def _default_scenario() -> Path:
-    """The shipped moss garden: from the source tree, else from the installed package data."""
+def _default_scenario(name: str = "courtyard") -> Path:
+    """A shipped scenario (default: the courtyard world): from the source tree, else from the
+    installed package data."""
     here = Path(__file__).resolve().parent
     for p in (here.parent / "scenes", here / "scenes"):
-        if (p / "moss_garden" / "scenario.toml").exists():
-            return p / "moss_garden" / "scenario.toml"
+        if (p / name / "scenario.toml").exists():
+            return p / name / "scenario.toml"
     from .errors import SceneError
     raise SceneError("the shipped scenes are missing from this installation; pass a scenario "
                      "file explicitly (mitsuba-veg run SCENARIO.toml)")
 
 
 DEFAULT_SCENARIO = None  # resolved lazily by _default_scenario()
-#: a spring morning: the sun (~50 deg, south-east) leaves the back floor in the roof's shade
-DEMO_WHEN = "2026-04-20T10:00:00+09:00"
+#: a summer morning in the courtyard: trees in full leaf, the house wall's shade on the bed
+DEMO_WHEN = "2026-07-15T10:00:00+09:00"
 
 
 from .outputs import write_json as _write_json  # noqa: E402
@@ -62,6 +63,7 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         if v is not None:
             check_range(k, v, lo, hi)
     regions = {}
+    tree_shapes = []
     ground = "ground"
     settings = {"photons": 1_000_000, "seed": 0, "max_depth": 8, "indirect": True}
     t0 = time.perf_counter()
@@ -71,6 +73,9 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
             ov.append(f'light.when="{when}"')
         scn = load_scenario(scene_path, ov)
         scene = scn.load_scene()
+        if scn.get("trees"):   # a world: its trees in full green leaf
+            from .world.trees import scene_with_trees
+            scene, tree_shapes = scene_with_trees(scn, scene)
         settings.update({k: scn.get(f"light.{k}") for k in settings})
         regions = scn.get("regions", {})
         ground = scn.get("terrain.ground", ground)
@@ -93,10 +98,12 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
     res.to_npz(out / "irradiance.npz")
     pngs = []
     for sid in res.index.shape_ids:
-        if sid in res.index.geometry:
+        if sid in res.index.geometry and sid not in tree_shapes:
             pngs.append(irradiance_figure(res, sid, out / f"irradiance_{sid}.png"))
     shapes = {}
     for sid in res.index.shape_ids:
+        if sid in tree_shapes:
+            continue
         sl = res.index.shape_slice(sid)
         area = res.index.areas[sl]
         entry = {"triangles": int(sl.stop - sl.start), "area_m2": float(area.sum())}
@@ -192,31 +199,44 @@ def _cmd_demo(a) -> int:
     from .simulation import run
     out = Path(a.out)
     scen = _default_scenario()
-    print(f"mitsuba-veg demo 1/3: light study of the moss garden (paper 000 test scene) under "
+    print(f"mitsuba-veg demo 1/4: light study of the courtyard (trees in full leaf) under "
           f"daylight on {DEMO_WHEN} -> {out / 'light'}/")
     s = run_irradiance(scen, out / "light", photons=a.photons, when=DEMO_WHEN,
                        progress=not a.quiet)
     _report(s)
-    print(f"\nmitsuba-veg demo 2/3: {a.days} days of moss in the garden (paper 000) -> "
-          f"{out / 'moss'}/")
-    m = run(scen, out=out / "moss", days=a.days, progress=not a.quiet)
+    print(f"\nmitsuba-veg demo 2/4: {a.days} days of the courtyard world (trees, leaves, soil "
+          f"and moss in one daily light loop) -> {out / 'world'}/")
+    m = run(scen, out=out / "world", days=a.days,
+            overrides=[f"light.photons={a.world_photons}"], progress=not a.quiet)
     f = m["final"]
     print(f"{a.days} days: {f['moss_alive']} moss alive, covered {f['covered_area_m2']:.3f} m2"
           + "".join(f"; {k} {v['covered_area_m2']:.3f} m2" for k, v in f["regions"].items()))
+    summer = max(m["days_record"], key=lambda r: sum(t["leaves_on_tree"]
+                                                     for t in r["trees"].values()))
+    for name, t in summer["trees"].items():
+        u = t["ground_under_crown"]
+        print(f"  {name}: {t['leaves_on_tree']:,d} leaves on {summer['date']}, ground under "
+              f"the crown PAR {u['par_W_m2']:.1f} W/m2, R:FR {u['red_far_red']:.3f}")
+    o = summer["ground_open"]
+    print(f"  open ground: PAR {o['par_W_m2']:.1f} W/m2, R:FR {o['red_far_red']:.3f}")
     print("wrote:")
-    for p in (out / "moss" / "summary.json", m.get("files", {}).get("animation"),
-              out / "moss" / "maps"):
+    for p in (out / "world" / "summary.json", m.get("files", {}).get("animation"),
+              out / "world" / "maps"):
         if p:
             print(f"  {p}")
     from .render.cli import run_animate, run_render
-    print(f"\nmitsuba-veg demo 3/3: spectral render and animation -> "
-          f"{out / 'moss' / 'render'}/, {out / 'moss' / 'animation'}/")
-    r = run_render(out / "moss", progress=not a.quiet)
-    an = run_animate(out / "moss", progress=not a.quiet)
+    print(f"\nmitsuba-veg demo 3/4: spectral render of the last day and of midsummer -> "
+          f"{out / 'world' / 'render'}/")
+    r = run_render(out / "world", camera="overview", progress=not a.quiet)
+    r2 = run_render(out / "world", out / "world" / "render_summer", camera="overview",
+                    day=summer["day"], progress=not a.quiet)
+    print(f"\nmitsuba-veg demo 4/4: animation of the year -> {out / 'world' / 'animation'}/")
+    an = run_animate(out / "world", light="daily", progress=not a.quiet)
     print("wrote:")
-    for cam in r["files"].values():
-        for p in cam.values():
-            print(f"  {p}")
+    for rr in (r, r2):
+        for cam in rr["files"].values():
+            for p in cam.values():
+                print(f"  {p}")
     for k in ("mp4", "gif"):
         if an["files"].get(k):
             print(f"  {an['files'][k]}")
@@ -236,10 +256,12 @@ def build_parser():
                     help="logging level (default: warning; info with --verbose)")
     sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
     d = sub.add_parser("demo", help="run the default scenario end to end")
-    add_out(d, "out/demo", "the light study, the moss run, render and animation")
-    add_photons(d, 4_000_000, "of the light study (the moss run uses the scenario's)")
-    d.add_argument("--days", type=ranged(int, 1, 100_000, "days"), default=300,
-                   help="days of the moss run")
+    add_out(d, "out/demo", "the light study, the world run, render and animation")
+    add_photons(d, 4_000_000, "of the light study")
+    d.add_argument("--world-photons", type=ranged(int, 1, 10**9, "photons"), default=500_000,
+                   help="photons per day of the world run")
+    d.add_argument("--days", type=ranged(int, 1, 100_000, "days"), default=365,
+                   help="days of the world run (from 1 March)")
     add_quiet(d)
     d.set_defaults(func=_cmd_demo)
     r = sub.add_parser("run", help="run a moss scenario day by day (paper 000)")

@@ -67,8 +67,9 @@ class Canopy:
         """Ishikura stage at the centre of bin ``b`` (1 .. 7)."""
         return 1.0 + 6.0 * (b + 0.5) / self.bins if self.bins > 1 else 1.0
 
-    def shapes(self) -> dict:
-        """Mitsuba meshes: ``trees_bark`` and the leaf bin meshes (all leaves collapsed)."""
+    def shapes(self, full_leaf: bool = False) -> dict:
+        """Mitsuba meshes: ``trees_bark`` and the leaf bin meshes (all leaves collapsed, or with
+        ``full_leaf`` every leaf shown green in the first bin: a summer light study)."""
         from ..foliage import leaf_bsdf_dict, leaf_spectra
         out = {}
         bv, bf, nb = [], [], 0
@@ -87,7 +88,11 @@ class Canopy:
         collapsed = self._collapsed()
         for b, name in enumerate(self.bin_names):
             bsdf = leaf_bsdf_dict(leaf_spectra(stage=self.bin_stage(b)))
-            out[name] = _mesh(name, collapsed, faces, bsdf)
+            v = self.tri.reshape(-1, 3) if full_leaf and b == 0 and F else collapsed
+            out[name] = _mesh(name, v, faces, bsdf)
+        if full_leaf:
+            self._bin = np.zeros(self.n_leaves, np.int64)
+            self._scale = np.ones(self.n_leaves)
         return out
 
     def _collapsed(self) -> np.ndarray:

@@ -167,3 +167,20 @@ def _mesh_tree(name, cfg, pos, root: Path, field_, source) -> WorldTree:
     else:
         tri, area = np.zeros((0, 3, 3)), np.zeros(0)
     return WorldTree(name, "mesh", pos, bark, tri, area, None, {"file": str(cfg["file"])})
+
+
+def scene_with_trees(scenario, scene, bins: int = 4):
+    """``scene`` (the scenario's, with its emitters) plus the scenario's ``[[trees]]`` in full
+    green leaf (for light studies of a world scenario). Returns (scene, tree shape ids)."""
+    import mitsuba as mi
+
+    from .canopy import Canopy
+    trees = build_trees(scenario.get("trees"), scene, scenario.root, str(scenario.path))
+    shapes = Canopy(trees, bins).shapes(full_leaf=True)
+    d = {"type": "scene"}
+    for sh in scene.shapes():
+        d[sh.id()] = sh
+    for i, em in enumerate(scene.emitters()):
+        d[em.id() or f"emitter{i}"] = em
+    d.update(shapes)
+    return mi.load_dict(d, optimize=False), list(shapes)
