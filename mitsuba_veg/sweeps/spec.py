@@ -58,7 +58,7 @@ def _unknown(source: str, field_: str, value, known) -> ParameterError:
     fix = ("did you mean " + " or ".join(repr(x) for x in near[:3]) + "?") if near else \
         "remove or rename it"
     allowed = "one of " + ", ".join(sorted(known)) if len(known) <= 8 else \
-        "a known field (closest: " + ", ".join(near[:3] or ["none"]) + ")"
+        "a field of the base scenario, as with --set"
     return ParameterError(field_, value, allowed, fix, source)
 
 
