@@ -26,6 +26,7 @@ bench: setup
 	$(BIN)/python benchmarks/trees_nongrowth.py
 	$(BIN)/python benchmarks/weber_penn_generation.py
 	$(BIN)/python benchmarks/autumn_insolation.py
+	$(BIN)/python benchmarks/sweep_throughput.py
 
 clean:
 	rm -rf out build *.egg-info .pytest_cache

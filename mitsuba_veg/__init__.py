@@ -20,6 +20,7 @@ from . import trees  # noqa: E402,F401
 from . import foliage  # noqa: E402,F401  (registers the veg_leaf BSDF)
 from .simulation import run  # noqa: E402,F401
 from . import tune  # noqa: E402,F401
+from .sweeps import sweep  # noqa: E402,F401  (Dask is imported only when a sweep runs)
 
 __all__ = ["__version__", "variant", "errors", "integrators", "light", "climate", "moss",
-           "scenario", "soil", "terrain", "trees", "foliage", "tune", "run"]
+           "scenario", "soil", "terrain", "trees", "foliage", "tune", "run", "sweep"]

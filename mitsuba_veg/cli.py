@@ -5,6 +5,7 @@
     mitsuba-veg run SCENARIO [--out DIR] [--days N] [--set KEY=VALUE ...] [--fresh]
     mitsuba-veg light-study SCENE [--out DIR] ...
     mitsuba-veg grow TREE.toml [--out DIR] [--set KEY=VALUE] [--seed S] [--generations G]
+    mitsuba-veg sweep SWEEP.toml [--scheduler ADDRESS] [--workers N] [--out DIR]
 
 SCENE is a Mitsuba XML file or a scenario TOML (which names the XML and the light settings).
 """
@@ -298,6 +299,8 @@ def build_parser():
     _render_parsers(sub)
     from .tune.cli import add_parser as _add_tune
     _add_tune(sub)
+    from .sweeps.cli import add_parser as _add_sweep
+    _add_sweep(sub)
     return ap
 
 

@@ -54,3 +54,8 @@ def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=F
     if bad:
         raise ParameterError(field, value, allowed, fix, source)
     return value
+
+
+class DependencyError(MitsubaVegError, ImportError):
+    """An optional dependency that a feature needs is not installed (the message names the
+    ``pip install`` that adds it)."""

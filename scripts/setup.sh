@@ -3,7 +3,8 @@
 #   1. a system libLLVM >= 16 (Mitsuba's llvm_* variants abort with "LLVM ERROR: Cannot select"
 #      on LLVM 14/15); Debian's libllvm19 is installed when none is found;
 #   2. ffmpeg (MP4 animations), when missing and apt is available;
-#   3. a virtual environment .venv with the package and its test extras.
+#   3. a virtual environment .venv with the package, its test extras and the Dask extra
+#      (sweeps on Dask).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -38,7 +39,7 @@ stamp=.venv/.mitsuba-veg-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
     echo "[setup] installing mitsuba-veg and its dependencies into .venv"
     .venv/bin/python -m pip install -q --upgrade pip
-    .venv/bin/python -m pip install -q -e ".[test]"
+    .venv/bin/python -m pip install -q -e ".[test,distributed]"
     touch "$stamp"
 fi
 .venv/bin/python -c "import mitsuba_veg as mv; print('[setup] ready:', mv.__version__, mv.variant())"

@@ -274,14 +274,31 @@ def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> P
 
 def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
                 frames=None, every=None, fps=None, when=None, hour=None, light="fixed",
-                trees=None, scenario=None, gif_width=None, seed=0, progress=True) -> dict:
+                trees=None, scenario=None, gif_width=None, seed=0, progress=True,
+                scheduler=None, workers=None, client=None) -> dict:
     """Render the days of a moss run to ``animation.mp4`` and ``animation.gif`` (module
     docstring). ``frames``: at most this many frames (default 31), spread over the snapshot
     days (or every ``every`` days); ``light``: ``"fixed"`` (the last day's light for every
     frame: one kernel compile) or ``"daily"`` (each frame's own date; recompiles per frame);
     ``gif_width``: downscale the GIF to this width (default 360 px; 0 keeps the frame width).
-    Returns the summary written to
+    ``scheduler`` (a Dask scheduler address), ``workers`` (worker processes of a local Dask
+    cluster) or ``client``: render the frames as Dask tasks
+    (:func:`mitsuba_veg.sweeps.frames.animate_on_dask`). Returns the summary written to
     ``animate.json``."""
+    if light not in ("fixed", "daily"):
+        raise ParameterError("light", light, "'fixed' or 'daily'")
+    _check_image(width, height, spp, None, frames, every, fps)
+    if scheduler is not None or workers is not None or client is not None:
+        if trees is not None:
+            raise ParameterError("trees", "a list of Tree", "None when the frames run on Dask "
+                                 "(the workers build the scenario's [[render.trees]])",
+                                 "put the trees in the scenario's [[render.trees]]")
+        from ..sweeps.frames import animate_on_dask
+        return animate_on_dask(run_dir, out, scheduler=scheduler, workers=workers,
+                               client=client, camera=camera, width=width, height=height,
+                               spp=spp, frames=frames, every=every, fps=fps, when=when,
+                               hour=hour, light=light, scenario=scenario, gif_width=gif_width,
+                               seed=seed, progress=progress)
     from . import RenderOptions, build_scene, load_run, render
     from .film import to_srgb8, write_png
     from .scene import Terrain, render_time, sky_emitters
@@ -433,6 +450,10 @@ def add_parsers(subparsers) -> None:
     a.add_argument("--light", choices=("fixed", "daily"), default="fixed",
                    help="fixed: the last day's light in every frame (fast); daily: each "
                         "frame's date (slower)")
+    a.add_argument("--scheduler", metavar="ADDRESS",
+                   help="render the frames as Dask tasks on this scheduler (tcp://host:8786)")
+    a.add_argument("--workers", type=ranged(int, 1, 1024, "processes"), metavar="N",
+                   help="render the frames as Dask tasks on a local cluster of N processes")
     a.set_defaults(func=_cmd_animate)
 
 
@@ -453,7 +474,8 @@ def _cmd_render(a) -> int:
 def _cmd_animate(a) -> int:
     s = run_animate(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height,
                     spp=a.spp, frames=a.frames, every=a.every, fps=a.fps, light=a.light,
-                    hour=a.hour, scenario=a.scenario, progress=not a.quiet)
+                    hour=a.hour, scenario=a.scenario, progress=not a.quiet,
+                    scheduler=a.scheduler, workers=a.workers)
     t = s["timings_s"]
     print(f"animated {len(s['frames'])} days in {t['total']:.1f} s (render {t['render']:.1f} s)"
           + ("" if s["exact"] else "; moss of past days approximated from the last checkpoint "

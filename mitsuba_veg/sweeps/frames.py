@@ -1,0 +1,191 @@
+"""Animation frames as Dask tasks: ``mitsuba-veg animate RUN --scheduler ADDRESS`` (or
+``--workers N`` for a local cluster).
+
+The same frames as :func:`mitsuba_veg.render.cli.run_animate` (same days, camera, light,
+labels and exposure): the last frame is rendered first, as one task, and fixes the exposure of
+every frame (no flicker); the other frames are then rendered as independent tasks (each builds
+its scene: no scene is shared between frames) and the PNGs are assembled in day order into
+``animation.mp4`` and ``animation.gif``. The workers must see the run folder and ``out`` at the
+same paths (a shared file system).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from ..errors import ParameterError, check_range
+
+#: task key prefix (groups the frames on the Dask dashboard)
+TASK_PREFIX = "mitsuba-veg-frame"
+
+
+def render_frame(spec: dict) -> dict:
+    """Render one animation frame to its PNG (a Dask task; also callable in-process).
+
+    Parameters
+    ----------
+    spec : dict
+        ``run_dir``, ``scenario`` (a path or None: the run's own), ``k`` (frame index),
+        ``day`` (1-based simulated day), ``png`` (output path), ``options`` (keyword arguments
+        of :class:`~mitsuba_veg.render.RenderOptions`), ``when`` (ISO date-time of a fixed
+        light, or None: the frame's own date), ``exposure`` (None: this frame sets it),
+        ``seed``, ``drjit_threads``, ``host_workers``.
+
+    Returns
+    -------
+    dict
+        ``k``, ``day``, ``date``, ``moss`` (count), ``exact``, ``render_s`` [s], ``exposure``,
+        ``png``.
+    """
+    from ..render import RenderOptions, build_scene, load_run, render
+    from ..render.cli import _label, _trees_for
+    from ..render.film import to_srgb8, write_png
+    from ..render.scene import Terrain, sky_emitters
+    from .cluster import set_drjit_threads, worker_drjit_threads
+
+    set_drjit_threads(worker_drjit_threads(spec.get("drjit_threads"),
+                                           spec.get("host_workers") or {}))
+    run = load_run(spec["run_dir"], spec.get("scenario"))
+    o = RenderOptions(**spec["options"]).validate()
+    tree_list, seasons = _trees_for(run, None)
+    fr = run.frame(int(spec["day"]))
+    for s in seasons:
+        s.apply(fr.date)
+    emitters = sky_emitters(run.scenario, spec["when"]) if spec.get("when") else None
+    rs = build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=tree_list,
+                     date=fr.date, options=o, terrain=Terrain.from_scenario(run.scenario),
+                     emitters=emitters, species=run.species)
+    images = render(rs, seed=int(spec["seed"]) + int(spec["k"]))
+    img8, exp = to_srgb8(images["rgb"], spec.get("exposure"))
+    text = f"day {fr.day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
+    p = write_png(spec["png"], _label(img8, text))
+    return {"k": int(spec["k"]), "day": int(fr.day), "date": fr.date.isoformat(),
+            "moss": len(fr.moss), "exact": bool(fr.exact), "render_s": images["seconds"],
+            "exposure": exp, "png": str(p), "when": rs.info.get("when"),
+            "trees": len(tree_list)}
+
+
+def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=None,
+                    threads=None, camera=None, width=None, height=None, spp=None, frames=None,
+                    every=None, fps=None, when=None, hour=None, light="fixed", scenario=None,
+                    gif_width=None, seed=0, progress=True) -> dict:
+    """Render the days of a moss run as Dask tasks into ``animation.mp4`` and
+    ``animation.gif`` (module docstring).
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        A moss run folder (``mitsuba-veg run ... --out DIR``).
+    out : str or Path, optional
+        Output folder (default ``RUN_DIR/animation``).
+    scheduler, workers, client, threads
+        Where the frames run: as in :func:`mitsuba_veg.sweeps.sweep` (default: a local cluster
+        of one worker process per core).
+    camera, width, height, spp, frames, every, fps, when, hour, light, scenario, gif_width, seed
+        As in :func:`mitsuba_veg.render.cli.run_animate` (width, height in pixels; spp samples
+        per pixel; fps frames per second; hour local time [h]).
+    progress : bool
+        Print the dashboard link and show a progress bar (frames).
+
+    Returns
+    -------
+    dict
+        The summary written to ``animate.json`` (as ``run_animate``'s, plus ``dask``).
+    """
+    from ..outputs import write_json
+    from ..render import RenderOptions, load_run
+    from ..render.cli import ANIMATE_DEFAULTS, _versions, write_gif, write_mp4
+    from ..render.scene import render_time
+    from .cluster import open_client
+
+    if light not in ("fixed", "daily"):
+        raise ParameterError("light", light, "'fixed' or 'daily'")
+    t0 = time.perf_counter()
+    from ..outputs import OutputFolder
+    run = load_run(run_dir, scenario)
+    out = Path(out if out is not None else Path(run_dir) / "animation").resolve()
+    n_frames = int(ANIMATE_DEFAULTS["frames"] if frames is None else frames)
+    check_range("frames", n_frames, 2, 10000)
+    fps = int(ANIMATE_DEFAULTS["fps"] if fps is None else fps)
+    check_range("fps", fps, 1, 120)
+    days = run.frame_days(count=n_frames, every=every)
+    if len(days) < 2:
+        raise ParameterError("RUN_DIR", str(run.dir), "a run with at least 2 days to animate",
+                             "run more days")
+    folder = OutputFolder(out, "animate", info={"run": str(run.dir)})
+    fdir = out / "frames"
+    fdir.mkdir(parents=True, exist_ok=True)
+    for old in fdir.glob("frame_*.png"):
+        old.unlink()
+    opts = dict(width=width or ANIMATE_DEFAULTS["width"],
+                height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
+                camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
+                max_depth=5)
+    if hour is not None:
+        opts["hour"] = float(hour)
+    o = RenderOptions(**opts).validate()
+    fixed_when = render_time(run.scenario, run.date(days[-1]), o) if light == "fixed" else None
+    scen = scenario if scenario is None or hasattr(scenario, "data") else \
+        str(Path(scenario).resolve())
+    base = {"run_dir": str(Path(run_dir).resolve()), "scenario": scen, "options": opts,
+            "when": fixed_when, "seed": int(seed), "exposure": None}
+    specs = [dict(base, k=k, day=d, png=str(fdir / f"frame_{k:04d}.png"))
+             for k, d in enumerate(days)]
+    records = [None] * len(days)
+    with open_client(scheduler, workers, client, threads, ":8787") as (cl, info):
+        from distributed import as_completed
+        for s in specs:
+            s["drjit_threads"], s["host_workers"] = info.drjit_threads, info.host_workers
+        if progress:
+            print(f"mitsuba-veg animate: {len(days)} frames on {info.workers} Dask worker"
+                  f"{'s' if info.workers != 1 else ''} "
+                  f"({'local cluster' if info.local else info.address})")
+            if info.dashboard:
+                print(f"Dask dashboard: {info.dashboard}")
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
+            bar = tqdm(total=len(days), unit="frame", desc="animate")
+        # the last frame first: it sets the exposure of every frame (no flicker)
+        last = cl.submit(render_frame, specs[-1], key=f"{TASK_PREFIX}-last-{time.time_ns()}",
+                         pure=False).result()
+        records[-1] = last
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(day=last["day"], frame="last, for the exposure")
+        rest = []
+        for s in specs[:-1]:
+            s["exposure"] = last["exposure"]
+            rest.append(cl.submit(render_frame, s, pure=False,
+                                  key=f"{TASK_PREFIX}-{s['k']:04d}-{time.time_ns()}"))
+        for fut in as_completed(rest):
+            r = fut.result()
+            records[r["k"]] = r
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(day=r["day"], moss=r["moss"])
+        if bar is not None:
+            bar.close()
+        dask_info = {"local": info.local, "address": info.address, "workers": info.workers,
+                     "dashboard": info.dashboard, "drjit_threads": info.drjit_threads}
+    t3 = time.perf_counter()
+    paths = [r["png"] for r in records]
+    mp4 = write_mp4(fdir, "frame_%04d.png", out / "animation.mp4", fps)
+    gif = write_gif(paths, out / "animation.gif", fps,
+                    ANIMATE_DEFAULTS["gif_width"] if gif_width is None else gif_width)
+    t_encode = time.perf_counter() - t3
+    frames_out = [{"day": r["day"], "date": r["date"], "moss": r["moss"], "exact": r["exact"],
+                   "render_s": r["render_s"]} for r in records]
+    summary = {"command": "animate", "run": str(run.dir), "frames": frames_out,
+               "exact": all(r["exact"] for r in records),
+               "settings": {**opts, "fps": fps, "light": light, "when": last.get("when")},
+               "trees": last["trees"],
+               "files": {"mp4": str(mp4) if mp4 else None, "gif": str(gif), "frames": str(fdir)},
+               "timings_s": {"render": sum(r["render_s"] for r in records), "encode": t_encode,
+                             "total": time.perf_counter() - t0},
+               "dask": dask_info, "versions": _versions()}
+    if mp4 is None:
+        summary["warning"] = "ffmpeg not found: no MP4 written (install ffmpeg)"
+    write_json(out / "animate.json", summary)
+    folder.release()
+    return summary
