@@ -256,3 +256,18 @@ def test_sunny_leaves_colour_first(tmp_path):
           stage[inner].mean())
     assert rho > 0.5
     assert stage[outer].mean() > stage[inner].mean()
+
+
+def test_world_experiment_script_makes_its_figures(summer, tmp_path):
+    import importlib.util
+    _, tmp = summer
+    spec = importlib.util.spec_from_file_location("world_courtyard",
+                                                  ROOT / "experiments" / "world_courtyard.py")
+    m = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(m)
+    assert m.main(["--run", str(tmp / "run"), "--out", str(tmp_path)]) == 0
+    for f in ("light_under_crowns.png", "leaves.png", "moss_mechanism.png", "results.json"):
+        assert (tmp_path / f).stat().st_size > 0
+    res = json.loads((tmp_path / "results.json").read_text())
+    s = res["summer (full leaf)"]
+    assert s["oak"]["par_W_m2"] < s["open"]["par_W_m2"]

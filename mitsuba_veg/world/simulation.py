@@ -176,8 +176,11 @@ class WorldSimulation(MossSimulation):
         # PAR absorptance per leaf from its stage's spectra (bin centres, as the light scene)
         a_par = self._bin_par_absorptance()[c.leaf_bins(ph.tau)]
         absorbed = self.leaf_light["par_W_m2"] * self.leaf_area_in_pass * a_par
-        area = self.index.areas[self.ground_slice]
+        gsl = self.ground_slice
+        area = self.index.areas[gsl]
         g, gs = self.ground_bands, self.ground_sky_bands
+        cover = (self.covered_area() / np.maximum(self.index.areas, 1e-30))[gsl]
+        Ts, rhs, Sg = np.asarray(st.Ts)[gsl], np.asarray(st.rhs)[gsl], np.asarray(S)[gsl]
 
         def rfr(bands, mask, w):
             red = float((bands["red"][mask] * w).sum()) * _CENTRE_NM["red"]
@@ -187,11 +190,17 @@ class WorldSimulation(MossSimulation):
         def ground_stats(mask):
             if not mask.any():
                 return {"area_m2": 0.0, "par_W_m2": None, "red_far_red": None,
-                        "red_far_red_sky": None}
+                        "red_far_red_sky": None, "moss_cover": None, "S_W_m2": None,
+                        "Ts_K": None, "rhs": None}
             w = area[mask]
+
+            def mean(x):
+                return float((x[mask] * w).sum() / w.sum())
             return {"area_m2": float(w.sum()),
-                    "par_W_m2": float((g["par"][mask] * w).sum() / w.sum()),
-                    "red_far_red": rfr(g, mask, w), "red_far_red_sky": rfr(gs, mask, w)}
+                    "par_W_m2": mean(g["par"]),
+                    "red_far_red": rfr(g, mask, w), "red_far_red_sky": rfr(gs, mask, w),
+                    "moss_cover": mean(cover), "S_W_m2": mean(Sg), "Ts_K": mean(Ts),
+                    "rhs": mean(rhs)}
 
         trees = {}
         for t_i, wt in enumerate(self.trees):
