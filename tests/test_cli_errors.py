@@ -121,6 +121,9 @@ CASES = [
     (["animate", "{tmp}/run", "--every", "0"], "--every"),
     (["animate", "{tmp}/run", "--every", "-5"], "--every"),
     (["animate", "{tmp}/run", "--out", "{tmp}/run", "--quiet"], "--out"),
+    (["animate", "{tmp}/run", "--out", "{tmp}/a_file", "--quiet"], "--out"),
+    (["demo", "--out", "{tmp}/a_file", "--quiet"], "--out"),
+    (["sweep", "{tmp}/missing_sweep.toml", "--out", "{tmp}/o7"], "sweep"),
     # grow
     (["grow", "{tmp}/flat.toml", "--out", "{tmp}/o5", "--quiet"], "positions"),
     (["grow", "{tmp}/tree.toml", "--set", "modell='x'", "--out", "{tmp}/o5"], "modell"),
@@ -202,3 +205,21 @@ def test_version_and_help_texts():
             if a.option_strings and a.dest != "help" and not (a.help or "").strip():
                 missing.append(f"{name} {a.option_strings[0]}")
     assert not missing, missing
+
+
+def test_render_warns_when_the_shipped_scenario_stands_in(world, tmp_path, caplog):
+    """A run whose scenario file is gone: the render uses the shipped scenario of the same name
+    and says so (it used to switch silently)."""
+    import json as _json
+    import logging
+    from mitsuba_veg.render.history import load_run
+    d = tmp_path / "run"
+    shutil.copytree(world / "run", d)
+    s = _json.loads((d / "summary.json").read_text())
+    s["scenario"] = "/nonexistent/moss_garden/scenario.toml"
+    (d / "summary.json").write_text(_json.dumps(s))
+    with caplog.at_level(logging.WARNING, logger="mitsuba_veg"):
+        run = load_run(d)
+    assert run.scenario.path.name == "scenario.toml"
+    assert any("is gone" in r.getMessage() and "--scenario" in r.getMessage()
+               for r in caplog.records)
