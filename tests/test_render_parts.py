@@ -51,9 +51,7 @@ def test_spectrum_and_regular_dict():
 
 def test_leaf_bsdf_dict():
     d = materials.leaf_bsdf(0.0)
-    assert d["type"] in ("veg_leaf", "twosided")
-    if materials.foliage_available():
-        assert d["type"] == "veg_leaf" and "transmittance" in d
+    assert d["type"] == "veg_leaf" and "transmittance" in d
 
 
 # ---- tufts -------------------------------------------------------------------------------------

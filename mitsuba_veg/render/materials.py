@@ -148,30 +148,12 @@ def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
 
 
 # ---- leaves ----------------------------------------------------------------------------------
-def foliage_available() -> bool:
-    """True when :mod:`mitsuba_veg.foliage` (PROSPECT-D spectra, ``veg_leaf`` BSDF) imports."""
-    try:
-        from .. import foliage  # noqa: F401
-        from ..foliage import leaf_spectra, leaf_bsdf_dict  # noqa: F401
-        return True
-    except Exception:  # pragma: no cover - depends on the other package's state
-        return False
-
-
 def leaf_bsdf(tau: float = 0.0) -> dict:
-    """BSDF dict of a leaf at autumn logical time ``tau`` (0 green .. 1 red, paper 003).
-
-    With :mod:`mitsuba_veg.foliage`: PROSPECT-D reflectance and transmittance in the two-sided
-    ``veg_leaf`` BSDF. Without it: a ``twosided`` diffuse green-to-red blend (no transmission).
-    """
-    tau = float(np.clip(tau, 0.0, 1.0))
-    if foliage_available():
-        from ..foliage import leaf_bsdf_dict, leaf_spectra
-        return leaf_bsdf_dict(leaf_spectra(tau=tau))
-    red = _vegetation(0.04, 0.06, 0.20, 0.50, yellow=0.10, edge=690)
-    r = (1 - tau) * SPECTRA["leaf_green"] + tau * red
-    return {"type": "twosided", "bsdf": diffuse(r)}
+    """BSDF dict of a leaf at autumn logical time ``tau`` (0 green .. 1 red, paper 003):
+    PROSPECT-D reflectance and transmittance in the two-sided ``veg_leaf`` BSDF."""
+    from ..foliage import leaf_bsdf_dict, leaf_spectra
+    return leaf_bsdf_dict(leaf_spectra(tau=float(np.clip(tau, 0.0, 1.0))))
 
 
 __all__ = ["WAVELENGTHS", "SPECTRA", "GEOLOGY_MATERIAL", "MOSS_MATERIAL", "spectrum", "regular",
-           "diffuse", "blend", "band_mean", "srgb", "foliage_available", "leaf_bsdf"]
+           "diffuse", "blend", "band_mean", "srgb", "leaf_bsdf"]

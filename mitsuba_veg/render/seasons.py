@@ -74,23 +74,16 @@ class TreeSeasons:
         # onset: the first day of the range on or after the onset day of year
         after = np.nonzero(self.doy >= onset)[0]
         onset_idx = int(after[0]) if len(after) else self.days
-        self.state = None
-        try:
-            from ..foliage import AutumnParams, autumn_time
-            if onset_idx < self.days:
-                self.state = autumn_time(daily, AutumnParams(onset_day=onset_idx, fall=True),
-                                         seed=seed)
-        except Exception:   # foliage package missing or changed: a plain clock
-            self.state = None
-        if self.state is None:
-            t = np.clip(np.arange(self.days) - onset_idx + 1, 0, None) / 60.0
-            rate = np.exp(0.15 * rng.standard_normal(n))
-            self.tau_raw = rate[:, None] * (0.8 * np.cumsum(daily, 1) / 250.0 *
-                                            (np.arange(self.days) >= onset_idx) + 0.2 * t)
-            self.fall_thr = 1.25 * np.exp(0.1 * rng.standard_normal(n))
-        else:
+        from ..foliage import AutumnParams, autumn_time
+        if onset_idx < self.days:
+            self.state = autumn_time(daily, AutumnParams(onset_day=onset_idx, fall=True),
+                                     seed=seed)
             self.tau_raw = self.state.tau_raw
             self.fall_thr = self.state.fall_threshold
+        else:   # the range ends before the autumn onset: green all along
+            self.state = None
+            self.tau_raw = np.zeros((n, self.days))
+            self.fall_thr = np.full(n, np.inf)
 
     def apply(self, date: _dt.date) -> None:
         """Write the tree's leaf attributes for ``date``."""

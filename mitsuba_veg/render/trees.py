@@ -40,16 +40,13 @@ def _bark_and_leaf_geometry(tree, smooth=True):
     from ..trees.structure import leaf_quads, tube_mesh
     bark = leaves = None
     if getattr(tree, "weber_penn", None) is not None:
-        try:
-            from ..trees.junction import leaf_mesh, tree_mesh
-            b, l_ = tree_mesh(tree, smooth=smooth, leaves=False)
-            bark = (np.asarray(b.vertices), np.asarray(b.faces))
-            if len(tree.leaves):
-                lm = leaf_mesh(tree)
-                leaves = (np.asarray(lm.vertices), np.asarray(lm.faces),
-                          np.asarray(lm.metadata["leaf"]))
-        except Exception:  # other developers' module in flux: fall back to plain tubes
-            bark = leaves = None
+        from ..trees.junction import leaf_mesh, tree_mesh
+        b, _ = tree_mesh(tree, smooth=smooth, leaves=False)
+        bark = (np.asarray(b.vertices), np.asarray(b.faces))
+        if len(tree.leaves):
+            lm = leaf_mesh(tree)
+            leaves = (np.asarray(lm.vertices), np.asarray(lm.faces),
+                      np.asarray(lm.metadata["leaf"]))
     if bark is None:
         a = tree.alive
         v, f = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], 6)
