@@ -239,6 +239,18 @@ class DayFrames:
                  label="K", cmap="coolwarm")
         plan_map(axs[3], v, f, last["theta"][sl], title="soil water content θ",
                  label="θ [-]", cmap="Blues", vmin=0.0)
+        for ax in axs:
+            ax.autoscale(False)
+        for wt in getattr(sim, "trees", []):   # a world: the crowns (dashed) and trunks
+            r, (cx, cz) = wt.crown_radius(), wt.crown_centre()
+            for ax in axs:
+                ax.add_patch(plt.Circle((cx, -cz), r, fill=False, ls="--", lw=0.9,
+                                        color="tab:green"))
+                ax.plot(wt.position[0], -wt.position[2], "^", color="saddlebrown", ms=5)
+        rec_trees = rec.get("trees")
+        if rec_trees:
+            on = sum(t["leaves_on_tree"] for t in rec_trees.values())
+            axs[1].set_title(f"insolation S (daily mean), {on:,d} leaves on", fontsize=10)
         fig.suptitle(f"day {rec['day']} ({rec['date']}): {rec['moss_alive']} moss, "
                      f"{rec['propagules']} propagules, covered {rec['covered_area_m2']:.4f} m²",
                      fontsize=11)

@@ -104,8 +104,8 @@ class WorldSimulation(MossSimulation):
         self.ground_slice = sl
         self.crowns = []
         for wt in self.trees:
-            r = wt.crown_radius()
-            d = np.hypot(cen[:, 0] - wt.position[0], cen[:, 2] - wt.position[2])
+            r, m = wt.crown_radius(), wt.crown_centre()
+            d = np.hypot(cen[:, 0] - m[0], cen[:, 2] - m[1])
             self.crowns.append(d <= max(0.75 * r, 1e-6))
         self.open_ground = ~np.any(self.crowns, axis=0) if self.crowns else \
             np.ones(len(cen), bool)
@@ -242,7 +242,8 @@ class WorldSimulation(MossSimulation):
         s["world"] = {"trees": [{"name": wt.name, "model": wt.model,
                                  "position": wt.position.tolist(),
                                  "leaves": int(len(wt.leaf_area)),
-                                 "crown_radius_m": wt.crown_radius(), **wt.info}
+                                 "crown_radius_m": wt.crown_radius(),
+                                 "crown_centre_xz_m": wt.crown_centre().tolist(), **wt.info}
                                 for wt in self.trees],
                       "leaf_elements": int(self.canopy.n_leaves),
                       "stage_bins": self.stage_bins,

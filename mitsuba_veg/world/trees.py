@@ -49,14 +49,22 @@ class WorldTree:
     def leaf_centre(self) -> np.ndarray:
         return self.leaf_vertices.mean(axis=1)
 
+    def crown_centre(self) -> np.ndarray:
+        """Horizontal centre (x, z) of the crown [m]: the mean of the leaves (the trunk's base
+        when there are none); a tree beside a wall has it off its trunk."""
+        c = self.leaf_centre
+        if len(c) == 0:
+            return self.position[[0, 2]].astype(float)
+        return c[:, [0, 2]].mean(axis=0)
+
     def crown_radius(self) -> float:
-        """Horizontal radius of the crown around the trunk [m] (90th percentile of the leaves'
+        """Horizontal radius of the crown around its centre [m] (90th percentile of the leaves'
         distances)."""
         c = self.leaf_centre
         if len(c) == 0:
             return 0.0
-        d = np.hypot(c[:, 0] - self.position[0], c[:, 2] - self.position[2])
-        return float(np.percentile(d, 90))
+        m = self.crown_centre()
+        return float(np.percentile(np.hypot(c[:, 0] - m[0], c[:, 2] - m[1]), 90))
 
 
 def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
