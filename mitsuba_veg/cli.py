@@ -212,7 +212,8 @@ def _cmd_demo(a) -> int:
     f = m["final"]
     print(f"{a.days} days: {f['moss_alive']} moss alive, covered {f['covered_area_m2']:.3f} m2"
           + "".join(f"; {k} {v['covered_area_m2']:.3f} m2" for k, v in f["regions"].items()))
-    summer = max(m["days_record"], key=lambda r: sum(t["leaves_on_tree"]
+    # the day the leaves absorbed the most PAR: full leaf, high sun
+    summer = max(m["days_record"], key=lambda r: sum(t["absorbed_par_W"]
                                                      for t in r["trees"].values()))
     for name, t in summer["trees"].items():
         u = t["ground_under_crown"]
