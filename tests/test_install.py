@@ -26,5 +26,5 @@ def test_non_editable_install_has_integrators_and_scenes(tmp_path):
     assert q.returncode == 0, q.stderr[-2000:]
     lines = q.stdout.splitlines()
     assert lines[0].startswith(str(site)) and lines[0].endswith("integrators/__init__.py")
-    assert lines[1].startswith(str(site)) and lines[1].endswith("moss_garden/scenario.toml")
+    assert lines[1].startswith(str(site)) and lines[1].endswith("courtyard/scenario.toml")
     assert "PhotonIrradianceIntegrator" in q.stdout
