@@ -133,6 +133,8 @@ SCHEMA: dict[str, Field] = {
         "height": _num("float", 0.05, 200.0, "[m] scale a Weber-Penn tree to this height"),
         "adapt": Field("bool", doc="Weber-Penn: deform by paper 002's rules in the scene"),
         "voxel_size": _num("float", 0.01, 10.0, "[m] voxels of the non-growth light"),
+        "death_threshold": _num("float", 0.0, 1.0, "adapt: paper 002's T/N threshold "
+                                "(mean leaf light, default 0.5)"),
         "generations": _num("int", 0, 20, "growth model generations G"),
         "growth": Field("any", doc="GrowthParams fields (unit [m] sets the size)"),
         "file": Field("file", doc="mesh: the wood (PLY/OBJ/GLB)"),

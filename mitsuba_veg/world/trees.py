@@ -137,7 +137,8 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
             if cfg.get("adapt", False):
                 from ..trees.nongrowth import deform
                 res = deform([tree], _obstacles(base_scene, out), shade_from="leaves",
-                             voxel_size=float(cfg.get("voxel_size", 0.25)))
+                             voxel_size=float(cfg.get("voxel_size", 0.25)),
+                             death_threshold=float(cfg.get("death_threshold", 0.5)))
                 tree = res.trees[0]
                 info["nongrowth"] = [{k: s[k] for k in ("rule", "seconds") if k in s}
                                      for s in res.stats]
