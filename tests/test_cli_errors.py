@@ -124,6 +124,8 @@ CASES = [
     (["animate", "{tmp}/run", "--out", "{tmp}/a_file", "--quiet"], "--out"),
     (["demo", "--out", "{tmp}/a_file", "--quiet"], "--out"),
     (["sweep", "{tmp}/missing_sweep.toml", "--out", "{tmp}/o7"], "sweep"),
+    (["sweep", str(SCEN.parent / "sweep.toml"), "--workers", "0", "--out", "{tmp}/o7"],
+     "--workers"),
     # grow
     (["grow", "{tmp}/flat.toml", "--out", "{tmp}/o5", "--quiet"], "positions"),
     (["grow", "{tmp}/tree.toml", "--set", "modell='x'", "--out", "{tmp}/o5"], "modell"),

@@ -13,21 +13,22 @@ __all__ = ["add_parser"]
 
 def add_parser(subparsers) -> None:
     """Add ``sweep`` to the ``mitsuba-veg`` sub-command parsers."""
+    from ..cliargs import ranged
     s = subparsers.add_parser("sweep", help="many moss runs on Dask (axes x seeds) -> one table")
     s.add_argument("sweep_file", help="sweep TOML, e.g. scenes/moss_garden/sweep.toml")
     s.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local "
                         "cluster of worker processes)")
-    s.add_argument("--workers", type=int, metavar="N",
+    s.add_argument("--workers", type=ranged(int, 1, 4096, "processes"), metavar="N",
                    help="worker processes of the local cluster (default: one per core); with "
                         "--scheduler: wait for N workers")
-    s.add_argument("--threads", type=int, metavar="N",
+    s.add_argument("--threads", type=ranged(int, 1, 1024, "threads"), metavar="N",
                    help="Dr.Jit threads per worker (default: cores // worker processes)")
     s.add_argument("--out", default="out/sweep", help="output folder (default out/sweep)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a field of the base scenario for every run")
     s.add_argument("--no-plots", action="store_true", help="skip the standard plots")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress bar and no per-run lines")
     s.set_defaults(func=_cmd_sweep)
 
 
