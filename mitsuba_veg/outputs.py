@@ -29,7 +29,7 @@ LOCK = ".mitsuba-veg.lock"
 _KIND_FILES = {"run": ("checkpoint.npz",), "irradiance": ("irradiance.npz",),
                "render": ("render.json",), "animate": ("animate.json",),
                "light-study": ("light_study.npz",), "grow": ("metrics.json",),
-               "tune": ("fitted.json",)}
+               "tune": ("fitted.json",), "sweep": ("sweep.json",)}
 #: files and folders of a moss run that belong to one run (cleared when a run starts afresh)
 RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.json.tmp",
                "days.gif", "days.tmp.gif", "maps", "snapshots", "render", "animation")

@@ -181,7 +181,10 @@ def sweep(sweep_file, out="out/sweep", *, scheduler: str | None = None,
     sw = load_sweep(sweep_file, overrides)
     require_pandas()
     t_start = time.perf_counter()
+    from ..outputs import OutputFolder
     out = Path(out).resolve()
+    # one sweep per folder at a time (each run's own folder is locked by its run as well)
+    folder = OutputFolder(out, "sweep", info={"sweep": str(sw.path)})
     runs_dir = out / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
     specs = [_task_spec(sw, r, runs_dir) for r in sw.runs]
@@ -250,4 +253,5 @@ def sweep(sweep_file, out="out/sweep", *, scheduler: str | None = None,
             "workers": info.workers, "drjit_threads": info.drjit_threads},
         "seconds": time.perf_counter() - t_start, "files": files}
     write_json(out / "sweep.json", manifest)
+    folder.release()
     return table
