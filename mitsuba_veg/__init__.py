@@ -19,8 +19,9 @@ from . import climate, moss, scenario, soil, terrain  # noqa: E402,F401
 from . import trees  # noqa: E402,F401
 from . import foliage  # noqa: E402,F401  (registers the veg_leaf BSDF)
 from .simulation import run  # noqa: E402,F401
+from . import world  # noqa: E402,F401  (trees, leaves and moss in one daily loop)
 from . import tune  # noqa: E402,F401
 from .sweeps import sweep  # noqa: E402,F401  (Dask is imported only when a sweep runs)
 
 __all__ = ["__version__", "variant", "errors", "integrators", "light", "climate", "moss",
-           "scenario", "soil", "terrain", "trees", "foliage", "tune", "run", "sweep"]
+           "scenario", "soil", "terrain", "trees", "foliage", "world", "tune", "run", "sweep"]
