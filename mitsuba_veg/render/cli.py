@@ -272,6 +272,37 @@ def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> P
     return path
 
 
+def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height=None,
+                      spp=None, frames=None, every=None, fps=None, when=None, hour=None,
+                      seed=0):
+    """What every animation needs first (here or on Dask): the run, its output folder
+    (claimed; old frames removed), the frame days, fps and the render options. Returns
+    ``(run, out, frames_dir, days, fps, options dict, RenderOptions, OutputFolder)``."""
+    from ..outputs import OutputFolder
+    from . import RenderOptions, load_run
+    _check_image(width, height, spp, None, frames, every, fps)
+    run = load_run(run_dir, scenario)
+    out = Path(out if out is not None else Path(run_dir) / "animation").resolve()
+    n_frames = int(ANIMATE_DEFAULTS["frames"] if frames is None else frames)
+    fps = int(ANIMATE_DEFAULTS["fps"] if fps is None else fps)
+    days = run.frame_days(count=n_frames, every=every)
+    if len(days) < 2:
+        raise ParameterError("RUN_DIR", str(run.dir), "a run with at least 2 days to animate",
+                             "run more days")
+    folder = OutputFolder(out, "animate", info={"run": str(run.dir)})
+    fdir = out / "frames"
+    fdir.mkdir(parents=True, exist_ok=True)
+    for old in fdir.glob("frame_*.png"):
+        old.unlink()
+    opts = dict(width=width or ANIMATE_DEFAULTS["width"],
+                height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
+                camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
+                max_depth=5)
+    if hour is not None:
+        opts["hour"] = float(hour)
+    return run, out, fdir, days, fps, opts, RenderOptions(**opts).validate(), folder
+
+
 def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
                 frames=None, every=None, fps=None, when=None, hour=None, light="fixed",
                 trees=None, scenario=None, gif_width=None, seed=0, progress=True,
@@ -299,37 +330,16 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
                                spp=spp, frames=frames, every=every, fps=fps, when=when,
                                hour=hour, light=light, scenario=scenario, gif_width=gif_width,
                                seed=seed, progress=progress)
-    from . import RenderOptions, build_scene, load_run, render
+    from . import build_scene, render
     from .film import to_srgb8, write_png
     from .scene import Terrain, render_time, sky_emitters
 
-    from ..outputs import OutputFolder
-    if light not in ("fixed", "daily"):
-        raise ParameterError("light", light, "'fixed' or 'daily'")
-    _check_image(width, height, spp, None, frames, every, fps)
     if gif_width is not None:
         check_range("gif_width", gif_width, 0, 16384)
     t0 = time.perf_counter()
-    run = load_run(run_dir, scenario)
-    out = Path(out) if out is not None else Path(run_dir) / "animation"
-    n_frames = int(ANIMATE_DEFAULTS["frames"] if frames is None else frames)
-    fps = int(ANIMATE_DEFAULTS["fps"] if fps is None else fps)
-    days = run.frame_days(count=n_frames, every=every)
-    if len(days) < 2:
-        raise ParameterError("RUN_DIR", str(run.dir), "a run with at least 2 days to animate",
-                             "run more days")
-    folder = OutputFolder(out, "animate", info={"run": str(run.dir)})
-    fdir = out / "frames"
-    fdir.mkdir(parents=True, exist_ok=True)
-    for old in fdir.glob("frame_*.png"):
-        old.unlink()
-    opts = dict(width=width or ANIMATE_DEFAULTS["width"],
-                height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
-                camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
-                max_depth=5)
-    if hour is not None:
-        opts["hour"] = float(hour)
-    o = RenderOptions(**opts).validate()
+    run, out, fdir, days, fps, opts, o, folder = prepare_animation(
+        run_dir, out, scenario, camera=camera, width=width, height=height, spp=spp,
+        frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed)
     tree_list, seasons = _trees_for(run, trees)
     terrain = Terrain.from_scenario(run.scenario)
     last = run.frame(days[-1])

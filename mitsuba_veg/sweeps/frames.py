@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ..errors import ParameterError, check_range
+from ..errors import ParameterError
 
 #: task key prefix (groups the frames on the Dask dashboard)
 TASK_PREFIX = "mitsuba-veg-frame"
@@ -93,37 +93,16 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
         The summary written to ``animate.json`` (as ``run_animate``'s, plus ``dask``).
     """
     from ..outputs import write_json
-    from ..render import RenderOptions, load_run
-    from ..render.cli import ANIMATE_DEFAULTS, _versions, write_gif, write_mp4
+    from ..render.cli import ANIMATE_DEFAULTS, _versions, prepare_animation, write_gif, write_mp4
     from ..render.scene import render_time
     from .cluster import open_client
 
     if light not in ("fixed", "daily"):
         raise ParameterError("light", light, "'fixed' or 'daily'")
     t0 = time.perf_counter()
-    from ..outputs import OutputFolder
-    run = load_run(run_dir, scenario)
-    out = Path(out if out is not None else Path(run_dir) / "animation").resolve()
-    n_frames = int(ANIMATE_DEFAULTS["frames"] if frames is None else frames)
-    check_range("frames", n_frames, 2, 10000)
-    fps = int(ANIMATE_DEFAULTS["fps"] if fps is None else fps)
-    check_range("fps", fps, 1, 120)
-    days = run.frame_days(count=n_frames, every=every)
-    if len(days) < 2:
-        raise ParameterError("RUN_DIR", str(run.dir), "a run with at least 2 days to animate",
-                             "run more days")
-    folder = OutputFolder(out, "animate", info={"run": str(run.dir)})
-    fdir = out / "frames"
-    fdir.mkdir(parents=True, exist_ok=True)
-    for old in fdir.glob("frame_*.png"):
-        old.unlink()
-    opts = dict(width=width or ANIMATE_DEFAULTS["width"],
-                height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
-                camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
-                max_depth=5)
-    if hour is not None:
-        opts["hour"] = float(hour)
-    o = RenderOptions(**opts).validate()
+    run, out, fdir, days, fps, opts, o, folder = prepare_animation(
+        run_dir, out, scenario, camera=camera, width=width, height=height, spp=spp,
+        frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed)
     fixed_when = render_time(run.scenario, run.date(days[-1]), o) if light == "fixed" else None
     scen = scenario if scenario is None or hasattr(scenario, "data") else \
         str(Path(scenario).resolve())
