@@ -108,19 +108,32 @@ class Canopy:
         s = stage_from_tau(np.clip(tau, 0.0, 1.0))
         return np.minimum(((s - 1.0) / 6.0 * self.bins).astype(np.int64), self.bins - 1)
 
+    #: the light scene follows the leaves when this share of them shows a new state (bin, fallen
+    #: or grown, blade size in steps of 0.1) or after ``max_lag_days`` with any change: every
+    #: update rebuilds the acceleration structure of the leaf meshes (the leaves' own state is
+    #: kept exactly, day by day, by the phenology)
+    min_change = 0.02
+    max_lag_days = 7
+
     def update(self, scene, params, tau: np.ndarray, scale: np.ndarray,
-               on_tree: np.ndarray) -> int:
+               on_tree: np.ndarray, force: bool = False) -> int:
         """Show each leaf on the tree in the bin of its stage, at blade size ``scale`` (0..1),
-        collapse the others; move only the meshes whose content changed. Returns the number of
-        meshes updated."""
+        collapse the others; move only the meshes whose content changed (see
+        :attr:`min_change`). Returns the number of meshes updated."""
         import mitsuba as mi
         if self.n_leaves == 0:
             return 0
         b = np.where(on_tree & (scale > 1e-3), self.leaf_bins(tau), -1)
-        sc = np.where(b >= 0, np.round(scale, 3), 0.0)
+        sc = np.where(b >= 0, np.round(scale, 1), 0.0)
         changed_leaf = (b != self._bin) | (sc != self._scale)
         if not changed_leaf.any():
+            self._lag = 0
             return 0
+        self._lag = getattr(self, "_lag", 0) + 1
+        if not force and changed_leaf.mean() < self.min_change and \
+                self._lag < self.max_lag_days:
+            return 0
+        self._lag = 0
         touched = set(np.unique(self._bin[changed_leaf]).tolist()) | \
             set(np.unique(b[changed_leaf]).tolist())
         touched.discard(-1)
@@ -134,6 +147,10 @@ class Canopy:
         params.update()
         self._bin, self._scale = b, sc
         return len(touched)
+
+    def displayed_area(self) -> np.ndarray:
+        """Blade area of each leaf as the light scene shows it now [m2] (0 when hidden)."""
+        return np.where(self._bin >= 0, self.area * self._scale ** 2, 0.0)
 
     # ---- light per leaf -----------------------------------------------------------------
     def leaf_elements(self, index) -> np.ndarray:

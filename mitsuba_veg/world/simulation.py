@@ -132,8 +132,9 @@ class WorldSimulation(MossSimulation):
         B, D = float(wd.beam[day]), float(wd.diffuse[day])
         from ..light.photon import band_range
         c = self.canopy
-        # the blades as they were in the pass (grown from their centres during leaf-out)
-        area = np.maximum(c.area * self.phen.grown ** 2 * self.phen.on_tree, 1e-12)
+        # the blades as the pass saw them (grown from their centres during leaf-out)
+        shown = c.displayed_area()
+        area = np.maximum(shown, 1e-12)
         width = {b: band_range(b)[1] - band_range(b)[0] for b in BANDS}
         # unit emitters: 1 W m-2 nm-1 horizontal -> fraction g = E / width
         ie = (res.emitters.index("sun"), res.emitters.index("sky"))
@@ -160,7 +161,7 @@ class WorldSimulation(MossSimulation):
                            "far_red_W_m2": leaf["far_red"]}
         self.ground_bands = ground
         self.ground_sky_bands = ground_sky
-        self.leaf_area_in_pass = np.where(self.phen.on_tree, c.area * self.phen.grown ** 2, 0.0)
+        self.leaf_area_in_pass = shown
         self.phen.end_of_day(date, S_leaf * 86400.0 / 1e6)
         dt = time.perf_counter() - t0
         self.timings["leaves"] += dt
