@@ -142,3 +142,17 @@ def test_docs_list_every_scenario_field():
     """docs/scenario.md holds the schema's table as generated (one source for the fields)."""
     from mitsuba_veg.scenario import schema_markdown
     assert schema_markdown() in (ROOT / "docs" / "scenario.md").read_text()
+
+
+def test_moss_size_below_the_spot_grid_limit_is_refused(tmp_path, monkeypatch):
+    """A moss size whose spot grid would need more cells per axis than a block key holds is
+    refused naming moss.size and the smallest size for the scene (it used to end in a
+    traceback). The key's capacity (2^21 cells) is lowered so that a 1 mm size trips it on the
+    2 m garden."""
+    from mitsuba_veg.moss.spatial import SpotGrid
+    from mitsuba_veg.simulation import MossSimulation
+    monkeypatch.setattr(SpotGrid, "max_cells_per_axis", 1000)
+    scn = load_scenario(SCEN, SMALL + ["moss.size=0.001"])
+    sim = MossSimulation(scn, tmp_path, days=1, progress=False)
+    with pytest.raises(ParameterError, match=r"moss\.size = 0\.001 .*>= 0\.00.* m for this scene"):
+        sim.setup()
