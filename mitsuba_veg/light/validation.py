@@ -203,3 +203,68 @@ def _delta_direct(scene: mi.Scene, faces, V, width, samples_per_tri: int = 4096)
             val = dr.select(vis & (cos > 0), w[0] * cos, 0.0)
             res[i] += float(np.asarray(val).mean()) * width
     return res
+
+
+def plant_mesh(kind: int = 0):
+    """Vertices [m] and faces of a small plant: 4 + ``kind`` leaf quads (8-14 triangles)
+    spiralling up a 5-20 cm stem, one leaf every 3 cm. Returns (vertices, faces)."""
+    verts, faces = [], []
+    n = 4 + int(kind)
+    for j in range(n):
+        a = 2 * math.pi * j / n
+        h = 0.05 + 0.03 * j
+        c, s = math.cos(a), math.sin(a)
+        b = len(verts)
+        verts += [[0.0, h, 0.0], [0.06 * c, h + 0.02, 0.06 * s],
+                  [0.05 * c - 0.02 * s, h + 0.04, 0.05 * s + 0.02 * c],
+                  [-0.02 * s, h + 0.02, 0.02 * c]]
+        faces += [[b, b + 1, b + 2], [b, b + 2, b + 3]]
+    return np.array(verts, dtype=float), np.array(faces, dtype=np.int64)
+
+
+def plant_scene(n_plants: int = 1000, kinds: int = 3, instanced: bool = True, size: float = 4.0,
+                leaf_albedo: float = 0.4, stem_albedo: float = 0.1, ground_albedo: float = 0.2,
+                seed: int = 0, sun_elevation: float = 55.0, sky_radiance: float = 0.05) -> dict:
+    """Scene dict: ``n_plants`` small plants on a ``size`` x ``size`` m ground [m], sun + uniform
+    sky, spectrally flat (sun 1 W m-2 nm-1, sky ``sky_radiance`` W m-2 sr-1 nm-1).
+
+    A plant is two meshes: leaves (:func:`plant_mesh`, albedo ``leaf_albedo``) and a 1 cm stem
+    (a box, ``stem_albedo``) standing 2 mm above the ground (no coplanar faces). ``instanced=True`` writes ``kinds`` shapegroups (``plant0``, ...,
+    meshes ``leaves{k}`` and ``stem{k}``) and one ``instance`` per plant (ids ``p0000``, ...), as
+    exporters and scatterers do; ``instanced=False`` writes the same geometry as plain meshes
+    ``p0000_leaves`` and ``p0000_stem``. Load with ``optimize=False``.
+    """
+    rng = np.random.default_rng(seed)
+    gv, gf = grid_mesh(20, 20, x=(-size / 2, size / 2), z=(-size / 2, size / 2))
+    d = {"type": "scene", "ground": make_mesh("ground", gv, gf, ground_albedo)}
+    plants = [plant_mesh(k) for k in range(kinds)]
+    stems = [box_mesh((-0.005, 0.002, -0.005), (0.005, pv[:, 1].max(), 0.005))
+             for pv, _ in plants]
+    if instanced:
+        for k, (pv, pf) in enumerate(plants):
+            d[f"plant{k}"] = {"type": "shapegroup",
+                              f"leaves{k}": make_mesh(f"leaves{k}", pv, pf, leaf_albedo),
+                              f"stem{k}": make_mesh(f"stem{k}", *stems[k], stem_albedo)}
+    half = 0.47 * size
+    xz = rng.uniform(-half, half, (n_plants, 2))
+    rot = rng.uniform(0.0, 360.0, n_plants)
+    for i in range(n_plants):
+        T = mi.ScalarTransform4f().translate([float(xz[i, 0]), 0.0, float(xz[i, 1])]) \
+            .rotate([0, 1, 0], float(rot[i]))
+        if instanced:
+            d[f"p{i:04d}"] = {"type": "instance", "id": f"p{i:04d}",
+                              "shapegroup": {"type": "ref", "id": f"plant{i % kinds}"},
+                              "to_world": T}
+        else:
+            M = np.array(T.matrix, dtype=float).reshape(4, 4)
+            for part, (pv, pf), a in (("leaves", plants[i % kinds], leaf_albedo),
+                                      ("stem", stems[i % kinds], stem_albedo)):
+                name = f"p{i:04d}_{part}"
+                d[name] = make_mesh(name, pv @ M[:3, :3].T + M[:3, 3], pf, a)
+    sun = sun_vector(sun_elevation, 160.0)
+    d["sun"] = {"type": "directional", "id": "sun", "direction": (-sun).tolist(),
+                "irradiance": {"type": "uniform", "value": 1.0}}
+    if sky_radiance > 0:
+        d["sky"] = {"type": "constant", "id": "sky",
+                    "radiance": {"type": "uniform", "value": float(sky_radiance)}}
+    return d
