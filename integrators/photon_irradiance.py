@@ -865,8 +865,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         refl = self._reflectance_table(index, reflectance, n_b)
 
         # photon budget per emitter: proportional to the power each sends at the geometry
-        power = np.array([self._pilot_power(scene, all_emitters[i], index, ranges[0])
-                          for i in em_idx])
+        pilots = [self._pilot_power(scene, all_emitters[i], index, ranges[0]) for i in em_idx]
+        dr.eval(pilots)  # one launch for all emitters, then deterministic reductions
+        power = np.array([_scalar(dr.mean(p)) for p in pilots]) * (ranges[0][1] - ranges[0][0])
         if not np.all(np.isfinite(power)) or power.sum() <= 0:
             share = np.full(len(em_idx), 1.0 / len(em_idx))
         else:
@@ -877,6 +878,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
         flux = np.zeros((len(em_idx), n_el, 2, 2, n_b))
         book = np.zeros((4, len(em_idx), n_b))  # emitted, escaped, absorbed, truncated
+        dev = {}  # (emitter, band group) -> flux on the device [W]
         rays = 0
         bar = None
         if progress:
@@ -896,7 +898,12 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
                                             slot_ranges, refl_g, max_depth, indirect)
-                    flux[e_i, ..., group[0]:group[-1] + 1] += acc[..., :len(group)]
+                    # fixed point -> watts on the device (both threads), summed over batches
+                    # in a fixed order (deterministic)
+                    q, unit = acc
+                    w = mi.Float64(q) * dr.opaque(mi.Float64, unit)
+                    dev[e_i, g_i] = w if (e_i, g_i) not in dev else dev[e_i, g_i] + w
+                    dr.eval(dev[e_i, g_i])
                     book[:, e_i, group] += bk[:, :len(group)]
                     rays += r
                     done += n
@@ -904,6 +911,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                         bar.update(n)
         if bar is not None:
             bar.close()
+        for (e_i, g_i), w in dev.items():
+            group = groups[g_i]
+            w = np.asarray(w).reshape(n_el, 2, 2, _SLOTS)
+            flux[e_i, ..., group[0]:group[-1] + 1] = w[..., :len(group)]
         res = PhotonIrradianceResult(
             index=index, bands=names, band_ranges=ranges, emitters=em_names, flux=flux,
             photons=counts, rays_traced=int(rays), emitted=book[0], escaped=book[1],
@@ -973,15 +984,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         raise SceneError(f"emitter '{emitter.id()}' ({emitter.class_name()}) has flags {int(f)} "
                          "that the photon pass does not know how to sample")
 
-    def _pilot_power(self, scene, emitter, index, rng_nm) -> float:
-        """Estimated power [W] that an emitter sends towards the geometry (for the budget)."""
+    def _pilot_power(self, scene, emitter, index, rng_nm):
+        """Samples of the spectral power [W nm-1] that an emitter sends towards the geometry
+        (their mean sets the photon budget), unevaluated."""
         n = 4096
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(12345, n)
         lam = mi.Float(rng_nm[0]) + (rng_nm[1] - rng_nm[0]) * sampler.next_1d()
         wav = mi.Spectrum(lam, lam, lam, lam)
         _, _, w, _ = self._emit(scene, emitter, index, sampler, wav, mi.Bool(True))
-        return _scalar(dr.mean(w[0])) * (rng_nm[1] - rng_nm[0])
+        return mi.Float(w[0])
 
     def _emit(self, scene, emitter, index, sampler, wav, active, strata=None):
         """Sample photon origins/directions: returns (origin, direction, weight, time).
@@ -1134,9 +1146,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         vals = np.array([_scalar(s) for s in sums] + [_scalar(dr.sum(_UInt64(rays_lane)))],
                         dtype=np.float64)
         bk = vals[:4 * _SLOTS].reshape(4, _SLOTS)
-        acc_np = (np.asarray(acc, dtype=np.uint64).astype(np.float64) / scale).reshape(
-            n_el, 2, 2, _SLOTS)
-        return acc_np, bk, int(vals[-1])
+        # fixed-point sums (on the device) and their unit [W]
+        return (acc, 1.0 / scale), bk, int(vals[-1])
 
     @staticmethod
     def _tables(index):
