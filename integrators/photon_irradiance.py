@@ -469,7 +469,9 @@ class SceneIndex:
                 f">= 3.7 merges meshes with equal BSDFs at load time and drops their ids: load "
                 f"the scene with mi.load_dict(..., optimize=False) / mi.load_file(..., "
                 f"optimize=False) to keep per-shape results")
-        i = self.shape_ids.index(shape_id)
+        if getattr(self, "_position", None) is None or len(self._position) != len(self.shape_ids):
+            self._position = {sid: i for i, sid in enumerate(self.shape_ids)}
+        i = self._position[shape_id]
         return slice(int(self.offsets[i]), int(self.offsets[i] + self.counts[i]))
 
 
@@ -610,14 +612,40 @@ class PhotonIrradianceResult:
         return float(self.flux[..., self._band(band)].sum())
 
     def to_npz(self, path) -> None:
-        """Write every shape's irradiance arrays and the bookkeeping to a .npz file."""
+        """Write every shape's irradiance arrays and the bookkeeping to a .npz file.
+
+        Keys ``{shape}/{band}/{component}`` (front irradiance [W m-2], one value a triangle),
+        ``{shape}/area_m2``, ``{shape}/centroid_m``, ``{shape}/normal``. With instances, also
+        ``elements/...`` (the same for every element of the scene, in :meth:`tensor` order)
+        and ``instances/ids``, ``instances/first_element``, ``instances/element_count``;
+        per-instance keys are written for up to 100 instances only.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Output file (written atomically).
+        """
         data = {"bands": np.array(self.bands), "emitters": np.array(self.emitters),
                 "band_ranges_nm": np.array(self.band_ranges), "photons": self.photons,
                 "rays_traced": np.array(self.rays_traced), "emitted_W": self.emitted,
                 "escaped_W": self.escaped, "absorbed_W": self.absorbed,
                 "truncated_W": self.truncated}
+        inst = self.index.instances
+        if inst:
+            ids = list(inst)
+            data["instances/ids"] = np.array(ids)
+            data["instances/group"] = np.array([inst[i] for i in ids])
+            sls = [self.index.shape_slice(i) for i in ids]
+            data["instances/first_element"] = np.array([sl.start for sl in sls])
+            data["instances/element_count"] = np.array([sl.stop - sl.start for sl in sls])
+            data["elements/area_m2"] = self.index.areas
+            data["elements/centroid_m"] = self.index.centroids
+            data["elements/normal"] = self.index.normals
+            for b in self.bands:
+                for c in COMPONENTS:
+                    data[f"elements/{b}/{c}"] = self.element_irradiance(b, c)
         for sid in self.index.shape_ids:
-            if not sid:
+            if not sid or (sid in inst and len(inst) > 100):
                 continue
             sl = self.index.shape_slice(sid)
             data[f"{sid}/area_m2"] = self.index.areas[sl]

@@ -101,6 +101,9 @@ def test_exported_scene_with_instances_and_envmap(tmp_path):
     res = photon_irradiance(scene, photons=2_000_000, seed=4)
     np.testing.assert_array_equal(data["ground/total/total"], res.irradiance("ground"))
     np.testing.assert_array_equal(data["tuft07/par/total"], res.irradiance("tuft07", "par"))
+    np.testing.assert_array_equal(data["elements/total/direct"],
+                                  res.element_irradiance("total", "direct"))
+    assert list(data["instances/ids"]) == [f"tuft{i:02d}" for i in range(30)]
     assert len(res.instances) == 30 and res.irradiance("tuft04").shape == (8,)
     assert res.irradiance("tuft03").shape == (10,)  # plant1: 5 leaf quads
     # energy bookkeeping
