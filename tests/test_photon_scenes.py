@@ -93,12 +93,12 @@ def test_exported_scene_with_instances_and_envmap(tmp_path):
     # the command line and the API give the same pass
     out = tmp_path / "irr"
     p = subprocess.run([sys.executable, "-m", "mitsuba_veg.cli", "irradiance", str(xml),
-                        "--photons", "2000000", "--seed", "4", "--out", str(out), "--quiet"],
+                        "--photons", "4000000", "--seed", "4", "--out", str(out), "--quiet"],
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
     data = np.load(out / "irradiance.npz")
     scene = mi.load_file(str(xml), optimize=False)
-    res = photon_irradiance(scene, photons=2_000_000, seed=4)
+    res = photon_irradiance(scene, photons=4_000_000, seed=4)
     np.testing.assert_array_equal(data["ground/total/total"], res.irradiance("ground"))
     np.testing.assert_array_equal(data["tuft07/par/total"], res.irradiance("tuft07", "par"))
     np.testing.assert_array_equal(data["elements/total/direct"],
@@ -114,7 +114,7 @@ def test_exported_scene_with_instances_and_envmap(tmp_path):
     order = np.argsort(irr)
     tris = sorted({int(t) for t in np.concatenate([order[-3:], order[len(order) // 2:][:3],
                                                    order[:4]])})
-    ref, err = V.path_reference(d, "ground", tris, spp=65536, seed=1)
+    ref, err = V.path_reference(d, "ground", tris, spp=262144, seed=1)
     for t, r in zip(tris, ref):
         assert irr[t] == pytest.approx(r, rel=0.05), (t, irr[t], r)
     assert ref.max() > 1.3 * ref.min()  # the check sees shade and light
