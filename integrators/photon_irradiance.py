@@ -911,9 +911,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             share /= share.sum()
         counts = np.maximum(np.round(share * photons).astype(np.int64), 1)
 
-        flux = np.zeros((len(em_idx), n_el, 2, 2, n_b))
         book = np.zeros((4, len(em_idx), n_b))  # emitted, escaped, absorbed, truncated
-        dev = {}  # (emitter, band group) -> flux on the device [W]
+        # flux of every (emitter, band group) on the device [W], read back once at the end
+        block = n_el * 2 * 2 * _SLOTS
+        dev = dr.zeros(mi.Float64, len(em_idx) * len(groups) * block)
+        in_block = dr.arange(mi.UInt32, block)
         rays = 0
         bar = None
         if progress:
@@ -937,8 +939,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     # in a fixed order (deterministic)
                     q, unit = acc
                     w = mi.Float64(q) * dr.opaque(mi.Float64, unit)
-                    dev[e_i, g_i] = w if (e_i, g_i) not in dev else dev[e_i, g_i] + w
-                    dr.eval(dev[e_i, g_i])
+                    first = dr.opaque(mi.UInt32, (e_i * len(groups) + g_i) * block)
+                    dr.scatter_add(dev, w, first + in_block)
+                    dr.eval(dev)
                     book[:, e_i, group] += bk[:, :len(group)]
                     rays += r
                     done += n
@@ -946,10 +949,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                         bar.update(n)
         if bar is not None:
             bar.close()
-        for (e_i, g_i), w in dev.items():
-            group = groups[g_i]
-            w = np.asarray(w).reshape(n_el, 2, 2, _SLOTS)
-            flux[e_i, ..., group[0]:group[-1] + 1] = w[..., :len(group)]
+        # a view of the device buffer (no copy) when one band group holds all bands
+        dev = np.asarray(dev).reshape(len(em_idx), len(groups), n_el, 2, 2, _SLOTS)
+        flux = dev[:, 0] if len(groups) == 1 else np.concatenate(list(np.moveaxis(dev, 1, 0)),
+                                                                  axis=-1)
+        flux = flux[..., :n_b]
         res = PhotonIrradianceResult(
             index=index, bands=names, band_ranges=ranges, emitters=em_names, flux=flux,
             photons=counts, rays_traced=int(rays), emitted=book[0], escaped=book[1],
