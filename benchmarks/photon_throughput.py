@@ -39,7 +39,8 @@ def load(name):
 
 
 def raw_rays(integ, scene, n, seed):
-    """n rays distributed like the photons' first rays (all emitters, same aiming)."""
+    """n rays distributed like the photons' first rays (all emitters, same aiming and
+    stratification; the pass splits photons among emitters by power, this evenly)."""
     index = SceneIndex.build(scene)
     ems = scene.emitters()
     per = [n // len(ems) + (1 if i < n % len(ems) else 0) for i in range(len(ems))]
@@ -48,8 +49,11 @@ def raw_rays(integ, scene, n, seed):
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(seed + i, k)
         lam = 360.0 + 470.0 * sampler.next_1d()
+        # the same jittered-grid order of origins as the pass (neighbouring lanes, neighbouring
+        # rays): the raw casts get the same memory coherence as the photons
+        idx = dr.arange(mi.UInt32, k)
         o, d, w, t = integ._emit(scene, e, index, sampler, mi.Spectrum(lam, lam, lam, lam),
-                                 mi.Bool(True))
+                                 mi.Bool(True), strata=(idx, int(np.sqrt(k))))
         dr.eval(o, d)
         O.append(np.stack([np.broadcast_to(np.asarray(c), (k,)) for c in (o.x, o.y, o.z)]))
         D.append(np.stack([np.broadcast_to(np.asarray(c), (k,)) for c in (d.x, d.y, d.z)]))
