@@ -45,7 +45,9 @@ a shapegroup -> first element within it), its side from the element's geometric 
 per-element table in world space), and the BSDF is sampled about that normal on a surface
 interaction holding only what a spatially uniform BSDF reads. Mitsuba's full surface
 interaction (shading normals, uv) is computed instead when some BSDF has a spatially varying
-texture; analytic shapes (sphere, disk, cylinder) get their normal from the shape. This avoids
+texture, or when a mesh has vertex normals in a scene without instances (with instances,
+instanced meshes reflect about their geometric normals); analytic shapes (sphere, disk,
+cylinder) get their normal from the shape. This avoids
 Mitsuba's per-instance virtual call: with 1,000 instances a full ``ray_intersect`` was 30-50x
 slower than a preliminary one on this 2-core machine.
 
@@ -219,6 +221,7 @@ class _Children(mi.TraversalCallback):
         self.objects: dict[str, object] = {}
 
     def put(self, name, value, flags, cpptype=None):
+        """Called by ``traverse()`` for each parameter or child object; keeps the objects."""
         if isinstance(value, mi.Object):
             self.objects[name] = value
 
@@ -304,7 +307,8 @@ class SceneIndex:
     #: analytic (non-mesh) top-level shapes: (registry id, shape) - their normal is computed by
     #: the shape itself
     analytic: list = field(default_factory=list)
-    #: True when some BSDF is spatially varying: hits then need Mitsuba's full interaction
+    #: True when some BSDF is spatially varying, or (in scenes without instances) a mesh has
+    #: vertex normals: hits then use Mitsuba's full surface interaction
     needs_full_interaction: bool = False
     #: instanced hits: ``group_base[instance registry id] + shape_index`` indexes
     #: ``group_local`` (first element of that mesh within the group) and ``group_bsdf``
@@ -332,6 +336,7 @@ class SceneIndex:
         bsdf_of: dict[int, int] = {}
         bsdf_objs: dict[int, object] = {}
         needs_full = False
+        smooth = False  # a plain mesh has vertex normals (shading normals)
         bbox = mi.ScalarBoundingBox3f()
         offset = 0
 
@@ -401,6 +406,7 @@ class SceneIndex:
                 geometry[sid] = (v, f)
                 reg_offset[_reg_id(sh)] = offset
                 note_bsdf(sh)
+                smooth = smooth or sh.has_vertex_normals()
             else:
                 counts.append(1)
                 areas.append(np.array([float(dr.ravel(sh.surface_area())[0])]))
@@ -418,6 +424,10 @@ class SceneIndex:
                 bbox.expand(sh.bbox())
         if not bbox.valid():
             bbox = scene.bbox()
+        # shading normals need Mitsuba's full interaction too, except with instances, where
+        # it costs a virtual call over every instance (instanced meshes reflect about their
+        # geometric normals)
+        needs_full = needs_full or (smooth and not instances)
         counts = np.asarray(counts, dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
         n_reg = max(list(reg_offset) + list(bsdf_of) + [0]) + 1
@@ -705,7 +715,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
        * - seed
          - integer
          - 0
-         - Random seed; the pass uses ``seed + `` the seed given to ``mi.render``.
+         - Random seed; ``mi.render(scene, seed=k)`` traces with ``seed + k``.
        * - indirect
          - boolean
          - true
@@ -815,9 +825,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         return mi.Spectrum(value), si.is_valid(), []
 
     def aov_names(self):
+        """No AOVs."""
         return []
 
     def to_string(self):
+        """Plugin name and properties (what ``print(integrator)`` shows)."""
         return (f"PhotonIrradianceIntegrator[photons={self.photons}, max_depth={self.max_depth},"
                 f" indirect={self.indirect}, seed={self.seed}, bands={list(self.bands)}, "
                 f"output={self.output}]")
@@ -1272,20 +1284,21 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     flip = si.wi.z < 0
                     si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
                 else:
-                    # the side that was hit faces the photon: surfaces reflect on both sides
-                    n_side = dr.select(back, -ng, ng)
+                    # the frame of the geometric normal, back-face hits mirrored into it (as
+                    # for the full interaction): surfaces reflect on both sides
                     si = dr.zeros(mi.SurfaceInteraction3f)
                     si.t = pi.t
                     si.p = ray(pi.t)
-                    si.n = n_side
-                    si.sh_frame = mi.Frame3f(n_side)
+                    si.n = ng
+                    si.sh_frame = mi.Frame3f(ng)
                     si.time = ray.time
                     si.wavelengths = ray.wavelengths
                     si.shape = pi.shape
                     si.instance = pi.instance
                     si.prim_index = pi.prim_index
                     si.wi = si.sh_frame.to_local(-ray.d)
-                    flip = mi.Bool(False)
+                    flip = si.wi.z < 0
+                    si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
                 s1, s2 = sampler.next_1d(hit), sampler.next_2d(hit)
                 if dr.hint(len(bsdfs) <= _DIRECT_BSDFS, mode='scalar'):
                     # dispatch by hand over the scene's few distinct BSDFs: a virtual call
