@@ -38,6 +38,22 @@ Emitter sampling ("bounding-sphere aim", done tighter):
 Surfaces are treated as two-sided for reflection (a photon hitting a back face reflects to the
 back side, as a thin sheet would); only hits on the front side (the side the geometric normal
 faces: moss lives there) count as front irradiance. Back-side flux is recorded separately.
+
+Hits. Rays are cast with ``ray_intersect_preliminary`` (the BVH traversal only). The element of
+a hit comes from lookup tables (shape -> first element, instance -> first element, mesh within
+a shapegroup -> first element within it), its side from the element's geometric normal (a
+per-element table in world space), and the BSDF is sampled about that normal on a surface
+interaction holding only what a spatially uniform BSDF reads. Mitsuba's full surface
+interaction (shading normals, uv) is computed instead when some BSDF has a spatially varying
+texture, or when a mesh has vertex normals in a scene without instances (with instances,
+instanced meshes reflect about their geometric normals); analytic shapes (sphere, disk,
+cylinder) get their normal from the shape. This avoids
+Mitsuba's per-instance virtual call: with 1,000 instances a full ``ray_intersect`` was 30-50x
+slower than a preliminary one on this 2-core machine.
+
+Instances. Each ``instance`` of a ``shapegroup`` of meshes gets its own elements (one per
+triangle of every mesh in the group), keyed by the instance id; an analytic shape inside a
+shapegroup is refused with an error naming it.
 """
 from __future__ import annotations
 
@@ -71,11 +87,47 @@ _SLOTS = 4  # wavelengths carried by one Mitsuba spectral sample
 _UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
 DEFAULT_BATCH = 1 << 22
+#: up to this many distinct BSDFs are called directly in the kernel, more by a virtual call
+_DIRECT_BSDFS = 16
 
 
 def _scalar(x) -> float:
     """A Python float from a width-1 Dr.Jit array (a reduction result)."""
     return float(np.asarray(x, dtype=np.float64).ravel()[0])
+
+
+def fixed_point_scale(photons: int, hits: int, pmax: float) -> tuple[float, float]:
+    """Scale and cap of the 64-bit fixed-point flux accumulator.
+
+    Every record adds ``min(round(power * scale), cap)`` to an unsigned 64-bit sum. One photon
+    records at most ``hits`` times, so no sum can exceed ``photons * hits * cap``, which this
+    cap keeps below 2^64 (no wrap-around, whatever the batch size, depth or emitter power). The
+    scale maps the largest initial photon power ``pmax`` [W] to ``min(2^40, cap / 16)``: a
+    photon would have to gain 16x its initial power (only a BSDF that creates energy can) before
+    its records are capped.
+
+    Parameters
+    ----------
+    photons : int
+        Photons of the kernel launch (the batch).
+    hits : int
+        Most records one photon can make (``max_depth``, or 1 without indirect light).
+    pmax : float
+        Largest initial photon power of the batch [W].
+
+    Returns
+    -------
+    scale : float
+        Fixed-point units per watt [W^-1].
+    cap : float
+        Largest single record [fixed-point units], exactly representable in float32.
+    """
+    cap = float(np.float32(((1 << 64) - 1) // max(int(photons) * int(hits), 1)))
+    while int(cap) * int(photons) * int(hits) > (1 << 64) - 1:  # float32 rounded up
+        cap = float(np.nextafter(np.float32(cap), np.float32(0)))
+    unit = min(2.0 ** 40, cap / 16.0)
+    scale = unit / pmax if pmax > 0 and math.isfinite(pmax) else 1.0
+    return scale, cap
 
 
 def band_range(band) -> tuple[float, float]:
@@ -101,12 +153,138 @@ def _band_name(band) -> str:
     return f"{lo:g}-{hi:g}nm"
 
 
+def parse_bands(spec) -> tuple:
+    """Bands from a property string ``"total,par,500-510"`` (or a sequence): names or ranges.
+
+    Parameters
+    ----------
+    spec : str or sequence
+        Comma-separated band names of :data:`BANDS` or ``"min-max"`` ranges [nm].
+
+    Returns
+    -------
+    tuple
+        Band names and (min_nm, max_nm) pairs, validated by :func:`band_range`.
+    """
+    if not isinstance(spec, str):
+        return tuple(spec)
+    out = []
+    for item in (s.strip() for s in spec.split(",")):
+        if not item:
+            continue
+        if item in BANDS:
+            out.append(item)
+            continue
+        lo, sep, hi = item.partition("-")
+        try:
+            out.append((float(lo), float(hi)))
+        except ValueError:
+            raise ParameterError("bands", spec, f"comma-separated names of {sorted(BANDS)} or "
+                                 "'min-max' ranges in nm", "e.g. \"total,par,500-510\"") from None
+    for b in out:
+        band_range(b)
+    if not out:
+        raise ParameterError("bands", spec, "at least one band", "e.g. \"total\"")
+    return tuple(out)
+
+
+_INDEX_CACHE: dict = {}
+
+
+def scene_index(scene: mi.Scene) -> "SceneIndex":
+    """The :class:`SceneIndex` of a scene, built once for the last scene seen.
+
+    The cache holds the scene itself: keyed by ``id()`` alone, a new scene allocated where a
+    freed one was would get the old scene's index.
+    """
+    if _INDEX_CACHE.get("scene") is not scene:
+        _INDEX_CACHE.clear()
+        _INDEX_CACHE.update(scene=scene, index=SceneIndex.build(scene))
+    return _INDEX_CACHE["index"]
+
+
 # --------------------------------------------------------------------------------------------
 # Scene analysis: one flat element index over all shapes (triangles of meshes, 1 per other shape)
 # --------------------------------------------------------------------------------------------
+def _reg_id(obj) -> int:
+    """JIT registry id of a Mitsuba shape or BSDF (what ``dr.reinterpret_array`` of a pointer
+    array gives; 0 is the null pointer)."""
+    ptr = mi.ShapePtr(obj) if isinstance(obj, mi.Shape) else mi.BSDFPtr(obj)
+    return int(np.asarray(dr.reinterpret_array(mi.UInt32, ptr))[0])
+
+
+class _Children(mi.TraversalCallback):
+    """Collects the Mitsuba objects an object lists in its ``traverse()`` (name -> object)."""
+
+    def __init__(self):
+        super().__init__()
+        self.objects: dict[str, object] = {}
+
+    def put(self, name, value, flags, cpptype=None):
+        """Called by ``traverse()`` for each parameter or child object; keeps the objects."""
+        if isinstance(value, mi.Object):
+            self.objects[name] = value
+
+
+def _children(obj) -> dict:
+    cb = _Children()
+    obj.traverse(cb)
+    return cb.objects
+
+
+def _spatially_varying(obj, depth=0) -> bool:
+    """True when a BSDF (or anything below it) holds a texture that varies over the surface
+    (bitmap, mesh attribute, checkerboard ...): such BSDFs need Mitsuba's full surface
+    interaction (uv, shading frame) at every hit."""
+    if depth > 8:
+        return False
+    if isinstance(obj, mi.Texture) and obj.is_spatially_varying():
+        return True
+    return any(_spatially_varying(c, depth + 1) for c in _children(obj).values())
+
+
+def _mesh_arrays(sh, to_world=None):
+    """Vertices (n, 3) [m] and faces (m, 3) of a mesh, vertices moved by a 4x4 ``to_world``."""
+    v = np.asarray(sh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
+    if to_world is not None:
+        v = v @ to_world[:3, :3].T + to_world[:3, 3]
+    return v, f
+
+
+def _triangles(v, f):
+    p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    cr = np.cross(p1 - p0, p2 - p0)
+    ln = np.linalg.norm(cr, axis=1)
+    return 0.5 * ln, cr / np.maximum(ln, 1e-30)[:, None], (p0 + p1 + p2) / 3.0
+
+
+def _matrix(transform) -> np.ndarray:
+    return np.asarray(transform.matrix, dtype=np.float64).reshape(4, 4)
+
+
+def _box_corners(bmin, bmax):
+    return np.array([[x, y, z] for x in (bmin[0], bmax[0]) for y in (bmin[1], bmax[1])
+                     for z in (bmin[2], bmax[2])], dtype=np.float64)
+
+
 @dataclass
 class SceneIndex:
-    """Maps Mitsuba shapes to a flat range of elements (one per triangle, one per non-mesh)."""
+    """Maps Mitsuba shapes to a flat range of *elements* (one per triangle, one per non-mesh).
+
+    Elements are laid out in ``scene.shapes()`` order. A plain mesh gives one element per
+    triangle; an analytic shape (``sphere``, ``disk``, ``cylinder``, ...: Mitsuba 3.9 loads
+    ``rectangle`` and ``cube`` as meshes) gives one element, listed in
+    :attr:`single_element`; an ``instance`` gives one element per triangle of every mesh of its
+    ``shapegroup`` (in the group's order), with areas, normals and centroids in world space.
+    Results are looked up by shape id, by instance id (all of the instance's triangles) or by
+    ``"instance_id/shape_id"`` (one mesh of the instance's group).
+
+    In the photon kernel the element of a hit is
+    ``lookup[shape] + lookup[instance] + prim_index``: ``lookup`` maps the registry id of a
+    top-level shape to its first element, of a shape inside a group to its first element within
+    the group, of an instance to its first element, and of the null pointer (no instance) to 0.
+    """
 
     shape_ids: list[str]
     offsets: np.ndarray          # first element of each shape (in scene.shapes() order)
@@ -114,60 +292,203 @@ class SceneIndex:
     areas: np.ndarray            # area of every element [m2]
     normals: np.ndarray          # geometric unit normal of every triangle (0 for non-meshes)
     centroids: np.ndarray        # centroid of every triangle [m]
-    lookup: mi.UInt32            # registry id of a shape -> its offset
+    lookup: mi.UInt32            # registry id of a shape/instance -> its (local) offset
     aim_bbox: mi.ScalarBoundingBox3f  # geometry that photons are aimed at
     n_elements: int = 0
-    geometry: dict = field(default_factory=dict)  # shape id -> (vertices, faces) of meshes
+    geometry: dict = field(default_factory=dict)  # shape id -> (vertices, faces) of plain meshes
+    #: shapes counted as a single element: {shape id: Mitsuba class name}
+    single_element: dict = field(default_factory=dict)
+    #: instances: {instance id: shapegroup id}
+    instances: dict = field(default_factory=dict)
+    #: "instance_id/shape_id" -> slice of that mesh's triangles in the instance
+    sub_slices: dict = field(default_factory=dict)
+    #: registry id of a shape (top-level or inside a group) -> registry id of its BSDF
+    bsdf_lookup: mi.UInt32 | None = None
+    #: analytic (non-mesh) top-level shapes: (registry id, shape) - their normal is computed by
+    #: the shape itself
+    analytic: list = field(default_factory=list)
+    #: True when some BSDF is spatially varying, or (in scenes without instances) a mesh has
+    #: vertex normals: hits then use Mitsuba's full surface interaction
+    needs_full_interaction: bool = False
+    #: instanced hits: ``group_base[instance registry id] + shape_index`` indexes
+    #: ``group_local`` (first element of that mesh within the group) and ``group_bsdf``
+    group_base: mi.UInt32 | None = None
+    group_local: mi.UInt32 | None = None
+    group_bsdf: mi.UInt32 | None = None
+    #: the distinct BSDFs of the shapes that photons can hit: [(registry id, BSDF)]
+    bsdf_objects: list = field(default_factory=list)
 
     @staticmethod
     def build(scene: mi.Scene) -> "SceneIndex":
+        """Index the shapes of ``scene``; refuses (``SceneError``) what it cannot resolve."""
         shapes = scene.shapes()
         if len(shapes) == 0:
             raise SceneError("the scene has no shapes: photons would have nothing to hit")
-        reg = np.asarray(dr.reinterpret_array(mi.UInt32, scene.shapes_dr()), dtype=np.int64)
+        groups = {name: obj for name, obj in _children(scene).items()
+                  if isinstance(obj, mi.Shape) and obj.class_name().startswith("ShapeGroup")}
+        group_shapes = {}
+        for gname, g in groups.items():
+            inner = [(n, s) for n, s in _children(g).items() if isinstance(s, mi.Shape)]
+            group_shapes[gname] = inner
         counts, areas, normals, cents, ids, geometry = [], [], [], [], [], {}
+        single, instances, sub_local, analytic = {}, {}, {}, []
+        reg_offset: dict[int, int] = {}   # registry id -> offset (global or within a group)
+        bsdf_of: dict[int, int] = {}
+        bsdf_objs: dict[int, object] = {}
+        needs_full = False
+        smooth = False  # a plain mesh has vertex normals (shading normals)
         bbox = mi.ScalarBoundingBox3f()
+        offset = 0
+
+        def note_bsdf(sh):
+            nonlocal needs_full
+            b = sh.bsdf()
+            if b is not None:
+                bsdf_of[_reg_id(sh)] = _reg_id(b)
+                bsdf_objs.setdefault(_reg_id(b), b)
+                needs_full = needs_full or _spatially_varying(b)
+
+        group_layout = {}  # group name -> (local offsets, triangle data in local space)
+        g_base, g_local, g_bsdf, inst_base = {}, [], [], {}
+
+        def layout(gname):
+            if gname in group_layout:
+                return group_layout[gname]
+            local, items, k = {}, [], 0
+            # a hit inside an instance gives the mesh's position in its group
+            # (PreliminaryIntersection.shape_index; its shape is null), in traversal order
+            g_base[gname] = len(g_local)
+            for n, s in group_shapes[gname]:
+                if not (s.is_mesh() and s.face_count() > 0):
+                    raise SceneError(
+                        f"shape '{s.id() or n}' ({s.class_name()}) inside shapegroup '{gname}' "
+                        "is not a triangle mesh: the photon pass resolves instanced meshes per "
+                        "triangle but not instanced analytic shapes. Fix: convert it to a mesh "
+                        "(e.g. an .obj/.ply), or place it outside the shapegroup")
+                v, f = _mesh_arrays(s)
+                local[n] = (k, len(f))
+                reg_offset[_reg_id(s)] = k
+                note_bsdf(s)
+                g_local.append(k)
+                g_bsdf.append(bsdf_of.get(_reg_id(s), 0))
+                items.append((v, f))
+                k += len(f)
+            group_layout[gname] = (local, items, k)
+            return group_layout[gname]
+
         for sh in shapes:
-            ids.append(sh.id())
-            if sh.is_mesh() and sh.face_count() > 0:
-                v = np.asarray(sh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
-                f = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
-                p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-                cr = np.cross(p1 - p0, p2 - p0)
-                ln = np.linalg.norm(cr, axis=1)
+            sid = sh.id()
+            ids.append(sid)
+            if sh.class_name() == "Instance":
+                gname = SceneIndex._group_of(sh, groups)
+                local, items, k = layout(gname)
+                T = _matrix(mi.traverse(sh)["to_world"])
+                a_l, n_l, c_l = [], [], []
+                for v, f in items:
+                    a, nrm, c = _triangles(v @ T[:3, :3].T + T[:3, 3], f)
+                    a_l.append(a), n_l.append(nrm), c_l.append(c)
+                counts.append(k)
+                areas.append(np.concatenate(a_l))
+                normals.append(np.concatenate(n_l))
+                cents.append(np.concatenate(c_l))
+                instances[sid] = gname
+                for n, (o, c) in local.items():
+                    sub_local[f"{sid}/{n}"] = (offset + o, c)
+                reg_offset[_reg_id(sh)] = offset
+                inst_base[_reg_id(sh)] = g_base[gname]
+            elif sh.is_mesh() and sh.face_count() > 0:
+                v, f = _mesh_arrays(sh)
+                a, nrm, c = _triangles(v, f)
                 counts.append(len(f))
-                areas.append(0.5 * ln)
-                normals.append(cr / np.maximum(ln, 1e-30)[:, None])
-                cents.append((p0 + p1 + p2) / 3.0)
-                geometry[sh.id()] = (v, f)
+                areas.append(a)
+                normals.append(nrm)
+                cents.append(c)
+                geometry[sid] = (v, f)
+                reg_offset[_reg_id(sh)] = offset
+                note_bsdf(sh)
+                smooth = smooth or sh.has_vertex_normals()
             else:
                 counts.append(1)
                 areas.append(np.array([float(dr.ravel(sh.surface_area())[0])]))
                 normals.append(np.zeros((1, 3)))
                 b = sh.bbox()
                 cents.append(np.array([[(b.min[i] + b.max[i]) / 2 for i in range(3)]]))
+                single[sid] = sh.class_name()
+                reg_offset[_reg_id(sh)] = offset
+                analytic.append((_reg_id(sh), sh))
+                note_bsdf(sh)
+            offset += counts[-1]
             # aim at geometry that can receive light: not at emitter shapes (e.g. a distant
             # area "sun") nor at sensor shapes
             if not (sh.is_emitter() or sh.is_sensor()):
                 bbox.expand(sh.bbox())
         if not bbox.valid():
             bbox = scene.bbox()
+        # shading normals need Mitsuba's full interaction too, except with instances, where
+        # it costs a virtual call over every instance (instanced meshes reflect about their
+        # geometric normals)
+        needs_full = needs_full or (smooth and not instances)
         counts = np.asarray(counts, dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        lookup = np.zeros(int(reg.max()) + 1, dtype=np.uint32)
-        lookup[reg] = offsets
+        n_reg = max(list(reg_offset) + list(bsdf_of) + [0]) + 1
+        lookup = np.zeros(n_reg, dtype=np.uint32)
+        for r, o in reg_offset.items():
+            lookup[r] = o
+        blook = np.zeros(n_reg, dtype=np.uint32)
+        for r, b in bsdf_of.items():
+            blook[r] = b
+        gbase = np.zeros(n_reg, dtype=np.uint32)
+        for r, b in inst_base.items():
+            gbase[r] = b
         return SceneIndex(ids, offsets, counts, np.concatenate(areas), np.concatenate(normals),
                           np.concatenate(cents), mi.UInt32(lookup), bbox, int(counts.sum()),
-                          geometry)
+                          geometry, single, instances,
+                          {k: slice(o, o + c) for k, (o, c) in sub_local.items()},
+                          mi.UInt32(blook), analytic, needs_full, mi.UInt32(gbase),
+                          mi.UInt32(np.array(g_local + [0], np.uint32)),
+                          mi.UInt32(np.array(g_bsdf + [0], np.uint32)),
+                          sorted(bsdf_objs.items(), key=lambda kv: kv[0]))
+
+    @staticmethod
+    def _group_of(inst, groups) -> str:
+        """The shapegroup an instance shows: the one whose box, moved by the instance's
+        ``to_world``, is the instance's box (Mitsuba does not expose the link itself)."""
+        if not groups:
+            raise SceneError(f"instance '{inst.id()}': no shapegroup found in the scene")
+        if len(groups) == 1:
+            return next(iter(groups))
+        T = _matrix(mi.traverse(inst)["to_world"])
+        ib = inst.bbox()
+        imin, imax = np.array(ib.min, float), np.array(ib.max, float)
+        tol = 1e-4 * max(float(np.linalg.norm(imax - imin)), 1e-6)
+        found = []
+        for name, g in groups.items():
+            gb = g.bbox()
+            c = _box_corners(np.array(gb.min, float), np.array(gb.max, float))
+            w = c @ T[:3, :3].T + T[:3, 3]
+            if np.all(np.abs(w.min(0) - imin) <= tol) and np.all(np.abs(w.max(0) - imax) <= tol):
+                found.append(name)
+        if len(found) != 1:
+            raise SceneError(
+                f"instance '{inst.id()}': cannot tell which shapegroup it shows "
+                f"({'several' if found else 'none'} of {sorted(groups)} match its bounding box). "
+                "Fix: give each shapegroup a distinct extent, or write the plants as meshes")
+        return found[0]
 
     def shape_slice(self, shape_id: str) -> slice:
+        """Elements of a shape id, an instance id or an ``"instance_id/shape_id"`` key."""
+        if shape_id in self.sub_slices:
+            return self.sub_slices[shape_id]
         if shape_id not in self.shape_ids:
             raise SceneError(
-                f"no shape with id '{shape_id}' in the scene (shapes: {self.shape_ids}). Mitsuba "
+                f"no shape with id '{shape_id}' in the scene (shapes: {self.shape_ids[:20]}"
+                f"{' ...' if len(self.shape_ids) > 20 else ''}). Mitsuba "
                 f">= 3.7 merges meshes with equal BSDFs at load time and drops their ids: load "
                 f"the scene with mi.load_dict(..., optimize=False) / mi.load_file(..., "
                 f"optimize=False) to keep per-shape results")
-        i = self.shape_ids.index(shape_id)
+        if getattr(self, "_position", None) is None or len(self._position) != len(self.shape_ids):
+            self._position = {sid: i for i, sid in enumerate(self.shape_ids)}
+        i = self._position[shape_id]
         return slice(int(self.offsets[i]), int(self.offsets[i] + self.counts[i]))
 
 
@@ -196,6 +517,34 @@ class PhotonIrradianceResult:
     truncated: np.ndarray          # [e, b] power still travelling at max_depth / indirect off [W]
     seconds: float = 0.0
     settings: dict = field(default_factory=dict)
+
+    # ---- layout -------------------------------------------------------------------------
+    @property
+    def single_element_shapes(self) -> dict:
+        """Shapes recorded as one element each (analytic shapes: sphere, disk, cylinder, ...):
+        ``{shape id: Mitsuba class name}``. Meshes (Mitsuba 3.9 loads ``rectangle`` and
+        ``cube`` as meshes) and instanced meshes are resolved per triangle."""
+        return dict(self.index.single_element)
+
+    @property
+    def instances(self) -> dict:
+        """Instances resolved per triangle: ``{instance id: shapegroup id}``. Query them by
+        instance id, or ``"instance_id/shape_id"`` for one mesh of the group."""
+        return dict(self.index.instances)
+
+    def tensor(self, emitter=None) -> np.ndarray:
+        """Irradiance of every element [W m-2]: shape (elements, bands, 2, 2).
+
+        Axes: element (``scene.shapes()`` order, see :meth:`shape_slice`), band (:attr:`bands`),
+        component (0 direct, 1 indirect), side (0 front, 1 back); summed over the emitters (or
+        those given). This is what ``mi.render`` returns for the integrator.
+        """
+        f = self.flux[self._emitters(emitter)].sum(axis=0)          # (n, comp, side, band)
+        return np.moveaxis(f, -1, 1) / np.maximum(self.index.areas, 1e-30)[:, None, None, None]
+
+    def shape_slice(self, shape_id: str) -> slice:
+        """Elements of a shape id, instance id or ``"instance_id/shape_id"`` in :meth:`tensor`."""
+        return self.index.shape_slice(shape_id)
 
     # ---- queries --------------------------------------------------------------------------
     def _band(self, band) -> int:
@@ -280,14 +629,40 @@ class PhotonIrradianceResult:
         return float(self.flux[..., self._band(band)].sum())
 
     def to_npz(self, path) -> None:
-        """Write every shape's irradiance arrays and the bookkeeping to a .npz file."""
+        """Write every shape's irradiance arrays and the bookkeeping to a .npz file.
+
+        Keys ``{shape}/{band}/{component}`` (front irradiance [W m-2], one value a triangle),
+        ``{shape}/area_m2``, ``{shape}/centroid_m``, ``{shape}/normal``. With instances, also
+        ``elements/...`` (the same for every element of the scene, in :meth:`tensor` order)
+        and ``instances/ids``, ``instances/first_element``, ``instances/element_count``;
+        per-instance keys are written for up to 100 instances only.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Output file (written atomically).
+        """
         data = {"bands": np.array(self.bands), "emitters": np.array(self.emitters),
                 "band_ranges_nm": np.array(self.band_ranges), "photons": self.photons,
                 "rays_traced": np.array(self.rays_traced), "emitted_W": self.emitted,
                 "escaped_W": self.escaped, "absorbed_W": self.absorbed,
                 "truncated_W": self.truncated}
+        inst = self.index.instances
+        if inst:
+            ids = list(inst)
+            data["instances/ids"] = np.array(ids)
+            data["instances/group"] = np.array([inst[i] for i in ids])
+            sls = [self.index.shape_slice(i) for i in ids]
+            data["instances/first_element"] = np.array([sl.start for sl in sls])
+            data["instances/element_count"] = np.array([sl.stop - sl.start for sl in sls])
+            data["elements/area_m2"] = self.index.areas
+            data["elements/centroid_m"] = self.index.centroids
+            data["elements/normal"] = self.index.normals
+            for b in self.bands:
+                for c in COMPONENTS:
+                    data[f"elements/{b}/{c}"] = self.element_irradiance(b, c)
         for sid in self.index.shape_ids:
-            if not sid:
+            if not sid or (sid in inst and len(inst) > 100):
                 continue
             sl = self.index.shape_slice(sid)
             data[f"{sid}/area_m2"] = self.index.areas[sl]
@@ -306,15 +681,72 @@ class PhotonIrradianceResult:
 # The integrator
 # --------------------------------------------------------------------------------------------
 class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
-    """Mitsuba integrator ``veg_photon_irradiance``: photon tracing with per-triangle records.
+    r"""Mitsuba integrator ``veg_photon_irradiance``: photon tracing with per-element records.
 
-    Properties (all optional): ``photons`` (int, 1,000,000), ``max_depth`` (int, 8: surface hits
-    per photon), ``indirect`` (bool, true), ``seed`` (int, 0).
+    Traces photons from the scene's emitters (paper 000 §3.4, see the module docstring) and
+    records the power that hits every element: each triangle of each mesh, each triangle of each
+    instance (keyed by instance id) and each analytic shape as one element. ``mi.render(scene)``
+    with this integrator (or :meth:`render`) runs the pass with the plugin's properties and
+    returns a tensor of irradiance [W m-2]:
 
-    Use :meth:`trace` (or :func:`mitsuba_veg.light.photon_irradiance`) to run a pass. When used
-    as a camera integrator with ``mi.render`` it shows the front irradiance [W m-2] of the last
-    pass ("total" band, all emitters) on the surfaces a camera ray hits, a false-colour-ready
-    visualisation of the light map.
+    ``image[element, band, component, side]`` with component 0 = direct (first hit), 1 =
+    indirect (after >= 1 bounce) and side 0 = front (the side the geometric normal faces), 1 =
+    back; summed over emitters. The element order is ``scene.shapes()`` order (triangles of a
+    shape or instance consecutive); :attr:`result` (a :class:`PhotonIrradianceResult`) holds the
+    last pass with the element layout, per-emitter flux and the energy bookkeeping.
+    :func:`mitsuba_veg.light.photon_irradiance` is a thin wrapper over the same path.
+
+    .. list-table::
+       :header-rows: 1
+
+       * - Property
+         - Type
+         - Default
+         - Description
+       * - photons
+         - integer
+         - 1000000
+         - Photons per pass, shared among the emitters by the power they send towards the
+           geometry (each >= 5 %). ``mi.render``'s ``spp`` is ignored.
+       * - max_depth
+         - integer
+         - 8
+         - Most surface hits per photon (1 = direct light only), 1-1000.
+       * - seed
+         - integer
+         - 0
+         - Random seed; ``mi.render(scene, seed=k)`` traces with ``seed + k``.
+       * - indirect
+         - boolean
+         - true
+         - false: record only the first hit (no inter-reflection).
+       * - bands
+         - string
+         - "total,par,red,far_red"
+         - Comma-separated band names of :data:`BANDS` or ranges ``"500-510"`` [nm].
+       * - emitters
+         - string
+         - "" (all)
+         - Comma-separated ids of the emitters to trace.
+       * - batch
+         - integer
+         - 4194304
+         - Photons per kernel launch (bounds memory; any size is exact).
+       * - output
+         - string
+         - "elements"
+         - "elements": the element tensor above. "image": run the pass, then show the sensor's
+           view of the front irradiance [W m-2] of the first band (a light map).
+
+    Example (XML)::
+
+        <integrator type="veg_photon_irradiance">
+            <integer name="photons" value="2000000"/>
+            <string name="bands" value="par,red,far_red"/>
+        </integrator>
+
+    ``mi.render`` needs a sensor in the scene (Mitsuba's rule; the element output does not use
+    it); :meth:`render` and :meth:`trace` do not.
     """
 
     def __init__(self, props=None):
@@ -324,44 +756,131 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         self.max_depth = int(props.get("max_depth", 8))
         self.indirect = bool(props.get("indirect", True))
         self.seed = int(props.get("seed", 0))
-        self._vis = None  # (lookup, per-element irradiance) of the last pass for render()
-        self._index_cache: dict[int, SceneIndex] = {}
+        self.bands = parse_bands(props.get("bands", ",".join(DEFAULT_BANDS)))
+        em = str(props.get("emitters", "")).strip()
+        self.emitters = tuple(s.strip() for s in em.split(",") if s.strip()) or None
+        self.batch = int(props.get("batch", DEFAULT_BATCH))
+        self.output = str(props.get("output", "elements"))
+        if self.output not in ("elements", "image"):
+            raise ParameterError("output", self.output, "'elements' or 'image'",
+                                 "<string name=\"output\" value=\"elements\"/>")
+        check_range("photons", self.photons, 1, None, fix="use a positive photon count")
+        check_range("max_depth", self.max_depth, 1, 1000, fix="max_depth counts surface hits")
+        check_range("seed", self.seed, 0, 2**31 - 1)
+        check_range("batch", self.batch, 1024, None)
+        self.result: PhotonIrradianceResult | None = None  # the last pass
+        self._vis = None  # (lookup, per-element irradiance) shown by the image output
 
-    # ---- camera visualisation ---------------------------------------------------------------
+    # ---- Mitsuba's render interface ---------------------------------------------------------
+    def render(self, scene, sensor=None, seed=0, spp=0, develop=True, evaluate=True):
+        """Run the photon pass with the plugin's properties; return the element tensor.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene (load with ``optimize=False`` to keep per-shape ids).
+        sensor : mi.Sensor or int, optional
+            Used only by ``output="image"``.
+        seed : int
+            Added to the ``seed`` property (``mi.render(scene, seed=k)`` gives independent
+            passes).
+        spp : int
+            Ignored (the ``photons`` property sets the effort).
+        develop, evaluate : bool
+            As for Mitsuba integrators.
+
+        Returns
+        -------
+        mi.TensorXf
+            ``output="elements"``: irradiance [W m-2], shape (elements, bands, 2 components
+            (direct, indirect), 2 sides (front, back)). ``output="image"``: the sensor's image of
+            the front irradiance of the first band [W m-2].
+        """
+        k = int(np.asarray(dr.ravel(seed))[0]) if not isinstance(seed, int) else int(seed)
+        res = self.trace(scene, seed=(self.seed + k) & 0x7FFFFFFF)
+        if self.output == "elements":
+            return mi.TensorXf(res.tensor().astype(np.float32))
+        irr = res.element_irradiance(band=res.bands[0], side="front")
+        self._vis = (res.index.lookup, mi.Float(irr.astype(np.float32)))
+        if sensor is None:
+            sensor = 0
+        if isinstance(sensor, int):
+            if len(scene.sensors()) == 0:
+                raise SceneError("output='image' needs a sensor in the scene")
+            sensor = scene.sensors()[sensor]
+        return mi.SamplingIntegrator.render(self, scene, sensor, seed=k, spp=max(int(spp), 1),
+                                            develop=develop, evaluate=evaluate)
+
     def sample(self, scene, sampler, ray, medium=None, active=True):
+        """Camera rays of the image output: the front irradiance of the hit element [W m-2]."""
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal, coherent=True, active=active)
         value = mi.Float(0.0)
         if self._vis is not None:
             lookup, irr = self._vis
-            sid = dr.reinterpret_array(mi.UInt32, si.shape)
-            idx = dr.gather(mi.UInt32, lookup, sid, si.is_valid()) + si.prim_index
-            value = dr.gather(mi.Float, irr, idx, si.is_valid() & (dr.width(irr) > 0))
+            valid = si.is_valid()
+            idx = dr.gather(mi.UInt32, lookup, dr.reinterpret_array(mi.UInt32, si.shape), valid) \
+                + dr.gather(mi.UInt32, lookup, dr.reinterpret_array(mi.UInt32, si.instance),
+                            valid) + si.prim_index
+            value = dr.gather(mi.Float, irr, idx, valid & (idx < dr.width(irr)))
         return mi.Spectrum(value), si.is_valid(), []
 
     def aov_names(self):
+        """No AOVs."""
         return []
 
     def to_string(self):
+        """Plugin name and properties (what ``print(integrator)`` shows)."""
         return (f"PhotonIrradianceIntegrator[photons={self.photons}, max_depth={self.max_depth},"
-                f" indirect={self.indirect}, seed={self.seed}]")
+                f" indirect={self.indirect}, seed={self.seed}, bands={list(self.bands)}, "
+                f"output={self.output}]")
 
     # ---- the photon pass --------------------------------------------------------------------
     def trace(self, scene: mi.Scene, photons: int | None = None, seed: int | None = None,
-              max_depth: int | None = None, bands=DEFAULT_BANDS, indirect: bool | None = None,
-              reflectance: dict | None = None, emitters=None, batch: int = DEFAULT_BATCH,
+              max_depth: int | None = None, bands=None, indirect: bool | None = None,
+              reflectance: dict | None = None, emitters=None, batch: int | None = None,
               progress: bool = False) -> PhotonIrradianceResult:
-        """Trace a photon pass over ``scene`` and return per-triangle fluxes.
+        """Trace a photon pass over ``scene`` and return per-element fluxes.
 
-        photons: total photon count, shared among the emitters in proportion to the power they
-        send towards the geometry (each emitter gets at least 5 %). reflectance: optional
-        ``{shape_id: array}`` of per-triangle albedos overriding the BSDF (Lambertian), shape
-        (n_triangles,) for grey or (n_triangles, n_bands) per band; NaN entries keep the BSDF.
-        emitters: optional list of emitter ids/indices to trace (default: all).
+        Arguments left at None take the plugin's properties.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene; its shape ids key the results.
+        photons : int, optional
+            Total photon count, shared among the emitters in proportion to the power they send
+            towards the geometry (each emitter gets at least 5 %).
+        seed : int, optional
+            Random seed (same seed, same result, bit for bit).
+        max_depth : int, optional
+            Most surface hits per photon.
+        bands : sequence, optional
+            Band names or (min, max) ranges [nm].
+        indirect : bool, optional
+            False records the first hit only.
+        reflectance : dict, optional
+            ``{shape_id: array}`` of per-triangle albedos overriding the BSDF (Lambertian),
+            shape (n_triangles,) for grey or (n_triangles, n_bands) per band; NaN entries keep
+            the BSDF.
+        emitters : sequence, optional
+            Emitter ids/indices to trace (default: all).
+        batch : int, optional
+            Photons per kernel launch.
+        progress : bool
+            Show a progress bar.
+
+        Returns
+        -------
+        PhotonIrradianceResult
+            Also kept as :attr:`result`.
         """
         photons = self.photons if photons is None else photons
         seed = self.seed if seed is None else seed
         max_depth = self.max_depth if max_depth is None else max_depth
         indirect = self.indirect if indirect is None else indirect
+        bands = self.bands if bands is None else bands
+        emitters = self.emitters if emitters is None else emitters
+        batch = self.batch if batch is None else batch
         check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
         check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
         check_range("seed", seed, 0, 2**31 - 1)
@@ -380,12 +899,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         t0 = _time.perf_counter()
         # the cache holds the scene itself: keyed by id() alone, a new scene allocated where a
         # freed one was would get the old scene's index
-        cached = self._index_cache.get("scene")
-        if cached is scene:
-            index = self._index_cache["index"]
-        else:
-            index = SceneIndex.build(scene)
-            self._index_cache = {"scene": scene, "index": index}
+        index = scene_index(scene)
         all_emitters = scene.emitters()
         if len(all_emitters) == 0:
             raise SceneError("the scene has no emitters: add a sun (e.g. mitsuba_veg.light."
@@ -398,8 +912,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         refl = self._reflectance_table(index, reflectance, n_b)
 
         # photon budget per emitter: proportional to the power each sends at the geometry
-        power = np.array([self._pilot_power(scene, all_emitters[i], index, ranges[0])
-                          for i in em_idx])
+        pilots = [self._pilot_power(scene, all_emitters[i], index, ranges[0]) for i in em_idx]
+        dr.eval(pilots)  # one launch for all emitters, then deterministic reductions
+        power = np.array([_scalar(dr.mean(p)) for p in pilots]) * (ranges[0][1] - ranges[0][0])
         if not np.all(np.isfinite(power)) or power.sum() <= 0:
             share = np.full(len(em_idx), 1.0 / len(em_idx))
         else:
@@ -408,8 +923,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             share /= share.sum()
         counts = np.maximum(np.round(share * photons).astype(np.int64), 1)
 
-        flux = np.zeros((len(em_idx), n_el, 2, 2, n_b))
         book = np.zeros((4, len(em_idx), n_b))  # emitted, escaped, absorbed, truncated
+        # flux of every (emitter, band group) on the device [W], read back once at the end
+        block = n_el * 2 * 2 * _SLOTS
+        dev = dr.zeros(mi.Float64, len(em_idx) * len(groups) * block)
+        in_block = dr.arange(mi.UInt32, block)
         rays = 0
         bar = None
         if progress:
@@ -429,7 +947,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
                                             slot_ranges, refl_g, max_depth, indirect)
-                    flux[e_i, ..., group] += np.moveaxis(acc[..., :len(group)], -1, 0)
+                    # fixed point -> watts on the device (both threads), summed over batches
+                    # in a fixed order (deterministic)
+                    q, unit = acc
+                    w = mi.Float64(q) * dr.opaque(mi.Float64, unit)
+                    first = dr.opaque(mi.UInt32, (e_i * len(groups) + g_i) * block)
+                    dr.scatter_add(dev, w, first + in_block)
+                    dr.eval(dev)
                     book[:, e_i, group] += bk[:, :len(group)]
                     rays += r
                     done += n
@@ -437,15 +961,18 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                         bar.update(n)
         if bar is not None:
             bar.close()
+        # a view of the device buffer (no copy) when one band group holds all bands
+        dev = np.asarray(dev).reshape(len(em_idx), len(groups), n_el, 2, 2, _SLOTS)
+        flux = dev[:, 0] if len(groups) == 1 else np.concatenate(list(np.moveaxis(dev, 1, 0)),
+                                                                  axis=-1)
+        flux = flux[..., :n_b]
         res = PhotonIrradianceResult(
             index=index, bands=names, band_ranges=ranges, emitters=em_names, flux=flux,
             photons=counts, rays_traced=int(rays), emitted=book[0], escaped=book[1],
             absorbed=book[2], truncated=book[3], seconds=_time.perf_counter() - t0,
             settings=dict(photons=photons, seed=seed, max_depth=max_depth, indirect=indirect,
                           bands=list(names)))
-        # front irradiance of the first band, all emitters and components: what render() shows
-        irr_front = flux[..., 0].sum(axis=(0, 2))[:, 0] / np.maximum(index.areas, 1e-30)
-        self._vis = (index.lookup, mi.Float(irr_front.astype(np.float32)))
+        self.result = res
         return res
 
     # ---- helpers ----------------------------------------------------------------------------
@@ -508,15 +1035,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         raise SceneError(f"emitter '{emitter.id()}' ({emitter.class_name()}) has flags {int(f)} "
                          "that the photon pass does not know how to sample")
 
-    def _pilot_power(self, scene, emitter, index, rng_nm) -> float:
-        """Estimated power [W] that an emitter sends towards the geometry (for the budget)."""
+    def _pilot_power(self, scene, emitter, index, rng_nm):
+        """Samples of the spectral power [W nm-1] that an emitter sends towards the geometry
+        (their mean sets the photon budget), unevaluated."""
         n = 4096
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(12345, n)
         lam = mi.Float(rng_nm[0]) + (rng_nm[1] - rng_nm[0]) * sampler.next_1d()
         wav = mi.Spectrum(lam, lam, lam, lam)
         _, _, w, _ = self._emit(scene, emitter, index, sampler, wav, mi.Bool(True))
-        return _scalar(dr.mean(w[0])) * (rng_nm[1] - rng_nm[0])
+        return mi.Float(w[0])
 
     def _emit(self, scene, emitter, index, sampler, wav, active, strata=None):
         """Sample photon origins/directions: returns (origin, direction, weight, time).
@@ -635,81 +1163,158 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         # (a sun's weight is the same for all photons: broadcast it to one value per photon)
         throughput = mi.Spectrum(dr.select(dr.isfinite(throughput), throughput, 0.0)) \
             * dr.full(mi.Float, 1.0, n)
-        emitted = [dr.sum(throughput[k]) for k in range(_SLOTS)]  # before the loop mutates it
         ray = mi.Ray3f(o, d, time, wav)
 
         n_el = index.n_elements
         # Fixed-point accumulation: integer atomics are associative, so the result does not
         # depend on the order in which threads add (float atomics would differ in the last bits
-        # from run to run, and a resumed simulation must be bit-identical). A photon's power is
-        # quantised to 2^-40 of the largest initial power (per slot); 2^22 photons x 2^40 fits in
-        # 64 bits with room to spare.
-        dr.eval(throughput, ray)
-        pmax = max(_scalar(dr.max(throughput[k])) for k in range(_SLOTS))
-        scale = float(2.0 ** 40 / pmax) if pmax > 0 else 1.0
+        # from run to run, and a resumed simulation must be bit-identical).
+        # emission and its reductions in one kernel (the initial power before the loop uses it)
+        pk = [dr.max(throughput[k], mode="symbolic") for k in range(_SLOTS)]
+        dr.eval(throughput, ray, pk)
+        pmax = max(_scalar(p) for p in pk)
+        emitted = [dr.sum(throughput[k]) for k in range(_SLOTS)]
+        hits = 1 if not indirect else max_depth
+        scale, cap = fixed_point_scale(n, hits, pmax)
         acc = dr.zeros(_UInt64, n_el * 2 * 2 * _SLOTS)
-        lookup = index.lookup
         refl_arr = None if refl is None else mi.Float(np.ascontiguousarray(refl, np.float32).ravel())
         esc = dr.zeros(mi.Spectrum, n)
         absd = dr.zeros(mi.Spectrum, n)
         depth = mi.UInt32(0)
         active = dr.any(throughput > 0)
         max_d = dr.opaque(mi.UInt32, max_depth)
-        one_hit = not indirect
+        tables = self._tables(index)
 
         throughput_left, rays_lane, esc, absd = self._loop(
-            scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, lookup,
-            refl_arr, one_hit, dr.opaque(mi.Float, scale))
+            scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
+            tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
+            dr.opaque(mi.Float, cap))
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
-        # one would re-run the loop for each)
-        dr.eval(acc, throughput_left, rays_lane, esc, absd, emitted)
-        bk = np.zeros((4, _SLOTS))
-        bk[0] = [_scalar(emitted[k]) for k in range(_SLOTS)]
-        bk[1] = [_scalar(dr.sum(esc[k])) for k in range(_SLOTS)]
-        bk[2] = [_scalar(dr.sum(absd[k])) for k in range(_SLOTS)]
-        bk[3] = [_scalar(dr.sum(throughput_left[k])) for k in range(_SLOTS)]
-        acc_np = (np.asarray(acc, dtype=np.uint64).astype(np.float64) / scale).reshape(
-            n_el, 2, 2, _SLOTS)
-        return acc_np, bk, int(_scalar(dr.sum(mi.Float(rays_lane))))
+        # one would re-run the loop for each); the bookkeeping sums are read back in one go
+        dr.eval(acc, throughput_left, rays_lane, esc, absd)
+        # bookkeeping: deterministic (evaluated) reductions; rays as an exact integer sum
+        sums = emitted + [dr.sum(x[k]) for x in (esc, absd, throughput_left) for k in range(_SLOTS)]
+        vals = np.array([_scalar(s) for s in sums] + [_scalar(dr.sum(_UInt64(rays_lane)))],
+                        dtype=np.float64)
+        bk = vals[:4 * _SLOTS].reshape(4, _SLOTS)
+        # fixed-point sums (on the device) and their unit [W]
+        return (acc, 1.0 / scale), bk, int(vals[-1])
+
+    @staticmethod
+    def _tables(index):
+        """Per-element geometric normals (flat array, 3 per element) for the kernel."""
+        cached = getattr(index, "_kernel_tables", None)
+        if cached is None:
+            cached = mi.Float(np.ascontiguousarray(index.normals, np.float32).ravel())
+            index._kernel_tables = cached
+        return cached
 
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
-              lookup, refl_arr, one_hit, scale):
+              index, normals, refl_arr, one_hit, scale, cap):
+        """The random walk: one symbolic loop (a single kernel).
+
+        Hits are found with ``ray_intersect_preliminary`` (the BVH traversal only). The element
+        comes from the lookup table, the side from the element's geometric normal (a table,
+        world space, instances included), and the BSDF is sampled on a surface interaction
+        made of just what a spatially uniform BSDF reads (position, normal frame, wi,
+        wavelengths). Analytic shapes get their normal from the shape itself; scenes with
+        spatially varying BSDFs (textures, mesh attributes) use Mitsuba's full interaction.
+        """
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
-        while dr.hint(active, label="veg_photon_irradiance"):
-            si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=False,
-                                     active=active)
+        lookup, blookup = index.lookup, index.bsdf_lookup
+        has_instances = len(index.instances) > 0
+        bsdfs = index.bsdf_objects
+        full = index.needs_full_interaction
+        # read-only objects stay out of the loop state: traversing a scene with 1,000
+        # instances for it cost ~0.1 s per pass
+        while dr.hint(active, label="veg_photon_irradiance",
+                      exclude=[scene, index, bsdfs, lookup, blookup, normals]):
+            pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             nrays += dr.select(active, mi.UInt32(1), mi.UInt32(0))
-            hit = active & si.is_valid()
+            hit = active & pi.is_valid()
             # escaped photons leave with their power
             esc = mi.Spectrum(esc + dr.select(active & ~hit, throughput, 0.0))
             throughput = mi.Spectrum(dr.select(active & ~hit, 0.0, throughput))
 
+            sid = dr.reinterpret_array(mi.UInt32, pi.shape)
+            elem = dr.gather(mi.UInt32, lookup, sid, hit) + pi.prim_index
+            bsdf_id = dr.gather(mi.UInt32, blookup, sid, hit)
+            if dr.hint(has_instances, mode='scalar'):
+                # inside an instance: shape is null, shape_index is the mesh's place in its group
+                iid = dr.reinterpret_array(mi.UInt32, pi.instance)
+                in_inst = hit & (iid > 0)
+                slot = dr.gather(mi.UInt32, index.group_base, iid, in_inst) + pi.shape_index
+                elem += dr.select(in_inst, dr.gather(mi.UInt32, lookup, iid, in_inst)
+                                  + dr.gather(mi.UInt32, index.group_local, slot, in_inst), 0)
+                bsdf_id = dr.select(in_inst, dr.gather(mi.UInt32, index.group_bsdf, slot, in_inst),
+                                    bsdf_id)
+            if dr.hint(full, mode='scalar'):
+                si = pi.compute_surface_interaction(ray, mi.RayFlags.All, hit)
+                ng = mi.Vector3f(si.n)
+            else:
+                ng = mi.Vector3f(dr.gather(mi.Float, normals, elem * 3, hit),
+                                 dr.gather(mi.Float, normals, elem * 3 + 1, hit),
+                                 dr.gather(mi.Float, normals, elem * 3 + 2, hit))
+                for reg, shape in index.analytic:
+                    on = hit & (sid == reg)
+                    si_a = shape.compute_surface_interaction(ray, pi, mi.RayFlags.Minimal, on)
+                    ng = dr.select(on, si_a.n, ng)
+                    elem = dr.select(on, dr.gather(mi.UInt32, lookup, sid, on), elem)
+
             # record the incident power at the hit element: [elem][comp][side][slot]
-            sid = dr.reinterpret_array(mi.UInt32, si.shape)
-            elem = dr.gather(mi.UInt32, lookup, sid, hit) + si.prim_index
-            back = dr.dot(si.n, ray.d) > 0
+            back = dr.dot(ng, ray.d) > 0
             comp = dr.select(depth > 0, mi.UInt32(1), mi.UInt32(0))
             side = dr.select(back, mi.UInt32(1), mi.UInt32(0))
             base = ((elem * 2 + comp) * 2 + side) * _SLOTS
             for k in range(_SLOTS):
-                q_k = _UInt64(dr.round(throughput[k] * scale))
-                dr.scatter_add(acc, q_k, base + k, hit)
+                # capped: no record can make a 64-bit sum wrap (see fixed_point_scale)
+                q_k = _UInt64(dr.round(dr.minimum(throughput[k] * scale, cap)))
+                # plain atomics: hits rarely share an element within a packet, so the
+                # packet-local pre-reduction of the default mode costs more than it saves
+                dr.scatter_add(acc, q_k, base + k, hit, mode=dr.ReduceMode.Direct)
 
-            if one_hit:
+            if dr.hint(one_hit, mode='scalar'):
                 active = mi.Bool(False)
             else:
-                # mirror back-face hits so that every surface reflects on both sides
-                wi_world = -ray.d
-                si.wi = si.to_local(wi_world)
-                flip = si.wi.z < 0
-                si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
-                bsdf = si.bsdf(ray)
-                bs, bw = bsdf.sample(bsdf_ctx, si, sampler.next_1d(hit), sampler.next_2d(hit), hit)
+                if dr.hint(full, mode='scalar'):
+                    # mirror back-face hits so that every surface reflects on both sides
+                    si.wi = si.to_local(-ray.d)
+                    flip = si.wi.z < 0
+                    si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
+                else:
+                    # the frame of the geometric normal, back-face hits mirrored into it (as
+                    # for the full interaction): surfaces reflect on both sides
+                    si = dr.zeros(mi.SurfaceInteraction3f)
+                    si.t = pi.t
+                    si.p = ray(pi.t)
+                    si.n = ng
+                    si.sh_frame = mi.Frame3f(ng)
+                    si.time = ray.time
+                    si.wavelengths = ray.wavelengths
+                    si.shape = pi.shape
+                    si.instance = pi.instance
+                    si.prim_index = pi.prim_index
+                    si.wi = si.sh_frame.to_local(-ray.d)
+                    flip = si.wi.z < 0
+                    si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
+                s1, s2 = sampler.next_1d(hit), sampler.next_2d(hit)
+                if dr.hint(len(bsdfs) <= _DIRECT_BSDFS, mode='scalar'):
+                    # dispatch by hand over the scene's few distinct BSDFs: a virtual call
+                    # would trace every BSDF Mitsuba holds (each instance has a default one)
+                    bs, bw = dr.zeros(mi.BSDFSample3f), dr.zeros(mi.Spectrum)
+                    for reg, b in bsdfs:
+                        on = hit & (bsdf_id == reg)
+                        bs_b, bw_b = b.sample(bsdf_ctx, si, s1, s2, on)
+                        bs = dr.select(on, bs_b, bs)
+                        bw = dr.select(on, bw_b, bw)
+                else:
+                    bsdf = dr.reinterpret_array(mi.BSDFPtr, bsdf_id)
+                    bs, bw = bsdf.sample(bsdf_ctx, si, s1, s2, hit)
                 wo_local = bs.wo
                 albedo = mi.Spectrum(bw)
-                if refl_arr is not None:
+                if dr.hint(refl_arr is not None, mode='scalar'):
                     ov = [dr.gather(mi.Float, refl_arr, elem * _SLOTS + k, hit) for k in range(_SLOTS)]
                     use_ov = hit & ~dr.isnan(ov[0])
                     wo_cos = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))

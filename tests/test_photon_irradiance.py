@@ -248,7 +248,8 @@ def test_clear_errors():
 
 
 def test_integrator_plugin_registered_and_renders_light_map():
-    integ = mi.load_dict({"type": "veg_photon_irradiance", "photons": 100_000, "max_depth": 4})
+    integ = mi.load_dict({"type": "veg_photon_irradiance", "photons": 100_000, "max_depth": 4,
+                          "output": "image"})
     d = V.roof_wall_scene(n=6)
     d["camera"] = {"type": "perspective", "fov": 60,
                    "to_world": mi.ScalarTransform4f().look_at([0, 3, 3], [0, 0, 0], [0, 1, 0]),
@@ -257,6 +258,7 @@ def test_integrator_plugin_registered_and_renders_light_map():
     scene = mi.load_dict(d, optimize=False)
     res = integ.trace(scene)
     assert res.photons.sum() == 100_000
-    img = np.asarray(mi.render(scene, integrator=integ, spp=1))
+    img = np.asarray(mi.render(scene, integrator=integ, spp=1))  # runs its own pass
     assert img.shape[:2] == (24, 32)
     assert img.max() > 0.5 * res.irradiance("ground").max()
+    assert integ.result.photons.sum() == 100_000

@@ -1,43 +1,94 @@
-"""The photon-irradiance pass as a function: per-triangle incident irradiance of a scene.
+"""The photon-irradiance pass as a function: per-element incident irradiance of a scene.
 
-See :mod:`mitsuba_veg.integrators.photon_irradiance` for the method (paper 000 §3.4).
+A thin wrapper over the Mitsuba plugin ``veg_photon_irradiance``: the keyword arguments become
+the plugin's properties, and the pass is the one ``mi.render`` runs with that integrator. See
+:mod:`mitsuba_veg.integrators.photon_irradiance` for the method (paper 000 §3.4).
 """
 from __future__ import annotations
 
 import mitsuba as mi
 
+from mitsuba_veg.errors import ParameterError, check_range
 from mitsuba_veg.integrators.photon_irradiance import (  # noqa: F401
-    BANDS, DEFAULT_BANDS, PhotonIrradianceIntegrator, PhotonIrradianceResult, band_range)
+    BANDS, DEFAULT_BANDS, DEFAULT_BATCH, PhotonIrradianceIntegrator, PhotonIrradianceResult,
+    band_range)
 
-_integrator: PhotonIrradianceIntegrator | None = None
+
+def _band_property(bands) -> str:
+    """Bands as the plugin's ``bands`` string: names, and ranges as ``"min-max"`` [nm]."""
+    if isinstance(bands, str):
+        bands = (bands,)
+    items = []
+    for b in bands:
+        if isinstance(b, str):
+            band_range(b)
+            items.append(b)
+        else:
+            lo, hi = band_range(b)
+            items.append(f"{lo!r}-{hi!r}")
+    if not items:
+        raise ParameterError("bands", bands, "at least one band", "e.g. bands=('total',)")
+    return ",".join(items)
+
+
+def integrator(photons: int = 1_000_000, seed: int = 0, max_depth: int = 8,
+               bands=DEFAULT_BANDS, indirect: bool = True,
+               batch: int = DEFAULT_BATCH) -> PhotonIrradianceIntegrator:
+    """The ``veg_photon_irradiance`` plugin with these properties (what a scene file declares).
+
+    Parameters are those of :func:`photon_irradiance`; returns the loaded Mitsuba integrator.
+    """
+    # checked here too: an error raised inside mi.load_dict would reach the caller re-wrapped
+    check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
+    check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
+    check_range("seed", seed, 0, 2**31 - 1)
+    check_range("batch", batch, 1024, None)
+    return mi.load_dict({"type": "veg_photon_irradiance", "photons": int(photons),
+                         "seed": int(seed), "max_depth": int(max_depth),
+                         "bands": _band_property(bands), "indirect": bool(indirect),
+                         "batch": int(batch)})
 
 
 def photon_irradiance(scene: mi.Scene, photons: int = 1_000_000, seed: int = 0,
                       max_depth: int = 8, bands=DEFAULT_BANDS, indirect: bool = True,
                       reflectance: dict | None = None, emitters=None,
                       progress: bool = False) -> PhotonIrradianceResult:
-    """Trace ``photons`` photons from the emitters of ``scene``; irradiance per triangle.
+    """Trace ``photons`` photons from the emitters of ``scene``; irradiance per element.
+
+    Same pass as ``mi.render(scene)`` with ``<integrator type="veg_photon_irradiance">`` and
+    these properties (``result.tensor()`` equals that render's output for the same seed).
 
     Parameters
     ----------
-    scene: a loaded ``mi.Scene`` whose meshes have ids (load with ``optimize=False``).
-    photons: total photons, shared among emitters by power (>= 5 % each).
-    seed: random seed (same seed, same result).
-    max_depth: maximum surface hits per photon (1 = direct light only).
-    bands: band names from :data:`BANDS` ("total" 360-830 nm, "par" 400-700 nm, "red" 655-665
-        nm, "far_red" 725-735 nm, ...) or (min_nm, max_nm) pairs.
-    indirect: False records only the first hit (no diffuse inter-reflection; paper fig 4.2).
-    reflectance: ``{shape_id: albedo per triangle}`` overriding the BSDF (Lambertian): shape
-        (n,) grey or (n, len(bands)) per band; NaN keeps the BSDF. Lets moss cover change the
-        light without rebuilding the scene.
-    emitters: ids or indices of the emitters to trace (default all).
+    scene : mi.Scene
+        A loaded scene whose meshes have ids (load with ``optimize=False``).
+    photons : int
+        Total photons, shared among emitters by power (>= 5 % each).
+    seed : int
+        Random seed (same seed, same result).
+    max_depth : int
+        Maximum surface hits per photon (1 = direct light only).
+    bands : sequence
+        Band names from :data:`BANDS` ("total" 360-830 nm, "par" 400-700 nm, "red" 655-665 nm,
+        "far_red" 725-735 nm, ...) or (min_nm, max_nm) pairs [nm].
+    indirect : bool
+        False records only the first hit (no diffuse inter-reflection; paper fig 4.2).
+    reflectance : dict, optional
+        ``{shape_id: albedo per triangle}`` overriding the BSDF (Lambertian): shape (n,) grey or
+        (n, len(bands)) per band; NaN keeps the BSDF. Lets moss cover change the light without
+        rebuilding the scene.
+    emitters : sequence, optional
+        Ids or indices of the emitters to trace (default all).
+    progress : bool
+        Show a progress bar.
 
-    Returns a :class:`PhotonIrradianceResult`: ``.irradiance(shape_id, band, component)``
-    [W m-2] one value per triangle, ``.rays_traced``, energy bookkeeping.
+    Returns
+    -------
+    PhotonIrradianceResult
+        ``.irradiance(shape_id, band, component)`` [W m-2] one value per triangle (instances by
+        instance id), ``.tensor()`` (element x band x component x side), ``.rays_traced``,
+        energy bookkeeping [W], ``.single_element_shapes``.
     """
-    global _integrator
-    if _integrator is None:
-        _integrator = PhotonIrradianceIntegrator()
-    return _integrator.trace(scene, photons=photons, seed=seed, max_depth=max_depth, bands=bands,
-                             indirect=indirect, reflectance=reflectance, emitters=emitters,
-                             progress=progress)
+    integ = integrator(photons=photons, seed=seed, max_depth=max_depth, bands=bands,
+                       indirect=indirect)
+    return integ.trace(scene, reflectance=reflectance, emitters=emitters, progress=progress)

@@ -7,10 +7,12 @@
   sensor, so the geometry is unchanged), plus the direct irradiance of delta emitters
   (directional suns) added by shadow rays, because an irradiancemeter never samples a delta
   emitter at its own surface.
+- :func:`as_meshes`: a scene dict whose mesh shapes (``rectangle``, ``cube``, ``obj``, ``ply``)
+  are replaced by in-memory meshes with the same ids, so that :func:`path_reference` can cut
+  triangles out of them (e.g. Mitsuba's ``mi.cornell_box()``).
 
-The reference handles spectrally flat scenes (``uniform`` emitter spectra and reflectances): the
-irradiancemeter film records luminance, which for a flat spectrum equals the value per nm, and
-the band irradiance is that value times the band width.
+The irradiancemeter's film is a ``specfilm`` whose sensitivity is 1 over the band, so the
+reference is the band-integrated irradiance [W m-2] for any emitter and reflectance spectra.
 """
 from __future__ import annotations
 
@@ -37,6 +39,7 @@ def make_mesh(name: str, vertices, faces, albedo: float | None = None, bsdf=None
     if bsdf is not None:
         props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
     mesh = mi.Mesh(name, len(v), len(f), props=props)
+    mesh.set_id(name)  # (otherwise only loading a scene dict gives it its key as id)
     p = mi.traverse(mesh)
     p["vertex_positions"] = mi.Float(v.ravel())
     p["faces"] = mi.UInt32(f.ravel())
@@ -117,10 +120,10 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
                    max_depth: int = 16, band=(360.0, 830.0), seed: int = 0):
     """Per-triangle front irradiance [W m-2] of ``shape_id`` by Mitsuba's path tracer.
 
-    Each triangle in ``triangles`` is cut out of its mesh into its own mesh carrying an
-    ``irradiancemeter``; the scene is otherwise identical. The direct irradiance of delta
-    emitters is added with shadow rays. Spectrally flat scenes only (see module docstring).
-    Returns (irradiance, std_error) arrays.
+    Each triangle in ``triangles`` is cut out of its mesh (an in-memory ``mi.Mesh`` of the dict,
+    see :func:`as_meshes`) into its own mesh carrying an ``irradiancemeter`` whose ``specfilm``
+    integrates the band ``band`` [nm]; the scene is otherwise identical. The direct irradiance
+    of delta emitters is added with shadow rays. Returns (irradiance, std_error) arrays.
     """
     key = None
     for k, v in scene_dict.items():
@@ -128,7 +131,8 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
             key = k
     if key is None:
         raise SceneError(f"path_reference: no in-memory mesh with id '{shape_id}' in the scene "
-                         "dict (build meshes with mitsuba_veg.light.validation.make_mesh)")
+                         "dict (build meshes with mitsuba_veg.light.validation.make_mesh, or "
+                         "convert the dict with validation.as_meshes)")
     mesh = scene_dict[key]
     V = np.asarray(mesh.vertex_positions_buffer()).reshape(-1, 3)
     F = np.asarray(mesh.faces_buffer()).reshape(-1, 3)
@@ -138,13 +142,15 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     d = {k: v for k, v in scene_dict.items() if k != key}
     if keep.any():  # (a mesh with no faces left would be an empty shape)
         d[key] = make_mesh(shape_id, V, F[keep], bsdf=mesh.bsdf())
+    lo, hi = float(band[0]), float(band[1])
     for t in tris:
         props = mi.Properties()
         props["bsdf"] = mesh.bsdf()
         props["sensor"] = mi.load_dict({
             "type": "irradiancemeter",
-            "film": {"type": "hdrfilm", "width": 1, "height": 1, "pixel_format": "luminance",
-                     "rfilter": {"type": "box"}}})
+            "film": {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"},
+                     "band": {"type": "regular", "wavelength_min": lo, "wavelength_max": hi,
+                              "values": "1, 1"}}})
         m = mi.Mesh(f"{shape_id}__ref{t}", 3, 1, props=props)
         p = mi.traverse(m)
         p["vertex_positions"] = mi.Float(V[F[t]].astype(np.float32).ravel())
@@ -156,8 +162,8 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     by_shape = {}
     for s in scene.sensors():
         sh = s.get_shape() if hasattr(s, "get_shape") else s.shape()
-        by_shape[sh.id()] = s
-    width = float(band[1] - band[0])
+        if sh is not None:
+            by_shape[sh.id()] = s
     out = np.zeros(len(tris))
     err = np.zeros(len(tris))
     batches = 4
@@ -168,21 +174,23 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
             img = mi.render(scene, sensor=sensor, integrator=integrator,
                             spp=max(1, spp // batches), seed=seed * 7919 + t * batches + b)
             vals.append(float(np.asarray(img).ravel()[0]))
-        out[j] = np.mean(vals) * width
-        err[j] = np.std(vals, ddof=1) / math.sqrt(batches) * width
+        out[j] = np.mean(vals)
+        err[j] = np.std(vals, ddof=1) / math.sqrt(batches)
     # direct light of delta-direction emitters, which the irradiancemeter never samples
-    out += _delta_direct(scene, F[tris], V, width)
+    out += _delta_direct(scene, F[tris], V, (lo, hi))
     return out, err
 
 
-def _delta_direct(scene: mi.Scene, faces, V, width, samples_per_tri: int = 4096):
-    """Direct irradiance [W m-2] of directional emitters on triangles, with shadow rays."""
+def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
+    """Direct irradiance [W m-2] of directional emitters on triangles, integrated over ``band``
+    [nm] (wavelengths drawn uniformly in the band), with shadow rays."""
     faces = np.asarray(faces)
     res = np.zeros(len(faces))
     emitters = [e for e in scene.emitters()
                 if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)]
     if not emitters:
         return res
+    lo, hi = band
     rng = np.random.default_rng(1)
     for i, f in enumerate(faces):
         p0, p1, p2 = V[f[0]], V[f[1]], V[f[2]]
@@ -192,14 +200,114 @@ def _delta_direct(scene: mi.Scene, faces, V, width, samples_per_tri: int = 4096)
         flip = u.sum(1) > 1
         u[flip] = 1 - u[flip]
         pts = p0 + u[:, :1] * (p1 - p0) + u[:, 1:] * (p2 - p0)
+        lam = lo + (hi - lo) * rng.random((4, samples_per_tri))
         for e in emitters:
             it = dr.zeros(mi.Interaction3f, samples_per_tri)
             it.p = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
-            it.wavelengths = mi.Spectrum(550.0)
+            it.wavelengths = mi.Spectrum(*[mi.Float(lam[k].astype(np.float32)) for k in range(4)])
             ds, w = e.sample_direction(it, mi.Point2f(0.5, 0.5))
             cos = ds.d.x * float(n[0]) + ds.d.y * float(n[1]) + ds.d.z * float(n[2])
             ray = mi.Ray3f(it.p + mi.Vector3f(*[float(c) * 1e-4 for c in n]), ds.d)
             vis = ~scene.ray_test(ray)
-            val = dr.select(vis & (cos > 0), w[0] * cos, 0.0)
-            res[i] += float(np.asarray(val).mean()) * width
+            val = (w[0] + w[1] + w[2] + w[3]) * 0.25
+            val = dr.select(vis & (cos > 0), val * cos, 0.0)
+            res[i] += float(np.asarray(val).mean()) * (hi - lo)
     return res
+
+
+def as_meshes(scene_dict: dict) -> dict:
+    """A copy of a scene dict with its mesh shapes loaded as in-memory meshes (same ids).
+
+    ``rectangle``, ``cube``, ``obj`` and ``ply`` shapes without an emitter become ``mi.Mesh``
+    objects with their world-space vertices [m] and their BSDF (``ref``s resolved to the dict's
+    BSDFs), which :func:`path_reference` can cut triangles out of. Shapes with an area emitter
+    and everything else are kept as they are.
+    """
+    loaded = {}
+
+    def resolve(b):
+        if isinstance(b, dict) and b.get("type") == "ref":
+            rid = b["id"]
+            if rid not in loaded:
+                if rid not in scene_dict:
+                    raise SceneError(f"as_meshes: BSDF reference '{rid}' not found in the dict")
+                loaded[rid] = mi.load_dict(scene_dict[rid])
+            return loaded[rid]
+        return b
+    out = {}
+    for k, v in scene_dict.items():
+        if isinstance(v, dict) and v.get("type") in ("rectangle", "cube", "obj", "ply") \
+                and "emitter" not in v:
+            sh = mi.load_dict({kk: vv for kk, vv in v.items() if kk not in ("bsdf", "id")})
+            V = np.asarray(sh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
+            F = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
+            out[k] = make_mesh(v.get("id", k), V, F, bsdf=resolve(v.get("bsdf",
+                                                                         {"type": "diffuse"})))
+        else:
+            out[k] = v
+    return out
+
+
+def plant_mesh(kind: int = 0):
+    """Vertices [m] and faces of a small plant: 4 + ``kind`` leaf quads (8-14 triangles)
+    spiralling up a 5-20 cm stem, one leaf every 3 cm. Returns (vertices, faces)."""
+    verts, faces = [], []
+    n = 4 + int(kind)
+    for j in range(n):
+        a = 2 * math.pi * j / n
+        h = 0.05 + 0.03 * j
+        c, s = math.cos(a), math.sin(a)
+        b = len(verts)
+        verts += [[0.0, h, 0.0], [0.06 * c, h + 0.02, 0.06 * s],
+                  [0.05 * c - 0.02 * s, h + 0.04, 0.05 * s + 0.02 * c],
+                  [-0.02 * s, h + 0.02, 0.02 * c]]
+        faces += [[b, b + 1, b + 2], [b, b + 2, b + 3]]
+    return np.array(verts, dtype=float), np.array(faces, dtype=np.int64)
+
+
+def plant_scene(n_plants: int = 1000, kinds: int = 3, instanced: bool = True, size: float = 4.0,
+                leaf_albedo: float = 0.4, stem_albedo: float = 0.1, ground_albedo: float = 0.2,
+                seed: int = 0, sun_elevation: float = 55.0, sky_radiance: float = 0.05) -> dict:
+    """Scene dict: ``n_plants`` small plants on a ``size`` x ``size`` m ground [m], sun + uniform
+    sky, spectrally flat (sun 1 W m-2 nm-1, sky ``sky_radiance`` W m-2 sr-1 nm-1).
+
+    A plant is two meshes: leaves (:func:`plant_mesh`, albedo ``leaf_albedo``) and a 1 cm stem
+    (a box, ``stem_albedo``) standing 2 mm above the ground (no coplanar faces). ``instanced=True`` writes ``kinds`` shapegroups (``plant0``, ...,
+    meshes ``leaves{k}`` and ``stem{k}``) and one ``instance`` per plant (ids ``p0000``, ...), as
+    exporters and scatterers do; ``instanced=False`` writes the same geometry as plain meshes
+    ``p0000_leaves`` and ``p0000_stem``. Load with ``optimize=False``.
+    """
+    rng = np.random.default_rng(seed)
+    gv, gf = grid_mesh(20, 20, x=(-size / 2, size / 2), z=(-size / 2, size / 2))
+    d = {"type": "scene", "ground": make_mesh("ground", gv, gf, ground_albedo)}
+    plants = [plant_mesh(k) for k in range(kinds)]
+    stems = [box_mesh((-0.005, 0.002, -0.005), (0.005, pv[:, 1].max(), 0.005))
+             for pv, _ in plants]
+    if instanced:
+        for k, (pv, pf) in enumerate(plants):
+            d[f"plant{k}"] = {"type": "shapegroup",
+                              f"leaves{k}": make_mesh(f"leaves{k}", pv, pf, leaf_albedo),
+                              f"stem{k}": make_mesh(f"stem{k}", *stems[k], stem_albedo)}
+    half = 0.47 * size
+    xz = rng.uniform(-half, half, (n_plants, 2))
+    rot = rng.uniform(0.0, 360.0, n_plants)
+    for i in range(n_plants):
+        T = mi.ScalarTransform4f().translate([float(xz[i, 0]), 0.0, float(xz[i, 1])]) \
+            .rotate([0, 1, 0], float(rot[i]))
+        if instanced:
+            d[f"p{i:04d}"] = {"type": "instance", "id": f"p{i:04d}",
+                              "shapegroup": {"type": "ref", "id": f"plant{i % kinds}"},
+                              "to_world": T}
+        else:
+            M = np.array(T.matrix, dtype=float).reshape(4, 4)
+            for part, (pv, pf), a in (("leaves", plants[i % kinds], leaf_albedo),
+                                      ("stem", stems[i % kinds], stem_albedo)):
+                name = f"p{i:04d}_{part}"
+                d[name] = make_mesh(name, pv @ M[:3, :3].T + M[:3, 3], pf, a)
+    sun = sun_vector(sun_elevation, 160.0)
+    d["sun"] = {"type": "directional", "id": "sun", "direction": (-sun).tolist(),
+                "irradiance": {"type": "uniform", "value": 1.0}}
+    if sky_radiance > 0:
+        d["sky"] = {"type": "constant", "id": "sky",
+                    "radiance": {"type": "uniform", "value": float(sky_radiance)}}
+    return d

@@ -1,0 +1,212 @@
+"""The veg_photon_irradiance plugin as Mitsuba users drive it: ``mi.render`` from a dict or XML,
+instances, analytic shapes, and the overflow guard of the fixed-point accumulator."""
+import math
+
+import numpy as np
+import pytest
+
+import mitsuba_veg as mv  # noqa: F401  (selects the variant, registers plugins)
+import mitsuba as mi
+
+from mitsuba_veg.errors import ParameterError, SceneError
+from mitsuba_veg.integrators.photon_irradiance import fixed_point_scale
+from mitsuba_veg.light import photon_irradiance, BANDS
+from mitsuba_veg.light import validation as V
+
+NM_TOTAL = BANDS["total"][1] - BANDS["total"][0]
+CAMERA = {"type": "perspective", "fov": 60,
+          "to_world": mi.ScalarTransform4f().look_at([0, 3, 3], [0, 0, 0], [0, 1, 0]),
+          "film": {"type": "hdrfilm", "width": 8, "height": 8}}
+
+
+def test_mi_render_runs_the_pass_from_a_scene_dict():
+    d = V.roof_wall_scene(n=4)
+    d["integrator"] = {"type": "veg_photon_irradiance", "photons": 200_000, "seed": 5,
+                       "max_depth": 6, "bands": "total,par,red,far_red"}
+    d["camera"] = CAMERA
+    scene = mi.load_dict(d, optimize=False)
+    img = mi.render(scene)
+    arr = np.asarray(img)
+    res = photon_irradiance(scene, photons=200_000, seed=5, max_depth=6)
+    # layout: element x band x component (direct, indirect) x side (front, back)
+    assert arr.shape == (res.index.n_elements, 4, 2, 2)
+    assert arr.max() > 0 and (arr[:, :, 1] > 0).any()
+    np.testing.assert_array_equal(arr, res.tensor().astype(np.float32))
+    sl = res.shape_slice("roof")
+    np.testing.assert_allclose(arr[sl, 1, 1, 0], res.irradiance("roof", "par", "indirect"),
+                               rtol=1e-6)
+    # the plugin's own render() needs no sensor; mi.render's seed is added to the property's
+    integ = scene.integrator()
+    np.testing.assert_array_equal(np.asarray(integ.render(scene)), arr)
+    assert integ.result.settings["seed"] == 5
+    other = np.asarray(mi.render(scene, seed=1))
+    np.testing.assert_array_equal(
+        other, photon_irradiance(scene, photons=200_000, seed=6, max_depth=6).tensor()
+        .astype(np.float32))
+
+
+XML = """<scene version="3.0.0">
+    <integrator type="veg_photon_irradiance">
+        <integer name="photons" value="100000"/>
+        <integer name="max_depth" value="3"/>
+        <integer name="seed" value="2"/>
+        <boolean name="indirect" value="true"/>
+        <string name="bands" value="par,500-510"/>
+    </integrator>
+    <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="4"/>
+        <integer name="height" value="4"/></film></sensor>
+    <emitter type="directional" id="sun">
+        <vector name="direction" x="0.2" y="-1" z="0.1"/>
+        <spectrum name="irradiance" type="uniform"><float name="value" value="1"/></spectrum>
+    </emitter>
+    <shape type="rectangle" id="floor">
+        <transform name="to_world"><rotate x="1" angle="-90"/><scale value="2"/></transform>
+        <bsdf type="diffuse"><spectrum name="reflectance" type="uniform">
+            <float name="value" value="0.5"/></spectrum></bsdf>
+    </shape>
+    <shape type="cube" id="box">
+        <transform name="to_world"><scale value="0.3"/><translate y="0.3"/></transform>
+    </shape>
+</scene>"""
+
+
+def test_mi_render_runs_the_pass_from_xml():
+    scene = mi.load_string(XML, optimize=False)
+    arr = np.asarray(mi.render(scene))
+    res = photon_irradiance(scene, photons=100_000, seed=2, max_depth=3,
+                            bands=("par", (500.0, 510.0)))
+    np.testing.assert_array_equal(arr, res.tensor().astype(np.float32))
+    assert arr.shape == (2 + 12, 2, 2, 2)  # rectangle and cube load as meshes
+    assert res.single_element_shapes == {}
+    # every sun photon over the 4 m x 4 m floor hits the floor or the box: E sin(e) x 16 m2
+    e = math.asin(1 / math.sqrt(1.05))
+    direct = sum(res.flux_of(s, "par", "direct").sum() for s in ("floor", "box"))
+    assert direct == pytest.approx(300 * math.sin(e) * 16, rel=0.01)
+    assert res.irradiance("box", (500.0, 510.0), "indirect").max() > 0
+
+
+def test_plugin_properties_are_checked():
+    with pytest.raises(Exception, match="bands"):
+        mi.load_dict({"type": "veg_photon_irradiance", "bands": "par,ultraviolet_x"})
+    with pytest.raises(Exception, match="output"):
+        mi.load_dict({"type": "veg_photon_irradiance", "output": "picture"})
+    with pytest.raises(ParameterError, match="photons"):
+        photon_irradiance(mi.load_dict(V.roof_wall_scene(n=2)), photons=0)
+
+
+def test_sphere_is_one_element_lit_by_its_cross_section():
+    """An analytic sphere is one element (stated in the result); under a sun of irradiance E it
+    intercepts E pi r^2 on its front, and shades the plane under it."""
+    r = 0.3
+    gv, gf = V.grid_mesh(8, 8)
+    scene = mi.load_dict({
+        "type": "scene", "ground": V.make_mesh("ground", gv, gf, 0.0),
+        "ball": {"type": "sphere", "radius": r, "center": [0.0, 0.5, 0.0],
+                 "bsdf": {"type": "diffuse",
+                          "reflectance": {"type": "uniform", "value": 0.0}}},
+        "sun": {"type": "directional", "direction": [0.0, -1.0, 0.0],
+                "irradiance": {"type": "uniform", "value": 1.0}}}, optimize=False)
+    res = photon_irradiance(scene, photons=1_000_000, seed=1, bands=("total",))
+    assert res.single_element_shapes == {"ball": "Sphere"}
+    assert res.irradiance("ball").shape == (1,)
+    assert res.flux_of("ball").sum() == pytest.approx(NM_TOTAL * math.pi * r * r, rel=0.01)
+    assert res.flux_of("ball", side="back").sum() == 0
+    assert res.flux_of("ground").sum() == pytest.approx(NM_TOTAL * (4 - math.pi * r * r),
+                                                        rel=0.01)
+
+
+def test_fixed_point_cap_never_wraps():
+    for photons in (1, 1024, 1 << 22, 1 << 26, 10**9):
+        for hits in (1, 8, 1000):
+            scale, cap = fixed_point_scale(photons, hits, 3.0e7)
+            assert 0 < cap and int(cap) * photons * hits <= 2**64 - 1
+            assert scale * 3.0e7 <= cap / 16 * (1 + 1e-12)
+
+
+def test_huge_flux_and_many_hits_do_not_wrap():
+    """A point light inside a closed white sphere (one element): every photon hits it
+    ``max_depth`` times with its full power, so the recorded flux is emitted x max_depth. With
+    2^15 photons x 1000 hits in one batch, the former 2^40-per-photon scale would have summed
+    past 2^64; a huge emitter power changes nothing."""
+    for intensity in (1.0, 1e20):
+        scene = mi.load_dict({
+            "type": "scene",
+            "shell": {"type": "sphere", "radius": 1.0, "bsdf": {"type": "diffuse"}},
+            "lamp": {"type": "point", "position": [0.0, 0.1, 0.0],
+                     "intensity": {"type": "uniform", "value": intensity}}}, optimize=False)
+        integ = mi.load_dict({"type": "veg_photon_irradiance", "photons": 1 << 15,
+                              "max_depth": 1000, "bands": "total", "batch": 1 << 15})
+        res = integ.trace(scene, reflectance={"shell": np.ones(1)})
+        emitted = res.emitted.sum()
+        assert emitted == pytest.approx(4 * math.pi * intensity * NM_TOTAL, rel=1e-3)
+        assert res.flux_of("shell", side="both").sum() == pytest.approx(1000 * emitted,
+                                                                        rel=1e-4)
+        assert res.truncated.sum() == pytest.approx(emitted, rel=1e-4)
+
+
+@pytest.fixture(scope="module")
+def plants():
+    inst = mi.load_dict(V.plant_scene(1000, instanced=True), optimize=False)
+    plain = mi.load_dict(V.plant_scene(1000, instanced=False), optimize=False)
+    kw = dict(photons=1_000_000, seed=3, max_depth=100, bands=("total", "par"))
+    return photon_irradiance(inst, **kw), photon_irradiance(plain, **kw)
+
+
+def test_thousand_instanced_plants_per_instance_and_triangle(plants):
+    res, _ = plants
+    assert len(res.instances) == 1000
+    assert set(res.instances.values()) == {"plant0", "plant1", "plant2"}
+    # plant k: 4 + k leaf quads (8 + 2k triangles) and a 12-triangle stem
+    assert res.irradiance("p0004").shape == (8 + 2 + 12,)
+    assert res.irradiance("p0004/leaves1").shape == (10,)
+    assert res.irradiance("p0004/stem1").shape == (12,)
+    assert res.index.n_elements == 800 + sum(8 + 2 * (i % 3) + 12 for i in range(1000))
+    # energy: emitted = absorbed + escaped (+ still travelling at max_depth), and absorption
+    # re-estimated from the recorded flux x (1 - albedo)
+    for b in range(2):
+        emitted, escaped = res.emitted[:, b].sum(), res.escaped[:, b].sum()
+        assert res.absorbed[:, b].sum() + escaped + res.truncated[:, b].sum() == \
+            pytest.approx(emitted, rel=1e-4)
+        band = res.bands[b]
+        absorbed = 0.8 * res.flux_of("ground", band, side="both").sum()
+        for i in range(1000):
+            k = i % 3
+            absorbed += 0.6 * res.flux_of(f"p{i:04d}/leaves{k}", band, side="both").sum()
+            absorbed += 0.9 * res.flux_of(f"p{i:04d}/stem{k}", band, side="both").sum()
+        assert absorbed + escaped == pytest.approx(emitted, rel=0.005)
+
+
+def test_instances_agree_with_the_same_plants_as_plain_meshes(plants):
+    inst, plain = plants
+    assert inst.rays_traced == pytest.approx(plain.rays_traced, rel=1e-3)
+    for i in (0, 1, 2, 517, 999):
+        for part in ("leaves", "stem"):
+            a = inst.irradiance(f"p{i:04d}/{part}{i % 3}", "total", side="both")
+            b = plain.irradiance(f"p{i:04d}_{part}", "total", side="both")
+            np.testing.assert_allclose(a, b, rtol=1e-3, atol=1e-3 * b.max())
+    ids = [f"p{i:04d}" for i in range(1000)]
+    fi = np.array([inst.flux_of(p, side="both").sum() for p in ids])
+    fp = np.array([plain.flux_of(f"{p}_leaves", side="both").sum()
+                   + plain.flux_of(f"{p}_stem", side="both").sum() for p in ids])
+    # same random numbers, same paths, up to the few that float rounding in the instance
+    # transforms sends elsewhere
+    rel = np.abs(fi / fp - 1)
+    assert np.median(rel) < 1e-5 and np.mean(rel < 1e-3) > 0.98 and rel.max() < 0.03
+    assert fi.sum() == pytest.approx(fp.sum(), rel=1e-3)
+    assert inst.flux_of("ground").sum() == pytest.approx(plain.flux_of("ground").sum(),
+                                                         rel=1e-4)
+
+
+def test_unresolvable_instances_are_refused_by_name():
+    gv, gf = V.grid_mesh(1, 1, x=(-0.1, 0.1), z=(-0.1, 0.1))
+    base = {"type": "scene", "sun": {"type": "directional", "direction": [0, -1, 0]}}
+    ball = dict(base, grp={"type": "shapegroup", "ball": {"type": "sphere", "radius": 0.1}},
+                i1={"type": "instance", "shapegroup": {"type": "ref", "id": "grp"}})
+    with pytest.raises(SceneError, match="'ball'.*shapegroup 'grp'"):
+        photon_irradiance(mi.load_dict(ball, optimize=False), photons=1000)
+    twins = dict(base, g1={"type": "shapegroup", "a": V.make_mesh("a", gv, gf, 0.5)},
+                 g2={"type": "shapegroup", "b": V.make_mesh("b", gv, gf[:, ::-1], 0.5)},
+                 i1={"type": "instance", "shapegroup": {"type": "ref", "id": "g1"}},
+                 i2={"type": "instance", "shapegroup": {"type": "ref", "id": "g2"}})
+    with pytest.raises(SceneError, match="instance 'i1'"):
+        photon_irradiance(mi.load_dict(twins, optimize=False), photons=1000)
