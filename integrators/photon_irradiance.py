@@ -590,10 +590,13 @@ class PhotonIrradianceResult:
 
         component: "direct" (first hit from the emitter), "indirect" (after diffuse bounces) or
         "total"; side: "front" (the side the normal faces), "back" or "both"; emitter: None (all),
-        an emitter id/index or a list of them.
+        an emitter id/index or a list of them. A triangle of zero area (e.g. a collapsed leaf
+        slot of a world's canopy) gets NaN.
         """
         sl = self.index.shape_slice(shape_id)
-        return self.flux_of(shape_id, band, component, side, emitter) / self.index.areas[sl]
+        a = self.index.areas[sl]
+        f = self.flux_of(shape_id, band, component, side, emitter)
+        return np.divide(f, a, out=np.full(f.shape, np.nan), where=a > 0)
 
     def element_irradiance(self, band="total", component="total", side="front",
                            emitter=None) -> np.ndarray:
