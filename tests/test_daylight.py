@@ -333,3 +333,15 @@ def test_sky_property_errors():
     si.wi = mi.Vector3f(0.0, -1.0, 0.0)
     si.wavelengths = mi.Spectrum(500.0)
     assert np.allclose(np.array(a.eval(si)), np.array(b.eval(si)), rtol=1e-6)
+
+
+def test_a_live_sun_path_does_not_break_other_scenes_symbolic_emitter_calls():
+    """Dr.Jit traces every live emitter in a symbolic emitter call, also ones of other scenes:
+    a moss run's veg_sun_path must not make another scene's sample_emitter_ray fail."""
+    keep = mi.load_dict({"type": "veg_sun_path"})  # noqa: F841 (alive during the call)
+    d = daylight_from_angles(135.0, 45.0)
+    scene = mi.load_dict({"type": "scene", "sun": d["sun"], "ground": {"type": "rectangle"}})
+    s = _sampler(64, 1)
+    ray, w, _ = scene.sample_emitter_ray(0.0, s.next_1d(), s.next_2d(), s.next_2d(), True)
+    dr.eval(ray, w)
+    assert dr.all(dr.isfinite(w[0]))

@@ -60,7 +60,9 @@ class VegSunPath(mi.Emitter):
     """Delta-direction emitter with a discrete set of sun directions (see module docstring).
 
     Properties: ``scale`` (float, 1: spectral irradiance per unit weight [W m-2 nm-1], flat).
-    Directions are set with :meth:`set_day` (default: one sun at the zenith).
+    Directions are set with :meth:`set_day` (default: one sun at the zenith). Supports the
+    photon pass and ``sample_direction`` (next-event estimation of path tracers); light tracers
+    (``sample_ray``, e.g. Mitsuba's ``ptracer``) get no light from it.
     """
 
     def __init__(self, props: mi.Properties):
@@ -102,7 +104,14 @@ class VegSunPath(mi.Emitter):
         return mi.Spectrum(0.0)
 
     def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
-        raise NotImplementedError("veg_sun_path is meant for the photon-irradiance pass")
+        # Emission from a scene-sized disk needs the scene's bounds, which Mitsuba does not
+        # give Python emitters; this emitter serves the photon pass (which aims photons itself)
+        # and integrators that use sample_direction (path tracing). A zero-weight ray keeps
+        # symbolic virtual calls over all emitters valid: Dr.Jit traces every live emitter,
+        # also ones of other scenes, so raising here broke unrelated renders in the process.
+        ds, _ = self.sample_direction(dr.zeros(mi.Interaction3f), sample3, active)
+        ray = mi.Ray3f(ds.p, -ds.d, time, mi.Spectrum(wavelength_sample * 470.0 + 360.0))
+        return ray, mi.Spectrum(0.0)
 
     def sample_wavelengths(self, si, sample, active=True):
         return mi.Spectrum(mi.sample_shifted(sample) * 470.0 + 360.0), mi.Spectrum(470.0)
