@@ -271,3 +271,14 @@ def test_world_experiment_script_makes_its_figures(summer, tmp_path):
     res = json.loads((tmp_path / "results.json").read_text())
     s = res["summer (full leaf)"]
     assert s["oak"]["par_W_m2"] < s["open"]["par_W_m2"]
+
+
+def test_leaves_still_on_the_tree_stay_across_the_new_year():
+    """A leaf that has not fallen by 31 December keeps its blade on 1 January (it vanished with
+    the calendar's leaf-out curve before)."""
+    ph = Phenology(2, PhenologyParams())
+    ph.start_of_day(dt.date(2026, 7, 1))
+    assert np.allclose(ph.grown, 1.0)
+    ph.fallen[0] = True
+    ph.start_of_day(dt.date(2027, 1, 1))
+    assert ph.grown[1] == 1.0 and ph.on_tree.tolist() == [False, True]

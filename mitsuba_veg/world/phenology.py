@@ -4,8 +4,8 @@ Each leaf i carries (all NumPy arrays over the leaves, updated by one vectorised
 
 - **leaf-out** (spring; documented parameters, not from the papers): leaves grow from nothing to
   full size between day of year ``leaf_out_doy`` and ``leaf_out_doy + leaf_out_days`` (a
-  smoothstep of the blade size). Leaves that fell the year before come back then, green
-  (stage 1), their autumn clock reset.
+  smoothstep of the blade size). Then last year's leaves (fallen, or still hanging) are
+  replaced by new green ones (stage 1), their autumn clocks reset.
 - **autumn** (paper 003 §3.3, :mod:`mitsuba_veg.foliage.autumn`): from day of year
   ``autumn_onset_doy`` the leaf's insolation H_i [MJ m-2] accumulates the light it received
   that day **in the world's photon pass** (the same pass that lights the terrain); the logical
@@ -87,17 +87,16 @@ class Phenology:
         p = self.params
         doy = date.timetuple().tm_yday
         x = np.clip((doy - (p.leaf_out_doy + self.shift)) / p.leaf_out_days, 0.0, 1.0)
-        if doy == p.leaf_out_doy:
-            new = self.fallen | (self.tau_raw > 0)
-            self.H[new] = 0.0
-            self.t[new] = 0.0
-            self.tau_raw[new] = 0.0
-            self.fallen[new] = False
-        grown = x * x * (3 - 2 * x)
-        # after midsummer a leaf keeps its full size until it falls (no shrinking in autumn)
-        self.grown = np.where(doy > p.leaf_out_doy + p.leaf_out_days, np.maximum(self.grown,
-                                                                                 grown), grown)
-        self.grown = np.where(self.fallen, 0.0, self.grown)
+        if doy == p.leaf_out_doy and (self.grown.any() or self.fallen.any()):
+            # a new season: last year's leaves (fallen or still hanging) give way to new ones
+            self.H[:] = 0.0
+            self.t[:] = 0.0
+            self.tau_raw[:] = 0.0
+            self.fallen[:] = False
+            self.grown[:] = 0.0
+        # a leaf grows with the calendar and keeps its size until it falls (also across the
+        # new year: a leaf still on the tree in January stays until it falls)
+        self.grown = np.where(self.fallen, 0.0, np.maximum(self.grown, x * x * (3 - 2 * x)))
 
     def end_of_day(self, date: _dt.date, insolation_mj: np.ndarray) -> np.ndarray:
         """Add the day's insolation of each leaf [MJ m-2] (after the autumn onset), update τ and
