@@ -16,8 +16,9 @@ Same physics as the discrete run (``simulation.py``), with three changes (docs/t
 3. **Space in expectation**: propagules spread with the precomputed landing kernels of eqs
    3.22-3.23 (:mod:`.dispersal`); one individual per spot becomes a Poisson occupancy of the free
    spots; "inside a clump" (>= 8 moss neighbours) becomes the binomial tail of the triangle's
-   moss density; the global capacity scales the day's newcomers; the initial moss and the spores
-   from outside arrive as expected (area-weighted) densities. ``closure="near-field"`` adds a
+   moss density; the global capacity scales the day's newcomers (gemmae first, then spores,
+   as the discrete run settles them); the initial moss and the spores from outside arrive as
+   expected (area-weighted) densities. ``closure="near-field"`` adds a
    pair approximation: per triangle the density of occupied neighbour-cell pairs, so that a
    gemma (which lands within ``gemma_distance`` of its parent) finds its cell free with
    probability 1 - q, q = P(a neighbour cell of an occupied cell is occupied), instead of the
@@ -590,15 +591,21 @@ class SmoothMossModel:
             # near field: a gemma lands next to its parent, where a cell is free with
             # probability 1 - q (pair closure) instead of the triangle's 1 - occ
             acc_g = dr.maximum(1.0 - q, 0.0) * sf if near else acc
-            scale = 1.0
+            scale_g = scale_s = 1.0
             if self.capacity_on:
+                # the discrete run settles the day's gemmae first, then the spores, while free
+                # slots last (simulation.py, _release): the gemmae take the room first
                 room = dr.maximum(self.capacity - dr.sum(M * occ), 0.0)
-                want = dr.zeros(T, n)
+                want_g, want_s = dr.zeros(T, n), dr.zeros(T, n)
                 for a, b in zip(arr_g, arr_s):
-                    want += a * acc_g + b * acc
-                scale = dr.minimum(1.0, room / dr.maximum(dr.sum(M * want), 1e-12))
-            new_g = [a * acc_g * scale for a in arr_g]
-            new_s = [a * acc * scale for a in arr_s]
+                    want_g += a * acc_g
+                    want_s += b * acc
+                wg, ws = dr.sum(M * want_g), dr.sum(M * want_s)
+                scale_g = dr.minimum(1.0, room / dr.maximum(wg, 1e-12))
+                room_s = dr.maximum(room - wg * scale_g, 0.0)
+                scale_s = dr.minimum(1.0, room_s / dr.maximum(ws, 1e-12))
+            new_g = [a * acc_g * scale_g for a in arr_g]
+            new_s = [a * acc * scale_s for a in arr_s]
             for ng, ns_ in zip(new_g, new_s):
                 settled.append(ng + ns_)
                 occ = occ + ng + ns_
