@@ -81,6 +81,9 @@ def main():
     ap.add_argument("--closures", default="mean-field,near-field")
     ap.add_argument("--temperature", type=float, default=0.0)
     ap.add_argument("--photons", type=int, default=1_000_000)
+    ap.add_argument("--light-every", type=int, default=15,
+                    help="days between the relaxed model's sun-path passes (1: a new pass, i.e. "
+                         "new photon noise, every day as in the discrete run)")
     ap.add_argument("--every", type=int, default=10)
     ap.add_argument("--near-cells", default="kernel",
                     help="z of the near-field closure (list; 'kernel': from the gemma kernel)")
@@ -96,7 +99,8 @@ def main():
     for k in ("regions", "total", "alive"):
         ens[k] = ens[k][:, :days]
     species = st["species"].split(",")
-    data = tune.prepare(SCEN, days=days, species=species, photons=a.photons, light_every=15,
+    data = tune.prepare(SCEN, days=days, species=species, photons=a.photons,
+                        light_every=a.light_every,
                         overrides=list(st.get("set", [])))
     for cl in a.closures.split(","):
         for z in (a.near_cells.split(",") if cl == "near-field" else ["kernel"]):
