@@ -1,5 +1,6 @@
-"""Inverse problems on *discrete* targets: recover S1, T1, alpha_g of Bryum argenteum from the
-mean coverage map of an ensemble of discrete runs with the table values.
+"""Inverse problems on *discrete* targets: recover S1, T1, alpha_g of Bryum argenteum (or a
+light parameter: ``--params strength.sky``, ``albedo.ground``) from the mean coverage map of an
+ensemble of discrete runs with the table values.
 
 Target: the covered fraction per triangle on day ``--day``, averaged over the seeds of an
 ensemble made by ``experiments/tune_discrete_ensemble.py`` (Bryum, the scenario's parameters:
@@ -53,14 +54,17 @@ def main():
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    light = any(p.startswith(("albedo.", "strength.")) for p in a.params.split(","))
     data = tune.prepare(SCEN, days=a.day, species=["bryum_argenteum"], photons=a.photons,
-                        light_every=15)
+                        light_every=15, differentiable_light=light)
     target, n = discrete_target(Path(a.ensemble), a.day, data)
     model = tune.SmoothMossModel(data, temperature=a.temperature, closure=a.closure)
     names = a.params.split(",")
     true = {p: model.default_value(p) for p in names}
     scale = {p: parameter_scale(model, p) for p in names}
     box = {p: 0.3 * (scale[p] if p in ("T1", "T0") else true[p]) for p in names}
+    if any(p.startswith("albedo.") for p in names):
+        box.update({p: 0.3 * true[p] for p in names if p.startswith("albedo.")})
     with np.errstate(all="ignore"):
         import drjit as dr
         with dr.suspend_grad():
