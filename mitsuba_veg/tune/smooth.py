@@ -536,7 +536,9 @@ class SmoothMossModel:
         probability 1 - q (its parent is next to it), a spore with 1 - rho; each newcomer adds
         its pairs, 2/z (1 + (z - 1) q10) per gemma (the parent plus the other neighbours) and
         2 q10 per spore, q10 = (rho - w) / (1 - rho); w is kept in [rho², rho]. The start is the
-        random placement, w = rho².
+        random placement, w = rho². (Propagules that expire on a day are removed from the ring
+        by ``push`` after this update, so their pairs are not thinned; only the clip to
+        [rho², rho] on the next day bounds them.)
         """
         T = self.T
         d, n, M, life = st.day, self.n, self.M, self.life
