@@ -91,7 +91,8 @@ def _cmd_tune(a) -> int:
     data = prepare(a.scenario, days=a.days, overrides=a.set or (), species=species,
                    photons=a.photons, light_every=a.light_every, differentiable_light=albedo,
                    progress=not a.quiet)
-    model = SmoothMossModel(data, temperature=a.temperature, precision=a.precision)
+    model = SmoothMossModel(data, temperature=a.temperature, precision=a.precision,
+                            closure=a.closure)
     if t.startswith("synthetic:"):
         with dr.suspend_grad():
             target = np.asarray(model.run(synthetic).cover)
@@ -143,6 +144,9 @@ def add_parser(subparsers):
                         "climate.temperature)")
     p.add_argument("--precision", default="float32", choices=("float32", "float64"),
                    help="floating-point precision of the relaxed model")
+    p.add_argument("--closure", default="mean-field", choices=("mean-field", "near-field"),
+                   help="spatial closure of the relaxed model (near-field: gemmae crowded by "
+                        "their siblings, closer to discrete runs; docs/tuning.md)")
     add_photons(p, None, "per up-front light pass (default: the scenario's light.photons)")
     p.add_argument("--light-every", type=ranged(int, 1, 100_000, "days"), default=15,
                    help="days between sun-path light passes")

@@ -41,6 +41,10 @@ class Kernel:
     dst: np.ndarray
     weight: np.ndarray
     n_elements: int
+    #: per source element: the effective number of cells around the parent's cell where its
+    #: propagules land, 1 / sum_k p_k^2 over the landing cells' offsets k (the near-field
+    #: closure's z; NaN where fewer than two landings were sampled); None if not estimated
+    near_cells: np.ndarray | None = None
 
     def __post_init__(self):
         self._dr = None
@@ -103,7 +107,7 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
     sources = np.flatnonzero(living)
     rng = np.random.default_rng([seed, 0 if kind == "gemma" else 1])
     src_all = np.repeat(sources, samples)
-    srcs, dsts = [], []
+    srcs, dsts, offs = [], [], []
     for start in range(0, len(src_all), batch):
         src = src_all[start:start + batch]
         m = len(src)
@@ -127,9 +131,34 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
         ok[ok] &= living[el[ok]]
         srcs.append(src[ok])
         dsts.append(el[ok])
+        if grid is not None:  # landing cell relative to the parent's cell (17^3 offsets)
+            off = np.zeros(m, np.int64)
+            for k, (a, b) in enumerate(zip(grid.coords(p), grid.coords(P))):
+                dk = np.asarray(a).astype(np.int64) - np.asarray(b).astype(np.int64)
+                off += (np.clip(dk, -8, 8) + 8) * 17 ** k
+            offs.append(off[ok])
     src = np.concatenate(srcs)
     dst = np.concatenate(dsts)
     key = src * n + dst
     uniq, counts = np.unique(key, return_counts=True)
+    near = None
+    if grid is not None:
+        near = near_cells(src, np.concatenate(offs), n)
     return Kernel(kind, float(distance), int(samples), (uniq // n).astype(np.int64),
-                  (uniq % n).astype(np.int64), counts / float(samples), n)
+                  (uniq % n).astype(np.int64), counts / float(samples), n, near)
+
+
+def near_cells(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
+    """Per source element, the effective number of landing cells 1 / sum_k p_k^2 (p_k: the
+    share of its landed propagules in the cell at offset k from the parent's), from the sampled
+    landings; sum_k p_k^2 is estimated without bias as (sum n_k^2 - N) / (N (N - 1)). NaN where
+    fewer than two landings (or no repeated cell: then z is large) were sampled."""
+    key = src.astype(np.int64) * (17 ** 3) + offset
+    uniq, cnt = np.unique(key, return_counts=True)
+    owner = uniq // (17 ** 3)
+    N = np.bincount(src, minlength=n).astype(float)
+    s2 = np.bincount(owner, cnt.astype(float) ** 2, minlength=n)
+    num = s2 - N
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where((N >= 2) & (num > 0), N * (N - 1) / num, np.nan)
+    return z

@@ -152,14 +152,16 @@ def coverage_loss(kind="mse"):
 # ------------------------------------------------------------------------------------------
 # fit
 # ------------------------------------------------------------------------------------------
-def _as_model(scenario, days, species, temperature, precision, prepare_kw) -> SmoothMossModel:
+def _as_model(scenario, days, species, temperature, precision, prepare_kw,
+              closure: str = "mean-field") -> SmoothMossModel:
     if isinstance(scenario, SmoothMossModel):
         return scenario
     if isinstance(scenario, ModelData):
         data = scenario
     else:
         data = prepare(scenario, days=days, species=species, **prepare_kw)
-    return SmoothMossModel(data, temperature=temperature, days=days, precision=precision)
+    return SmoothMossModel(data, temperature=temperature, days=days, precision=precision,
+                           closure=closure)
 
 
 def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr: float = 0.08,
@@ -167,12 +169,14 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
         temperature: float = 0.05, species=None, out="out/tune", progress: bool = True,
         precision: str = "float32", checkpoint_every: int | None = None, scales: dict | None = None,
         bounds: dict | None = None, plots: bool = True, beta_1: float = 0.9, beta_2: float = 0.9,
-        **prepare_kw) -> FitResult:
+        closure: str = "mean-field", **prepare_kw) -> FitResult:
     """Fit ``params`` so that the relaxed run's covered fraction per triangle matches ``target``.
 
     scenario: a scenario TOML path, a :class:`~mitsuba_veg.scenario.Scenario`, prepared
     :class:`ModelData` or a :class:`SmoothMossModel` (then ``days``, ``species``,
-    ``temperature``, ``precision`` come from it). params: names (see
+    ``temperature``, ``precision``, ``closure`` come from it); closure: the relaxed model's
+    spatial closure (``"mean-field"`` or ``"near-field"``, docs/tuning.md: the near field is
+    closer to discrete runs while moss spreads). params: names (see
     :meth:`SmoothMossModel.parameter_names`: ``"S1"``, ``"bryum_argenteum.T1"``, ``"T"``,
     ``"rh"``, ``"albedo.roof"``, ``"strength.sun"`` ...). init: starting values (default: the
     scenario's). steps, lr, lr_final: Adam steps and learning rate on the normalised
@@ -194,7 +198,7 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
                                  "fit it (params=...) or drop its starting value")
     if any(p.startswith(("albedo.", "strength.")) for p in params):
         prepare_kw.setdefault("differentiable_light", True)
-    model = _as_model(scenario, days, species, temperature, precision, prepare_kw)
+    model = _as_model(scenario, days, species, temperature, precision, prepare_kw, closure)
     for p in params:
         model._canonical(p)  # validates the names
     T = model.T

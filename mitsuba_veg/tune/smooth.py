@@ -16,8 +16,13 @@ Same physics as the discrete run (``simulation.py``), with three changes (docs/t
 3. **Space in expectation**: propagules spread with the precomputed landing kernels of eqs
    3.22-3.23 (:mod:`.dispersal`); one individual per spot becomes a Poisson occupancy of the free
    spots; "inside a clump" (>= 8 moss neighbours) becomes the binomial tail of the triangle's
-   moss density; the global capacity scales the day's newcomers; the initial moss and the spores
-   from outside arrive as expected (area-weighted) densities.
+   moss density; the global capacity scales the day's newcomers (gemmae first, then spores,
+   as the discrete run settles them); the initial moss and the spores from outside arrive as
+   expected (area-weighted) densities. ``closure="near-field"`` adds a
+   pair approximation: per triangle the density of occupied neighbour-cell pairs, so that a
+   gemma (which lands within ``gemma_distance`` of its parent) finds its cell free with
+   probability 1 - q, q = P(a neighbour cell of an occupied cell is occupied), instead of the
+   triangle's 1 - occupancy, and the clump rule uses q (docs/tuning.md).
 
 The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
 ``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
@@ -55,6 +60,8 @@ from .photon_ad import PhotonPaths, irradiance, trace_paths
 __all__ = ["ModelData", "LightSetup", "prepare", "SmoothMossModel", "State", "SpeciesState",
            "RunResult", "CLIMATE_PARAMS", "GEMMA_STEP", "SPORE_THRESHOLD", "NEIGHBOUR_CELLS"]
 
+#: spatial closures of :class:`SmoothMossModel` (docs/tuning.md)
+CLOSURES = ("mean-field", "near-field")
 NEIGHBOUR_CELLS = 8       # neighbour cells of a moss on a surface (in-plane part of the 26)
 #: climate parameters that can be tuned: name -> ClimateTable field (the value replaces the
 #: table's; a per-day series is shifted by the difference)
@@ -233,18 +240,23 @@ class State:
     O: object         # (n_el) bucket water [mm]
     species: list     # SpeciesState per species
     per_species: int = 6      # arrays per species (SpeciesState.FIELDS)
+    pair: object = None       # (n_el) near-field closure: neighbour-pair density (or None)
 
     def arrays(self) -> list:
         out = [self.O]
         for s in self.species:
             out += s.arrays()
+        if self.pair is not None:
+            out.append(self.pair)
         return out
 
     def with_arrays(self, arrays, day=None) -> "State":
         k = self.per_species
+        n_sp = len(self.species)
         sp = [SpeciesState.from_arrays(arrays[1 + k * i:1 + k * (i + 1)])
-              for i in range(len(self.species))]
-        return State(self.day if day is None else day, arrays[0], sp, k)
+              for i in range(n_sp)]
+        pair = arrays[1 + k * n_sp] if len(arrays) > 1 + k * n_sp else None
+        return State(self.day if day is None else day, arrays[0], sp, k, pair)
 
     def detached(self) -> "State":
         arr = [dr.detach(a) for a in self.arrays()]
@@ -293,11 +305,23 @@ class SmoothMossModel:
     cohort_days: birth days merged into one moss cohort (1 = exact; larger saves memory);
     dispersal / capacity / external: switch the spatial parts off for tests; precision:
     "float32" (default, about twice as fast) or "float64".
+
+    closure: ``"mean-field"`` (offspring spread over the triangles they reach, no correlations)
+    or ``"near-field"`` (pair approximation for the gemmae, see :meth:`step`); near_cells: z of
+    the pair approximation, the number of cells around a parent's cell that its gemmae land in
+    [cells] (None: per triangle from the gemma kernel, ``Kernel.near_cells``: 1 / sum p_k^2 of
+    the landing cells, ~22 on the garden's ground); near_scale: factor on that z [-].
+    Raises ParameterError for an unknown closure or z outside [1, 26].
     """
 
     def __init__(self, data: ModelData, temperature: float = 0.05, cohort_days: int = 1,
                  dispersal: bool = True, capacity: bool = True, external: bool = True,
-                 days: int | None = None, precision: str = "float32"):
+                 days: int | None = None, precision: str = "float32",
+                 closure: str = "mean-field", near_cells: float | None = None,
+                 near_scale: float = 1.0):
+        if closure not in CLOSURES:
+            raise ParameterError("closure", closure, "one of " + ", ".join(CLOSURES))
+        self.closure = closure
         self.data = data
         self.days = int(days if days is not None else data.days)
         if self.days > data.days:
@@ -327,6 +351,8 @@ class SmoothMossModel:
         self.n_sp = len(data.species)
         cfg = data.moss_cfg
         self.capacity = float(cfg["capacity"])
+        self.near_scale = float(near_scale)
+        self.near_cells = self._near_cells(near_cells)
         self.interval = int(cfg["external_spore_interval"])
         self.clump = int(cfg["clump_neighbours"])
         self.initial = float(min(cfg["initial"], cfg["capacity"]))
@@ -334,6 +360,25 @@ class SmoothMossModel:
         w = data.weather
         self._weather = {k: np.asarray(getattr(w, k), float) for k in
                          ("T", "rh", "P", "U", "A", "beam", "diffuse")}
+
+    def _near_cells(self, z):
+        """z of the near-field closure per element: a number, or (None) the gemma kernel's
+        effective number of landing cells around the parent's cell (NaN: the median)."""
+        if self.closure != "near-field":
+            return None
+        if z is not None:
+            z = float(z)
+            if not (1.0 <= z <= 26.0):
+                raise ParameterError("near_cells", z, "1 <= z <= 26 (cells around a cell)")
+            return dr.opaque(self.T, z)
+        k = self.data.kernels["gemma"].near_cells
+        if k is None:
+            raise ParameterError("near_cells", None, "a number, or a gemma kernel estimated "
+                                 "with the spot grid (prepare() does that)")
+        k = np.asarray(k, float)
+        ok = np.isfinite(k)
+        k = np.where(ok, k, np.median(k[ok]) if ok.any() else 8.0)
+        return self.T(np.clip(k * self.near_scale, 1.0, 26.0))
 
     # ---- parameters -------------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
@@ -450,7 +495,11 @@ class SmoothMossModel:
         dens = self.initial / self.n_sp * self.area_frac / self.data.M
         sp = [self.life.seed_moss(self.life.empty(), dens, self.initial_growth)
               for _ in range(self.n_sp)]
-        st = State(0, T(self.data.O0), sp, self.life.arrays_per_species)
+        pair = None
+        if self.closure == "near-field":
+            # initial moss at independent random points: neighbour pairs of the mean field
+            pair = T(dens * dens * self.n_sp * self.n_sp)
+        st = State(0, T(self.data.O0), sp, self.life.arrays_per_species, pair)
         dr.make_opaque(st.arrays())
         return st
 
@@ -478,9 +527,26 @@ class SmoothMossModel:
 
     def step(self, st: State, P: Resolved, light, record: dict | None = None) -> State:
         """Advance one day in the discrete day's order: light, soil, then the moss (germination,
-        growth and death, gemmae, spores, landing and settling, a spore from outside)."""
+        growth and death, gemmae, spores, landing and settling, a spore from outside).
+
+        Near-field closure (``st.pair`` = w, per triangle the probability that a cell and a
+        given one of its z neighbour cells are both occupied by an individual, moss or waiting
+        propagule; occupancy rho per spot): losses of the day thin the occupants independently
+        (w *= s², s = surviving share); q = w / rho; a gemma settles in a free cell with
+        probability 1 - q (its parent is next to it), a spore with 1 - rho; each newcomer adds
+        its pairs, 2/z (1 + (z - 1) q10) per gemma (the parent plus the other neighbours) and
+        2 q10 per spore, q10 = (rho - w) / (1 - rho); w is kept in [rho², rho]. The start is the
+        random placement, w = rho². (Propagules that expire on a day are removed from the ring
+        by ``push`` after this update, so their pairs are not thinned; only the clip to
+        [rho², rho] on the next day bounds them.)
+        """
         T = self.T
         d, n, M, life = st.day, self.n, self.M, self.life
+        near = st.pair is not None
+        if near:
+            occ0 = dr.zeros(T, n)
+            for s in st.species:
+                occ0 += life.moss(s) + life.waiting(s)
         S, Ts, rhs, theta, O = self.environment(st, P, light)
         # ---- steps 1-2 per species
         new_sp, Gms, Dgs, germinated = [], [], [], []
@@ -498,7 +564,17 @@ class SmoothMossModel:
             m = life.moss(s)
             c_after += m
             occ += m + life.waiting(s)
-        surface = 1.0 - relax.binomial_tail(c_after, NEIGHBOUR_CELLS, self.clump)
+        if near:
+            # the pairs of the individuals still there (losses: independent thinning s, pairs s²)
+            surv = dr.clip(occ / dr.maximum(occ0, 1e-12), 0.0, 1.0)
+            pair = dr.clip(st.pair * surv * surv, occ * occ, occ)
+            q = dr.select(occ > 1e-9, pair / dr.maximum(occ, 1e-12), occ)   # P(nb occ | occ)
+            q_moss = q * c_after / dr.maximum(occ, 1e-12)                   # ... holds moss
+            surface = 1.0 - relax.binomial_tail(dr.clip(q_moss, 0.0, 1.0), NEIGHBOUR_CELLS,
+                                                self.clump)
+            occ_live = occ
+        else:
+            surface = 1.0 - relax.binomial_tail(c_after, NEIGHBOUR_CELLS, self.clump)
         made_g, made_s, arr_g, arr_s, settled = [], [], [], [], []
         for i, s in enumerate(new_sp):
             gem, spo = life.produce(s, Gms[i], Dgs[i], surface)
@@ -512,13 +588,26 @@ class SmoothMossModel:
             for a, b in zip(arr_g, arr_s):
                 A += a + b
             free = dr.maximum(1.0 - occ, 0.0)
-            acc = free * relax.settle_fraction(A / M) / M     # spots taken per arrival
-            scale = 1.0
+            sf = relax.settle_fraction(A / M) / M
+            acc = free * sf                                   # spots taken per arrival
+            # near field: a gemma lands next to its parent, where a cell is free with
+            # probability 1 - q (pair closure) instead of the triangle's 1 - occ
+            acc_g = dr.maximum(1.0 - q, 0.0) * sf if near else acc
+            scale_g = scale_s = 1.0
             if self.capacity_on:
+                # the discrete run settles the day's gemmae first, then the spores, while free
+                # slots last (simulation.py, _release): the gemmae take the room first
                 room = dr.maximum(self.capacity - dr.sum(M * occ), 0.0)
-                scale = dr.minimum(1.0, room / dr.maximum(dr.sum(M * A * acc), 1e-12))
-            new_g = [a * acc * scale for a in arr_g]
-            new_s = [a * acc * scale for a in arr_s]
+                want_g, want_s = dr.zeros(T, n), dr.zeros(T, n)
+                for a, b in zip(arr_g, arr_s):
+                    want_g += a * acc_g
+                    want_s += b * acc
+                wg, ws = dr.sum(M * want_g), dr.sum(M * want_s)
+                scale_g = dr.minimum(1.0, room / dr.maximum(wg, 1e-12))
+                room_s = dr.maximum(room - wg * scale_g, 0.0)
+                scale_s = dr.minimum(1.0, room_s / dr.maximum(ws, 1e-12))
+            new_g = [a * acc_g * scale_g for a in arr_g]
+            new_s = [a * acc * scale_s for a in arr_s]
             for ng, ns_ in zip(new_g, new_s):
                 settled.append(ng + ns_)
                 occ = occ + ng + ns_
@@ -537,7 +626,20 @@ class SmoothMossModel:
         for s, ng, ns_ in zip(new_sp, new_g, new_s):
             life.push(s, "gemma", ng, d)
             life.push(s, "spore", ns_, d)
-        out = State(d + 1, O, new_sp, st.per_species)
+        new_pair = None
+        if near:
+            # newcomers' neighbour pairs: a gemma's parent is a neighbour, its other z - 1
+            # neighbour cells (and all z of a spore's) are occupied with q10 = P(occ | nb free)
+            z = self.near_cells
+            g_tot, s_tot = dr.zeros(T, n), dr.zeros(T, n)
+            for ng, ns_ in zip(new_g, new_s):
+                g_tot += ng
+                s_tot += ns_
+            occ_new = occ_live + g_tot + s_tot
+            q10 = dr.clip((occ_live - pair) / dr.maximum(1.0 - occ_live, 1e-12), 0.0, 1.0)
+            new_pair = pair + (2.0 / z) * (g_tot * (1.0 + (z - 1.0) * q10) + s_tot * z * q10)
+            new_pair = dr.clip(new_pair, occ_new * occ_new, occ_new)
+        out = State(d + 1, O, new_sp, st.per_species, new_pair)
         # opaque, not just evaluated: a slot that is still a literal 0 would enter the kernels as
         # a constant, and the registers shift those constants around: a new kernel every day
         dr.make_opaque(out.arrays())
