@@ -59,3 +59,24 @@ def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=F
 class DependencyError(MitsubaVegError, ImportError):
     """An optional dependency that a feature needs is not installed (the message names the
     ``pip install`` that adds it)."""
+
+
+def unknown_field(field: str, value, known, source: str | None = None,
+                  doc: str | None = None) -> ParameterError:
+    """The error for a field a file or ``--set`` names but no schema knows: the closest known
+    names as the fix (whole dotted names first, else the last part among its table's fields),
+    the fields of the same table as what is allowed. ``doc``: where the fields are listed."""
+    import difflib
+    known = sorted(set(known))
+    close = difflib.get_close_matches(field, known, n=3, cutoff=0.6)
+    head, _, last = field.rpartition(".")
+    siblings = [k for k in known if k.rpartition(".")[0] == head]
+    if not close:  # a misspelt last part: compare within the same table
+        near = difflib.get_close_matches(last, [k.rpartition(".")[2] for k in siblings], n=3,
+                                         cutoff=0.5)
+        close = [k for k in siblings if k.rpartition(".")[2] in near]
+    fix = ("did you mean " + " or ".join(repr(c) for c in close) + "?") if close else \
+        "remove or rename it" + (f" ({doc} lists the fields)" if doc else "")
+    pool = siblings or known
+    allowed = "a known field (" + ", ".join(pool[:12]) + (", ..." if len(pool) > 12 else "") + ")"
+    return ParameterError(field, value, allowed, fix, source)

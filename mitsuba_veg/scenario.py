@@ -22,7 +22,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ParameterError
+from .errors import ParameterError, unknown_field
 
 #: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
 #: (more gains little: the estimate's noise falls as 1/sqrt(N) and a day has other errors)
@@ -220,26 +220,14 @@ def schema_markdown() -> str:
 
 
 def _unknown(field: str, value, known: list[str], source):
-    import difflib
+    """An unknown scenario field (``NAME`` in the schema's names stands for the field's own
+    user-chosen part, e.g. the region's name)."""
     parts = field.split(".")
 
     def concrete(k):  # "regions.NAME.min" -> "regions.open.min" for field regions.open.x
-        kp = k.split(".")
         return ".".join(parts[i] if p == "NAME" and i < len(parts) else p
-                        for i, p in enumerate(kp))
-    known = [concrete(k) for k in known]
-    close = difflib.get_close_matches(field, known, n=3, cutoff=0.6)
-    if not close:  # a misspelt last part: compare within the same table
-        head, _, last = field.rpartition(".")
-        sib = [k for k in known if k.rpartition(".")[0] == head]
-        close = [f"{head}.{m}" if head else m for m in difflib.get_close_matches(
-            last, [k.rpartition(".")[2] for k in sib], n=3, cutoff=0.5)]
-    fix = ("did you mean " + " or ".join(f"`{c}`" for c in close) + "?") if close else \
-        "remove it, or see docs/scenario.md for the fields a scenario may hold"
-    head = field.rpartition(".")[0]
-    pool = [k for k in known if k.rpartition(".")[0] == head] or known
-    return ParameterError(field, value, "a known field (" + ", ".join(sorted(pool)[:12]) +
-                          (", ..." if len(pool) > 12 else "") + ")", fix, source)
+                        for i, p in enumerate(k.split(".")))
+    return unknown_field(field, value, [concrete(k) for k in known], source, "docs/scenario.md")
 
 
 def _check_value(name: str, f: Field, v, source, known: list[str]):

@@ -33,7 +33,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import ParameterError
+from ..errors import ParameterError, unknown_field
 
 #: keys of the [sweep] table
 SWEEP_KEYS = ("scenario", "days", "seeds", "set", "frames")
@@ -51,15 +51,7 @@ def _closest(name: str, known) -> str:
 
 
 def _unknown(source: str, field_: str, value, known) -> ParameterError:
-    leaf = field_.rsplit(".", 1)[-1]
-    near = difflib.get_close_matches(field_, list(known), n=3, cutoff=0.6) or \
-        [k for k in known if k.rsplit(".", 1)[-1] in
-         difflib.get_close_matches(leaf, [x.rsplit(".", 1)[-1] for x in known], n=3, cutoff=0.6)]
-    fix = ("did you mean " + " or ".join(repr(x) for x in near[:3]) + "?") if near else \
-        "remove or rename it"
-    allowed = "one of " + ", ".join(sorted(known)) if len(known) <= 8 else \
-        "a field of the base scenario, as with --set"
-    return ParameterError(field_, value, allowed, fix, source)
+    return unknown_field(field_, value, known, source, "README.md (Sweeps on Dask)")
 
 
 @dataclass

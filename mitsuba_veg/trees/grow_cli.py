@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.errors import ParameterError, unknown_field
 
 _TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
              "environment", "nongrowth", "output", "weber_penn", "name", "description"}
@@ -51,12 +51,9 @@ _OUTPUT_KEYS = ("formats", "leaves", "picture")
 
 def _unknown(field, value, known, source):
     """An unknown TREE.toml field, with the closest known names."""
-    import difflib
-    close = difflib.get_close_matches(field, sorted(known), n=3, cutoff=0.5)
-    fix = ("did you mean " + " or ".join(f"`{c}`" for c in close) + "?") if close else \
-        "remove it (docs/trees.md lists the fields)"
-    return ParameterError(field, value, "a known field (" + ", ".join(sorted(known)) + ")", fix,
-                          source)
+    return unknown_field(field, value, known, source, "docs/trees.md")
+
+
 _FORMATS = ("ply", "obj", "glb", "stl")
 
 
