@@ -245,10 +245,6 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
     check_range("max_depth", max_depth, 1, 1000)
     check_range("seed", seed, 0, 2**31 - 1)
     check_range("leaves", tree_leaves, 1, 1_000_000)
-    if when is not None and isinstance(scene_or_scenario, (str, Path)) and \
-            Path(scene_or_scenario).suffix.lower() == ".xml":
-        raise ParameterError("--when", when, "a scenario (.toml) with a [site], or a tree, as "
-                             "SCENE", "pass the scenario instead of the XML")
     out = Path(out_dir)
     t0 = time.perf_counter()
     scene, leaf_map, info = _load(scene_or_scenario, when, latitude, longitude, overrides, tau,

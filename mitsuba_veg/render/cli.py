@@ -318,7 +318,6 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     ``animate.json``."""
     if light not in ("fixed", "daily"):
         raise ParameterError("light", light, "'fixed' or 'daily'")
-    _check_image(width, height, spp, None, frames, every, fps)
     if scheduler is not None or workers is not None or client is not None:
         if trees is not None:
             raise ParameterError("trees", "a list of Tree", "None when the frames run on Dask "

@@ -115,8 +115,7 @@ class Canopy:
     min_change = 0.02
     max_lag_days = 7
 
-    def update(self, scene, params, tau: np.ndarray, scale: np.ndarray,
-               on_tree: np.ndarray, force: bool = False) -> int:
+    def update(self, params, tau: np.ndarray, scale: np.ndarray, on_tree: np.ndarray) -> int:
         """Show each leaf on the tree in the bin of its stage, at blade size ``scale`` (0..1),
         collapse the others; move only the meshes whose content changed (see
         :attr:`min_change`). Returns the number of meshes updated."""
@@ -130,7 +129,7 @@ class Canopy:
             self._lag = 0
             return 0
         self._lag = getattr(self, "_lag", 0) + 1
-        if not force and changed_leaf.mean() < self.min_change and \
+        if changed_leaf.mean() < self.min_change and \
                 self._lag < self.max_lag_days:
             return 0
         self._lag = 0
@@ -163,10 +162,10 @@ class Canopy:
     def slot_leaf(self) -> np.ndarray:
         return np.tile(self.face_leaf, self.bins)
 
-    def leaf_flux(self, flux_both: np.ndarray, elements: np.ndarray) -> np.ndarray:
-        """Flux incident on each leaf [W] (both sides, direct + indirect) from per-element
-        fluxes ``flux_both`` (n_elements, ...) of the pass; returns (n_leaves, ...)."""
-        f = flux_both[elements]
+    def leaf_flux(self, slot_flux: np.ndarray) -> np.ndarray:
+        """Flux incident on each leaf [W] from the fluxes of its triangle slots (rows in the
+        order of :meth:`leaf_elements`, any trailing axes); returns (n_leaves, ...)."""
+        f = np.asarray(slot_flux)
         tail = f.shape[1:]
         f = f.reshape(len(f), -1)
         leaf = self.slot_leaf

@@ -117,8 +117,7 @@ class WorldSimulation(MossSimulation):
         t0 = time.perf_counter()
         date = self._date(self.day)
         self.phen.start_of_day(date)
-        self.canopy.update(self.scene, self.params, self.phen.tau, self.phen.grown,
-                           self.phen.on_tree)
+        self.canopy.update(self.params, self.phen.tau, self.phen.grown, self.phen.on_tree)
         self.timings["leaves"] += time.perf_counter() - t0
         self._leaf_seconds = time.perf_counter() - t0
         return super().step()
@@ -142,15 +141,15 @@ class WorldSimulation(MossSimulation):
             self._leaf_elements = c.leaf_elements(res.index)
         # (n_leaf_slots, 2 emitters, n_b): both sides, both components, of the leaf slots only
         slots = np.stack([res.flux[e][self._leaf_elements].sum(axis=(1, 2)) for e in ie], 1)
-        lf = c.leaf_flux(slots, np.arange(len(slots)))      # (n_leaves, 2, n_b)
+        lf = c.leaf_flux(slots)                             # (n_leaves, 2, n_b)
         gsl = self.ground_slice
         front = np.stack([res.flux[e][gsl].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
         garea = np.maximum(self.index.areas[gsl], 1e-30)
         leaf, ground, ground_sky = {}, {}, {}
         for k, b in enumerate(res.bands):
-            w = width[b]
             sb, sd = B * shapes["beam"][b], D * shapes["diffuse"][b]
-            # band-mean spectral irradiance [W m-2 nm-1] x band width -> [W m-2]
+            # band-mean spectral irradiance [W m-2 nm-1] x (flux of a unit emitter [W] = band
+            # width x geometry) / area -> band irradiance [W m-2]
             leaf[b] = (sb * lf[:, 0, k] + sd * lf[:, 1, k]) / area
             ground[b] = (sb * front[0, :, k] + sd * front[1, :, k]) / garea
             ground_sky[b] = sd * front[1, :, k] / garea
