@@ -87,6 +87,13 @@ _SLOTS = 4  # wavelengths carried by one Mitsuba spectral sample
 _UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
 DEFAULT_BATCH = 1 << 22
+
+#: Element modes (``trace(..., modes=...)``): a SURFACE element records the photon and scatters
+#: or absorbs it (its BSDF); a SENSOR element records the photon and lets it pass unchanged
+#: (same direction, same power, no bounce counted): a virtual sensor; a HIDDEN element lets it
+#: pass unrecorded (e.g. a fallen leaf whose triangles stay in the scene).
+SURFACE, SENSOR, HIDDEN = 0, 1, 2
+_MODE_NAMES = {"surface": SURFACE, "sensor": SENSOR, "hidden": HIDDEN}
 #: up to this many distinct BSDFs are called directly in the kernel, more by a virtual call
 _DIRECT_BSDFS = 16
 
@@ -841,7 +848,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
     def trace(self, scene: mi.Scene, photons: int | None = None, seed: int | None = None,
               max_depth: int | None = None, bands=None, indirect: bool | None = None,
               reflectance: dict | None = None, emitters=None, batch: int | None = None,
-              progress: bool = False) -> PhotonIrradianceResult:
+              progress: bool = False, modes: dict | None = None) -> PhotonIrradianceResult:
         """Trace a photon pass over ``scene`` and return per-element fluxes.
 
         Arguments left at None take the plugin's properties.
@@ -871,6 +878,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             Photons per kernel launch.
         progress : bool
             Show a progress bar.
+        modes : dict, optional
+            ``{shape_id: mode}`` with mode ``"surface"`` (default), ``"sensor"`` (records, then
+            the photon passes unchanged: a virtual sensor that casts no shadow) or ``"hidden"``
+            (passes unrecorded), or an integer array (n_triangles,) of :data:`SURFACE`,
+            :data:`SENSOR`, :data:`HIDDEN`. A photon crossing a sensor or hidden element keeps
+            its direction, power and bounce count; changing the modes does not recompile the
+            kernel.
 
         Returns
         -------
@@ -913,6 +927,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         n_el, n_b = index.n_elements, len(bands)
         groups = [list(range(i, min(i + _SLOTS, n_b))) for i in range(0, n_b, _SLOTS)]
         refl = self._reflectance_table(index, reflectance, n_b)
+        mode_arr = self._mode_table(index, modes)
 
         # photon budget per emitter: proportional to the power each sends at the geometry
         pilots = [self._pilot_power(scene, all_emitters[i], index, ranges[0]) for i in em_idx]
@@ -949,7 +964,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     # a distinct, reproducible stream per (seed, emitter, band group, batch)
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
-                                            slot_ranges, refl_g, max_depth, indirect)
+                                            slot_ranges, refl_g, max_depth, indirect,
+                                            mode_arr)
                     # fixed point -> watts on the device (both threads), summed over batches
                     # in a fixed order (deterministic)
                     q, unit = acc
@@ -994,6 +1010,33 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 raise ParameterError("emitters", e, f"an index 0..{len(all_emitters) - 1} or an "
                                      f"id among {names}")
         return out
+
+    @staticmethod
+    def _mode_table(index: SceneIndex, modes):
+        """Per-element modes as a device array (None when every element is a surface)."""
+        if not modes:
+            return None
+        table = np.zeros(index.n_elements, dtype=np.uint32)
+        for sid, m in modes.items():
+            sl = index.shape_slice(sid)
+            n = sl.stop - sl.start
+            if isinstance(m, str):
+                if m not in _MODE_NAMES:
+                    raise ParameterError(f"modes['{sid}']", repr(m), "'surface', 'sensor' or "
+                                         "'hidden'", "or an array of SURFACE/SENSOR/HIDDEN")
+                table[sl] = _MODE_NAMES[m]
+                continue
+            a = np.asarray(m)
+            if a.ndim == 0:
+                a = np.full(n, a)
+            if a.shape != (n,) or not np.isin(a, (SURFACE, SENSOR, HIDDEN)).all():
+                raise ParameterError(f"modes['{sid}']", f"array of shape {a.shape}",
+                                     f"shape ({n},) with values 0 (surface), 1 (sensor), "
+                                     f"2 (hidden)")
+            table[sl] = a
+        if not table.any():
+            return None
+        return mi.UInt32(table)
 
     @staticmethod
     def _reflectance_table(index: SceneIndex, reflectance, n_b):
@@ -1140,7 +1183,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     # the kernel -----------------------------------------------------------------------------
     def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
-              indirect):
+              indirect, modes=None):
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(stream, n)
         idx = dr.arange(mi.UInt32, n)
@@ -1191,7 +1234,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         throughput_left, rays_lane, esc, absd = self._loop(
             scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
             tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
-            dr.opaque(mi.Float, cap))
+            dr.opaque(mi.Float, cap), modes)
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
         # one would re-run the loop for each); the bookkeeping sums are read back in one go
         dr.eval(acc, throughput_left, rays_lane, esc, absd)
@@ -1214,7 +1257,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
-              index, normals, refl_arr, one_hit, scale, cap):
+              index, normals, refl_arr, one_hit, scale, cap, modes=None):
         """The random walk: one symbolic loop (a single kernel).
 
         Hits are found with ``ray_intersect_preliminary`` (the BVH traversal only). The element
@@ -1223,6 +1266,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         made of just what a spatially uniform BSDF reads (position, normal frame, wi,
         wavelengths). Analytic shapes get their normal from the shape itself; scenes with
         spatially varying BSDFs (textures, mesh attributes) use Mitsuba's full interaction.
+        With ``modes`` (per-element :data:`SENSOR` / :data:`HIDDEN`), a photon crossing such
+        an element is recorded (sensor) or not (hidden) and goes on unchanged from the hit.
         """
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
@@ -1232,8 +1277,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         full = index.needs_full_interaction
         # read-only objects stay out of the loop state: traversing a scene with 1,000
         # instances for it cost ~0.1 s per pass
+        has_modes = modes is not None
         while dr.hint(active, label="veg_photon_irradiance",
-                      exclude=[scene, index, bsdfs, lookup, blookup, normals]):
+                      exclude=[scene, index, bsdfs, lookup, blookup, normals, modes]):
             pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             nrays += dr.select(active, mi.UInt32(1), mi.UInt32(0))
             hit = active & pi.is_valid()
@@ -1266,6 +1312,20 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     ng = dr.select(on, si_a.n, ng)
                     elem = dr.select(on, dr.gather(mi.UInt32, lookup, sid, on), elem)
 
+            rec, passing = mi.Bool(hit), mi.Bool(False)
+            if dr.hint(has_modes, mode='scalar'):
+                # sensors record and pass; hidden elements only pass; surfaces go on below
+                mode = dr.gather(mi.UInt32, modes, elem, hit)
+                passing = hit & (mode != SURFACE)
+                rec = hit & (mode != HIDDEN)
+                # the photon goes on from the hit point in its direction, offset off the
+                # element along its normal (as Mitsuba's spawn_ray) so it does not hit it again
+                p_hit = ray(pi.t)
+                off = (1.0 + dr.max(dr.abs(p_hit))) * mi.math.RayEpsilon
+                pass_o = p_hit + ng * dr.select(dr.dot(ng, ray.d) > 0, off, -off)
+                pass_ray = mi.Ray3f(pass_o, ray.d, ray.time, ray.wavelengths)
+                hit = hit & ~passing
+
             # record the incident power at the hit element: [elem][comp][side][slot]
             back = dr.dot(ng, ray.d) > 0
             comp = dr.select(depth > 0, mi.UInt32(1), mi.UInt32(0))
@@ -1276,10 +1336,12 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 q_k = _UInt64(dr.round(dr.minimum(throughput[k] * scale, cap)))
                 # plain atomics: hits rarely share an element within a packet, so the
                 # packet-local pre-reduction of the default mode costs more than it saves
-                dr.scatter_add(acc, q_k, base + k, hit, mode=dr.ReduceMode.Direct)
+                dr.scatter_add(acc, q_k, base + k, rec, mode=dr.ReduceMode.Direct)
 
             if dr.hint(one_hit, mode='scalar'):
-                active = mi.Bool(False)
+                active = mi.Bool(passing)
+                if dr.hint(has_modes, mode='scalar'):
+                    ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
             else:
                 if dr.hint(full, mode='scalar'):
                     # mirror back-face hits so that every surface reflects on both sides
@@ -1337,4 +1399,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 ray = si.spawn_ray(si.to_world(wo_local))
                 depth += 1
                 active = go & (depth < max_d)
+                if dr.hint(has_modes, mode='scalar'):
+                    # a crossed sensor/hidden element costs no bounce
+                    ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
+                    depth = dr.select(passing, depth - 1, depth)
+                    active = active | passing
         return throughput, nrays, esc, absd

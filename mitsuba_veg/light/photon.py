@@ -52,7 +52,8 @@ def integrator(photons: int = 1_000_000, seed: int = 0, max_depth: int = 8,
 def photon_irradiance(scene: mi.Scene, photons: int = 1_000_000, seed: int = 0,
                       max_depth: int = 8, bands=DEFAULT_BANDS, indirect: bool = True,
                       reflectance: dict | None = None, emitters=None,
-                      progress: bool = False) -> PhotonIrradianceResult:
+                      progress: bool = False, modes: dict | None = None
+                      ) -> PhotonIrradianceResult:
     """Trace ``photons`` photons from the emitters of ``scene``; irradiance per element.
 
     Same pass as ``mi.render(scene)`` with ``<integrator type="veg_photon_irradiance">`` and
@@ -81,6 +82,10 @@ def photon_irradiance(scene: mi.Scene, photons: int = 1_000_000, seed: int = 0,
         Ids or indices of the emitters to trace (default all).
     progress : bool
         Show a progress bar.
+    modes : dict, optional
+        ``{shape_id: "surface" | "sensor" | "hidden" | per-triangle array}``: a sensor records
+        the photons that cross it and lets them pass (a virtual sensor that casts no shadow);
+        a hidden shape lets them pass unrecorded (see the integrator's ``trace``).
 
     Returns
     -------
@@ -91,4 +96,5 @@ def photon_irradiance(scene: mi.Scene, photons: int = 1_000_000, seed: int = 0,
     """
     integ = integrator(photons=photons, seed=seed, max_depth=max_depth, bands=bands,
                        indirect=indirect)
-    return integ.trace(scene, reflectance=reflectance, emitters=emitters, progress=progress)
+    return integ.trace(scene, reflectance=reflectance, emitters=emitters, progress=progress,
+                       modes=modes)
