@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from mitsuba_veg.moss.population import MOSS  # noqa: E402
 from mitsuba_veg.scenario import load_scenario  # noqa: E402
-from mitsuba_veg.simulation import MossSimulation  # noqa: E402
+from mitsuba_veg.daily import MossSimulation  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -50,7 +50,7 @@ def run_seed(seed: int, days: int, photons: int, species: list[str], extra=()) -
         counts, regions, alive, cover, nbh, ev, prop = [], [], [], [], [], [], []
         for _ in range(days):
             rec = sim.step()
-            c = sim._counts()
+            c = sim.counts()
             counts.append(c.astype(np.uint16))
             regions.append([rec["regions"][k] for k in sorted(sim.regions)])
             alive.append(rec["moss_alive"])

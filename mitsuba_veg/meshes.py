@@ -1,4 +1,5 @@
-"""In-memory Mitsuba meshes from NumPy arrays (one helper for the light scenes and the render)."""
+"""Triangle meshes: their geometry (areas, unit normals, centroids) and in-memory Mitsuba meshes
+from NumPy arrays (one helper each for the light scenes, the terrain, the trees and the render)."""
 from __future__ import annotations
 
 import mitsuba as mi
@@ -27,3 +28,33 @@ def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
     for k, a in (attributes or {}).items():
         m.add_attribute(k, 1, mi.Float(np.asarray(a, np.float32).ravel()))
     return m
+
+
+def triangle_geometry(vertices, faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Areas, unit normals and centroids of a triangle mesh.
+
+    Parameters
+    ----------
+    vertices : array_like
+        (n, 3) vertex positions [m].
+    faces : array_like
+        (m, 3) vertex indices per triangle (counter-clockwise seen from the front).
+
+    Returns
+    -------
+    areas : numpy.ndarray
+        (m,) triangle areas [m2].
+    normals : numpy.ndarray
+        (m, 3) unit normals of the front sides (zero for degenerate triangles).
+    centroids : numpy.ndarray
+        (m, 3) centroids [m].
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    cross = np.cross(p1 - p0, p2 - p0)
+    norm = np.linalg.norm(cross, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normals = cross / norm[:, None]
+    normals[norm <= 0.0] = 0.0
+    return 0.5 * norm, normals, (p0 + p1 + p2) / 3.0

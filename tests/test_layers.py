@@ -23,19 +23,25 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 # The layers, lowest first; a module belongs to the layer of its longest matching prefix (the
 # names are relative to ``mitsuba_veg``). Keep this table and docs/architecture.md the same.
 LAYERS: list[tuple[str, list[str]]] = [
-    ("base", ["variant", "errors", "meshes", "outputs", "scenario", "plots"]),
+    ("base", ["variant", "errors", "atomic", "meshes", "outputs", "scenario", "plots"]),
     ("light", ["light", "integrators"]),
     ("ground", ["soil", "climate", "terrain"]),
     ("models", ["moss", "trees", "foliage"]),
-    ("daily loop", ["daily", "world", "simulation"]),
+    ("daily loop", ["daily", "world"]),
     ("render/tune/sweeps", ["render", "tune", "sweeps"]),
-    ("cli", ["cli", "cliargs", "trees.grow_cli", "render.cli", "sweeps.cli", "tune.cli"]),
+    ("cli", ["cli", "tune.cli"]),
 ]
 # the package's own __init__ (the public facade, ``import mitsuba_veg as mv``) sits above all
 FACADE = PACKAGE
 
 # Imports inside functions that stay, with the reason (importer, imported module).
 LAZY_ALLOWED: dict[tuple[str, str], str] = {
+    ("mitsuba_veg.cli", "mitsuba_veg.cli.command"):
+        "module __getattr__ for `from mitsuba_veg.cli import main` (the installed entry point): "
+        "importing cli.args must not import every command while parsers outside cli/ use it",
+    ("mitsuba_veg.cli.grow", "mitsuba_veg.trees.weber_penn"):
+        "`model = \"weber_penn\"` without the module is a one-line error "
+        "(tests/test_tree_cli.py::test_weber_penn_model)",
 }
 
 
@@ -168,11 +174,50 @@ def cycles(edges) -> list[list[str]]:
     return comps
 
 
+def _ancestors(module: str) -> list[str]:
+    """The packages above a module, facade excluded (``a.b.c`` -> ``a.b``)."""
+    parts = module.split(".")
+    return [".".join(parts[:i]) for i in range(2, len(parts))]
+
+
 def _graph_edges():
-    """Import edges for the cycle search. Importing a module runs its parents' ``__init__``
-    first, which Python does before the importing module's own body; the facade's imports of
-    everything are therefore not counted against subpackages that only import a parent."""
-    return {(a, b) for a, b, _, _ in imports() if not (b == FACADE and a != FACADE)}
+    """Import edges for the cycle search. Importing ``a.b.c`` runs ``a.b``'s ``__init__``
+    first, so an edge to a module is also an edge to the packages above it (those that are
+    not above the importer itself: they are being imported already). Edges into the facade
+    are left out: it is always imported first (and imports of it are reported apart); so are
+    the allowed lazy imports (they run on first use, not when the module loads)."""
+    edges = set()
+    for a, b, _, _ in imports():
+        if b == FACADE or (a, b) in LAZY_ALLOWED:
+            continue
+        mine = set(_ancestors(a)) | {a}
+        for t in [b, *_ancestors(b)]:
+            if t not in mine and t in MODULES:
+                edges.add((a, t))
+    return edges
+
+
+def _a_cycle(comp, edges) -> list[str]:
+    """One shortest cycle through the first module of a strongly connected component."""
+    comp = set(comp)
+    start = min(comp)
+    prev, frontier = {start: None}, [start]
+    while frontier:
+        nxt = []
+        for v in frontier:
+            for a, b in edges:
+                if a == v and b in comp:
+                    if b == start:
+                        path = [v]
+                        while prev[path[-1]] is not None:
+                            path.append(prev[path[-1]])
+                        return [start, *reversed(path[:-1]), start] if len(path) > 1 else \
+                            [start, v, start]
+                    if b not in prev:
+                        prev[b] = v
+                        nxt.append(b)
+        frontier = nxt
+    return []
 
 
 def findings() -> dict[str, list[str]]:
@@ -180,8 +225,9 @@ def findings() -> dict[str, list[str]]:
     edges = imports()
     out = {"cycles": [], "upward": [], "cli imported from below": [], "facade imported": [],
            "in-function": []}
-    for comp in cycles(_graph_edges()):
-        out["cycles"].append(" <-> ".join(comp))
+    graph = _graph_edges()
+    for comp in cycles(graph):
+        out["cycles"].append(" <-> ".join(comp) + "; e.g. " + " -> ".join(_a_cycle(comp, graph)))
     for a, b, in_func, line in edges:
         where = f"{a}:{line} -> {b}"
         if a == FACADE:
@@ -204,8 +250,8 @@ def test_every_module_has_a_layer():
 
 
 # Findings still open, by kind: the numbers may only go down.
-OPEN = {"cycles": 5, "upward": 7, "cli imported from below": 6, "facade imported": 6,
-        "in-function": 181}
+OPEN = {"cycles": 0, "upward": 3, "cli imported from below": 2, "facade imported": 2,
+        "in-function": 115}
 
 
 def _check(kind):

@@ -21,11 +21,11 @@ colour-science) and :func:`rfr_false_colour` (the ratio on a log colour scale wi
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_write
 from ..errors import ParameterError
 
 #: extra spectral bands of every render: name -> (lo, hi) [nm]
@@ -115,10 +115,8 @@ def write_exr(path, images: dict, meta: dict | None = None) -> Path:
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for k, v in (meta or {}).items():
         header[str(k)] = str(v)
-    tmp = path.with_name("." + path.stem + ".tmp.exr")
-    with OpenEXR.File(header, ch) as f:
+    with atomic_write(path) as tmp, OpenEXR.File(header, ch) as f:
         f.write(str(tmp))
-    os.replace(tmp, path)
     return path
 
 
@@ -164,9 +162,8 @@ def to_srgb8(rgb, exposure: float | None = None) -> tuple[np.ndarray, float]:
 def write_png(path, img8) -> Path:
     from PIL import Image
     path = Path(path)
-    tmp = path.with_name("." + path.stem + ".tmp.png")
-    Image.fromarray(np.asarray(img8, np.uint8)).save(tmp, optimize=True)
-    os.replace(tmp, path)
+    with atomic_write(path) as tmp:
+        Image.fromarray(np.asarray(img8, np.uint8)).save(tmp, optimize=True)
     return path
 
 

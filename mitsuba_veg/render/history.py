@@ -197,7 +197,7 @@ def load_run(run_dir, scenario=None) -> Run:
         scn = _resolve_scenario(summary, ck, d)
     else:
         scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    from ..simulation import MOSS_DEFAULTS, SIM_DEFAULTS
+    from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
     moss_cfg = {**MOSS_DEFAULTS, **(scn.get("moss", {}) or {}),
                 **(summary.get("settings", {}).get("moss", {}) or {})}
     sim = {**SIM_DEFAULTS, **(scn.get("simulation", {}) or {})}
@@ -220,8 +220,8 @@ def load_run(run_dir, scenario=None) -> Run:
 
 def run_with_snapshots(scenario, out, days: int | None = None, overrides=(),
                        resume: bool = True, progress: bool = True, every: int | None = None):
-    """:func:`mitsuba_veg.simulation.run` with moss snapshots every ``every`` days (default:
+    """:func:`mitsuba_veg.daily.run.run` with moss snapshots every ``every`` days (default:
     the scenario's ``frame_every``) for exact animations. Returns the run's summary dict."""
-    from ..simulation import run
+    from ..daily.run import run
     return run(scenario, out, days=days, overrides=overrides, resume=resume,
                progress=progress, snapshot_every=every)

@@ -34,7 +34,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, SceneError
-from ..meshes import make_mesh  # noqa: F401 (re-exported)
+from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
 from . import materials as mat
 from .moss import MossSet, growth_scale, place_tufts
 from .noise import pink_noise_image
@@ -191,8 +191,7 @@ class Terrain:
         uv_scale = 1.0
         if ground is not None and meshes[ground][2] is not None:
             v, f, uv, _ = meshes[ground]
-            a3 = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
-                                      axis=1).sum()
+            a3 = triangle_geometry(v, f)[0].sum()
             t = uv[f].astype(np.float64)
             a2 = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) -
                               (t[:, 2, 0] - t[:, 0, 0]) * (t[:, 1, 1] - t[:, 0, 1])).sum()

@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
+from ..meshes import make_mesh
 from ..trees.structure import scaled_tree  # noqa: F401 (re-exported)
 from . import materials as mat
 
@@ -128,8 +129,6 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
 
 def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts."""
-    from .scene import make_mesh
-
     bark, lv = tree_geometry(trees, cache)
     out = {}
     info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}

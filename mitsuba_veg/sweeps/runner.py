@@ -39,7 +39,7 @@ def expected_days(scenario, overrides, days) -> int | None:
         return int(days)
     from ..errors import MitsubaVegError
     from ..scenario import load_scenario
-    from ..simulation import SIM_DEFAULTS
+    from ..daily import SIM_DEFAULTS
     try:
         scn = load_scenario(scenario, overrides)
     except MitsubaVegError:
@@ -102,7 +102,7 @@ def run_task(spec: dict) -> dict:
     write_json(out / "run.json", {"run_id": spec["run_id"], "values": spec["values"],
                                   "overrides": spec["overrides"], "scenario": spec["scenario"],
                                   "days": spec["days"]})
-    from ..simulation import run
+    from ..daily.run import run
     try:
         summary = run(spec["scenario"], out=out, days=spec["days"], overrides=spec["overrides"],
                       resume=True, progress=False, frames=bool(spec["frames"]))

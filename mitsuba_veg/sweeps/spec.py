@@ -204,7 +204,7 @@ def known_fields(data: dict) -> tuple[set, tuple]:
         Prefixes under which any name is accepted (``terrain.soil_depth_mm.``,
         ``terrain.geology.``: one entry per shape id).
     """
-    from ..simulation import MOSS_DEFAULTS, SIM_DEFAULTS
+    from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
 
     fields = set()
 

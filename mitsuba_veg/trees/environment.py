@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mitsuba_veg.errors import ParameterError, check_range
+from ..errors import ParameterError, check_range
+from ..meshes import triangle_geometry
 
 
 @dataclass
@@ -170,14 +171,11 @@ class Environment:
                 off += len(o.vertices)
             V = np.concatenate(Vs) if Vs else np.zeros((0, 3))
             F = np.concatenate(Fs) if Fs else np.zeros((0, 3), np.int64)
-            p0, p1, p2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-            cr = np.cross(p1 - p0, p2 - p0)
-            ln = np.linalg.norm(cr, axis=1)
+            areas, normals, centroids = triangle_geometry(V, F)
             obj = np.concatenate(obj) if obj else np.zeros(0, np.int64)
             lf = np.array([o.light_factor for o in self.obstacles])[obj] if len(obj) else \
                 np.zeros(0)
-            self._cache["tri"] = (V, F, cr / np.maximum(ln, 1e-30)[:, None],
-                                  (p0 + p1 + p2) / 3, 0.5 * ln, obj, lf)
+            self._cache["tri"] = (V, F, normals, centroids, areas, obj, lf)
         return self._cache["tri"]
 
     def bbox(self):

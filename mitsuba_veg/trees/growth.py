@@ -341,7 +341,7 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     generations = int(generations)
     engine = engine or p.engine
     env = Environment.coerce(scene)
-    pos = _positions(positions, env)
+    pos = base_positions(positions, env)
     sky = Sky(p.sky_h, p.sky_v, p.light_ratio)
     alphas = {"light": p.alpha, "red": p.alpha_red, "far_red": p.alpha_far_red}
     if env is not None:
@@ -378,8 +378,21 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     return _to_trees(forest, light, p, seed, hist)
 
 
-def _positions(positions, env) -> np.ndarray:
-    """(n, 3) bases [m] from (x, y, z) and/or (x, z) items (these stand on the terrain)."""
+def base_positions(positions, env) -> np.ndarray:
+    """Tree bases from (x, y, z) and/or (x, z) items (these stand on the terrain).
+
+    Parameters
+    ----------
+    positions : sequence
+        One position or a list of them [m].
+    env : Environment
+        The obstacles; (x, z) items are dropped onto them.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) bases [m].
+    """
     items = positions
     if isinstance(items, np.ndarray):
         items = items.tolist()

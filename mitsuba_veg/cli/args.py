@@ -7,10 +7,11 @@ default), typed and range-checked option values, and the options that several co
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
 import math
 import sys
 
-from .scenario import MAX_PHOTONS
+from ..scenario import MAX_PHOTONS
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -69,7 +70,6 @@ def ranged(kind, lo=None, hi=None, unit: str = "", name: str | None = None):
 
 def iso_datetime(text: str) -> str:
     """An argparse ``type`` for ``--when``: an ISO 8601 date-time (returned as given)."""
-    import datetime as _dt
     t = text.strip()
     try:
         _dt.datetime.fromisoformat(t[:-1] + "+00:00" if t.endswith(("Z", "z")) else t)

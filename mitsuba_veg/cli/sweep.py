@@ -8,12 +8,17 @@ file or a missing extra (one line on stderr).
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
+from ..sweeps.runner import sweep
+from .args import ranged
+
 __all__ = ["add_parser"]
 
 
 def add_parser(subparsers) -> None:
     """Add ``sweep`` to the ``mitsuba-veg`` sub-command parsers."""
-    from ..cliargs import ranged
     s = subparsers.add_parser("sweep", help="many moss runs on Dask (axes x seeds) -> one table")
     s.add_argument("sweep_file", help="sweep TOML, e.g. scenes/moss_garden/sweep.toml")
     s.add_argument("--scheduler", metavar="ADDRESS",
@@ -33,10 +38,6 @@ def add_parser(subparsers) -> None:
 
 
 def _cmd_sweep(a) -> int:
-    import json
-    from pathlib import Path
-
-    from .runner import sweep
     out = Path(a.out)
     df = sweep(a.sweep_file, out, scheduler=a.scheduler, workers=a.workers,
                overrides=a.set or (), threads=a.threads, progress=not a.quiet,
