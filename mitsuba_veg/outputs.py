@@ -8,10 +8,13 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+import shutil
 
 import numpy as np
 
 from .atomic import atomic_write
+from .errors import ParameterError
+from .plots import _mpl, plan_map
 
 
 def write_json(path, data, indent: int = 2) -> None:
@@ -74,7 +77,6 @@ class OutputFolder:
     call :meth:`release`."""
 
     def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None):
-        from .errors import ParameterError
         self.path = Path(path)
         self.kind = kind
         self._fh = None
@@ -140,7 +142,6 @@ class OutputFolder:
 
 def clear_outputs(folder, names) -> None:
     """Remove the files or folders ``names`` from ``folder`` (those that exist)."""
-    import shutil
     for n in names:
         q = Path(folder) / n
         if q.is_dir():
@@ -224,7 +225,6 @@ class DayFrames:
             self.frames.append(self.write_day(sim, rec))
 
     def write_day(self, sim, rec) -> Path:
-        from .plots import _mpl, plan_map
         plt = _mpl()
 
         self.dir.mkdir(parents=True, exist_ok=True)

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
+import mitsuba as mi
 
 from .errors import ParameterError, SceneError
 from .meshes import triangle_geometry
@@ -236,8 +237,6 @@ class Terrain:
         coordinates are read if the mesh has them. Load scenes with ``optimize=False`` or
         meshes with equal BSDFs are merged and lose their ids (see ``MITSUBA_NOTES.md``).
         """
-        import mitsuba as mi
-
         if not (isinstance(shape, mi.Mesh) or (hasattr(shape, "is_mesh") and shape.is_mesh())):
             raise SceneError(f"shape '{shape.id()}' is a {type(shape).__name__}, not a triangle "
                              f"mesh. Fix: give the terrain as a mesh (ply/obj/serialized)")

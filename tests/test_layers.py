@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 import sys
+import tomllib
 from collections import defaultdict
 from pathlib import Path
 
@@ -249,33 +250,58 @@ def test_every_module_has_a_layer():
         layer_of(m)
 
 
-# Findings still open, by kind: the numbers may only go down.
-OPEN = {"cycles": 0, "upward": 3, "cli imported from below": 2, "facade imported": 2,
-        "in-function": 115}
+# Modules being rewritten elsewhere while this checker landed: their findings are listed,
+# not fixed, here (issue 14 follow-up: move the light-study and tune parsers into cli/, hoist
+# their imports). Nothing else may import a function body's worth of the package.
+PENDING = {
+    "mitsuba_veg.foliage.light_study": "its parser (add_parser) still lives here, not in cli/",
+    "mitsuba_veg.scenario": "imports light.daylight to check [light] fields",
+    "mitsuba_veg.tune.__main__": "`python -m mitsuba_veg.tune` runs tune/cli.py",
+    "mitsuba_veg.tune.cli": "the tune parser, still outside cli/",
+    "mitsuba_veg.tune.fit": "imports not hoisted yet",
+    "mitsuba_veg.tune.leaf_colour": "imports not hoisted yet",
+    "mitsuba_veg.tune.lifecycle": "imports not hoisted yet",
+    "mitsuba_veg.tune.photon_ad": "imports not hoisted yet",
+    "mitsuba_veg.tune.smooth": "imports not hoisted yet",
+    "mitsuba_veg.world.canopy": "imports not hoisted yet",
+    "mitsuba_veg.world.simulation": "imports not hoisted yet",
+    "mitsuba_veg.world.trees": "imports not hoisted yet",
+}
 
 
-def _check(kind):
-    found = findings()[kind]
-    assert len(found) <= OPEN[kind], "\n".join(found)
+def _open(kind) -> list[str]:
+    """Findings of a kind outside the pending modules."""
+    return [f for f in findings()[kind] if f.split(":")[0] not in PENDING]
 
 
 def test_no_import_cycles():
-    _check("cycles")
+    assert findings()["cycles"] == []
 
 
 def test_nothing_below_cli_imports_it():
-    _check("cli imported from below")
+    assert _open("cli imported from below") == []
 
 
 def test_imports_go_downwards():
-    _check("upward")
-    _check("facade imported")
+    assert _open("upward") == []
+    assert findings()["facade imported"] == []
 
 
 def test_in_function_imports_are_listed():
-    _check("in-function")
+    assert _open("in-function") == []
     used = {(a, b) for a, b, in_func, _ in imports() if in_func}
     assert not set(LAZY_ALLOWED) - used, "allow-list entries no longer needed"
+
+
+def test_pending_modules_still_exist():
+    assert not set(PENDING) - set(MODULES)
+
+
+def test_every_package_ships():
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    listed = set(cfg["tool"]["setuptools"]["packages"])
+    packages = {m for m, p in MODULES.items() if p.name == "__init__.py"}
+    assert not packages - listed, "add them to [tool.setuptools] packages in pyproject.toml"
 
 
 def test_layer_names_match_the_architecture_doc():

@@ -11,7 +11,6 @@ SCENE is a Mitsuba XML file or a scenario TOML (which names the XML and the ligh
 """
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -25,8 +24,8 @@ from ..outputs import OutputFolder, write_json
 from ..plots import irradiance_figure
 from ..scenario import MAX_PHOTONS, load_scenario
 from ..daily.run import run
-from ..sweeps.frames import run_animate
 from ..render.still import run_render
+from ..sweeps.frames import run_animate
 from ..tune.cli import add_parser as _add_tune
 from ..variant import __version__, versions
 from ..world.trees import scene_with_trees

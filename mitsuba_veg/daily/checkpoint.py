@@ -22,9 +22,14 @@ class Checkpoints:
 
     @property
     def checkpoint_path(self) -> Path:
+        """The run's checkpoint file, ``<out>/checkpoint.npz``.
+        """
         return self.out / "checkpoint.npz"
 
     def save_checkpoint(self):
+        """Write the whole state (population, :meth:`_checkpoint_extra`, day, soil water,
+        history, timings, the scenario's fingerprint) atomically to :attr:`checkpoint_path`.
+        """
         d = self.pop.to_numpy()
         d.update(self._checkpoint_extra())
         d.update({"day": np.array(self.day), "O": self.O,
@@ -48,6 +53,19 @@ class Checkpoints:
                           default=str)
 
     def load_checkpoint(self) -> bool:
+        """Resume from :attr:`checkpoint_path` if there is one.
+
+        Returns
+        -------
+        bool
+            Whether a checkpoint was loaded.
+
+        Raises
+        ------
+        ParameterError
+            The checkpoint cannot be read, belongs to another scenario, or holds more days than
+            this run has.
+        """
         p = self.checkpoint_path
         if not p.exists():
             return False

@@ -104,7 +104,13 @@ class MossSimulation(Checkpoints, MossSite):
                         initseq=dr.opaque(mi.UInt64, (_PCG_STREAM + offset) % (1 << 64)))
 
     def counts(self) -> np.ndarray:
-        """Live moss per element (cached until the population changes, i.e. per day step)."""
+        """Live moss per triangle (cached until the population changes, i.e. per day step).
+
+        Returns
+        -------
+        numpy.ndarray
+            (triangles,) moss count [-].
+        """
         key = (self.day, self._moss_version)
         if getattr(self, "_counts_cache", (None,))[0] != key:
             c = np.asarray(per_element_count(self.pop.elem, self.pop.moss,
@@ -113,7 +119,24 @@ class MossSimulation(Checkpoints, MossSite):
         return self._counts_cache[1]
 
     def light(self, day: int, counts: np.ndarray):
-        """Daily-mean insolation S per element [W m-2] and the photon-pass result."""
+        """The day's light: one photon pass with the day's sun path and the sky.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        counts : numpy.ndarray
+            Live moss per triangle (its cover sets the albedo).
+
+        Returns
+        -------
+        S : numpy.ndarray
+            Daily-mean insolation per triangle [W m-2] (S = B f_sun + D f_sky).
+        f_sun, f_sky : numpy.ndarray
+            Sun and sky fractions per triangle [-] (per unit horizontal beam and diffuse).
+        res : PhotonIrradianceResult
+            The photon pass.
+        """
         dirs, w, _ = day_sun_path(float(self.scn.get("site.latitude")),
                                   float(self.scn.get("site.longitude")), self.date(day))
         self.sun.set_day(dirs, w)
@@ -137,6 +160,24 @@ class MossSimulation(Checkpoints, MossSite):
         return S, f_sun, f_sky, res
 
     def soil(self, day: int, S: np.ndarray, counts: np.ndarray):
+        """The day's soil heat and water (paper 000 eqs 3.2-3.16) per triangle; updates ``O``.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        S : numpy.ndarray
+            Insolation per triangle [W m-2].
+        counts : numpy.ndarray
+            Live moss per triangle (its density sets C_H).
+
+        Returns
+        -------
+        state : soil.SurfaceState
+            Surface temperature ``Ts`` [K], relative humidity ``rhs`` [-] and fluxes [W m-2].
+        theta : numpy.ndarray
+            Soil water content per triangle [-] at the start of the day.
+        """
         wd = self.weather
         C_H = soil_model.transfer_coefficient(np.minimum(counts / self.M, 1.0))
         theta = soil_model.water_content(self.O, self.h)
@@ -148,6 +189,23 @@ class MossSimulation(Checkpoints, MossSite):
         return st, theta
 
     def moss(self, day: int, S, Ts, rhs):
+        """The day's moss life cycle (eqs 3.17-3.24): germination, growth, death, release,
+        landing and settling of gemmae and spores, and a spore from outside every
+        ``external_spore_interval`` days.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        S, Ts, rhs : numpy.ndarray
+            Insolation [W m-2], surface temperature [K] and relative humidity [-] per triangle.
+
+        Returns
+        -------
+        dict
+            The day's events (counts of births, deaths, propagules released, traced, settled,
+            crowded out).
+        """
         pop, grid, cfg = self.pop, self.grid, self.moss_cfg
         f = lambda a: mi.Float(np.asarray(a, np.float32))  # noqa: E731
         cand, spores, ev = pop.live_day(f(S), f(Ts), f(rhs))
@@ -298,6 +356,14 @@ class MossSimulation(Checkpoints, MossSite):
 
     # ---- run --------------------------------------------------------------------------------
     def step(self) -> dict:
+        """Simulate one day (light, soil, moss) and append its record to ``history``.
+
+        Returns
+        -------
+        dict
+            The day's record (``day`` 1-based, ``date``, moss alive per species, covered area
+            [m2], area-mean S [W m-2], Ts [K], rhs and θ, events, regions, ``seconds``).
+        """
         day = self.day
         t0 = time.perf_counter()
         counts = self.counts()
@@ -320,6 +386,18 @@ class MossSimulation(Checkpoints, MossSite):
         return rec
 
     def covered_area(self, counts=None) -> np.ndarray:
+        """Area covered by moss per triangle.
+
+        Parameters
+        ----------
+        counts : numpy.ndarray, optional
+            Live moss per triangle (default: :meth:`counts`).
+
+        Returns
+        -------
+        numpy.ndarray
+            (triangles,) covered area [m2]: min(moss x size², triangle area).
+        """
         counts = self.counts() if counts is None else counts
         return np.minimum(counts * self.grid_cell() ** 2, self.index.areas)
 
@@ -346,12 +424,32 @@ class MossSimulation(Checkpoints, MossSite):
                 "seconds": secs}
 
     def initialise(self):
+        """Place the initial moss (``moss.initial``) at random on the living surfaces.
+        """
         self._moss_version += 1
         self._place_random(int(self.moss_cfg["initial"]), -1, MOSS, GEMMA,
                            float(self.moss_cfg["initial_growth"]), stream=3)
 
     def run(self, resume: bool = True, on_day=None) -> dict:
-        """Run (or resume) to ``self.days`` days; returns the summary dict."""
+        """Run (or resume) to ``self.days`` days.
+
+        Parameters
+        ----------
+        resume : bool
+            Resume from ``checkpoint.npz`` in the run folder when there is one.
+        on_day : callable, optional
+            ``on_day(sim, record)`` after every day (maps, snapshots).
+
+        Returns
+        -------
+        dict
+            The summary (:meth:`summary`).
+
+        Raises
+        ------
+        Interrupted
+            After Ctrl-C: the day in progress ends and a checkpoint is written first.
+        """
         self.out.mkdir(parents=True, exist_ok=True)
         self.setup()
         resumed = resume and self.load_checkpoint()

@@ -12,15 +12,39 @@ from .day import MossSimulation
 
 def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: bool = True,
         progress: bool = True, frames: bool = True, snapshot_every: int | None = None) -> dict:
-    """Run a moss scenario (TOML path or Scenario) into ``out``; returns the summary dict
-    (also written to ``out/summary.json``).
+    """Run a scenario into a folder: the moss loop, or the world's loop when the scenario has
+    ``[[trees]]``.
 
     The folder is claimed for the run (:class:`~mitsuba_veg.outputs.OutputFolder`: a second
     process writing into it is refused; a folder holding another kind of result is refused).
-    ``resume=False`` (``--fresh``) discards the checkpoint and every output of an earlier run
-    in the folder (maps, snapshots, GIF, renders); so does a run that finds no checkpoint.
-    ``snapshot_every``: days between moss snapshots for exact animations (default: the
-    scenario's ``simulation.frame_every``)."""
+
+    Parameters
+    ----------
+    scenario : path-like or Scenario
+        A scenario TOML or a loaded scenario.
+    out : path-like
+        The run folder.
+    days : int, optional
+        Simulated days [d] (default: the scenario's ``simulation.days``).
+    overrides : sequence of str
+        ``KEY=VALUE`` fields (as ``--set``), for a TOML path.
+    resume : bool
+        Resume from the checkpoint; ``False`` (``--fresh``) discards it and every output of an
+        earlier run in the folder (maps, snapshots, GIF, renders), as does a run that finds no
+        checkpoint.
+    progress : bool
+        Show a progress bar.
+    frames : bool
+        Write the day maps, the GIF and the moss snapshots.
+    snapshot_every : int, optional
+        Days between moss snapshots for exact animations [d] (default: the scenario's
+        ``simulation.frame_every``).
+
+    Returns
+    -------
+    dict
+        The summary, also written to ``out/summary.json``.
+    """
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
     if scn.get("trees"):
         sim = WorldSimulation(scn, out, days=days, progress=progress)

@@ -34,8 +34,13 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-import mitsuba_veg  # noqa: F401  (spectral variant before any Mitsuba type is used)
-from mitsuba_veg.errors import ParameterError, check_range
+from ..errors import ParameterError, check_range
+from ..light import photon_irradiance
+from ..light.daylight import DEFAULT_ATMOSPHERE
+from ..light.sun_position import sun_direction, sun_position
+from ..trees.structure import Leaves, Tree
+from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
+from .light_study import leaf_values, tree_scene
 
 
 # --------------------------------------------------------------------------------------------
@@ -65,8 +70,6 @@ def clear_sky_broadband(elevation_deg, day_of_year, atmosphere=None):
     SPCTRAL2 with the package's default atmosphere (vectorised call of pvlib's spectrl2)."""
     from pvlib.atmosphere import get_relative_airmass
     from pvlib.spectrum import spectrl2
-
-    from mitsuba_veg.light.daylight import DEFAULT_ATMOSPHERE
 
     atm = atmosphere or DEFAULT_ATMOSPHERE
     el = np.atleast_1d(np.asarray(elevation_deg, float))
@@ -111,8 +114,6 @@ def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 
     intensity: "clear_sky" (SPCTRAL2 broadband DNI/DHI) or a number: constant beam I [W m-2]
     (the paper's I), with DHI 0. Steps with the sun at or below ``min_elevation`` are dropped.
     """
-    from mitsuba_veg.light.sun_position import sun_direction, sun_position
-
     check_range("latitude", latitude, -90.0, 90.0)
     check_range("longitude", longitude, -180.0, 180.0)
     check_range("days", days, 1, 3660)
@@ -152,12 +153,6 @@ def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 
 def shadow_scene(tree_or_leaves, obstacles=(), bark: bool = True, bark_sides: int = 6):
     """A Mitsuba scene of a tree's leaves (shape id ``leaves``), bark (``bark``) and obstacles
     (``obstacle0``...; each a ``(vertices, faces)`` pair or an ``mi.Mesh``), for shadow rays."""
-    import mitsuba as mi
-
-    from mitsuba_veg.trees.structure import Leaves, Tree
-
-    from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
-
     if isinstance(tree_or_leaves, Tree):
         tree, leaves = tree_or_leaves, tree_or_leaves.leaves
     elif isinstance(tree_or_leaves, Leaves):
@@ -182,9 +177,6 @@ def shadow_scene(tree_or_leaves, obstacles=(), bark: bool = True, bark_sides: in
 
 
 def _leaf_shape_id(scene):
-    import drjit as dr
-    import mitsuba as mi
-
     for sh in scene.shapes():
         if sh.id() == "leaves":
             return int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sh)))[0])
@@ -246,8 +238,6 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
     "photons" (a photon pass from a uniform sky through the tree with green ``veg_leaf`` leaves:
     skylight including its scattering by leaves and bark, :func:`sky_view_factor_photons`).
     """
-    import mitsuba as mi
-
     check_range("leaf_transmittance", leaf_transmittance, 0.0, 1.0, hi_open=True)
     check_range("max_layers", max_layers, 1, 1000)
     check_range("sky_rays", sky_rays, 1, 100000)
@@ -335,9 +325,6 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
 
 def _transmitted(scene, ray, active, leaf_sid, t_leaf, max_layers):
     """Fraction of a shadow ray passing leaves (each passes t_leaf); bark/obstacles block."""
-    import drjit as dr
-    import mitsuba as mi
-
     sid_leaf = mi.UInt32(leaf_sid if leaf_sid is not None else 0xFFFFFFFF)
     return _transmit_loop(scene, mi.Ray3f(ray), mi.Bool(active), sid_leaf,
                           dr.opaque(mi.Float, t_leaf), dr.opaque(mi.UInt32, max_layers))
@@ -363,9 +350,6 @@ def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
     """Per-leaf view factor of an isotropic sky, both faces: V = (1/π) ∫_upper vis |ω·L| dω
     (1 for an unobstructed leaf of any tilt), by ``rays`` stratified uniform-hemisphere shadow
     rays per leaf."""
-    import drjit as dr
-    import mitsuba as mi
-
     if isinstance(tree_or_scene, tuple):
         scene, leaves = tree_or_scene
     else:
@@ -407,13 +391,10 @@ def sky_view_factor_photons(tree_or_leaves, photons: int = 1_000_000, seed: int 
     irradiance over a tree with ``veg_leaf`` leaves (PROSPECT-D, ``tau`` per leaf, default green)
     and grey bark, no ground; V = PAR power on both faces / (leaf area x open PAR). Includes
     light scattered by leaves (so V can exceed the ray-cast view factor)."""
-    from .light_study import leaf_values, tree_scene
-
     em = {"sky": {"type": "veg_sky", "radiance": {"type": "uniform", "value": 1.0 / np.pi},
                   "distribution": "uniform", "sun_direction": [0.0, 1.0, 0.0]}}
     leaves = tree_or_leaves.leaves if hasattr(tree_or_leaves, "leaves") else tree_or_leaves
     scene, leaf_map = tree_scene(tree_or_leaves, emitters=em, tau=tau, ground=False)
-    from mitsuba_veg.light import photon_irradiance
 
     res = photon_irradiance(scene, photons=int(photons), seed=int(seed), bands=("par",))
     lv = leaf_values(res, leaf_map, n_leaves=len(leaves))

@@ -31,6 +31,19 @@ ANIMATE_DEFAULTS = {"width": 480, "height": 270, "spp": 8, "frames": 31, "fps": 
 
 
 def label_frame(img8, text: str):
+    """A frame with ``text`` in a black box at its top left.
+
+    Parameters
+    ----------
+    img8 : numpy.ndarray
+        (height, width, 3) uint8 sRGB.
+    text : str
+
+    Returns
+    -------
+    numpy.ndarray
+        The labelled image (uint8).
+    """
     im = Image.fromarray(img8)
     d = ImageDraw.Draw(im)
     size = max(11, im.size[1] // 22)
@@ -46,11 +59,30 @@ def label_frame(img8, text: str):
 
 
 def ffmpeg_path() -> str | None:
+    """The ``ffmpeg`` executable on ``PATH``, or None.
+    """
     return shutil.which("ffmpeg")
 
 
 def write_mp4(frames_dir: Path, pattern: str, path: Path, fps: int) -> Path | None:
-    """H.264 MP4 of numbered PNG frames with ffmpeg (None when ffmpeg is missing)."""
+    """An H.264 MP4 of numbered PNG frames with ffmpeg (MPEG-4 part 2 when libx264 is missing).
+
+    Parameters
+    ----------
+    frames_dir : Path
+        The folder of the frames.
+    pattern : str
+        Their names, e.g. ``frame_%04d.png``.
+    path : Path
+        The MP4 (written atomically).
+    fps : int
+        Frames per second.
+
+    Returns
+    -------
+    Path or None
+        ``path``, or None when ffmpeg is missing.
+    """
     exe = ffmpeg_path()
     if exe is None:
         return None
@@ -69,6 +101,24 @@ def write_mp4(frames_dir: Path, pattern: str, path: Path, fps: int) -> Path | No
 
 
 def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> Path:
+    """An animated GIF of PNG frames (the last frame held 1.5 s).
+
+    Parameters
+    ----------
+    frames : list of path-like
+        The frames in order.
+    path : Path
+        The GIF (written atomically).
+    fps : int
+        Frames per second.
+    width : int, optional
+        Downscale to this width [pixels].
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     imgs = []
     for f in frames:
         im = Image.open(f).convert("RGB")
@@ -87,9 +137,23 @@ def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> P
 def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height=None,
                       spp=None, frames=None, every=None, fps=None, when=None, hour=None,
                       seed=0):
-    """What every animation needs first (here or on Dask): the run, its output folder
-    (claimed; old frames removed), the frame days, fps and the render options. Returns
-    ``(run, out, frames_dir, days, fps, options dict, RenderOptions, OutputFolder)``."""
+    """What every animation needs first (here or on Dask): the run, its output folder (claimed;
+    old frames removed), the frame days, fps and the render options.
+
+    Parameters
+    ----------
+    run_dir, out : path-like
+        The run folder and the output folder (default ``RUN_DIR/animation``).
+    scenario : path-like or None
+        The run's scenario file (default: the one its summary names).
+    camera, width, height, spp, frames, every, fps, when, hour, seed
+        As in :func:`run_animate` (pixels, samples per pixel, frames per second, hour [h]).
+
+    Returns
+    -------
+    tuple
+        ``(run, out, frames_dir, days, fps, options dict, RenderOptions, OutputFolder)``.
+    """
     check_image(width, height, spp, None, frames, every, fps)
     run = load_run(run_dir, scenario)
     out = Path(out if out is not None else Path(run_dir) / "animation").resolve()

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..atomic import atomic_write
 from ..errors import ParameterError
+from ..plots import _mpl
 
 #: extra spectral bands of every render: name -> (lo, hi) [nm]
 BANDS = {"red": (655.0, 665.0), "far_red": (725.0, 735.0)}
@@ -174,7 +175,6 @@ def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None 
     yellow-orange. ``luminance`` (optional) shades the colours so that shapes stay readable."""
     from matplotlib.colors import LogNorm
 
-    from ..plots import _mpl
     plt = _mpl()
 
     r = np.asarray(r_fr, np.float64)

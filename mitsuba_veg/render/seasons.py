@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from ..foliage import AutumnParams, autumn_time
+
 LEAF_OUT_DOY = 95
 LEAF_OUT_DAYS = 30
 AUTUMN_ONSET_DOY = 258
@@ -74,7 +76,6 @@ class TreeSeasons:
         # onset: the first day of the range on or after the onset day of year
         after = np.nonzero(self.doy >= onset)[0]
         onset_idx = int(after[0]) if len(after) else self.days
-        from ..foliage import AutumnParams, autumn_time
         if onset_idx < self.days:
             self.state = autumn_time(daily, AutumnParams(onset_day=onset_idx, fall=True),
                                      seed=seed)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import gc
 import time
 from pathlib import Path
+from dataclasses import replace
 
 import mitsuba as mi
 import numpy as np
@@ -23,7 +24,6 @@ def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
     images plus ``seconds``."""
     t0 = time.perf_counter()
     if spp is not None:
-        from dataclasses import replace
         spp = replace(rs.options, spp=int(spp)).samples
     img = mi.render(rs.scene, sensor=rs.sensor, spp=int(spp or rs.options.samples),
                     seed=int(rs.options.seed if seed is None else seed))

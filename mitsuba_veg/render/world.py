@@ -35,9 +35,21 @@ class WorldLeaves:
 
 
 def world_trees(run):
-    """The trees of a world run (``[[trees]]``), rebuilt from its scenario as the run built
-    them (same seeds), and their leaves' offsets in the run's leaf arrays. Trees given as
-    meshes are drawn by the light scene only (not by the render)."""
+    """The trees of a world run (``[[trees]]``), rebuilt from its scenario as the run built them
+    (same seeds). Trees given as meshes are drawn by the light scene only (not by the render).
+
+    Parameters
+    ----------
+    run : Run
+        A loaded run (:func:`mitsuba_veg.render.history.load_run`).
+
+    Returns
+    -------
+    trees : list of Tree
+        The trees the render draws.
+    offsets : list of (int, int)
+        Each tree's leaves in the run's leaf arrays (start, stop).
+    """
     entries = run.scenario.get("trees") or []
     if not entries:
         return [], []
@@ -57,9 +69,23 @@ def world_trees(run):
 
 
 def trees_for_run(run, trees):
-    """Trees of the render: ``trees`` if given (a list of Tree; [] for none), else a world
-    run's ``[[trees]]`` (in each frame's leaf state) and the scenario's ``[[render.trees]]``
-    (decoration, with their calendar phenology)."""
+    """The trees of a render and the seasons that set their leaves frame by frame.
+
+    Parameters
+    ----------
+    run : Run
+        A loaded run.
+    trees : list of Tree or None
+        Trees to draw instead of the run's (``[]`` for none); ``None``: a world run's
+        ``[[trees]]`` (in each frame's leaf state) and the scenario's ``[[render.trees]]``
+        (decoration, with their calendar phenology).
+
+    Returns
+    -------
+    trees : list of Tree
+    seasons : list
+        Objects with ``apply(date)`` that set the trees' leaves for a frame's date.
+    """
     world, seasons = [], []
     if trees is None:
         world, offsets = world_trees(run)

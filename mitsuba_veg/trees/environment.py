@@ -26,9 +26,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import drjit as dr
+import mitsuba as mi
 
 from ..errors import ParameterError, check_range
 from ..meshes import triangle_geometry
+from mitsuba_veg.light.validation import box_mesh, grid_mesh, make_mesh
+from .leaflight import obstacle_sky_light
 
 
 @dataclass
@@ -121,7 +125,6 @@ class Environment:
 
     def add_ground(self, size=40.0, y=0.0, n=20, center=(0.0, 0.0), light_factor=1.0):
         """A flat square ground grid (n x n cells) of side ``size`` [m] at height ``y``."""
-        from mitsuba_veg.light.validation import grid_mesh
         check_range("ground.size", size, 0.0, None, lo_open=True)
         h = size / 2
         V, F = grid_mesh(int(n), int(n), (center[0] - h, center[0] + h),
@@ -133,7 +136,6 @@ class Environment:
                   light_factor=1.0):
         """A plane tilted by ``angle_deg`` going down towards the horizontal direction
         ``downhill`` (x, z); height ``y0`` at the origin."""
-        from mitsuba_veg.light.validation import grid_mesh
         check_range("slope.angle_deg", angle_deg, 0.0, 80.0)
         dx, dz = np.asarray(downhill, float) / max(np.hypot(*downhill), 1e-12)
         t = math.tan(math.radians(angle_deg))
@@ -145,7 +147,6 @@ class Environment:
 
     def add_box(self, lo, hi, name="building", max_edge=1.0, light_factor=1.0):
         """An axis-aligned box (a building, a wall) from corner ``lo`` to ``hi`` [m]."""
-        from mitsuba_veg.light.validation import box_mesh
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
         if np.any(hi <= lo):
             raise ParameterError(f"{name}.hi", hi.tolist(), f"> lo = {lo.tolist()} on every axis")
@@ -187,7 +188,6 @@ class Environment:
     def mitsuba_meshes(self) -> dict:
         """{id: mi.Mesh} of the obstacles (built once)."""
         if "mi" not in self._cache:
-            from mitsuba_veg.light.validation import make_mesh
             self._cache["mi"] = {f"obstacle_{i}": make_mesh(f"obstacle_{i}", o.vertices, o.faces)
                                  for i, o in enumerate(self.obstacles)}
         return self._cache["mi"]
@@ -195,7 +195,6 @@ class Environment:
     def scene(self):
         """A Mitsuba scene of the obstacles only."""
         if "scene" not in self._cache:
-            import mitsuba as mi
             d = {"type": "scene"}
             d.update(self.mitsuba_meshes())
             self._cache["scene"] = mi.load_dict(d, optimize=False)
@@ -204,7 +203,6 @@ class Environment:
     def height_at(self, x, z, default=None):
         """Terrain height [m] under (x, z): the highest upward-facing obstacle surface below
         y = 1e4, or ``default`` (``ground_y``) where there is none."""
-        import mitsuba as mi
         x = np.atleast_1d(np.asarray(x, float))
         z = np.atleast_1d(np.asarray(z, float))
         default = self.ground_y if default is None else default
@@ -220,8 +218,6 @@ class Environment:
     def inside(self, points) -> np.ndarray:
         """Which points are inside an obstacle: the first surface straight above them faces up
         (below a terrain surface, inside a closed building)."""
-        import drjit as dr
-        import mitsuba as mi
         pts = np.asarray(points, np.float32).reshape(-1, 3)
         if not self.obstacles or len(pts) == 0:
             return np.zeros(len(pts), bool)
@@ -234,8 +230,6 @@ class Environment:
     def blocked(self, start, direction, length) -> np.ndarray:
         """Which straight segments (start (n, 3), unit direction (n, 3), length (n,) [m]) cross
         an obstacle surface."""
-        import drjit as dr
-        import mitsuba as mi
         start = np.asarray(start, np.float32).reshape(-1, 3)
         if not self.obstacles or len(start) == 0:
             return np.zeros(len(start), bool)
@@ -255,7 +249,6 @@ class Environment:
         key = ("env", sky.H, sky.V, sky.C, passes)
         if key in self._cache:
             return self._cache[key]
-        from .leaflight import obstacle_sky_light
         env = obstacle_sky_light(self, sky, passes)
         self._cache[key] = env
         return env
@@ -265,8 +258,6 @@ class Environment:
         """Boolean (nx, ny, nz) mask of voxels filled by obstacles: voxels whose centre is inside
         a closed mesh or below a terrain surface (first hit upwards is a back face), and voxels
         that contain a surface sample (thin walls)."""
-        import drjit as dr
-        import mitsuba as mi
         nx, ny, nz = shape
         mask = np.zeros(shape, bool)
         if not self.obstacles:

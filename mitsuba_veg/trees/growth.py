@@ -35,6 +35,8 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError, check_range
 
 from .structure import Leaves, Tree
+from .environment import Environment
+from .leaflight import LeafLight, Sky, leaf_sphere_light
 
 #: paper symbols of the parameters (table 3.1)
 PAPER_SYMBOLS = {
@@ -311,7 +313,6 @@ def _auto_engine(n_spheres: int, engine: str) -> str:
 
 
 def _light(forest, p, sky, env, alphas, engine):
-    from .leaflight import leaf_sphere_light
     pos = forest.tip_positions()
     return leaf_sphere_light(pos, p.leaf_radius * p.unit, sky, alphas, env,
                              _auto_engine(len(pos), engine), p.ray_cutoff)
@@ -329,9 +330,6 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     Returns one :class:`~mitsuba_veg.trees.structure.Tree` per position (dead branches kept with
     ``alive = False``), with the per-leaf-sphere light in ``tree.attrs``.
     """
-    from .environment import Environment
-    from .leaflight import Sky
-
     p = GrowthParams() if params is None else params
     if not isinstance(p, GrowthParams):
         p = GrowthParams.from_dict(dict(p), prefix="params.")
@@ -423,7 +421,6 @@ def base_positions(positions, env) -> np.ndarray:
 
 
 def _subset_light(light, keep):
-    from .leaflight import LeafLight
     return LeafLight({b: v[keep] for b, v in light.received.items()}, light.vector[keep],
                      light.rays, light.casts, light.seconds, light.spheres_passed, light.stats)
 
@@ -438,7 +435,6 @@ def branching(params: GrowthParams | None = None, generations: int = 10,
               position=(0.0, 0.0, 0.0), seed: int = 0) -> Tree:
     """The pure branching model (no light: no death, no phototropism, no shade avoidance):
     the paper's H = 0 shape, used as the sample tree of paper 002."""
-    from .leaflight import LeafLight
     p = (GrowthParams() if params is None else params).replace(phototropism=0.0)
     forest = _Forest(p, np.asarray(position, float)[None], seed)
     for g in range(int(generations)):

@@ -24,6 +24,7 @@ meaning shared by several modules:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import copy as _copy
 
 import numpy as np
 
@@ -162,7 +163,6 @@ class Tree:
         return self
 
     def copy(self) -> "Tree":
-        import copy as _copy
         lv = self.leaves
         leaves = Leaves(lv.position.copy(), lv.normal.copy(), lv.size.copy(), lv.segment.copy(),
                         None if lv.up is None else lv.up.copy(),

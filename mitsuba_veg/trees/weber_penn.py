@@ -33,6 +33,7 @@ from mitsuba_veg.errors import ParameterError
 
 from . import knots as _kn
 from .structure import KNOT, NORMAL, SPROUTED_KNOT, Leaves, Tree
+from .junction import tree_mesh
 
 __all__ = ["PRESETS", "WeberPennParams", "shape_ratio", "load_params", "generate", "mesh",
            "export", "preset_path", "SHAPES"]
@@ -1171,7 +1172,6 @@ def generate(preset_or_params="quaking_aspen", seed=0, *, knots: bool | None = N
 
 def mesh(tree: Tree, *, smooth: bool = True, **kw):
     """``(bark, leaves)`` trimesh meshes of a tree (see :func:`junction.tree_mesh`)."""
-    from .junction import tree_mesh
     return tree_mesh(tree, smooth=smooth, **kw)
 
 
