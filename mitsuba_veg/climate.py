@@ -23,10 +23,10 @@ per year chosen reproducibly from the seed.
 from __future__ import annotations
 
 import csv
+import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-import difflib
 
 import numpy as np
 

@@ -23,8 +23,8 @@ from os import PathLike
 from pathlib import Path
 from typing import Mapping, Sequence
 
-import numpy as np
 import mitsuba as mi
+import numpy as np
 
 from .errors import ParameterError, SceneError
 from .meshes import triangle_geometry

@@ -17,14 +17,14 @@ from pathlib import Path
 import mitsuba as mi
 import numpy as np
 
+from ..daily.run import run
 from ..errors import ParameterError, SceneError, check_range
 from ..foliage.light_study import add_parser as _add_light_study
 from ..light import photon_irradiance
 from ..outputs import OutputFolder, write_json
 from ..plots import irradiance_figure
-from ..scenario import MAX_PHOTONS, load_scenario
-from ..daily.run import run
 from ..render.still import run_render
+from ..scenario import MAX_PHOTONS, load_scenario
 from ..sweeps.frames import run_animate
 from ..tune.cli import add_parser as _add_tune
 from ..variant import __version__, versions

@@ -39,7 +39,6 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
-
 import trimesh
 
 from ..errors import ParameterError, unknown_field

@@ -27,6 +27,7 @@ import mitsuba as mi
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError
+
 from .spectra import mitsuba_spectrum
 
 PLUGIN_NAME = "veg_leaf"

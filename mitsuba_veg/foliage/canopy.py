@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
-from mitsuba_veg.trees.structure import Leaves, Tree, leaf_quads, tube_mesh
 from mitsuba_veg.light.validation import make_mesh
+from mitsuba_veg.trees.structure import Leaves, Tree, leaf_quads, tube_mesh
 
 #: a leaf quad is size x (2 * 0.3 size) (mitsuba_veg.trees.structure.leaf_quads)
 LEAF_AREA_FACTOR = 0.6

@@ -33,8 +33,7 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
-from .pigments import StageTable, state_pigments, stage_from_tau, stage_table
-from .pigments import LeafTraits
+from .pigments import LeafTraits, StageTable, stage_from_tau, stage_table, state_pigments
 from .spectra import leaf_spectra, spectrum_to_srgb
 
 #: paper 003 table 2: rows w1..w4, columns a b c d e f

@@ -21,8 +21,8 @@ Built-in presets, computed from the scene (the ground's bounding box when there 
 """
 from __future__ import annotations
 
-import numpy as np
 import mitsuba as mi
+import numpy as np
 
 from ..errors import ParameterError
 

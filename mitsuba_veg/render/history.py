@@ -16,19 +16,19 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import logging
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-import logging
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..outputs import SNAPSHOT_DIR, SnapshotWriter, write_snapshot  # noqa: F401 (re-exported)
-from .moss import MossSet, live_moss
 from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
 from ..daily.run import run
+from ..errors import ParameterError
+from ..outputs import SNAPSHOT_DIR, SnapshotWriter, write_snapshot  # noqa: F401 (re-exported)
 from ..scenario import Scenario, load_scenario
+from .moss import MossSet, live_moss
 
 
 # ---- reading a run ------------------------------------------------------------------------------

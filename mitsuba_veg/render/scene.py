@@ -33,18 +33,17 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..errors import ParameterError, SceneError
-from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
-from . import materials as mat
-from .moss import MossSet, growth_scale, place_tufts
-from .noise import pink_noise_image
-from .cameras import sensor_dict
-from .film import film_dict
-from .trees import leaf_bin_arrays, tree_shapes
-from ..errors import check_range
+from ..errors import ParameterError, SceneError, check_range
 from ..light.daylight import daylight
 from ..light.sky import attach_scene
+from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
 from ..terrain import classify_geology, load_texture_rgb
+from . import materials as mat
+from .cameras import sensor_dict
+from .film import film_dict
+from .moss import MossSet, growth_scale, place_tufts
+from .noise import pink_noise_image
+from .trees import leaf_bin_arrays, tree_shapes
 
 __all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_time",
            "Terrain"]

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import gc
 import time
-from pathlib import Path
 from dataclasses import replace
+from pathlib import Path
 
 import mitsuba as mi
 import numpy as np

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plots import _mpl
 from .spec import SEED_FIELD, Sweep
 from .table import _cell
-from ..plots import _mpl
 
 
 def _groups(df, fields):

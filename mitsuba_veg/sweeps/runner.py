@@ -24,16 +24,15 @@ import traceback
 import uuid
 from pathlib import Path
 
-from ..outputs import write_json
-from .spec import RunSpec, Sweep, load_sweep
-from .cluster import open_client, require_pandas, set_drjit_threads, worker_drjit_threads
-from .plots import sweep_plots
-from .table import tidy, write_table
 from ..daily import SIM_DEFAULTS
 from ..daily.run import run
 from ..errors import MitsubaVegError
-from ..outputs import OutputFolder
+from ..outputs import OutputFolder, write_json
 from ..scenario import load_scenario
+from .cluster import open_client, require_pandas, set_drjit_threads, worker_drjit_threads
+from .plots import sweep_plots
+from .spec import RunSpec, Sweep, load_sweep
+from .table import tidy, write_table
 
 #: task key prefix (groups the runs on the Dask dashboard)
 TASK_PREFIX = "mitsuba-veg-run"

@@ -33,8 +33,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import ParameterError, unknown_field
 from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
+from ..errors import ParameterError, unknown_field
 from ..scenario import load_scenario
 
 #: keys of the [sweep] table

@@ -25,13 +25,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
 import drjit as dr
 import mitsuba as mi
+import numpy as np
+
+from mitsuba_veg.light.validation import box_mesh, grid_mesh, make_mesh
 
 from ..errors import ParameterError, check_range
 from ..meshes import triangle_geometry
-from mitsuba_veg.light.validation import box_mesh, grid_mesh, make_mesh
 from .leaflight import obstacle_sky_light
 
 

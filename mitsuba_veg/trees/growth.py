@@ -34,9 +34,9 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
-from .structure import Leaves, Tree
 from .environment import Environment
 from .leaflight import LeafLight, Sky, leaf_sphere_light
+from .structure import Leaves, Tree
 
 #: paper symbols of the parameters (table 3.1)
 PAPER_SYMBOLS = {

@@ -32,8 +32,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
-from .structure import Tree, segment_depth
 from .environment import Environment
+from .structure import Tree, segment_depth
 from .voxel import VoxelSpace, gradient_sampler
 
 RULES = ("death", "heliotropism")

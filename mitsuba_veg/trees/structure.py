@@ -23,8 +23,8 @@ meaning shared by several modules:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import copy as _copy
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -110,11 +110,6 @@ class Tree:
     def direction(self) -> np.ndarray:
         d = self.end - self.start
         return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
-
-    def children_count(self) -> np.ndarray:
-        c = np.zeros(len(self), np.int64)
-        np.add.at(c, self.parent[self.parent >= 0], 1)
-        return c
 
     def depth(self) -> np.ndarray:
         """Number of ancestors of every segment (0 for roots)."""

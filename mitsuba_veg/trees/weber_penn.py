@@ -32,8 +32,8 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError
 
 from . import knots as _kn
-from .structure import KNOT, NORMAL, SPROUTED_KNOT, Leaves, Tree
 from .junction import tree_mesh
+from .structure import KNOT, NORMAL, SPROUTED_KNOT, Leaves, Tree
 
 __all__ = ["PRESETS", "WeberPennParams", "shape_ratio", "load_params", "generate", "mesh",
            "export", "preset_path", "SHAPES"]
@@ -1067,10 +1067,8 @@ class _Grower:
             Xs, Ys, Zs = seg["X"][si], seg["Y"][si], seg["Z"][si]
             a = np.radians(fan)[:, None]      # rotate about the stem's y axis
             Zf = Zs * np.cos(a) + Xs * np.sin(a)
-            Xf = Xs * np.cos(a) - Zs * np.sin(a)
-            Y2, Z2 = _rotx(Ys, Zf, np.radians(p.lv("DownAngle", lvl)
-                                              + p.lv("DownAngleV", lvl) * (2 * u[:, 1] - 1)))
-            X, Y, Z = Xf, Y2, Z2
+            Y, Z = _rotx(Ys, Zf, np.radians(p.lv("DownAngle", lvl)
+                                            + p.lv("DownAngleV", lvl) * (2 * u[:, 1] - 1)))
         length = g["LeafScale"] / math.sqrt(q)
         width = g["LeafScale"] * g["LeafScaleX"] / math.sqrt(q)
         normal = np.where((Y[:, 2] < 0)[:, None], -Y, Y)
