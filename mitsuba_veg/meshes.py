@@ -8,8 +8,29 @@ import numpy as np
 
 def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
               attributes: dict | None = None) -> mi.Mesh:
-    """An in-memory Mitsuba mesh (float32 vertices, uint32 faces) with optional UVs, vertex
-    normals, a BSDF (dict or object) and per-vertex float attributes (``vertex_<name>``)."""
+    """An in-memory Mitsuba mesh from NumPy arrays.
+
+    Parameters
+    ----------
+    name : str
+        The shape id.
+    vertices : array_like
+        (n, 3) positions [m] (stored as float32).
+    faces : array_like
+        (m, 3) vertex indices (stored as uint32).
+    bsdf : dict or mitsuba.BSDF, optional
+        Its material.
+    uv : array_like, optional
+        (n, 2) texture coordinates.
+    normals : array_like, optional
+        (n, 3) vertex normals.
+    attributes : dict, optional
+        Per-vertex float attributes (``vertex_<name>``: (n,) values).
+
+    Returns
+    -------
+    mitsuba.Mesh
+    """
     v = np.ascontiguousarray(np.asarray(vertices, np.float32).reshape(-1, 3))
     f = np.ascontiguousarray(np.asarray(faces, np.uint32).reshape(-1, 3))
     props = mi.Properties()

@@ -54,7 +54,32 @@ DEMO_WHEN = "2026-07-15T10:00:00+09:00"
 
 def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, indirect=None,
                    when=None, overrides=(), progress=True) -> dict:
-    """Photon pass on a scene or scenario; writes irradiance.npz, PNG maps and summary.json."""
+    """The photon pass of ``mitsuba-veg irradiance`` on a scene or scenario.
+
+    Parameters
+    ----------
+    scene_path : path-like
+        A Mitsuba XML scene or a scenario TOML.
+    out : path-like
+        Output folder: ``irradiance.npz``, PNG maps per shape and ``summary.json``.
+    photons, seed, max_depth : int, optional
+        Photons per emitter, random seed, bounces per photon (default: the scenario's, else
+        1000000, 0, 8).
+    indirect : bool, optional
+        Follow bounces (default: the scenario's, else True).
+    when : str, optional
+        ISO date-time: daylight for the scenario's site instead of its emitters (TOML only).
+    overrides : sequence of str
+        ``KEY=VALUE`` scenario fields.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    dict
+        The summary (irradiance means per shape and region [W m-2], R:FR, energy balance [W],
+        timings [s], files, versions).
+    """
     scene_path = Path(scene_path)
     out = Path(out)
     if scene_path.suffix.lower() not in (".toml", ".xml") or not scene_path.is_file():
@@ -250,7 +275,12 @@ def _cmd_demo(a) -> int:
 
 
 def build_parser():
-    """The ``mitsuba-veg`` argument parser with every sub-command."""
+    """The ``mitsuba-veg`` argument parser with every sub-command.
+
+    Returns
+    -------
+    cli.args.Parser
+    """
     ap = Parser(prog="mitsuba-veg", description="Grow vegetation from light with Mitsuba 3.")
     ap.add_argument("--version", action="version",
                     version=f"mitsuba-veg {__version__}")

@@ -24,9 +24,22 @@ def _setup_logging(a) -> None:
 
 
 def run_parsed(a) -> int:
-    """Run a parsed command. A library error (bad input) becomes one line on stderr and exit
-    code 2; an interrupted run exit code 130; an unexpected error one line and exit code 1
-    (``--verbose`` adds the traceback)."""
+    """Run a parsed command.
+
+    A library error (bad input) becomes one line on stderr and exit code 2; an interrupted run
+    exit code 130; an unexpected error one line and exit code 1 (``--verbose`` adds the
+    traceback).
+
+    Parameters
+    ----------
+    a : argparse.Namespace
+        With ``func`` (the command) and the options.
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     _setup_logging(a)
     try:
         return a.func(a)
@@ -54,8 +67,22 @@ def run_parsed(a) -> int:
 
 
 def standalone(command: str, add_parser, argv=None) -> int:
-    """Entry of one sub-command run on its own (``python -m ...``): ``argv`` without the
-    command's name."""
+    """Run one sub-command on its own (``python -m ...``).
+
+    Parameters
+    ----------
+    command : str
+        The sub-command's name.
+    add_parser : callable
+        Adds it to an argparse sub-parser set.
+    argv : list of str, optional
+        The arguments after the command's name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     ap = Parser(prog="mitsuba-veg")
     add_parser(ap.add_subparsers(dest="cmd", required=True))
     return run_parsed(ap.parse_args([command, *(sys.argv[1:] if argv is None else argv)]))

@@ -20,8 +20,24 @@ from .world import trees_for_run
 
 
 def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
-    """Render a :class:`~mitsuba_veg.render.scene.RenderScene`; returns :func:`film.develop`'s
-    images plus ``seconds``."""
+    """Render an assembled scene.
+
+    Parameters
+    ----------
+    rs : RenderScene
+        From :func:`mitsuba_veg.render.scene.build_scene`.
+    spp : int, optional
+        Samples per pixel (default: the scene's options).
+    seed : int, optional
+        Sampler seed (default: the scene's options).
+
+    Returns
+    -------
+    dict
+        :func:`mitsuba_veg.render.film.develop`'s images (``rgb`` linear sRGB, ``XYZ``, ``bands``
+        band-mean spectral radiance [W m-2 sr-1 nm-1], ``r_fr`` photon ratio) and ``seconds``
+        [s].
+    """
     t0 = time.perf_counter()
     if spp is not None:
         spp = replace(rs.options, spp=int(spp)).samples
@@ -35,8 +51,28 @@ def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
 
 def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None = None,
                   exposure: float | None = None, title: str | None = None) -> dict:
-    """Write ``<stem>.exr``, ``<stem>.png`` and ``<stem>_rfr.png``; returns their paths and the
-    exposure used."""
+    """Write ``<stem>.exr``, ``<stem>.png`` and ``<stem>_rfr.png`` (each atomically).
+
+    Parameters
+    ----------
+    images : dict
+        From :func:`render`.
+    out_dir : path-like
+        The folder (created).
+    stem : str
+        File name stem.
+    meta : dict, optional
+        String attributes of the EXR header (units, time, camera ...).
+    exposure : float, optional
+        Exposure of the PNG (default: automatic, log-average luminance to 0.18).
+    title : str, optional
+        Title of the red:far-red picture.
+
+    Returns
+    -------
+    dict
+        ``files`` (paths by kind) and ``exposure`` used.
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     exr = _film.write_exr(out_dir / f"{stem}.exr", images, meta)
@@ -143,7 +179,9 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
 
 
 def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps=None):
-    """Refuse image settings out of range (``None`` = the default)."""
+    """Refuse image settings out of range (``None`` = the default): width and height [pixels]
+    16-16384, spp 1-65536, max_depth 1-1000, frames 2-10000, every 1-100000 [d], fps 1-120.
+    """
     for name, v, lo, hi in (("--width", width, 16, 16384), ("--height", height, 16, 16384),
                             ("--spp", spp, 1, 65536), ("--max-depth", max_depth, 1, 1000),
                             ("--frames", frames, 2, 10000), ("--every", every, 1, 100_000),

@@ -77,13 +77,9 @@ class Environment:
         of them -> Environment (or None for no obstacles)."""
         if scene is None or isinstance(scene, Environment):
             return scene
+        if isinstance(scene, mi.Scene):
+            return Environment.from_mitsuba(scene)
         env = Environment()
-        try:
-            import mitsuba as mi
-            if isinstance(scene, mi.Scene):
-                return Environment.from_mitsuba(scene)
-        except ImportError:  # pragma: no cover
-            pass
         items = scene if isinstance(scene, (list, tuple)) and not _is_vf(scene) else [scene]
         for i, it in enumerate(items):
             env.add(it, name=f"obstacle{i}")
