@@ -110,8 +110,7 @@ def iso_datetime(text: str) -> str:
 
 
 def add_out(p, default: str | None, what: str) -> None:
-    """Add ``--out DIR``: the output folder of ``what`` (``default``: its default path).
-    """
+    """Add ``--out DIR``: the output folder of ``what`` (``default``: its default path)."""
     p.add_argument("--out", default=default, metavar="DIR",
                    help=f"output folder for {what} (created; refused if another process is "
                         "writing it or it holds another kind of result)")
@@ -126,10 +125,9 @@ def add_set(p, what: str = "scenario", example: str = "light.photons=2000000") -
                         f"e.g. --set {example}; unknown fields are refused")
 
 
-def add_quiet(p) -> None:
-    """Add ``--quiet``: no progress bar.
-    """
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+def add_quiet(p, what: str = "no progress bar") -> None:
+    """Add ``--quiet`` (``what`` it leaves out, for the help)."""
+    p.add_argument("--quiet", action="store_true", help=what)
 
 
 def add_photons(p, default: int | None, what: str = "per light pass") -> None:

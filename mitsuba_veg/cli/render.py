@@ -20,7 +20,7 @@ from pathlib import Path
 from ..render.animation import ANIMATE_DEFAULTS
 from ..render.still import RENDER_DEFAULTS, run_render
 from ..sweeps.frames import run_animate
-from .args import add_quiet, iso_datetime, ranged
+from .args import add_out, add_quiet, iso_datetime, ranged
 
 __all__ = ["add_parsers", "run_render", "run_animate"]
 
@@ -30,7 +30,7 @@ def add_parsers(subparsers) -> None:
 
     def common(p, what, spp):
         p.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
-        p.add_argument("--out", metavar="DIR", help=f"output folder (default RUN_DIR/{what})")
+        add_out(p, None, f"the {what} (default RUN_DIR/{what})")
         p.add_argument("--scenario", metavar="TOML",
                        help="scenario file of the run (default: the one summary.json names)")
         p.add_argument("--width", type=ranged(int, 16, 16384, "pixels"),

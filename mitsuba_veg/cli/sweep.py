@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 
 from ..sweeps.runner import sweep
-from .args import ranged
+from .args import add_out, add_quiet, add_set, ranged
 
 __all__ = ["add_parser"]
 
@@ -29,11 +29,10 @@ def add_parser(subparsers) -> None:
                         "--scheduler: wait for N workers")
     s.add_argument("--threads", type=ranged(int, 1, 1024, "threads"), metavar="N",
                    help="Dr.Jit threads per worker (default: cores // worker processes)")
-    s.add_argument("--out", default="out/sweep", help="output folder (default out/sweep)")
-    s.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a field of the base scenario for every run")
+    add_out(s, "out/sweep", "the table, the runs and the plots")
+    add_set(s, "base scenario")
     s.add_argument("--no-plots", action="store_true", help="skip the standard plots")
-    s.add_argument("--quiet", action="store_true", help="no progress bar and no per-run lines")
+    add_quiet(s, "no progress bar and no per-run lines")
     s.set_defaults(func=_cmd_sweep)
 
 

@@ -22,8 +22,7 @@ class Checkpoints:
 
     @property
     def checkpoint_path(self) -> Path:
-        """The run's checkpoint file, ``<out>/checkpoint.npz``.
-        """
+        """The run's checkpoint file, ``<out>/checkpoint.npz``."""
         return self.out / "checkpoint.npz"
 
     def save_checkpoint(self):

@@ -424,8 +424,7 @@ class MossSimulation(Checkpoints, MossSite):
                 "seconds": secs}
 
     def initialise(self):
-        """Place the initial moss (``moss.initial``) at random on the living surfaces.
-        """
+        """Place the initial moss (``moss.initial``) at random on the living surfaces."""
         self._moss_version += 1
         self._place_random(int(self.moss_cfg["initial"]), -1, MOSS, GEMMA,
                            float(self.moss_cfg["initial_growth"]), stream=3)

@@ -59,8 +59,7 @@ def label_frame(img8, text: str):
 
 
 def ffmpeg_path() -> str | None:
-    """The ``ffmpeg`` executable on ``PATH``, or None.
-    """
+    """The ``ffmpeg`` executable on ``PATH``, or None."""
     return shutil.which("ffmpeg")
 
 
