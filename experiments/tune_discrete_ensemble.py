@@ -1,6 +1,6 @@
 """An ensemble of discrete moss runs (different seeds) for comparing the relaxed model against.
 
-Runs :class:`mitsuba_veg.simulation.MossSimulation` of the moss garden for ``--days`` days with
+Runs :class:`mitsuba_veg.daily.MossSimulation` of the moss garden for ``--days`` days with
 ``--photons`` photons a day, once per seed (``light.seed`` = seed: light, rain days, placement
 and dispersal all change), and stores per seed and day the moss per triangle, the region cover,
 the events and the histogram of moss neighbours of the live moss (the clump rule's input), in
