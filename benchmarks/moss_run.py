@@ -16,7 +16,7 @@ import numpy as np
 
 import mitsuba_veg as mv
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.simulation import MossSimulation
+from mitsuba_veg.daily import MossSimulation
 
 SCEN = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 

@@ -15,7 +15,7 @@ import mitsuba as mi
 
 from mitsuba_veg.moss.fitness import fitness
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.simulation import MossSimulation
+from mitsuba_veg.daily import MossSimulation
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 

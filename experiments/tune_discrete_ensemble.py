@@ -1,6 +1,6 @@
 """An ensemble of discrete moss runs (different seeds) for comparing the relaxed model against.
 
-Runs :class:`mitsuba_veg.simulation.MossSimulation` of the moss garden for ``--days`` days with
+Runs :class:`mitsuba_veg.daily.MossSimulation` of the moss garden for ``--days`` days with
 ``--photons`` photons a day, once per seed (``light.seed`` = seed: light, rain days, placement
 and dispersal all change), and stores per seed and day the moss per triangle, the region cover,
 the events and the histogram of moss neighbours of the live moss (the clump rule's input), in
@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from mitsuba_veg.moss.population import MOSS  # noqa: E402
 from mitsuba_veg.scenario import load_scenario  # noqa: E402
-from mitsuba_veg.simulation import MossSimulation  # noqa: E402
+from mitsuba_veg.daily import MossSimulation  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -50,7 +50,7 @@ def run_seed(seed: int, days: int, photons: int, species: list[str], extra=()) -
         counts, regions, alive, cover, nbh, ev, prop = [], [], [], [], [], [], []
         for _ in range(days):
             rec = sim.step()
-            c = sim._counts()
+            c = sim.counts()
             counts.append(c.astype(np.uint16))
             regions.append([rec["regions"][k] for k in sorted(sim.regions)])
             alive.append(rec["moss_alive"])

@@ -6,9 +6,7 @@ Mitsuba (integrator ``veg_photon_irradiance``, emitter ``veg_sky``).
 """
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
-from .variant import select_variant as _select_variant, variant  # noqa: E402
+from .variant import __version__, select_variant as _select_variant, variant
 
 _select_variant()
 
@@ -18,7 +16,7 @@ from . import light  # noqa: E402,F401
 from . import climate, moss, scenario, soil, terrain  # noqa: E402,F401
 from . import trees  # noqa: E402,F401
 from . import foliage  # noqa: E402,F401  (registers the veg_leaf BSDF)
-from .simulation import run  # noqa: E402,F401
+from .daily.run import run  # noqa: E402,F401
 from . import world  # noqa: E402,F401  (trees, leaves and moss in one daily loop)
 from . import tune  # noqa: E402,F401
 from .sweeps import sweep  # noqa: E402,F401  (Dask is imported only when a sweep runs)

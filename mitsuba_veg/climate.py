@@ -23,6 +23,7 @@ per year chosen reproducibly from the seed.
 from __future__ import annotations
 
 import csv
+import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -191,7 +192,6 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
     known = set(_CSV_FIELDS) | {"N", "N0"}
     unknown = [c for c in cols if c not in known]
     if unknown:
-        import difflib
         close = difflib.get_close_matches(unknown[0], sorted(known), n=2, cutoff=0.4)
         raise ParameterError(f"{path.name} column", unknown[0], "one of " +
                              ", ".join(sorted(known)), ("did you mean " + " or ".join(

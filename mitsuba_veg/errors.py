@@ -5,6 +5,9 @@ user never has to read a traceback from inside a kernel.
 """
 from __future__ import annotations
 
+import difflib
+import math
+
 
 class MitsubaVegError(Exception):
     """Base class of all mitsuba-veg errors."""
@@ -37,8 +40,6 @@ def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=F
 
     NaN is always rejected. Returns ``value`` so that it can be used inline.
     """
-    import math
-
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -66,7 +67,6 @@ def unknown_field(field: str, value, known, source: str | None = None,
     """The error for a field a file or ``--set`` names but no schema knows: the closest known
     names as the fix (whole dotted names first, else the last part among its table's fields),
     the fields of the same table as what is allowed. ``doc``: where the fields are listed."""
-    import difflib
     known = sorted(set(known))
     close = difflib.get_close_matches(field, known, n=3, cutoff=0.6)
     head, _, last = field.rpartition(".")

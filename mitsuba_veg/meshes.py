@@ -1,4 +1,5 @@
-"""In-memory Mitsuba meshes from NumPy arrays (one helper for the light scenes and the render)."""
+"""Triangle meshes: their geometry (areas, unit normals, centroids) and in-memory Mitsuba meshes
+from NumPy arrays (one helper each for the light scenes, the terrain, the trees and the render)."""
 from __future__ import annotations
 
 import mitsuba as mi
@@ -7,8 +8,29 @@ import numpy as np
 
 def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
               attributes: dict | None = None) -> mi.Mesh:
-    """An in-memory Mitsuba mesh (float32 vertices, uint32 faces) with optional UVs, vertex
-    normals, a BSDF (dict or object) and per-vertex float attributes (``vertex_<name>``)."""
+    """An in-memory Mitsuba mesh from NumPy arrays.
+
+    Parameters
+    ----------
+    name : str
+        The shape id.
+    vertices : array_like
+        (n, 3) positions [m] (stored as float32).
+    faces : array_like
+        (m, 3) vertex indices (stored as uint32).
+    bsdf : dict or mitsuba.BSDF, optional
+        Its material.
+    uv : array_like, optional
+        (n, 2) texture coordinates.
+    normals : array_like, optional
+        (n, 3) vertex normals.
+    attributes : dict, optional
+        Per-vertex float attributes (``vertex_<name>``: (n,) values).
+
+    Returns
+    -------
+    mitsuba.Mesh
+    """
     v = np.ascontiguousarray(np.asarray(vertices, np.float32).reshape(-1, 3))
     f = np.ascontiguousarray(np.asarray(faces, np.uint32).reshape(-1, 3))
     props = mi.Properties()
@@ -27,3 +49,33 @@ def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
     for k, a in (attributes or {}).items():
         m.add_attribute(k, 1, mi.Float(np.asarray(a, np.float32).ravel()))
     return m
+
+
+def triangle_geometry(vertices, faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Areas, unit normals and centroids of a triangle mesh.
+
+    Parameters
+    ----------
+    vertices : array_like
+        (n, 3) vertex positions [m].
+    faces : array_like
+        (m, 3) vertex indices per triangle (counter-clockwise seen from the front).
+
+    Returns
+    -------
+    areas : numpy.ndarray
+        (m,) triangle areas [m2].
+    normals : numpy.ndarray
+        (m, 3) unit normals of the front sides (zero for degenerate triangles).
+    centroids : numpy.ndarray
+        (m, 3) centroids [m].
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    cross = np.cross(p1 - p0, p2 - p0)
+    norm = np.linalg.norm(cross, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normals = cross / norm[:, None]
+    normals[norm <= 0.0] = 0.0
+    return 0.5 * norm, normals, (p0 + p1 + p2) / 3.0

@@ -7,17 +7,31 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_write
+from .errors import ParameterError
+from .plots import _mpl, plan_map
+
 
 def write_json(path, data, indent: int = 2) -> None:
-    """Write ``data`` as JSON atomically (NumPy values converted)."""
+    """Write ``data`` as JSON atomically (NumPy values converted).
+
+    Parameters
+    ----------
+    path : path-like
+        The JSON file (its temporary file is ``<name>.tmp``).
+    data : object
+        JSON-able data; NumPy scalars and arrays are converted (:func:`jsonable`).
+    indent : int
+        Indentation [spaces].
+    """
     path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=indent, default=jsonable))
-    os.replace(tmp, path)
+    with atomic_write(path, path.with_suffix(path.suffix + ".tmp")) as tmp:
+        tmp.write_text(json.dumps(data, indent=indent, default=jsonable))
 
 
 # --------------------------------------------------------------------------------------------
@@ -63,7 +77,6 @@ class OutputFolder:
     call :meth:`release`."""
 
     def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None):
-        from .errors import ParameterError
         self.path = Path(path)
         self.kind = kind
         self._fh = None
@@ -129,7 +142,6 @@ class OutputFolder:
 
 def clear_outputs(folder, names) -> None:
     """Remove the files or folders ``names`` from ``folder`` (those that exist)."""
-    import shutil
     for n in names:
         q = Path(folder) / n
         if q.is_dir():
@@ -146,7 +158,7 @@ SNAPSHOT_DIR = "snapshots"
 
 # ---- writing snapshots during a run -------------------------------------------------------------
 class SnapshotWriter:
-    """``on_day`` hook for :meth:`mitsuba_veg.simulation.MossSimulation.run`: writes the living
+    """``on_day`` hook for :meth:`mitsuba_veg.daily.MossSimulation.run`: writes the living
     moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days (default: the run's
     ``frame_every``) and on the last day. About 0.3 MB per 16,000 moss (compressed)."""
 
@@ -174,14 +186,13 @@ def write_snapshot(directory, day: int, population: dict, date: str | None = Non
     d.mkdir(parents=True, exist_ok=True)
     m = np.asarray(population["state"]) == 2
     path = d / f"day_{int(day):04d}.npz"
-    tmp = d / f".day_{int(day):04d}.tmp.npz"
-    np.savez_compressed(tmp, day=np.array(int(day)), date=np.array(str(date or "")),
-                        pos=np.asarray(population["pos"])[m].astype(np.float32),
-                        nrm=np.asarray(population["nrm"])[m].astype(np.float16),
-                        species=np.asarray(population["species"])[m].astype(np.uint8),
-                        growth=np.asarray(population["growth"])[m].astype(np.float16),
-                        **(extra or {}))
-    os.replace(tmp, path)
+    with atomic_write(path, d / f".day_{int(day):04d}.tmp.npz") as tmp:
+        np.savez_compressed(tmp, day=np.array(int(day)), date=np.array(str(date or "")),
+                            pos=np.asarray(population["pos"])[m].astype(np.float32),
+                            nrm=np.asarray(population["nrm"])[m].astype(np.float16),
+                            species=np.asarray(population["species"])[m].astype(np.uint8),
+                            growth=np.asarray(population["growth"])[m].astype(np.float16),
+                            **(extra or {}))
     return path
 
 
@@ -214,7 +225,6 @@ class DayFrames:
             self.frames.append(self.write_day(sim, rec))
 
     def write_day(self, sim, rec) -> Path:
-        from .plots import _mpl, plan_map
         plt = _mpl()
 
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -222,7 +232,7 @@ class DayFrames:
         ground = sim.scn.get("terrain.ground", "ground")
         sl = idx.shape_slice(ground)
         v, f = idx.geometry[ground]
-        counts = sim._counts()
+        counts = sim.counts()
         cover = np.minimum(counts * sim.grid_cell() ** 2 / np.maximum(idx.areas, 1e-30), 1.0)
         last = sim.last
         fig, axs = plt.subplots(1, 4, figsize=(17, 4.1), constrained_layout=True)
@@ -255,10 +265,9 @@ class DayFrames:
                      f"{rec['propagules']} propagules, covered {rec['covered_area_m2']:.4f} m²",
                      fontsize=11)
         path = self.dir / f"day_{rec['day']:04d}.png"
-        tmp = self.dir / f".day_{rec['day']:04d}.tmp.png"
-        fig.savefig(tmp, dpi=80)
+        with atomic_write(path, self.dir / f".day_{rec['day']:04d}.tmp.png") as tmp:
+            fig.savefig(tmp, dpi=80)
         plt.close(fig)
-        os.replace(tmp, path)
         return path
 
     def finish(self) -> dict:
@@ -269,8 +278,7 @@ class DayFrames:
             from PIL import Image
             imgs = [Image.open(p).convert("P", palette=Image.ADAPTIVE) for p in frames]
             gif = Path(self.sim.out) / "days.gif"
-            tmp = gif.with_suffix(".tmp.gif")
-            imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=400, loop=0)
-            os.replace(tmp, gif)
+            with atomic_write(gif, gif.with_suffix(".tmp.gif")) as tmp:
+                imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=400, loop=0)
             files["animation"] = str(gif)
         return files

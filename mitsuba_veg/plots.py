@@ -5,9 +5,10 @@ triangle, with a colour bar in the quantity's units.
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
+
+from .atomic import atomic_write
+from .meshes import triangle_geometry
 
 
 def _mpl():
@@ -75,8 +76,7 @@ def irradiance_figure(result, shape_id: str, path, title: str | None = None) -> 
     band = "total" if "total" in result.bands else result.bands[0]
     verts, faces = result_geometry(result, shape_id)
     v = np.asarray(verts)
-    nrm = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
-    area = 0.5 * np.linalg.norm(nrm, axis=1)
+    area, nrm, _ = triangle_geometry(v, faces)
     dom = np.argmax(np.abs(nrm), axis=1)
     sign = np.sign(nrm[np.arange(len(nrm)), dom])
     rows = []
@@ -110,10 +110,9 @@ def irradiance_figure(result, shape_id: str, path, title: str | None = None) -> 
                            fontweight="bold")
     fig.suptitle(title or f"'{shape_id}': irradiance on the front of each triangle - "
                  f"{result.photons.sum():,d} photons", fontsize=11)
-    tmp = f"{path}.tmp.png"
-    fig.savefig(tmp, dpi=100)
+    with atomic_write(path, f"{path}.tmp.png") as tmp:
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
-    os.replace(tmp, path)
     return str(path)
 
 

@@ -169,10 +169,6 @@ def _exp(x):
     return _nan_keep(x, dr.exp(x)) if _is_dr(x) else np.exp(x)
 
 
-def _log(x):
-    return _nan_keep(x, dr.log(x)) if _is_dr(x) else np.log(x)
-
-
 def _abs(x):
     return dr.abs(x) if _is_dr(x) else np.abs(x)
 

@@ -23,9 +23,11 @@ from os import PathLike
 from pathlib import Path
 from typing import Mapping, Sequence
 
+import mitsuba as mi
 import numpy as np
 
 from .errors import ParameterError, SceneError
+from .meshes import triangle_geometry
 
 # --------------------------------------------------------------------------------------------
 # Geology
@@ -209,15 +211,7 @@ class Terrain:
                 raise ParameterError(f"{label}.vertex_uv", f"array of shape {t.shape}",
                                      f"({len(v)}, 2): one (u, v) per vertex")
             self.vertex_uv = t
-        p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-        cross = np.cross(p1 - p0, p2 - p0)
-        norm = np.linalg.norm(cross, axis=1)
-        self.areas = 0.5 * norm
-        with np.errstate(invalid="ignore", divide="ignore"):
-            n = cross / norm[:, None]
-        n[norm <= 0.0] = 0.0
-        self.normals = n
-        self.centroids = (p0 + p1 + p2) / 3.0
+        self.areas, self.normals, self.centroids = triangle_geometry(v, f)
         self.uv = None if self.vertex_uv is None else self.vertex_uv[f].mean(axis=1)
 
     # -- construction ----------------------------------------------------------------------
@@ -243,8 +237,6 @@ class Terrain:
         coordinates are read if the mesh has them. Load scenes with ``optimize=False`` or
         meshes with equal BSDFs are merged and lose their ids (see ``MITSUBA_NOTES.md``).
         """
-        import mitsuba as mi
-
         if not (isinstance(shape, mi.Mesh) or (hasattr(shape, "is_mesh") and shape.is_mesh())):
             raise SceneError(f"shape '{shape.id()}' is a {type(shape).__name__}, not a triangle "
                              f"mesh. Fix: give the terrain as a mesh (ply/obj/serialized)")

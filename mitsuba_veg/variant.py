@@ -8,11 +8,16 @@ user has already chosen a variant (then that choice is checked, never overridden
 from __future__ import annotations
 
 import os
+import sys
 
 import drjit as dr
 import mitsuba as mi
+import numpy
 
 from .errors import VariantError
+
+#: the package version (also ``mitsuba_veg.__version__``)
+__version__ = "0.1.0"
 
 #: variants the package works with, in order of preference
 SUPPORTED = ("cuda_ad_spectral", "llvm_ad_spectral")
@@ -70,13 +75,14 @@ def variant() -> str:
 
 
 def versions() -> dict:
-    """Versions of mitsuba-veg, Mitsuba, Dr.Jit, NumPy and Python and the active variant (for
-    every ``summary.json``)."""
-    import sys
+    """Versions of mitsuba-veg, Mitsuba, Dr.Jit, NumPy and Python and the active variant.
 
-    import numpy
-
-    from . import __version__
+    Returns
+    -------
+    dict
+        ``mitsuba_veg``, ``mitsuba``, ``drjit``, ``numpy``, ``variant``, ``python`` (for every
+        ``summary.json``).
+    """
     return {"mitsuba_veg": __version__, "mitsuba": mi.__version__, "drjit": dr.__version__,
             "numpy": numpy.__version__, "variant": mi.variant(),
             "python": sys.version.split()[0]}

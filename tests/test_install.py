@@ -17,7 +17,7 @@ def test_non_editable_install_has_integrators_and_scenes(tmp_path):
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
     code = ("import mitsuba_veg, mitsuba as mi, mitsuba_veg.integrators as I;"
-            "from mitsuba_veg.cli import _default_scenario as d;"
+            "from mitsuba_veg.cli.command import _default_scenario as d;"
             "print(I.__file__); print(d());"
             "print(mi.load_dict({'type': 'veg_photon_irradiance'}))")
     env = {"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}

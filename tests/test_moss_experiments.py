@@ -10,7 +10,7 @@ import numpy as np
 import mitsuba_veg as mv
 from mitsuba_veg.moss.fitness import fitness
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.simulation import MossSimulation
+from mitsuba_veg.daily import MossSimulation
 
 SCEN = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 FAST = ["light.photons=100000", "simulation.checkpoint_every=0"]

@@ -91,7 +91,7 @@ def test_missing_mesh_and_nan_csv(tmp_path):
 
 def _grow(tmp, days, monkeypatch, all_at_once=False):
     from mitsuba_veg.moss import population
-    from mitsuba_veg.simulation import MossSimulation
+    from mitsuba_veg.daily import MossSimulation
     monkeypatch.setattr(MossSimulation, "release_batch", 1)  # many batches at this scale
     if all_at_once:  # "an occupant might be evicted": every propagule is traced, none batched
         live_day = population.MossPopulation.live_day
@@ -150,7 +150,7 @@ def test_moss_size_below_the_spot_grid_limit_is_refused(tmp_path, monkeypatch):
     traceback). The key's capacity (2^21 cells) is lowered so that a 1 mm size trips it on the
     2 m garden."""
     from mitsuba_veg.moss.spatial import SpotGrid
-    from mitsuba_veg.simulation import MossSimulation
+    from mitsuba_veg.daily import MossSimulation
     monkeypatch.setattr(SpotGrid, "max_cells_per_axis", 1000)
     scn = load_scenario(SCEN, SMALL + ["moss.size=0.001"])
     sim = MossSimulation(scn, tmp_path, days=1, progress=False)

@@ -10,7 +10,7 @@ import pytest
 import mitsuba_veg  # noqa: F401
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.render import film
-from mitsuba_veg.render.cli import add_parsers, run_animate, run_render
+from mitsuba_veg.cli.render import add_parsers, run_animate, run_render
 from mitsuba_veg.render.history import load_run, run_with_snapshots
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -24,7 +24,7 @@ CLI = [sys.executable, "-c", "import sys; from mitsuba_veg.cli import main; "
 DRIVER = textwrap.dedent('''
     import os, signal, sys
     import numpy as np
-    import mitsuba_veg.simulation as simulation
+    import mitsuba_veg.daily.day as simulation
     import mitsuba_veg.outputs as outputs
     moment = sys.argv[1]
 

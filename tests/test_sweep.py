@@ -252,7 +252,7 @@ def test_animation_frames_as_dask_tasks_match_the_sequential_ones(tmp_path, clie
     import numpy as np
     from PIL import Image
 
-    from mitsuba_veg.render.cli import run_animate
+    from mitsuba_veg.sweeps.frames import run_animate
     from mitsuba_veg.render.history import run_with_snapshots
     run_with_snapshots(SCEN, tmp_path / "run", days=4, every=2, progress=False,
                        overrides=["light.photons=20000", "moss.initial=400"])

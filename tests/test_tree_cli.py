@@ -9,7 +9,7 @@ import pytest
 
 import mitsuba_veg  # noqa: F401  (variant)
 from mitsuba_veg.errors import ParameterError
-from mitsuba_veg.trees.grow_cli import add_parser, build_environment, load_tree_toml, run_grow
+from mitsuba_veg.cli.grow import add_parser, build_environment, load_tree_toml, run_grow
 from mitsuba_veg.trees.growth import GrowthParams
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,7 +16,7 @@ import pytest
 from mitsuba_veg import tune
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.simulation import MossSimulation
+from mitsuba_veg.daily import MossSimulation
 
 ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
@@ -114,7 +114,7 @@ def test_fit_s1_to_discrete_mean(tmp_path):
         sim.initialise()
         for _ in range(days):
             sim.step()
-        maps.append(np.minimum(sim._counts() * data.cell ** 2, data.areas) / data.areas)
+        maps.append(np.minimum(sim.counts() * data.cell ** 2, data.areas) / data.areas)
     model = tune.SmoothMossModel(data, temperature=0.01, closure="near-field")
     res = tune.fit(model, np.mean(maps, axis=0), params=["S1"], init={"S1": 42.0}, steps=80,
                    out=None, progress=False)

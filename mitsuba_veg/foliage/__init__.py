@@ -7,8 +7,6 @@ leaf with spectral reflectance and transmittance).
 """
 from __future__ import annotations
 
-import mitsuba_veg as _mv  # noqa: F401  (selects a spectral variant first)
-
 from .bsdf import LeafBSDF, leaf_bsdf_dict, register as _register_bsdf
 from .pigments import (LeafTraits, pigments_at_stage, pigments_at_tau, stage_from_tau,
                        stage_table, tau_from_stage, vary_pigments)
@@ -20,20 +18,16 @@ from .autumn import AutumnParams, AutumnState, apply_to_tree, autumn_time
 from .ifs import MapleLeaf, chaos_game, leaf_image, maple_leaf
 from .insolation import (InsolationResult, SunPath, instantaneous_insolation, leaf_insolation,
                          shadow_scene, sky_view_factor, sun_path)
+from .light_study import run_light_study
 
 _register_bsdf()
-
-
-def run_light_study(*args, **kwargs):
-    """See :func:`mitsuba_veg.foliage.light_study.run_light_study`."""
-    from .light_study import run_light_study as _run
-    return _run(*args, **kwargs)
 
 
 __all__ = ["LeafBSDF", "leaf_bsdf_dict", "LeafTraits", "pigments_at_stage", "pigments_at_tau",
            "stage_from_tau", "stage_table", "tau_from_stage", "vary_pigments", "prospect_d",
            "LeafSpectra", "leaf_spectra", "mitsuba_spectrum", "spectrum_to_srgb",
-           "absorbed_fraction", "growth_alphas", "red_far_red_attenuation", "with_leaf_optics", "AutumnParams", "AutumnState",
+           "absorbed_fraction", "growth_alphas", "red_far_red_attenuation", "with_leaf_optics",
+           "AutumnParams", "AutumnState",
            "apply_to_tree", "autumn_time", "MapleLeaf", "chaos_game", "leaf_image", "maple_leaf",
            "InsolationResult", "SunPath", "instantaneous_insolation", "leaf_insolation",
            "shadow_scene", "sky_view_factor", "sun_path", "run_light_study"]

@@ -24,6 +24,8 @@ the PAR-band α equals the paper's α_l = 0.3. With green PROSPECT-D leaves this
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
@@ -113,8 +115,6 @@ def with_leaf_optics(params, tau=0.0, spectra: LeafSpectra | None = None):
     """A copy of a growth-parameter dataclass (``GrowthParams``) whose α_l, α_r, α_fr come from
     the leaves' spectra (autumn time ``tau`` or given ``spectra``) instead of the constants;
     ``params.alpha`` is taken as the green leaves' α_l."""
-    import dataclasses
-
     if not dataclasses.is_dataclass(params) or not hasattr(params, "alpha_red"):
         raise ParameterError("params", type(params).__name__,
                              "a dataclass with alpha, alpha_red, alpha_far_red (GrowthParams)")

@@ -28,6 +28,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+from .spectra import mitsuba_spectrum
+
 PLUGIN_NAME = "veg_leaf"
 
 
@@ -163,8 +165,6 @@ def leaf_bsdf_dict(spectra=None, reflectance=None, transmittance=None, index: in
                    id: str | None = None) -> dict:
     """A ``veg_leaf`` BSDF dict from a :class:`~mitsuba_veg.foliage.spectra.LeafSpectra`
     (row ``index`` when it holds several leaves) or from explicit R/T values/spectra."""
-    from .spectra import mitsuba_spectrum
-
     d: dict = {"type": PLUGIN_NAME}
     if spectra is not None:
         R, T = spectra.reflectance, spectra.transmittance

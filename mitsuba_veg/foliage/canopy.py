@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
+from mitsuba_veg.light.validation import make_mesh
 from mitsuba_veg.trees.structure import Leaves, Tree, leaf_quads, tube_mesh
 
 #: a leaf quad is size x (2 * 0.3 size) (mitsuba_veg.trees.structure.leaf_quads)
@@ -122,6 +123,4 @@ def class_meshes(leaves: Leaves, classes) -> dict[int, tuple[np.ndarray, np.ndar
 
 def mesh(name: str, vertices, faces, bsdf=None):
     """A Mitsuba mesh with id ``name`` (``bsdf``: a dict or BSDF object, optional)."""
-    from mitsuba_veg.light.validation import make_mesh
-
     return make_mesh(name, vertices, faces, bsdf=bsdf)

@@ -33,7 +33,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
-from .pigments import StageTable, state_pigments, stage_from_tau, stage_table
+from .pigments import LeafTraits, StageTable, stage_from_tau, stage_table, state_pigments
+from .spectra import leaf_spectra, spectrum_to_srgb
 
 #: paper 003 table 2: rows w1..w4, columns a b c d e f
 MAPLE_IFS = np.array([
@@ -214,9 +215,6 @@ def maple_leaf(n_points: int = 200_000, *, seed=0, vein_levels: int = 2, weights
 def state_colours(exposure: float = 2.2, traits=None, table=None) -> np.ndarray:
     """sRGB (3, 3) of the three tissue states (green, dark green-red, red): PROSPECT-D
     reflectance under D65, times ``exposure``."""
-    from .pigments import LeafTraits
-    from .spectra import leaf_spectra, spectrum_to_srgb
-
     sp = state_pigments(table)
     traits = traits or LeafTraits()
     out = []

@@ -6,9 +6,10 @@ cumulative insolation Σ_i I (L·S_i); leaves shaded by other leaves or branches
 
 Here:
 
-- :func:`sun_path` samples the sun every ``step_hours`` (mid-interval times, local standard time)
-  over ``days`` days with the NREL SPA (:func:`mitsuba_veg.light.sun_position`, more accurate
-  than the paper's almanac formulas; same horizontal frame), and gives the clear-sky broadband
+- :func:`~mitsuba_veg.light.sunpath.sun_path` samples the sun every ``step_hours``
+  (mid-interval times, local standard time) over ``days`` days with the NREL SPA
+  (:func:`mitsuba_veg.light.sun_position`, more accurate than the paper's almanac formulas;
+  same horizontal frame), and gives the clear-sky broadband
   (300-4000 nm) direct-normal irradiance I(t) and diffuse horizontal irradiance from SPCTRAL2
   with the package's default atmosphere (:mod:`mitsuba_veg.light.daylight`), or a constant I.
 - :func:`leaf_insolation` traces one shadow ray from every leaf centre towards the sun at every
@@ -26,7 +27,6 @@ Units: irradiance W m-2, insolation MJ m-2 (per unit one-sided leaf area).
 """
 from __future__ import annotations
 
-import datetime as _dt
 import time as _time
 from dataclasses import dataclass, field
 
@@ -34,116 +34,12 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-import mitsuba_veg  # noqa: F401  (spectral variant before any Mitsuba type is used)
-from mitsuba_veg.errors import ParameterError, check_range
-
-
-# --------------------------------------------------------------------------------------------
-# Sun path
-# --------------------------------------------------------------------------------------------
-@dataclass
-class SunPath:
-    """The sun at regular steps (daytime only): times, angles, direction, irradiances."""
-
-    times: np.ndarray        # datetime64[s] UTC, mid-step
-    day: np.ndarray          # (h,) int: day index from the start (local dates)
-    azimuth: np.ndarray      # [deg] clockwise from north
-    elevation: np.ndarray    # [deg]
-    direction: np.ndarray    # (h, 3) unit vector towards the sun (+x east, +y up, +z south)
-    dni: np.ndarray          # (h,) direct normal irradiance [W m-2]
-    dhi: np.ndarray          # (h,) diffuse horizontal irradiance [W m-2]
-    step_hours: float
-    days: int
-    settings: dict = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.dni)
-
-
-def clear_sky_broadband(elevation_deg, day_of_year, atmosphere=None):
-    """Broadband (300-4000 nm) clear-sky DNI and DHI [W m-2] for arrays of sun elevations,
-    SPCTRAL2 with the package's default atmosphere (vectorised call of pvlib's spectrl2)."""
-    from pvlib.atmosphere import get_relative_airmass
-    from pvlib.spectrum import spectrl2
-
-    from mitsuba_veg.light.daylight import DEFAULT_ATMOSPHERE
-
-    atm = atmosphere or DEFAULT_ATMOSPHERE
-    el = np.atleast_1d(np.asarray(elevation_deg, float))
-    doy = np.broadcast_to(np.asarray(day_of_year, int), el.shape)
-    dni = np.zeros(el.shape)
-    dhi = np.zeros(el.shape)
-    up = el > 0.5
-    if up.any():
-        z = 90.0 - el[up]
-        am = get_relative_airmass(z, model="kastenyoung1989")
-        res = spectrl2(apparent_zenith=z, aoi=z, surface_tilt=np.zeros_like(z),
-                       ground_albedo=atm.ground_albedo, surface_pressure=atm.pressure,
-                       relative_airmass=am, precipitable_water=atm.precipitable_water,
-                       ozone=atm.ozone, aerosol_turbidity_500nm=atm.aerosol_turbidity,
-                       dayofyear=np.asarray(doy[up], float),
-                       scattering_albedo_400nm=atm.aerosol_single_scattering_albedo,
-                       alpha=atm.angstrom_alpha, aerosol_asymmetry_factor=atm.aerosol_asymmetry)
-        wl = np.asarray(res["wavelength"], float)
-        dni[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dni"])), 0, None), wl, axis=0)
-        dhi[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dhi"])), 0, None), wl, axis=0)
-    return dni, dhi
-
-
-def _start_date(start) -> _dt.date:
-    if isinstance(start, _dt.datetime):
-        return start.date()
-    if isinstance(start, _dt.date):
-        return start
-    try:
-        return _dt.date.fromisoformat(str(start)[:10])
-    except ValueError:
-        raise ParameterError("start", start, "a date 'YYYY-MM-DD'", "e.g. start='2026-10-01'") \
-            from None
-
-
-def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 60,
-             step_hours: float = 1.0, utc_offset_hours: float | None = None,
-             intensity="clear_sky", min_elevation: float = 0.0) -> SunPath:
-    """The sun every ``step_hours`` from local midnight of ``start`` for ``days`` days.
-
-    utc_offset_hours: local standard time offset (default: round(longitude / 15)).
-    intensity: "clear_sky" (SPCTRAL2 broadband DNI/DHI) or a number: constant beam I [W m-2]
-    (the paper's I), with DHI 0. Steps with the sun at or below ``min_elevation`` are dropped.
-    """
-    from mitsuba_veg.light.sun_position import sun_direction, sun_position
-
-    check_range("latitude", latitude, -90.0, 90.0)
-    check_range("longitude", longitude, -180.0, 180.0)
-    check_range("days", days, 1, 3660)
-    check_range("step_hours", step_hours, 1 / 60, 24.0)
-    if abs(24.0 / step_hours - round(24.0 / step_hours)) > 1e-9:
-        raise ParameterError("step_hours", step_hours, "a divisor of 24 h", "e.g. 1, 0.5, 2")
-    d0 = _start_date(start)
-    off = round(longitude / 15.0) if utc_offset_hours is None else float(utc_offset_hours)
-    per_day = int(round(24.0 / step_hours))
-    n = int(days) * per_day
-    mid_s = ((np.arange(n) + 0.5) * step_hours * 3600.0 - off * 3600.0).round().astype(np.int64)
-    t0 = np.datetime64(d0.isoformat(), "s")
-    times = t0 + mid_s.astype("timedelta64[s]")
-    day = np.arange(n) // per_day
-    az, el = sun_position(latitude, longitude, times)
-    az, el = np.asarray(az, float), np.asarray(el, float)
-    keep = el > min_elevation
-    doy = np.array([(d0 + _dt.timedelta(days=int(k))).timetuple().tm_yday for k in range(days)])
-    if isinstance(intensity, str):
-        if intensity != "clear_sky":
-            raise ParameterError("intensity", intensity, "'clear_sky' or a number [W m-2]")
-        dni, dhi = clear_sky_broadband(el[keep], doy[day[keep]])
-    else:
-        check_range("intensity", intensity, 0.0, 2000.0)
-        dni = np.full(int(keep.sum()), float(intensity))
-        dhi = np.zeros(int(keep.sum()))
-    return SunPath(times[keep], day[keep], az[keep], el[keep],
-                   np.asarray(sun_direction(az[keep], el[keep]), float).reshape(-1, 3),
-                   dni, dhi, float(step_hours), int(days),
-                   dict(latitude=latitude, longitude=longitude, start=d0.isoformat(),
-                        utc_offset_hours=off, intensity=intensity))
+from ..errors import ParameterError, check_range
+from ..light import photon_irradiance
+from ..light.sunpath import SunPath, clear_sky_broadband, sun_path  # noqa: F401 (re-exported)
+from ..trees.structure import Leaves, Tree
+from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
+from .light_study import leaf_values, tree_scene
 
 
 # --------------------------------------------------------------------------------------------
@@ -152,12 +48,6 @@ def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 
 def shadow_scene(tree_or_leaves, obstacles=(), bark: bool = True, bark_sides: int = 6):
     """A Mitsuba scene of a tree's leaves (shape id ``leaves``), bark (``bark``) and obstacles
     (``obstacle0``...; each a ``(vertices, faces)`` pair or an ``mi.Mesh``), for shadow rays."""
-    import mitsuba as mi
-
-    from mitsuba_veg.trees.structure import Leaves, Tree
-
-    from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
-
     if isinstance(tree_or_leaves, Tree):
         tree, leaves = tree_or_leaves, tree_or_leaves.leaves
     elif isinstance(tree_or_leaves, Leaves):
@@ -182,9 +72,6 @@ def shadow_scene(tree_or_leaves, obstacles=(), bark: bool = True, bark_sides: in
 
 
 def _leaf_shape_id(scene):
-    import drjit as dr
-    import mitsuba as mi
-
     for sh in scene.shapes():
         if sh.id() == "leaves":
             return int(np.asarray(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sh)))[0])
@@ -246,8 +133,6 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
     "photons" (a photon pass from a uniform sky through the tree with green ``veg_leaf`` leaves:
     skylight including its scattering by leaves and bark, :func:`sky_view_factor_photons`).
     """
-    import mitsuba as mi
-
     check_range("leaf_transmittance", leaf_transmittance, 0.0, 1.0, hi_open=True)
     check_range("max_layers", max_layers, 1, 1000)
     check_range("sky_rays", sky_rays, 1, 100000)
@@ -335,9 +220,6 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
 
 def _transmitted(scene, ray, active, leaf_sid, t_leaf, max_layers):
     """Fraction of a shadow ray passing leaves (each passes t_leaf); bark/obstacles block."""
-    import drjit as dr
-    import mitsuba as mi
-
     sid_leaf = mi.UInt32(leaf_sid if leaf_sid is not None else 0xFFFFFFFF)
     return _transmit_loop(scene, mi.Ray3f(ray), mi.Bool(active), sid_leaf,
                           dr.opaque(mi.Float, t_leaf), dr.opaque(mi.UInt32, max_layers))
@@ -363,9 +245,6 @@ def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
     """Per-leaf view factor of an isotropic sky, both faces: V = (1/π) ∫_upper vis |ω·L| dω
     (1 for an unobstructed leaf of any tilt), by ``rays`` stratified uniform-hemisphere shadow
     rays per leaf."""
-    import drjit as dr
-    import mitsuba as mi
-
     if isinstance(tree_or_scene, tuple):
         scene, leaves = tree_or_scene
     else:
@@ -407,13 +286,10 @@ def sky_view_factor_photons(tree_or_leaves, photons: int = 1_000_000, seed: int 
     irradiance over a tree with ``veg_leaf`` leaves (PROSPECT-D, ``tau`` per leaf, default green)
     and grey bark, no ground; V = PAR power on both faces / (leaf area x open PAR). Includes
     light scattered by leaves (so V can exceed the ray-cast view factor)."""
-    from .light_study import leaf_values, tree_scene
-
     em = {"sky": {"type": "veg_sky", "radiance": {"type": "uniform", "value": 1.0 / np.pi},
                   "distribution": "uniform", "sun_direction": [0.0, 1.0, 0.0]}}
     leaves = tree_or_leaves.leaves if hasattr(tree_or_leaves, "leaves") else tree_or_leaves
     scene, leaf_map = tree_scene(tree_or_leaves, emitters=em, tau=tau, ground=False)
-    from mitsuba_veg.light import photon_irradiance
 
     res = photon_irradiance(scene, photons=int(photons), seed=int(seed), bands=("par",))
     lv = leaf_values(res, leaf_map, n_leaves=len(leaves))

@@ -385,7 +385,7 @@ def add_parser(subparsers):
         description="Photon pass with PAR/red/far-red bands: ground maps (PNG + npz), per-leaf "
                     "values (CSV) and summary.json. SCENE: scenario .toml, scene .xml, or "
                     "'sphere-tree' (built-in test tree under daylight).")
-    from mitsuba_veg.cliargs import add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
+    from mitsuba_veg.cli.args import add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
     p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
     add_photons(p, 2_000_000)
     p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1), default=0, help="random seed")

@@ -1,9 +1,10 @@
 """PROSPECT-D in Dr.Jit: leaf reflectance and transmittance, differentiable in every input.
 
-The same model as :mod:`mitsuba_veg.foliage.prospect` (NumPy), from Féret, Gitelson, Noble &
+The one implementation of the model (:func:`mitsuba_veg.foliage.prospect.prospect_d` is its
+NumPy face), from Féret, Gitelson, Noble &
 Jacquemoud (2017), *PROSPECT-D: towards modeling leaf optical properties through a complete
-lifecycle*, Remote Sensing of Environment 193, 204-215, with the same coefficient table
-(:func:`mitsuba_veg.foliage.prospect.coefficients`), written with Dr.Jit arrays so that automatic
+lifecycle*, Remote Sensing of Environment 193, 204-215, with the coefficient table
+:func:`coefficients` (shipped in ``prosail``), written with Dr.Jit arrays so that automatic
 differentiation (forward and reverse mode) gives d(R, T)/d(N, Cab, Car, Anth, Cbrown, Cw, Cm).
 
 Equations (λ [nm] implicit everywhere):
@@ -32,7 +33,7 @@ Equations (λ [nm] implicit everywhere):
 
 3. Interfaces (Stern 1964; Allen 1973): t_av(α, n) is the mean transmissivity of a dielectric
    interface of refractive index n(λ) for isotropic light within a cone of half angle α. It
-   depends on n(λ) only, so it is computed once in NumPy (:func:`~.prospect.calctav`):
+   depends on n(λ) only, so it is computed once in NumPy (:func:`calctav`):
    t_α = t_av(40°, n), t12 = t_av(90°, n), t21 = t12 / n², r_x = 1 - t_x.
 
 4. Top plate and a generic plate (Allen et al. 1969):
@@ -63,19 +64,84 @@ the spectra are then flat arrays of m × n_wavelength values, leaf after leaf.
 """
 from __future__ import annotations
 
+import importlib.util
 from functools import lru_cache
+from pathlib import Path
 from typing import NamedTuple
 
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from mitsuba_veg.errors import ParameterError, check_range
+from ..errors import ParameterError, check_range
 
-from .prospect import WAVELENGTHS, calctav, coefficients
-
-__all__ = ["Float64", "PARAMETERS", "BOUNDS", "exp1", "plate_transmissivity", "prospect_d",
+__all__ = ["WAVELENGTHS", "coefficients", "calctav", "check_parameter", "Float64", "PARAMETERS",
+           "BOUNDS", "exp1", "plate_transmissivity", "prospect_d",
            "ProspectSpectra", "wavelength_indices"]
+
+#: wavelengths of the PROSPECT-D tables [nm]
+WAVELENGTHS = np.arange(400, 2501, dtype=np.float64)
+
+
+class ProspectCoefficients(NamedTuple):
+    wavelength: np.ndarray  # [nm]
+    nr: np.ndarray          # refractive index of the leaf material
+    kab: np.ndarray         # chlorophyll a+b [cm2 µg-1]
+    kcar: np.ndarray        # carotenoids [cm2 µg-1]
+    kant: np.ndarray        # anthocyanins [cm2 µg-1]
+    kbrown: np.ndarray      # brown pigments [arbitrary]
+    kw: np.ndarray          # water [cm-1]
+    km: np.ndarray          # dry matter [cm2 g-1]
+
+
+def _data_file() -> Path:
+    spec = importlib.util.find_spec("prosail")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError(
+            "PROSPECT-D needs the coefficient table shipped in the PyPI package 'prosail' "
+            "(Féret et al. 2017, dataSpec_PDB). Install it: pip install 'prosail>=2.0.5'")
+    for loc in spec.submodule_search_locations:
+        p = Path(loc) / "prospect_d_spectra.txt"
+        if p.exists():
+            return p
+    raise ImportError("the 'prosail' package has no prospect_d_spectra.txt; reinstall "
+                      "prosail>=2.0.5")
+
+
+@lru_cache(maxsize=1)
+def coefficients() -> ProspectCoefficients:
+    """The PROSPECT-D specific absorption coefficients and refractive index (Féret et al. 2017),
+    read from ``prosail``'s data file (columns: λ, n, k_ab, k_car, k_anth, k_brown, k_w, k_m)."""
+    data = np.loadtxt(_data_file(), comments="#")
+    if data.shape != (2101, 8) or not np.allclose(data[:, 0], WAVELENGTHS):
+        raise ImportError(f"unexpected PROSPECT-D table layout in {_data_file()}: {data.shape}")
+    return ProspectCoefficients(*(np.ascontiguousarray(c) for c in data.T))
+
+
+def calctav(alpha_deg: float, nr: np.ndarray) -> np.ndarray:
+    """Average transmissivity of a dielectric interface for isotropic light within a cone of
+    half angle ``alpha_deg`` (Stern 1964; Allen 1973), refractive index ``nr``."""
+    n2 = nr * nr
+    npx = n2 + 1.0
+    nm = n2 - 1.0
+    a = (nr + 1.0) ** 2 / 2.0
+    k = -(n2 - 1.0) ** 2 / 4.0
+    sa = np.sin(np.deg2rad(alpha_deg))
+    b1 = np.sqrt((sa * sa - npx / 2.0) ** 2 + k) if alpha_deg != 90.0 else 0.0
+    b2 = sa * sa - npx / 2.0
+    b = b1 - b2
+    ts = (k ** 2 / (6.0 * b ** 3) + k / b - b / 2.0) - (k ** 2 / (6.0 * a ** 3) + k / a - a / 2.0)
+    tp1 = -2.0 * n2 * (b - a) / npx ** 2
+    tp2 = -2.0 * n2 * npx * np.log(b / a) / nm ** 2
+    tp3 = n2 * (1.0 / b - 1.0 / a) / 2.0
+    tp4 = (16.0 * n2 ** 2 * (n2 ** 2 + 1.0) * np.log((2.0 * npx * b - nm ** 2)
+                                                       / (2.0 * npx * a - nm ** 2))
+           / (npx ** 3 * nm ** 2))
+    tp5 = 16.0 * n2 ** 3 * (1.0 / (2.0 * npx * b - nm ** 2) - 1.0 / (2.0 * npx * a - nm ** 2)) \
+        / npx ** 3
+    tp = tp1 + tp2 + tp3 + tp4 + tp5
+    return (ts + tp) / (2.0 * sa ** 2)
+
 
 #: the inputs of PROSPECT-D, in the order of :func:`prospect_d`
 PARAMETERS = ("N", "Cab", "Car", "Anth", "Cbrown", "Cw", "Cm")
@@ -222,7 +288,21 @@ class ProspectSpectra(NamedTuple):
                 np.asarray(self.transmittance, dtype=np.float64).reshape(shape))
 
 
-def _check_value(name, x):
+def check_parameter(name: str, x) -> int:
+    """Refuse a PROSPECT-D input outside :data:`BOUNDS` (or not finite).
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`PARAMETERS`.
+    x : float, array_like or Dr.Jit array
+        Its values (units as in :func:`prospect_d`).
+
+    Returns
+    -------
+    int
+        The number of values (leaves).
+    """
     lo, hi, fix = BOUNDS[name]
     v = np.asarray(dr.detach(x) if dr.is_array_v(x) else x, dtype=np.float64).ravel()
     bad = ~np.isfinite(v) | (v < lo) | (v > hi)
@@ -242,11 +322,11 @@ def prospect_d(N=1.5, Cab=40.0, Car=5.0, Anth=0.0, Cbrown=0.0, Cw=0.012, Cm=0.00
     ``wavelengths``: ``None`` (400-2500 nm), ``(lo, hi)`` [nm] or whole nanometres; only those
     are computed (``(400, 830)`` for colours). ``check``: validate the ranges (reads the values
     back; switch off inside tight loops that keep values in range themselves).
-    Agrees with the NumPy :func:`~mitsuba_veg.foliage.prospect.prospect_d` to ~1e-12.
+    Agrees with ``prosail``'s PROSPECT-D to < 1e-10 (``tests/test_leaf_spectra.py``).
     """
     check_range("alpha", alpha, 0.0, 90.0, lo_open=True)
     vals = dict(zip(PARAMETERS, (N, Cab, Car, Anth, Cbrown, Cw, Cm)))
-    sizes = {name: (_check_value(name, v) if check else dr.width(v) if dr.is_array_v(v)
+    sizes = {name: (check_parameter(name, v) if check else dr.width(v) if dr.is_array_v(v)
                     else np.size(v)) for name, v in vals.items()}
     m = max(sizes.values())
     bad = [n for n, s in sizes.items() if s not in (1, m)]

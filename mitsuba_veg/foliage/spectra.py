@@ -11,6 +11,7 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+from .colour_dr import colour_weights, xyz_to_srgb_np
 from .pigments import LeafTraits, pigments_at_stage, stage_from_tau
 from .prospect import prospect_d
 
@@ -100,33 +101,28 @@ def mitsuba_spectrum(wavelength, values, lo: float = MITSUBA_MIN_NM) -> dict:
 
 
 # --------------------------------------------------------------------------------------------
-# Colour (for pictures): reflectance under D65 -> sRGB
+# Colour (for pictures): reflectance under D65 -> XYZ -> sRGB, the pipeline of colour_dr.py
 # --------------------------------------------------------------------------------------------
-_CMF_CACHE: dict = {}
-
-
-def _cmfs(wl: np.ndarray):
-    key = (float(wl[0]), float(wl[-1]), len(wl))
-    if key not in _CMF_CACHE:
-        import colour
-        cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
-        d65 = colour.SDS_ILLUMINANTS["D65"]
-        xyz = np.stack([np.interp(wl, cmfs.wavelengths, cmfs.values[:, i], left=0, right=0)
-                        for i in range(3)], 1)
-        s = np.interp(wl, d65.wavelengths, d65.values, left=0, right=0)
-        w = xyz * s[:, None]
-        w /= w[:, 1].sum()
-        _CMF_CACHE[key] = w
-    return _CMF_CACHE[key]
+_cmfs = colour_weights   # (wavelengths) -> (n_wl, 3) XYZ weights under D65, Y of white = 1
 
 
 def spectrum_to_srgb(wavelength, spectra, exposure: float = 1.0) -> np.ndarray:
-    """sRGB (gamma-encoded, 0-1) of reflectance/transmittance spectra (..., n_wl) lit by D65,
-    times ``exposure`` before encoding (leaves reflect only 5-15 % in the visible)."""
-    wl = np.asarray(wavelength, float)
-    w = _cmfs(wl)
-    XYZ = np.asarray(spectra, float) @ w * exposure
-    M = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560],
-                  [0.0556434, -0.2040259, 1.0572252]])
-    rgb = np.clip(XYZ @ M.T, 0.0, 1.0)
-    return np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+    """Encoded sRGB of reflectance or transmittance spectra lit by D65.
+
+    Parameters
+    ----------
+    wavelength : array_like
+        (n_wl,) wavelengths [nm].
+    spectra : array_like
+        (..., n_wl) reflectance or transmittance [-].
+    exposure : float
+        Factor on XYZ before encoding (leaves reflect only 5-15 % in the visible).
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) gamma-encoded sRGB in [0, 1] (clipped), as
+        :func:`mitsuba_veg.foliage.colour_dr.spectrum_to_srgb` in Dr.Jit.
+    """
+    w = colour_weights(np.asarray(wavelength, float))
+    return xyz_to_srgb_np(np.asarray(spectra, float) @ w * exposure)

@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ParameterError, check_range
+from .sun_position import sun_direction, sun_position
 
 __all__ = [
     "Atmosphere", "DEFAULT_ATMOSPHERE", "DaylightSpectra", "clear_sky_spectra",
@@ -304,8 +305,6 @@ def perez_sky_parameters(dni: float, dhi: float, elevation_deg: float,
 
 def _sun_vector(azimuth_deg, elevation_deg):
     """Unit vector towards the sun in the project frame (+x east, +y up, +z south)."""
-    from .sun_position import sun_direction
-
     v = np.asarray(sun_direction(azimuth_deg, elevation_deg), dtype=float).reshape(3)
     return v / np.linalg.norm(v)
 
@@ -406,8 +405,6 @@ def daylight(latitude: float, longitude: float, when, *, sun: bool = True, sky: 
     (``when`` as it accepts, e.g. a timezone-aware ``datetime``); the day of year from ``when``.
     Keyword arguments are those of :func:`daylight_from_angles`. Returns ``{}`` at night.
     """
-    from .sun_position import sun_position
-
     check_range("latitude", latitude, -90.0, 90.0, fix="give the latitude in degrees north")
     check_range("longitude", longitude, -180.0, 180.0, fix="give the longitude in degrees east")
     doy = _day_of_year(when)

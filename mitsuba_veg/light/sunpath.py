@@ -5,7 +5,8 @@ throughout §3.5). The sun moves: the daily-mean beam on a triangle is the time 
 E_n(t) max(0, n·s(t)) V(t) (normal irradiance, incidence, visibility). ``veg_sun_path`` holds the
 sun directions s_k of one day (every few minutes while the sun is up) with weights
 w_k = E_n,k Δt / 86400, and samples one of them per photon with probability ∝ w_k: a photon pass
-with it gives the daily-mean beam irradiance of every triangle at once. The weights are
+with it gives the daily-mean beam irradiance of every triangle at once. The sun positions come
+from :func:`sun_path`, the sampler of the hourly sun paths of paper 003 as well. The weights are
 normalised so that an unobstructed horizontal plane receives a daily-mean beam of exactly
 1 W m-2 nm-1: a triangle's result divided by the band width is its *sun fraction* f_sun.
 
@@ -15,17 +16,152 @@ scene (the photon pass reads them on each call).
 from __future__ import annotations
 
 import datetime as _dt
+from dataclasses import dataclass, field
 
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..errors import ParameterError, check_range
+from .daylight import DEFAULT_ATMOSPHERE
 from .sun_position import sun_direction, sun_position
 
 
+@dataclass
+class SunPath:
+    """The sun at regular steps (daytime only): times, angles, direction, irradiances."""
+
+    times: np.ndarray        # datetime64[s] UTC, mid-step
+    day: np.ndarray          # (h,) int: day index from the start (local dates)
+    azimuth: np.ndarray      # [deg] clockwise from north
+    elevation: np.ndarray    # [deg]
+    direction: np.ndarray    # (h, 3) unit vector towards the sun (+x east, +y up, +z south)
+    dni: np.ndarray          # (h,) direct normal irradiance [W m-2]
+    dhi: np.ndarray          # (h,) diffuse horizontal irradiance [W m-2]
+    step_hours: float
+    days: int
+    settings: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.dni)
+
+
+def clear_sky_broadband(elevation_deg, day_of_year, atmosphere=None):
+    """Broadband (300-4000 nm) clear-sky DNI and DHI for arrays of sun elevations: SPCTRAL2
+    (Bird & Riordan 1986) with the package's default atmosphere, a vectorised call of pvlib's
+    spectrl2 (the clear-sky model of every sun path in the package).
+
+    Parameters
+    ----------
+    elevation_deg : array_like
+        Sun elevations [deg]; at or below 0.5° both irradiances are 0.
+    day_of_year : int or array_like
+        Day of the year (Earth-Sun distance), broadcast against the elevations.
+    atmosphere : daylight.Atmosphere, optional
+        Default :data:`mitsuba_veg.light.daylight.DEFAULT_ATMOSPHERE`.
+
+    Returns
+    -------
+    dni, dhi : numpy.ndarray
+        Direct normal and diffuse horizontal irradiance [W m-2].
+    """
+    from pvlib.atmosphere import get_relative_airmass
+    from pvlib.spectrum import spectrl2
+
+    atm = atmosphere or DEFAULT_ATMOSPHERE
+    el = np.atleast_1d(np.asarray(elevation_deg, float))
+    doy = np.broadcast_to(np.asarray(day_of_year, int), el.shape)
+    dni = np.zeros(el.shape)
+    dhi = np.zeros(el.shape)
+    up = el > 0.5
+    if up.any():
+        z = 90.0 - el[up]
+        am = get_relative_airmass(z, model="kastenyoung1989")
+        res = spectrl2(apparent_zenith=z, aoi=z, surface_tilt=np.zeros_like(z),
+                       ground_albedo=atm.ground_albedo, surface_pressure=atm.pressure,
+                       relative_airmass=am, precipitable_water=atm.precipitable_water,
+                       ozone=atm.ozone, aerosol_turbidity_500nm=atm.aerosol_turbidity,
+                       dayofyear=np.asarray(doy[up], float),
+                       scattering_albedo_400nm=atm.aerosol_single_scattering_albedo,
+                       alpha=atm.angstrom_alpha, aerosol_asymmetry_factor=atm.aerosol_asymmetry)
+        wl = np.asarray(res["wavelength"], float)
+        dni[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dni"])), 0, None), wl, axis=0)
+        dhi[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dhi"])), 0, None), wl, axis=0)
+    return dni, dhi
+
+
+def _start_date(start) -> _dt.date:
+    if isinstance(start, _dt.datetime):
+        return start.date()
+    if isinstance(start, _dt.date):
+        return start
+    try:
+        return _dt.date.fromisoformat(str(start)[:10])
+    except ValueError:
+        raise ParameterError("start", start, "a date 'YYYY-MM-DD'", "e.g. start='2026-10-01'") \
+            from None
+
+
+def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 60,
+             step_hours: float = 1.0, utc_offset_hours: float | None = None,
+             intensity="clear_sky", min_elevation: float = 0.0) -> SunPath:
+    """The sun every ``step_hours`` from local midnight of ``start`` for ``days`` days.
+
+    utc_offset_hours: local standard time offset (default: round(longitude / 15)).
+    intensity: "clear_sky" (SPCTRAL2 broadband DNI/DHI) or a number: constant beam I [W m-2]
+    (the paper's I), with DHI 0. Steps with the sun at or below ``min_elevation`` are dropped.
+    """
+    check_range("latitude", latitude, -90.0, 90.0)
+    check_range("longitude", longitude, -180.0, 180.0)
+    check_range("days", days, 1, 3660)
+    check_range("step_hours", step_hours, 1 / 60, 24.0)
+    if abs(24.0 / step_hours - round(24.0 / step_hours)) > 1e-9:
+        raise ParameterError("step_hours", step_hours, "a divisor of 24 h", "e.g. 1, 0.5, 2")
+    d0 = _start_date(start)
+    off = round(longitude / 15.0) if utc_offset_hours is None else float(utc_offset_hours)
+    per_day = int(round(24.0 / step_hours))
+    n = int(days) * per_day
+    mid_s = ((np.arange(n) + 0.5) * step_hours * 3600.0 - off * 3600.0).round().astype(np.int64)
+    t0 = np.datetime64(d0.isoformat(), "s")
+    times = t0 + mid_s.astype("timedelta64[s]")
+    day = np.arange(n) // per_day
+    az, el = sun_position(latitude, longitude, times)
+    az, el = np.asarray(az, float), np.asarray(el, float)
+    keep = el > min_elevation
+    doy = np.array([(d0 + _dt.timedelta(days=int(k))).timetuple().tm_yday for k in range(days)])
+    if isinstance(intensity, str):
+        if intensity != "clear_sky":
+            raise ParameterError("intensity", intensity, "'clear_sky' or a number [W m-2]")
+        dni, dhi = clear_sky_broadband(el[keep], doy[day[keep]])
+    else:
+        check_range("intensity", intensity, 0.0, 2000.0)
+        dni = np.full(int(keep.sum()), float(intensity))
+        dhi = np.zeros(int(keep.sum()))
+    return SunPath(times[keep], day[keep], az[keep], el[keep],
+                   np.asarray(sun_direction(az[keep], el[keep]), float).reshape(-1, 3),
+                   dni, dhi, float(step_hours), int(days),
+                   dict(latitude=latitude, longitude=longitude, start=d0.isoformat(),
+                        utc_offset_hours=off, intensity=intensity))
+
+
 def relative_dni(elevation_deg):
-    """Clear-sky direct-normal irradiance relative to the top of the atmosphere (Meinel & Meinel
-    1976: 0.7^(AM^0.678), air mass of Kasten & Young 1989) [-]; 0 below the horizon."""
+    """Clear-sky direct-normal irradiance relative to the top of the atmosphere.
+
+    Meinel & Meinel (1976): 0.7^(AM^0.678), with the air mass AM of Kasten & Young (1989). The
+    daily sun path of the moss loop weights its directions with it; SPCTRAL2
+    (:func:`clear_sky_broadband`) would change the tested moss and world results (see
+    docs/architecture.md).
+
+    Parameters
+    ----------
+    elevation_deg : array_like
+        Sun elevations [deg].
+
+    Returns
+    -------
+    numpy.ndarray
+        DNI / extraterrestrial DNI [-]; 0 below the horizon.
+    """
     el = np.asarray(elevation_deg, float)
     z = np.radians(90.0 - el)
     am = 1.0 / (np.cos(z) + 0.50572 * np.maximum(96.07995 - np.degrees(z), 1e-3) ** -1.6364)
@@ -33,27 +169,40 @@ def relative_dni(elevation_deg):
 
 
 def day_sun_path(latitude, longitude, date, step_minutes: float = 10.0):
-    """Sun directions (towards the sun, scene frame) and weights w_k [-] of one day.
+    """Sun directions and weights of one day, for the ``veg_sun_path`` emitter.
 
-    ``date``: a ``datetime.date`` (the day in UTC; the whole 24 h are covered, so the time zone
-    does not matter for daily means). Weights: relative DNI × Δt / 86400, normalised so that
-    sum_k w_k sin(el_k) = 1 (unit daily-mean beam on the horizontal). Returns (dirs (K, 3),
-    weights (K,), elevations (K,)); empty arrays when the sun stays below the horizon.
+    The sun every ``step_minutes`` over the whole UTC day (:func:`sun_path`; the whole 24 h are
+    covered, so the time zone does not matter for daily means), weighted by its relative
+    clear-sky DNI (:func:`relative_dni`) × Δt / 86400 and normalised so that
+    Σ_k w_k sin(el_k) = 1 (a unit daily-mean beam on the horizontal).
+
+    Parameters
+    ----------
+    latitude, longitude : float
+        The site [deg].
+    date : datetime.date
+        The day (UTC).
+    step_minutes : float
+        Time step [min] (a divisor of 24 h).
+
+    Returns
+    -------
+    dirs : numpy.ndarray
+        (K, 3) unit vectors towards the sun (scene frame).
+    weights : numpy.ndarray
+        (K,) weights w_k [-].
+    elevations : numpy.ndarray
+        (K,) sun elevations [deg]. All three are empty when the sun stays below the horizon.
     """
     if isinstance(date, _dt.datetime):
         date = date.date()
-    start = np.datetime64(date.isoformat() + "T00:00:00")
-    n = int(round(24 * 60 / step_minutes))
-    # sun at the middle of each step; longitude shifts local noon but all 24 h are covered
-    times = start + (np.arange(n) * step_minutes + 0.5 * step_minutes).astype("timedelta64[m]")
-    az, el = sun_position(latitude, longitude, times.astype("datetime64[s]"))
-    az, el = np.asarray(az, float), np.asarray(el, float)
-    up = el > 0.0
-    if not up.any():
+    p = sun_path(latitude, longitude, start=date, days=1, step_hours=step_minutes / 60.0,
+                 utc_offset_hours=0.0, intensity=1.0)
+    if len(p) == 0:
         return np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-    w = relative_dni(el[up]) * (step_minutes * 60.0 / 86400.0)
-    w = w / np.sum(w * np.sin(np.radians(el[up])))
-    return sun_direction(az[up], el[up]), w, el[up]
+    w = relative_dni(p.elevation) * (step_minutes * 60.0 / 86400.0)
+    w = w / np.sum(w * np.sin(np.radians(p.elevation)))
+    return p.direction, w, p.elevation
 
 
 class VegSunPath(mi.Emitter):

@@ -169,10 +169,6 @@ class MossPopulation:
     def moss(self) -> mi.Bool:
         return self.state == MOSS
 
-    @property
-    def propagule(self) -> mi.Bool:
-        return self.state == PROPAGULE
-
     def count(self, state=MOSS) -> int:
         return int(dr.count(self.state == state)[0]) if dr.width(self.state) else 0
 

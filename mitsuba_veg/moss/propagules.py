@@ -21,7 +21,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .population import FREE, MossPopulation
+from .population import MossPopulation
 
 
 def uniform_sphere(u: mi.Point2f) -> mi.Vector3f:

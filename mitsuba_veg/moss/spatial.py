@@ -471,9 +471,3 @@ def max_per_element(areas: np.ndarray, cell: float) -> np.ndarray:
     """M of eq 3.5: the most moss of footprint cell² that fit on each triangle (>= 1)."""
     return np.maximum(np.asarray(areas, float) / (cell * cell), 1.0)
 
-
-def suggested_cell(moss_size: float) -> float:
-    """A cell as wide as one moss [m]."""
-    if not (moss_size > 0 and math.isfinite(moss_size)):
-        raise ValueError("moss size must be a positive length in metres")
-    return float(moss_size)

@@ -13,28 +13,15 @@ See docs/render.md.
 """
 from __future__ import annotations
 
-import mitsuba_veg as _mv  # noqa: F401  (selects the spectral variant, registers veg_sky)
-
 from . import materials  # noqa: F401
 from .film import BANDS, develop, read_exr, rfr_false_colour, to_srgb8, write_exr  # noqa: F401
 from .history import Frame, Run, SnapshotWriter, load_run, write_snapshot  # noqa: F401
 from .moss import MossSet, live_moss, place_tufts  # noqa: F401
 from .scene import RenderOptions, RenderScene, Terrain, build_scene, make_mesh  # noqa: F401
-from .still import render, write_outputs  # noqa: F401
+from .still import render, run_render, write_outputs  # noqa: F401
+from .animation import run_animate  # noqa: F401
 from .trees import make_tree, scenario_trees, simple_tree  # noqa: F401
 from .tufts import tuft_models  # noqa: F401
-
-
-def run_render(*args, **kwargs):
-    """See :func:`mitsuba_veg.render.cli.run_render`."""
-    from .cli import run_render as _f
-    return _f(*args, **kwargs)
-
-
-def run_animate(*args, **kwargs):
-    """See :func:`mitsuba_veg.render.cli.run_animate`."""
-    from .cli import run_animate as _f
-    return _f(*args, **kwargs)
 
 
 __all__ = ["BANDS", "develop", "read_exr", "rfr_false_colour", "to_srgb8", "write_exr", "Frame",

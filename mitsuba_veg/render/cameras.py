@@ -21,6 +21,7 @@ Built-in presets, computed from the scene (the ground's bounding box when there 
 """
 from __future__ import annotations
 
+import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
@@ -97,8 +98,6 @@ def presets(scn, terrain) -> dict:
 
 
 def sensor_dict(scn, terrain, options, film: dict) -> dict:
-    import mitsuba as mi
-
     cams = presets(scn, terrain)
     if options.camera not in cams:
         raise ParameterError("camera", options.camera, "one of " + ", ".join(cams),

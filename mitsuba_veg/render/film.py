@@ -21,12 +21,13 @@ colour-science) and :func:`rfr_false_colour` (the ratio on a log colour scale wi
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_write
 from ..errors import ParameterError
+from ..plots import _mpl
 
 #: extra spectral bands of every render: name -> (lo, hi) [nm]
 BANDS = {"red": (655.0, 665.0), "far_red": (725.0, 735.0)}
@@ -115,10 +116,8 @@ def write_exr(path, images: dict, meta: dict | None = None) -> Path:
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for k, v in (meta or {}).items():
         header[str(k)] = str(v)
-    tmp = path.with_name("." + path.stem + ".tmp.exr")
-    with OpenEXR.File(header, ch) as f:
+    with atomic_write(path) as tmp, OpenEXR.File(header, ch) as f:
         f.write(str(tmp))
-    os.replace(tmp, path)
     return path
 
 
@@ -164,9 +163,8 @@ def to_srgb8(rgb, exposure: float | None = None) -> tuple[np.ndarray, float]:
 def write_png(path, img8) -> Path:
     from PIL import Image
     path = Path(path)
-    tmp = path.with_name("." + path.stem + ".tmp.png")
-    Image.fromarray(np.asarray(img8, np.uint8)).save(tmp, optimize=True)
-    os.replace(tmp, path)
+    with atomic_write(path) as tmp:
+        Image.fromarray(np.asarray(img8, np.uint8)).save(tmp, optimize=True)
     return path
 
 
@@ -177,7 +175,6 @@ def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None 
     yellow-orange. ``luminance`` (optional) shades the colours so that shapes stay readable."""
     from matplotlib.colors import LogNorm
 
-    from ..plots import _mpl
     plt = _mpl()
 
     r = np.asarray(r_fr, np.float64)

@@ -16,14 +16,18 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import logging
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
+from ..daily.run import run
 from ..errors import ParameterError
 from ..outputs import SNAPSHOT_DIR, SnapshotWriter, write_snapshot  # noqa: F401 (re-exported)
+from ..scenario import Scenario, load_scenario
 from .moss import MossSet, live_moss
 
 
@@ -128,8 +132,6 @@ class Run:
 
 
 def _resolve_scenario(summary: dict, checkpoint, run_dir: Path):
-    from ..scenario import Scenario, load_scenario
-
     raw = summary.get("scenario")
     cands, shipped = [], []
     if raw:
@@ -142,7 +144,6 @@ def _resolve_scenario(summary: dict, checkpoint, run_dir: Path):
     if path is None:
         path = next((c for c in shipped if c.exists()), None)
         if path is not None:
-            import logging
             logging.getLogger("mitsuba_veg").warning(
                 "the run's scenario %s is gone; using the shipped %s instead (pass --scenario "
                 "to choose)", raw, path)
@@ -164,8 +165,6 @@ def _resolve_scenario(summary: dict, checkpoint, run_dir: Path):
 def load_run(run_dir, scenario=None) -> Run:
     """Read a run directory (see module docstring). ``scenario``: a scenario path or
     :class:`~mitsuba_veg.scenario.Scenario` to use instead of the one the run names."""
-    from ..scenario import Scenario, load_scenario
-
     d = Path(run_dir)
     sp = d / "summary.json"
     cp = d / "checkpoint.npz"
@@ -197,7 +196,6 @@ def load_run(run_dir, scenario=None) -> Run:
         scn = _resolve_scenario(summary, ck, d)
     else:
         scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    from ..simulation import MOSS_DEFAULTS, SIM_DEFAULTS
     moss_cfg = {**MOSS_DEFAULTS, **(scn.get("moss", {}) or {}),
                 **(summary.get("settings", {}).get("moss", {}) or {})}
     sim = {**SIM_DEFAULTS, **(scn.get("simulation", {}) or {})}
@@ -220,8 +218,7 @@ def load_run(run_dir, scenario=None) -> Run:
 
 def run_with_snapshots(scenario, out, days: int | None = None, overrides=(),
                        resume: bool = True, progress: bool = True, every: int | None = None):
-    """:func:`mitsuba_veg.simulation.run` with moss snapshots every ``every`` days (default:
+    """:func:`mitsuba_veg.daily.run.run` with moss snapshots every ``every`` days (default:
     the scenario's ``frame_every``) for exact animations. Returns the run's summary dict."""
-    from ..simulation import run
     return run(scenario, out, days=days, overrides=overrides, resume=resume,
                progress=progress, snapshot_every=every)

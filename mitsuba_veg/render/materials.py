@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
+from ..foliage import leaf_bsdf_dict, leaf_spectra
 
 #: wavelength grid of every material spectrum [nm]
 WAVELENGTHS = np.arange(360.0, 830.0 + 1e-9, 5.0)
@@ -151,7 +152,6 @@ def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
 def leaf_bsdf(tau: float = 0.0) -> dict:
     """BSDF dict of a leaf at autumn logical time ``tau`` (0 green .. 1 red, paper 003):
     PROSPECT-D reflectance and transmittance in the two-sided ``veg_leaf`` BSDF."""
-    from ..foliage import leaf_bsdf_dict, leaf_spectra
     return leaf_bsdf_dict(leaf_spectra(tau=float(np.clip(tau, 0.0, 1.0))))
 
 

@@ -33,11 +33,17 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..errors import ParameterError, SceneError
-from ..meshes import make_mesh  # noqa: F401 (re-exported)
+from ..errors import ParameterError, SceneError, check_range
+from ..light.daylight import daylight
+from ..light.sky import attach_scene
+from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
+from ..terrain import classify_geology, load_texture_rgb
 from . import materials as mat
+from .cameras import sensor_dict
+from .film import film_dict
 from .moss import MossSet, growth_scale, place_tufts
 from .noise import pink_noise_image
+from .trees import leaf_bin_arrays, tree_shapes
 
 __all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_time",
            "Terrain"]
@@ -74,7 +80,6 @@ class RenderOptions:
         return n
 
     def validate(self) -> "RenderOptions":
-        from ..errors import check_range
         check_range("width", self.width, 8, 16384, fix="image width in pixels")
         check_range("height", self.height, 8, 16384, fix="image height in pixels")
         check_range("spp", self.spp, 1, 1 << 20, fix="samples per pixel, e.g. 64")
@@ -108,7 +113,6 @@ class RenderScene:
         """Replace the moss (and, when given, the trees' leaves) of the scene; returns the new
         counts. The scene must have been built with ``species`` (and with trees when ``trees``
         is given)."""
-        from .trees import leaf_bin_arrays
         params = mi.traverse(self.scene)
         keys = set(params.keys())
         info = {}
@@ -191,14 +195,12 @@ class Terrain:
         uv_scale = 1.0
         if ground is not None and meshes[ground][2] is not None:
             v, f, uv, _ = meshes[ground]
-            a3 = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
-                                      axis=1).sum()
+            a3 = triangle_geometry(v, f)[0].sum()
             t = uv[f].astype(np.float64)
             a2 = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) -
                               (t[:, 2, 0] - t[:, 0, 0]) * (t[:, 1, 1] - t[:, 0, 1])).sum()
             uv_scale = math.sqrt(a3 / a2) if a2 > 0 else 1.0
             if scn.get("terrain.geology_texture"):
-                from ..terrain import classify_geology, load_texture_rgb
                 img = load_texture_rgb(scn.file("terrain.geology_texture"))
                 codes = classify_geology(img)
                 masks = [(codes == k).astype(np.float32) for k in range(3)]
@@ -393,7 +395,6 @@ def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
 
 
 def sky_emitters(scn, when: str) -> dict:
-    from ..light.daylight import daylight
     em = daylight(float(scn.get("site.latitude")), float(scn.get("site.longitude")), when,
                   wavelength_range=(360.0, 830.0))
     if not em:
@@ -414,10 +415,6 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     dicts to use instead of the daylight of ``date`` (an animation keeps one light so that every
     frame reuses the same compiled kernel); ``species``: species keys that always get a moss
     mesh (an empty one when no moss of theirs lives), for the same reason."""
-    from .cameras import sensor_dict
-    from .film import film_dict
-    from .trees import tree_shapes
-
     options = (options or RenderOptions()).validate()
     t0 = time.perf_counter()
     terrain = terrain or Terrain.from_scenario(scn)
@@ -448,7 +445,6 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     d.update(em)
     d["camera"] = sensor_dict(scn, terrain, options, film_dict(options))
     scene = mi.load_dict(d, optimize=False)
-    from ..light.sky import attach_scene
     attach_scene(scene)
     sensor = [s for s in scene.sensors() if s.id() == "camera"][0]
     t4 = time.perf_counter()

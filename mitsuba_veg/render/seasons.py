@@ -15,7 +15,7 @@ simple phenology driven by the calendar and by light (documented in docs/render.
 - **leaf fall**: a leaf falls when its raw tau passes a per-leaf threshold (log-normal around
   1.25, as :class:`mitsuba_veg.foliage.AutumnParams` with ``fall=True``).
 
-:func:`tree_season` writes ``leaf_scale``, ``autumn_tau`` and ``fallen`` into
+:meth:`TreeSeasons.apply` writes ``leaf_scale``, ``autumn_tau`` and ``fallen`` into
 ``tree.leaves.attrs`` for one date; the renderer reads them.
 """
 from __future__ import annotations
@@ -24,6 +24,8 @@ import datetime as _dt
 import math
 
 import numpy as np
+
+from ..foliage import AutumnParams, autumn_time
 
 LEAF_OUT_DOY = 95
 LEAF_OUT_DAYS = 30
@@ -74,7 +76,6 @@ class TreeSeasons:
         # onset: the first day of the range on or after the onset day of year
         after = np.nonzero(self.doy >= onset)[0]
         onset_idx = int(after[0]) if len(after) else self.days
-        from ..foliage import AutumnParams, autumn_time
         if onset_idx < self.days:
             self.state = autumn_time(daily, AutumnParams(onset_day=onset_idx, fall=True),
                                      seed=seed)
@@ -98,10 +99,3 @@ class TreeSeasons:
         raw = self.tau_raw[:, i]
         lv.attrs["autumn_tau"] = np.clip(raw, 0.0, 1.0)
         lv.attrs["fallen"] = raw >= self.fall_thr
-
-
-def tree_season(tree, latitude: float, date: _dt.date, start: _dt.date | None = None,
-                seed: int = 0) -> None:
-    """Set one tree's leaves for ``date`` (phenology from ``start``, default 1 Jan)."""
-    start = start or _dt.date(date.year, 1, 1)
-    TreeSeasons(tree, latitude, start, (date - start).days + 1, seed).apply(date)

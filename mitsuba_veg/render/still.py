@@ -1,21 +1,45 @@
 """Render an assembled scene and write the still outputs (EXR, PNG, red:far-red view)."""
 from __future__ import annotations
 
+import gc
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import mitsuba as mi
 import numpy as np
+from tqdm.auto import tqdm
 
+from ..errors import check_range
+from ..outputs import OutputFolder, write_json
+from ..variant import versions
 from . import film as _film
+from .history import load_run
+from .scene import RenderOptions, Terrain, build_scene
+from .world import trees_for_run
 
 
 def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
-    """Render a :class:`~mitsuba_veg.render.scene.RenderScene`; returns :func:`film.develop`'s
-    images plus ``seconds``."""
+    """Render an assembled scene.
+
+    Parameters
+    ----------
+    rs : RenderScene
+        From :func:`mitsuba_veg.render.scene.build_scene`.
+    spp : int, optional
+        Samples per pixel (default: the scene's options).
+    seed : int, optional
+        Sampler seed (default: the scene's options).
+
+    Returns
+    -------
+    dict
+        :func:`mitsuba_veg.render.film.develop`'s images (``rgb`` linear sRGB, ``XYZ``, ``bands``
+        band-mean spectral radiance [W m-2 sr-1 nm-1], ``r_fr`` photon ratio) and ``seconds``
+        [s].
+    """
     t0 = time.perf_counter()
     if spp is not None:
-        from dataclasses import replace
         spp = replace(rs.options, spp=int(spp)).samples
     img = mi.render(rs.scene, sensor=rs.sensor, spp=int(spp or rs.options.samples),
                     seed=int(rs.options.seed if seed is None else seed))
@@ -27,8 +51,28 @@ def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
 
 def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None = None,
                   exposure: float | None = None, title: str | None = None) -> dict:
-    """Write ``<stem>.exr``, ``<stem>.png`` and ``<stem>_rfr.png``; returns their paths and the
-    exposure used."""
+    """Write ``<stem>.exr``, ``<stem>.png`` and ``<stem>_rfr.png`` (each atomically).
+
+    Parameters
+    ----------
+    images : dict
+        From :func:`render`.
+    out_dir : path-like
+        The folder (created).
+    stem : str
+        File name stem.
+    meta : dict, optional
+        String attributes of the EXR header (units, time, camera ...).
+    exposure : float, optional
+        Exposure of the PNG (default: automatic, log-average luminance to 0.18).
+    title : str, optional
+        Title of the red:far-red picture.
+
+    Returns
+    -------
+    dict
+        ``files`` (paths by kind) and ``exposure`` used.
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     exr = _film.write_exr(out_dir / f"{stem}.exr", images, meta)
@@ -39,3 +83,135 @@ def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None
         fc = _film.rfr_false_colour(images["r_fr"], luminance=images["XYZ"][..., 1], title=title)
         files["rfr_png"] = str(_film.write_png(out_dir / f"{stem}_rfr.png", fc))
     return {"files": files, "exposure": exp}
+
+
+RENDER_DEFAULTS = {"width": 800, "height": 450, "spp": 24, "cameras": ("overview", "shelter")}
+
+
+def _cameras(camera) -> list[str]:
+    if camera is None:
+        return list(RENDER_DEFAULTS["cameras"])
+    if isinstance(camera, str):
+        return [c.strip() for c in camera.split(",") if c.strip()]
+    return list(camera)
+
+
+def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
+               day=None, when=None, hour=None, max_depth=None, trees=None, scenario=None,
+               seed=0, progress=True) -> dict:
+    """Render one day of a run from one or more camera presets.
+
+    Writes, per camera, ``render_<camera>.exr`` (RGB + red/far-red bands + R:FR),
+    ``render_<camera>.png`` (sRGB) and ``render_<camera>_rfr.png`` (red:far-red false colour),
+    and ``render.json`` (settings, counts, timings, files).
+
+    Parameters
+    ----------
+    run_dir, out : path-like
+        The run folder and the output folder (default ``RUN_DIR/render``).
+    camera : str or list of str, optional
+        Preset name(s), comma-separated or a list (default overview and shelter).
+    width, height : int, optional
+        Image size [pixels] (default 800 x 450).
+    spp : int, optional
+        Samples per pixel (default 24).
+    day : int, optional
+        The simulated day to show (default: the last).
+    when : str, optional
+        ISO date-time of the light (default: that day at ``hour``).
+    hour : float, optional
+        Local hour of the light [h] (default 10).
+    max_depth : int, optional
+        Path length of the render (default 8).
+    trees : list of Tree, optional
+        Trees instead of the scenario's ``[[render.trees]]``.
+    scenario : path-like, optional
+        The run's scenario file (default: the one its summary names).
+
+    Returns
+    -------
+    dict
+        The summary written to ``render.json``.
+    """
+    t0 = time.perf_counter()
+    check_image(width, height, spp, max_depth)
+    run = load_run(run_dir, scenario)
+    out = Path(out) if out is not None else Path(run_dir) / "render"
+    last = run.final_day
+    day = last if day is None else int(day)
+    check_range("day", day, 1, max(last, 1), fix=f"a simulated day of the run (1-{last})")
+    frame = run.frame(day)
+    folder = OutputFolder(out, "render", info={"run": str(run.dir)})
+    opts = dict(width=width or RENDER_DEFAULTS["width"],
+                height=height or RENDER_DEFAULTS["height"], spp=spp or RENDER_DEFAULTS["spp"],
+                when=when, seed=int(seed))
+    if hour is not None:
+        opts["hour"] = float(hour)
+    if max_depth is not None:
+        opts["max_depth"] = int(max_depth)
+    tree_list, seasons = trees_for_run(run, trees)
+    for s in seasons:
+        s.apply(frame.date)
+    terrain = Terrain.from_scenario(run.scenario)
+    cams = _cameras(camera)
+    results = {}
+    files = {}
+    bar = None
+    if progress:
+        bar = tqdm(total=len(cams), unit="image", desc="render")
+    tree_cache = {}
+    try:
+        _render_cameras(cams, opts, run, frame, tree_list, terrain, tree_cache, out, day, bar,
+                        results, files)
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = {"command": "render", "run": str(run.dir), "day": day,
+               "date": frame.date.isoformat(), "moss_exact": frame.exact,
+               "moss": len(frame.moss), "trees": len(tree_list),
+               "settings": {**opts, "cameras": cams, "max_depth": RenderOptions().max_depth
+                            if max_depth is None else max_depth},
+               "cameras": results, "files": files,
+               "seconds": time.perf_counter() - t0, "versions": versions()}
+    write_json(out / "render.json", summary)
+    folder.release()
+    return summary
+
+
+def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps=None):
+    """Refuse image settings out of range (``None`` = the default): width and height [pixels]
+    16-16384, spp 1-65536, max_depth 1-1000, frames 2-10000, every 1-100000 [d], fps 1-120.
+    """
+    for name, v, lo, hi in (("--width", width, 16, 16384), ("--height", height, 16, 16384),
+                            ("--spp", spp, 1, 65536), ("--max-depth", max_depth, 1, 1000),
+                            ("--frames", frames, 2, 10000), ("--every", every, 1, 100_000),
+                            ("--fps", fps, 1, 120)):
+        if v is not None:
+            check_range(name, v, lo, hi)
+
+
+def _render_cameras(cams, opts, run, frame, tree_list, terrain, tree_cache, out, day, bar,
+                    results, files):
+    for cam in cams:
+        o = RenderOptions(camera=cam, **opts)
+        rs = build_scene(run.scenario, frame.moss, moss_size=run.moss_size, trees=tree_list,
+                         date=frame.date, options=o, terrain=terrain, tree_cache=tree_cache)
+        images = render(rs)
+        meta = {"mitsuba_veg": "render", "run": str(run.dir), "day": str(day),
+                "date": frame.date.isoformat(), "when": rs.info["when"], "camera": cam,
+                "units": "R,G,B,X,Y,Z: CIE-weighted spectral radiance W m-2 sr-1 nm-1 (linear "
+                         "sRGB / XYZ, Y = ybar-weighted mean); red_655_665, far_red_725_735: "
+                         "band-mean spectral radiance W m-2 sr-1 nm-1; R_FR: photon ratio"}
+        title = f"red : far-red   day {day} ({frame.date.isoformat()}), {cam}"
+        w = write_outputs(images, out, stem=f"render_{cam}", meta=meta, title=title)
+        rfr = images.get("r_fr")
+        results[cam] = {"render_s": images["seconds"], "exposure": w["exposure"],
+                        "info": rs.info, "files": w["files"],
+                        "r_fr_median": float(np.nanmedian(rfr)) if rfr is not None else None,
+                        "mean_rgb": np.nanmean(images["rgb"].reshape(-1, 3), 0).tolist()}
+        files[cam] = w["files"]
+        del rs, images
+        gc.collect()
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(camera=cam, s=f"{results[cam]['render_s']:.1f}")

@@ -30,17 +30,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
-from ..trees.structure import scaled_tree  # noqa: F401 (re-exported)
+from ..meshes import make_mesh
+from ..trees import weber_penn
+from ..trees.growth import GrowthParams, grow
+from ..trees.junction import leaf_mesh, tree_mesh
+from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh  # noqa: F401
 from . import materials as mat
 
 
 # ---- meshes -------------------------------------------------------------------------------------
 def _bark_and_leaf_geometry(tree, smooth=True):
     """(bark (v, f), leaves (v, f, leaf index per face))."""
-    from ..trees.structure import leaf_quads, tube_mesh
     bark = leaves = None
     if getattr(tree, "weber_penn", None) is not None:
-        from ..trees.junction import leaf_mesh, tree_mesh
         b, _ = tree_mesh(tree, smooth=smooth, leaves=False)
         bark = (np.asarray(b.vertices), np.asarray(b.faces))
         if len(tree.leaves):
@@ -128,8 +130,6 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
 
 def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts."""
-    from .scene import make_mesh
-
     bark, lv = tree_geometry(trees, cache)
     out = {}
     info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
@@ -153,8 +153,6 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
 def simple_tree(height: float = 3.0, seed: int = 0, leaves_per_twig: int = 12):
     """A small deciduous tree made directly with the Tree constructor (no growth model):
     trunk, 3 levels of branches, leaves on the last level."""
-    from ..trees.structure import Leaves, Tree
-
     rng = np.random.default_rng(seed)
     start, end, r0, r1, parent, level = [], [], [], [], [], []
 
@@ -238,16 +236,9 @@ def make_tree(cfg: dict, source: str | None = None):
     model = cfg.get("model", "weber_penn")
     tree = None
     if model == "weber_penn":
-        try:
-            from ..trees import weber_penn as wp
-            tree = wp.generate(cfg.get("preset", "quaking_aspen"), seed=seed,
-                               overrides=cfg.get("overrides"))
-        except ImportError:
-            tree = None
-        except ParameterError:
-            raise
+        tree = weber_penn.generate(cfg.get("preset", "quaking_aspen"), seed=seed,
+                                   overrides=cfg.get("overrides"))
     elif model == "growth":   # paper 001's light-driven growth model (open sky)
-        from ..trees import GrowthParams, grow
         params = GrowthParams(**(cfg.get("growth") or {}))
         tree = grow(params, generations=int(cfg.get("generations", 8)), seed=seed)
     elif model != "simple":

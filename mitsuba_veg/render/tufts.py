@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_write
 from ..errors import ParameterError
 
 #: footprint of a tuft model [m] (the moss model of paper 000 is 1 cm)
@@ -237,12 +238,10 @@ def write_ply(path, tuft: Tuft) -> None:
             f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
             f"property float tone\nelement face {len(f)}\n"
             "property list uchar int vertex_indices\nend_header\n")
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "wb") as fh:
+    with atomic_write(path, path.with_suffix(".tmp")) as tmp, open(tmp, "wb") as fh:
         fh.write(head.encode("ascii"))
         fh.write(v.tobytes())
         fh.write(f.tobytes())
-    tmp.replace(path)
 
 
 def read_ply(path) -> Tuft:

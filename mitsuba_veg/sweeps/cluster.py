@@ -10,6 +10,8 @@ import contextlib
 import os
 from dataclasses import dataclass
 
+import drjit as dr
+
 from ..errors import DependencyError, ParameterError
 
 #: memory one worker process should have for a moss-garden run at the default scale [bytes]
@@ -202,7 +204,6 @@ def worker_drjit_threads(drjit_threads: int | None, host_workers: dict) -> int:
 
 def set_drjit_threads(n: int) -> int:
     """Size Dr.Jit's (process-wide) thread pool; returns the size now in use."""
-    import drjit as dr
     if dr.thread_count() != n:
         dr.set_thread_count(int(n))
     return dr.thread_count()

@@ -1,7 +1,7 @@
 """Animation frames as Dask tasks: ``mitsuba-veg animate RUN --scheduler ADDRESS`` (or
 ``--workers N`` for a local cluster).
 
-The same frames as :func:`mitsuba_veg.render.cli.run_animate` (same days, camera, light,
+The same frames as :func:`mitsuba_veg.render.animation.run_animate` (same days, camera, light,
 labels and exposure): the last frame is rendered first, as one task, and fixes the exposure of
 every frame (no flicker); the other frames are then rendered as independent tasks (each builds
 its scene: no scene is shared between frames) and the PNGs are assembled in day order into
@@ -14,6 +14,17 @@ import time
 from pathlib import Path
 
 from ..errors import ParameterError
+from ..outputs import write_json
+from ..render import animation
+from ..render.animation import (ANIMATE_DEFAULTS, label_frame, prepare_animation, write_gif,
+                                write_mp4)
+from ..render.film import to_srgb8, write_png
+from ..render.history import load_run
+from ..render.scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters
+from ..render.still import render
+from ..render.world import trees_for_run
+from ..variant import versions
+from .cluster import open_client, set_drjit_threads, worker_drjit_threads
 
 #: task key prefix (groups the frames on the Dask dashboard)
 TASK_PREFIX = "mitsuba-veg-frame"
@@ -37,17 +48,12 @@ def render_frame(spec: dict) -> dict:
         ``k``, ``day``, ``date``, ``moss`` (count), ``exact``, ``render_s`` [s], ``exposure``,
         ``png``.
     """
-    from ..render import RenderOptions, build_scene, load_run, render
-    from ..render.cli import _label, _trees_for
-    from ..render.film import to_srgb8, write_png
-    from ..render.scene import Terrain, sky_emitters
-    from .cluster import set_drjit_threads, worker_drjit_threads
 
     set_drjit_threads(worker_drjit_threads(spec.get("drjit_threads"),
                                            spec.get("host_workers") or {}))
     run = load_run(spec["run_dir"], spec.get("scenario"))
     o = RenderOptions(**spec["options"]).validate()
-    tree_list, seasons = _trees_for(run, None)
+    tree_list, seasons = trees_for_run(run, None)
     fr = run.frame(int(spec["day"]))
     for s in seasons:
         s.apply(fr.date)
@@ -58,7 +64,7 @@ def render_frame(spec: dict) -> dict:
     images = render(rs, seed=int(spec["seed"]) + int(spec["k"]))
     img8, exp = to_srgb8(images["rgb"], spec.get("exposure"))
     text = f"day {fr.day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
-    p = write_png(spec["png"], _label(img8, text))
+    p = write_png(spec["png"], label_frame(img8, text))
     return {"k": int(spec["k"]), "day": int(fr.day), "date": fr.date.isoformat(),
             "moss": len(fr.moss), "exact": bool(fr.exact), "render_s": images["seconds"],
             "exposure": exp, "png": str(p), "when": rs.info.get("when"),
@@ -82,7 +88,7 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
         Where the frames run: as in :func:`mitsuba_veg.sweeps.sweep` (default: a local cluster
         of one worker process per core).
     camera, width, height, spp, frames, every, fps, when, hour, light, scenario, gif_width, seed
-        As in :func:`mitsuba_veg.render.cli.run_animate` (width, height in pixels; spp samples
+        As in :func:`mitsuba_veg.render.animation.run_animate` (width, height in pixels; spp samples
         per pixel; fps frames per second; hour local time [h]).
     progress : bool
         Print the dashboard link and show a progress bar (frames).
@@ -92,10 +98,6 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
     dict
         The summary written to ``animate.json`` (as ``run_animate``'s, plus ``dask``).
     """
-    from ..outputs import write_json
-    from ..render.cli import ANIMATE_DEFAULTS, _versions, prepare_animation, write_gif, write_mp4
-    from ..render.scene import render_time
-    from .cluster import open_client
 
     if light not in ("fixed", "daily"):
         raise ParameterError("light", light, "'fixed' or 'daily'")
@@ -162,9 +164,46 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
                "files": {"mp4": str(mp4) if mp4 else None, "gif": str(gif), "frames": str(fdir)},
                "timings_s": {"render": sum(r["render_s"] for r in records), "encode": t_encode,
                              "total": time.perf_counter() - t0},
-               "dask": dask_info, "versions": _versions()}
+               "dask": dask_info, "versions": versions()}
     if mp4 is None:
         summary["warning"] = "ffmpeg not found: no MP4 written (install ffmpeg)"
     write_json(out / "animate.json", summary)
     folder.release()
     return summary
+
+
+def run_animate(run_dir, out=None, *, scheduler=None, workers=None, client=None, trees=None,
+                **kwargs) -> dict:
+    """Animate a run here or with its frames as Dask tasks.
+
+    Parameters
+    ----------
+    run_dir, out : path-like
+        The run folder and the output folder (default ``RUN_DIR/animation``).
+    scheduler : str, optional
+        A Dask scheduler address (``tcp://host:8786``).
+    workers : int, optional
+        Worker processes of a local Dask cluster.
+    client : distributed.Client, optional
+        An open Dask client.
+    trees : list of Tree, optional
+        Trees instead of the scenario's (in this process only).
+    **kwargs
+        The settings of :func:`mitsuba_veg.render.animation.run_animate` (sizes in pixels,
+        ``spp`` samples per pixel, ``fps`` frames per second, ...).
+
+    Returns
+    -------
+    dict
+        The summary written to ``animate.json`` (with ``dask`` when the frames ran on Dask).
+    """
+    if scheduler is None and workers is None and client is None:
+        return animation.run_animate(run_dir, out, trees=trees, **kwargs)
+    if kwargs.get("light", "fixed") not in ("fixed", "daily"):
+        raise ParameterError("light", kwargs["light"], "'fixed' or 'daily'")
+    if trees is not None:
+        raise ParameterError("trees", "a list of Tree", "None when the frames run on Dask "
+                             "(the workers build the scenario's [[render.trees]])",
+                             "put the trees in the scenario's [[render.trees]]")
+    return animate_on_dask(run_dir, out, scheduler=scheduler, workers=workers, client=client,
+                           **kwargs)

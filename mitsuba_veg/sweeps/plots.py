@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plots import _mpl
 from .spec import SEED_FIELD, Sweep
+from .table import _cell
 
 
 def _groups(df, fields):
@@ -49,7 +51,6 @@ def sweep_plots(df, sw: Sweep, out) -> list[Path]:
     list of Path
         The files written (none when no run finished).
     """
-    from ..plots import _mpl
     plt = _mpl()
 
     out = Path(out)
@@ -137,5 +138,4 @@ def sweep_plots(df, sw: Sweep, out) -> list[Path]:
 
 
 def _cell_text(v):
-    from .table import _cell
     return _cell(v)

@@ -24,8 +24,15 @@ import traceback
 import uuid
 from pathlib import Path
 
-from ..outputs import write_json
+from ..daily import SIM_DEFAULTS
+from ..daily.run import run
+from ..errors import MitsubaVegError
+from ..outputs import OutputFolder, write_json
+from ..scenario import load_scenario
+from .cluster import open_client, require_pandas, set_drjit_threads, worker_drjit_threads
+from .plots import sweep_plots
 from .spec import RunSpec, Sweep, load_sweep
+from .table import tidy, write_table
 
 #: task key prefix (groups the runs on the Dask dashboard)
 TASK_PREFIX = "mitsuba-veg-run"
@@ -37,9 +44,6 @@ def expected_days(scenario, overrides, days) -> int | None:
     why)."""
     if days is not None:
         return int(days)
-    from ..errors import MitsubaVegError
-    from ..scenario import load_scenario
-    from ..simulation import SIM_DEFAULTS
     try:
         scn = load_scenario(scenario, overrides)
     except MitsubaVegError:
@@ -88,8 +92,6 @@ def run_task(spec: dict) -> dict:
         ``"failed"``), ``error`` (one line) and ``traceback``, ``records`` (the run's
         ``days_record``), ``resumed``, ``seconds`` [s], ``worker``, ``drjit_threads``.
     """
-    from .cluster import set_drjit_threads, worker_drjit_threads
-
     t0 = time.perf_counter()
     out = Path(spec["out"])
     out.mkdir(parents=True, exist_ok=True)
@@ -102,7 +104,6 @@ def run_task(spec: dict) -> dict:
     write_json(out / "run.json", {"run_id": spec["run_id"], "values": spec["values"],
                                   "overrides": spec["overrides"], "scenario": spec["scenario"],
                                   "days": spec["days"]})
-    from ..simulation import run
     try:
         summary = run(spec["scenario"], out=out, days=spec["days"], overrides=spec["overrides"],
                       resume=True, progress=False, frames=bool(spec["frames"]))
@@ -175,13 +176,9 @@ def sweep(sweep_file, out="out/sweep", *, scheduler: str | None = None,
     DependencyError
         Dask, pandas or pyarrow missing (``pip install 'mitsuba-veg[distributed]'``).
     """
-    from .cluster import open_client, require_pandas
-    from .table import tidy, write_table
-
     sw = load_sweep(sweep_file, overrides)
     require_pandas()
     t_start = time.perf_counter()
-    from ..outputs import OutputFolder
     out = Path(out).resolve()
     # one sweep per folder at a time (each run's own folder is locked by its run as well)
     folder = OutputFolder(out, "sweep", info={"sweep": str(sw.path)})
@@ -236,7 +233,6 @@ def sweep(sweep_file, out="out/sweep", *, scheduler: str | None = None,
     table = tidy(sw, ordered)
     files = write_table(table, out)
     if plots:
-        from .plots import sweep_plots
         files["plots"] = [str(p) for p in sweep_plots(table, sw, out / "plots")]
     manifest = {
         "sweep": str(sw.path), "scenario": str(sw.scenario), "days": sw.days,

@@ -33,7 +33,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
 from ..errors import ParameterError, unknown_field
+from ..scenario import load_scenario
 
 #: keys of the [sweep] table
 SWEEP_KEYS = ("scenario", "days", "seeds", "set", "frames")
@@ -204,8 +206,6 @@ def known_fields(data: dict) -> tuple[set, tuple]:
         Prefixes under which any name is accepted (``terrain.soil_depth_mm.``,
         ``terrain.geology.``: one entry per shape id).
     """
-    from ..simulation import MOSS_DEFAULTS, SIM_DEFAULTS
-
     fields = set()
 
     def walk(node, prefix):
@@ -252,8 +252,6 @@ def load_sweep(path, overrides=()) -> Sweep:
         Unknown keys (with the closest known names), a bad range, an axis field the scenario
         does not have, or a base scenario that does not validate.
     """
-    from ..scenario import load_scenario
-
     path = Path(path)
     src = str(path)
     if not path.is_file():

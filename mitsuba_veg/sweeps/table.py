@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..atomic import atomic_write
 from .spec import Sweep, toml_value
 
 #: leading columns (before the swept fields)
@@ -105,17 +106,14 @@ def tidy(sw: Sweep, results: list):
 
 def write_table(df, out) -> dict:
     """Write ``sweep.parquet`` and ``sweep.csv`` into ``out``; returns their paths."""
-    import os
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     files = {}
     for ext, write in (("parquet", lambda p: df.to_parquet(p, index=False)),
                        ("csv", lambda p: df.to_csv(p, index=False))):
         p = out / f"sweep.{ext}"
-        tmp = out / f".sweep.tmp.{ext}"
-        write(tmp)
-        os.replace(tmp, p)
+        with atomic_write(p) as tmp:
+            write(tmp)
         files[ext] = str(p)
     return files
 

@@ -25,9 +25,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
-from mitsuba_veg.errors import ParameterError, check_range
+from mitsuba_veg.light.validation import box_mesh, grid_mesh, make_mesh
+
+from ..errors import ParameterError, check_range
+from ..meshes import triangle_geometry
+from .leaflight import obstacle_sky_light
 
 
 @dataclass
@@ -71,13 +77,9 @@ class Environment:
         of them -> Environment (or None for no obstacles)."""
         if scene is None or isinstance(scene, Environment):
             return scene
+        if isinstance(scene, mi.Scene):
+            return Environment.from_mitsuba(scene)
         env = Environment()
-        try:
-            import mitsuba as mi
-            if isinstance(scene, mi.Scene):
-                return Environment.from_mitsuba(scene)
-        except ImportError:  # pragma: no cover
-            pass
         items = scene if isinstance(scene, (list, tuple)) and not _is_vf(scene) else [scene]
         for i, it in enumerate(items):
             env.add(it, name=f"obstacle{i}")
@@ -120,7 +122,6 @@ class Environment:
 
     def add_ground(self, size=40.0, y=0.0, n=20, center=(0.0, 0.0), light_factor=1.0):
         """A flat square ground grid (n x n cells) of side ``size`` [m] at height ``y``."""
-        from mitsuba_veg.light.validation import grid_mesh
         check_range("ground.size", size, 0.0, None, lo_open=True)
         h = size / 2
         V, F = grid_mesh(int(n), int(n), (center[0] - h, center[0] + h),
@@ -132,7 +133,6 @@ class Environment:
                   light_factor=1.0):
         """A plane tilted by ``angle_deg`` going down towards the horizontal direction
         ``downhill`` (x, z); height ``y0`` at the origin."""
-        from mitsuba_veg.light.validation import grid_mesh
         check_range("slope.angle_deg", angle_deg, 0.0, 80.0)
         dx, dz = np.asarray(downhill, float) / max(np.hypot(*downhill), 1e-12)
         t = math.tan(math.radians(angle_deg))
@@ -144,7 +144,6 @@ class Environment:
 
     def add_box(self, lo, hi, name="building", max_edge=1.0, light_factor=1.0):
         """An axis-aligned box (a building, a wall) from corner ``lo`` to ``hi`` [m]."""
-        from mitsuba_veg.light.validation import box_mesh
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
         if np.any(hi <= lo):
             raise ParameterError(f"{name}.hi", hi.tolist(), f"> lo = {lo.tolist()} on every axis")
@@ -170,14 +169,11 @@ class Environment:
                 off += len(o.vertices)
             V = np.concatenate(Vs) if Vs else np.zeros((0, 3))
             F = np.concatenate(Fs) if Fs else np.zeros((0, 3), np.int64)
-            p0, p1, p2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-            cr = np.cross(p1 - p0, p2 - p0)
-            ln = np.linalg.norm(cr, axis=1)
+            areas, normals, centroids = triangle_geometry(V, F)
             obj = np.concatenate(obj) if obj else np.zeros(0, np.int64)
             lf = np.array([o.light_factor for o in self.obstacles])[obj] if len(obj) else \
                 np.zeros(0)
-            self._cache["tri"] = (V, F, cr / np.maximum(ln, 1e-30)[:, None],
-                                  (p0 + p1 + p2) / 3, 0.5 * ln, obj, lf)
+            self._cache["tri"] = (V, F, normals, centroids, areas, obj, lf)
         return self._cache["tri"]
 
     def bbox(self):
@@ -189,7 +185,6 @@ class Environment:
     def mitsuba_meshes(self) -> dict:
         """{id: mi.Mesh} of the obstacles (built once)."""
         if "mi" not in self._cache:
-            from mitsuba_veg.light.validation import make_mesh
             self._cache["mi"] = {f"obstacle_{i}": make_mesh(f"obstacle_{i}", o.vertices, o.faces)
                                  for i, o in enumerate(self.obstacles)}
         return self._cache["mi"]
@@ -197,7 +192,6 @@ class Environment:
     def scene(self):
         """A Mitsuba scene of the obstacles only."""
         if "scene" not in self._cache:
-            import mitsuba as mi
             d = {"type": "scene"}
             d.update(self.mitsuba_meshes())
             self._cache["scene"] = mi.load_dict(d, optimize=False)
@@ -206,7 +200,6 @@ class Environment:
     def height_at(self, x, z, default=None):
         """Terrain height [m] under (x, z): the highest upward-facing obstacle surface below
         y = 1e4, or ``default`` (``ground_y``) where there is none."""
-        import mitsuba as mi
         x = np.atleast_1d(np.asarray(x, float))
         z = np.atleast_1d(np.asarray(z, float))
         default = self.ground_y if default is None else default
@@ -222,8 +215,6 @@ class Environment:
     def inside(self, points) -> np.ndarray:
         """Which points are inside an obstacle: the first surface straight above them faces up
         (below a terrain surface, inside a closed building)."""
-        import drjit as dr
-        import mitsuba as mi
         pts = np.asarray(points, np.float32).reshape(-1, 3)
         if not self.obstacles or len(pts) == 0:
             return np.zeros(len(pts), bool)
@@ -236,8 +227,6 @@ class Environment:
     def blocked(self, start, direction, length) -> np.ndarray:
         """Which straight segments (start (n, 3), unit direction (n, 3), length (n,) [m]) cross
         an obstacle surface."""
-        import drjit as dr
-        import mitsuba as mi
         start = np.asarray(start, np.float32).reshape(-1, 3)
         if not self.obstacles or len(start) == 0:
             return np.zeros(len(start), bool)
@@ -257,7 +246,6 @@ class Environment:
         key = ("env", sky.H, sky.V, sky.C, passes)
         if key in self._cache:
             return self._cache[key]
-        from .leaflight import obstacle_sky_light
         env = obstacle_sky_light(self, sky, passes)
         self._cache[key] = env
         return env
@@ -267,8 +255,6 @@ class Environment:
         """Boolean (nx, ny, nz) mask of voxels filled by obstacles: voxels whose centre is inside
         a closed mesh or below a terrain surface (first hit upwards is a back face), and voxels
         that contain a surface sample (thin walls)."""
-        import drjit as dr
-        import mitsuba as mi
         nx, ny, nz = shape
         mask = np.zeros(shape, bool)
         if not self.obstacles:

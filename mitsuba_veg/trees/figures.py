@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..plots import _mpl
+
 #: view name -> (horizontal axis, vertical axis, axis labels)
 VIEWS = {
     "side": (0, 1, ("x [m]", "y (up) [m]")),
@@ -17,7 +19,6 @@ VIEWS = {
 
 
 def _plt():
-    from ..plots import _mpl
     return _mpl()
 
 

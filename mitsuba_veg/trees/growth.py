@@ -34,6 +34,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
+from .environment import Environment
+from .leaflight import LeafLight, Sky, leaf_sphere_light
 from .structure import Leaves, Tree
 
 #: paper symbols of the parameters (table 3.1)
@@ -311,7 +313,6 @@ def _auto_engine(n_spheres: int, engine: str) -> str:
 
 
 def _light(forest, p, sky, env, alphas, engine):
-    from .leaflight import leaf_sphere_light
     pos = forest.tip_positions()
     return leaf_sphere_light(pos, p.leaf_radius * p.unit, sky, alphas, env,
                              _auto_engine(len(pos), engine), p.ray_cutoff)
@@ -329,9 +330,6 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     Returns one :class:`~mitsuba_veg.trees.structure.Tree` per position (dead branches kept with
     ``alive = False``), with the per-leaf-sphere light in ``tree.attrs``.
     """
-    from .environment import Environment
-    from .leaflight import Sky
-
     p = GrowthParams() if params is None else params
     if not isinstance(p, GrowthParams):
         p = GrowthParams.from_dict(dict(p), prefix="params.")
@@ -341,7 +339,7 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     generations = int(generations)
     engine = engine or p.engine
     env = Environment.coerce(scene)
-    pos = _positions(positions, env)
+    pos = base_positions(positions, env)
     sky = Sky(p.sky_h, p.sky_v, p.light_ratio)
     alphas = {"light": p.alpha, "red": p.alpha_red, "far_red": p.alpha_far_red}
     if env is not None:
@@ -378,8 +376,21 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
     return _to_trees(forest, light, p, seed, hist)
 
 
-def _positions(positions, env) -> np.ndarray:
-    """(n, 3) bases [m] from (x, y, z) and/or (x, z) items (these stand on the terrain)."""
+def base_positions(positions, env) -> np.ndarray:
+    """Tree bases from (x, y, z) and/or (x, z) items (these stand on the terrain).
+
+    Parameters
+    ----------
+    positions : sequence
+        One position or a list of them [m].
+    env : Environment
+        The obstacles; (x, z) items are dropped onto them.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) bases [m].
+    """
     items = positions
     if isinstance(items, np.ndarray):
         items = items.tolist()
@@ -410,7 +421,6 @@ def _positions(positions, env) -> np.ndarray:
 
 
 def _subset_light(light, keep):
-    from .leaflight import LeafLight
     return LeafLight({b: v[keep] for b, v in light.received.items()}, light.vector[keep],
                      light.rays, light.casts, light.seconds, light.spheres_passed, light.stats)
 
@@ -425,7 +435,6 @@ def branching(params: GrowthParams | None = None, generations: int = 10,
               position=(0.0, 0.0, 0.0), seed: int = 0) -> Tree:
     """The pure branching model (no light: no death, no phototropism, no shade avoidance):
     the paper's H = 0 shape, used as the sample tree of paper 002."""
-    from .leaflight import LeafLight
     p = (GrowthParams() if params is None else params).replace(phototropism=0.0)
     forest = _Forest(p, np.asarray(position, float)[None], seed)
     for g in range(int(generations)):

@@ -32,7 +32,9 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
+from .environment import Environment
 from .structure import Tree, segment_depth
+from .voxel import VoxelSpace, gradient_sampler
 
 RULES = ("death", "heliotropism")
 
@@ -187,8 +189,6 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
     a whole tree's T/N is then about half its mean tip light, so trees die whole).
     Returns a :class:`DeformResult` (the input trees are copied unless ``copy=False``).
     """
-    from .environment import Environment
-
     t0 = time.perf_counter()
     single = isinstance(trees, Tree)
     trees = [trees] if single else list(trees)
@@ -239,7 +239,6 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
 
 
 def _voxels(pts, size, shading, env, bounds):
-    from .voxel import VoxelSpace
     return VoxelSpace.build(pts, size, shading, env, bounds)
 
 
@@ -298,7 +297,6 @@ def _rotate_about(p, pivot, axis, angle):
 
 
 def _heliotropism(stand, vs, constant, max_angle):
-    from .voxel import gradient_sampler
     field = vs.light_field()
     grad = gradient_sampler(field, vs.origin, vs.size)
     n = len(stand.parent)

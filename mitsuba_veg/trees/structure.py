@@ -23,6 +23,7 @@ meaning shared by several modules:
 """
 from __future__ import annotations
 
+import copy as _copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -110,11 +111,6 @@ class Tree:
         d = self.end - self.start
         return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
 
-    def children_count(self) -> np.ndarray:
-        c = np.zeros(len(self), np.int64)
-        np.add.at(c, self.parent[self.parent >= 0], 1)
-        return c
-
     def depth(self) -> np.ndarray:
         """Number of ancestors of every segment (0 for roots)."""
         return segment_depth(self.parent)
@@ -162,7 +158,6 @@ class Tree:
         return self
 
     def copy(self) -> "Tree":
-        import copy as _copy
         lv = self.leaves
         leaves = Leaves(lv.position.copy(), lv.normal.copy(), lv.size.copy(), lv.segment.copy(),
                         None if lv.up is None else lv.up.copy(),

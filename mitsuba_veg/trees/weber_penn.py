@@ -32,6 +32,7 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError
 
 from . import knots as _kn
+from .junction import tree_mesh
 from .structure import KNOT, NORMAL, SPROUTED_KNOT, Leaves, Tree
 
 __all__ = ["PRESETS", "WeberPennParams", "shape_ratio", "load_params", "generate", "mesh",
@@ -1066,10 +1067,8 @@ class _Grower:
             Xs, Ys, Zs = seg["X"][si], seg["Y"][si], seg["Z"][si]
             a = np.radians(fan)[:, None]      # rotate about the stem's y axis
             Zf = Zs * np.cos(a) + Xs * np.sin(a)
-            Xf = Xs * np.cos(a) - Zs * np.sin(a)
-            Y2, Z2 = _rotx(Ys, Zf, np.radians(p.lv("DownAngle", lvl)
-                                              + p.lv("DownAngleV", lvl) * (2 * u[:, 1] - 1)))
-            X, Y, Z = Xf, Y2, Z2
+            Y, Z = _rotx(Ys, Zf, np.radians(p.lv("DownAngle", lvl)
+                                            + p.lv("DownAngleV", lvl) * (2 * u[:, 1] - 1)))
         length = g["LeafScale"] / math.sqrt(q)
         width = g["LeafScale"] * g["LeafScaleX"] / math.sqrt(q)
         normal = np.where((Y[:, 2] < 0)[:, None], -Y, Y)
@@ -1171,7 +1170,6 @@ def generate(preset_or_params="quaking_aspen", seed=0, *, knots: bool | None = N
 
 def mesh(tree: Tree, *, smooth: bool = True, **kw):
     """``(bark, leaves)`` trimesh meshes of a tree (see :func:`junction.tree_mesh`)."""
-    from .junction import tree_mesh
     return tree_mesh(tree, smooth=smooth, **kw)
 
 

@@ -116,7 +116,7 @@ def _cmd_tune(a) -> int:
 
 def add_parser(subparsers):
     """Add the ``tune`` command to an argparse sub-parser set (``mitsuba-veg tune``)."""
-    from ..cliargs import add_out, add_photons, add_quiet, add_set, ranged
+    from ..cli.args import add_out, add_photons, add_quiet, add_set, ranged
     p = subparsers.add_parser("tune", help="fit model parameters to a target coverage map "
                               "(differentiable relaxed moss model, Dr.Jit AD)")
     p.add_argument("scenario", help="scenario TOML, e.g. scenes/moss_garden/scenario.toml")
@@ -159,5 +159,5 @@ def add_parser(subparsers):
 
 def main(argv=None) -> int:
     """Stand-alone entry (``python -m mitsuba_veg.tune SCENARIO.toml --target ...``)."""
-    from ..cli import standalone
+    from ..cli.entry import standalone
     return standalone("tune", add_parser, argv)

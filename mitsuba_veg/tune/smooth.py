@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import copy
 import datetime as _dt
-import tempfile
 import time
 from dataclasses import dataclass, field
 
@@ -147,7 +146,7 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
             kernel_samples=(64, 256), differentiable_light: bool = False, seed: int | None = None,
             progress: bool = False) -> ModelData:
     """Set up a scenario for the relaxed model: terrain, soil, climate, species (through
-    :class:`~mitsuba_veg.simulation.MossSimulation`, so they are the discrete run's), the
+    :func:`~mitsuba_veg.daily.prepare_site`, so they are the discrete run's), the
     dispersal kernels and the up-front light.
 
     species: list of species keys replacing ``moss.species``; photons: per light pass (default
@@ -156,7 +155,7 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     tuned (memory: ~ photons x max_depth x 5 bytes per pass).
     """
     from ..scenario import Scenario, load_scenario
-    from ..simulation import MossSimulation
+    from ..daily import prepare_site
     from ..light.sunpath import day_sun_path
 
     t0 = time.perf_counter()
@@ -165,8 +164,7 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
         data = copy.deepcopy(scn.data)
         data.setdefault("moss", {})["species"] = list(species)
         scn = Scenario(scn.path, data)
-    sim = MossSimulation(scn, tempfile.gettempdir(), days=days, progress=False)
-    sim.setup()
+    sim = prepare_site(scn, days=days)
     idx = sim.index
     n_days = sim.days
     seed = sim.seed if seed is None else int(seed)
@@ -202,7 +200,7 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
         from tqdm.auto import tqdm
         it = tqdm(ldays, desc="light passes", unit="pass")
     for k, d in enumerate(it):
-        dirs, w, _ = day_sun_path(lat, lon, sim._date(d))
+        dirs, w, _ = day_sun_path(lat, lon, sim.date(d))
         if len(w) == 0:
             f_sun.append(np.zeros(idx.n_elements))
             p_sun.append(None)

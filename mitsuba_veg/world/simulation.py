@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..light.daylight import clear_sky_spectra
-from ..simulation import BANDS, MossSimulation
+from ..daily import BANDS, MossSimulation
 from .canopy import Canopy
 from .phenology import Phenology, PhenologyParams
 from .trees import build_trees

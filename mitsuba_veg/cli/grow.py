@@ -34,14 +34,23 @@ queries, or every cast of the ``mitsuba`` engine), versions, files).
 """
 from __future__ import annotations
 
-import os
 import time
 import tomllib
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
-from mitsuba_veg.errors import ParameterError, unknown_field
+from ..errors import ParameterError, unknown_field
+from ..outputs import OutputFolder, atomic_write, write_json
+from ..scenario import apply_overrides
+from ..trees.environment import Environment
+from ..trees.figures import picture
+from ..trees.growth import GrowthParams, base_positions, branching, grow_forest
+from ..trees.nongrowth import deform
+from ..variant import versions
+from .args import add_out, add_quiet, add_set, ranged
+from .entry import standalone
 
 _TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
              "environment", "nongrowth", "output", "weber_penn", "name", "description"}
@@ -57,12 +66,10 @@ def _unknown(field, value, known, source):
 _FORMATS = ("ply", "obj", "glb", "stl")
 
 
-from ..outputs import write_json as _write_json  # noqa: E402
 
 
 def load_tree_toml(path, overrides=()) -> dict:
     """Read and check a TREE.toml; ``overrides`` are ``KEY=VALUE`` strings (dotted keys)."""
-    from mitsuba_veg.scenario import apply_overrides
     path = Path(path)
     src = str(path)
     if not path.exists():
@@ -120,7 +127,6 @@ def load_tree_toml(path, overrides=()) -> dict:
 
 def build_environment(cfg: dict, root: Path, source: str | None = None):
     """An Environment from an [environment] table (None when it is empty)."""
-    from .environment import Environment
     if not cfg:
         return None
     allowed = {"ground", "slope", "boxes", "meshes"}
@@ -141,7 +147,6 @@ def build_environment(cfg: dict, root: Path, source: str | None = None):
             env.add_box(b["lo"], b["hi"], b.get("name", f"box{i}"), b.get("max_edge", 1.0),
                         b.get("light_factor", 1.0))
         for i, m in enumerate(cfg.get("meshes", [])):
-            import trimesh
             f = (root / m["file"]).resolve()
             if not f.exists():
                 raise ParameterError(f"environment.meshes[{i}].file", m["file"],
@@ -161,7 +166,7 @@ def build_environment(cfg: dict, root: Path, source: str | None = None):
 
 def _weber_penn(data, seed, src):
     try:
-        from . import weber_penn  # noqa: F401  (written in a separate module)
+        from ..trees import weber_penn
     except ImportError as e:
         raise ParameterError("model", "weber_penn", "a model available in this installation",
                              f"mitsuba_veg.trees.weber_penn is not available ({e}); use "
@@ -174,13 +179,10 @@ def _weber_penn(data, seed, src):
 def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> dict:
     """Grow what TREE.toml describes; write mesh, metrics JSON, picture and summary.json into
     ``out_dir``. Returns the summary dict."""
-    from .figures import picture
-    from .growth import GrowthParams
 
     t_start = time.perf_counter()
     path = Path(tree_toml_path)
     src = str(path)
-    from ..outputs import OutputFolder
     data = load_tree_toml(path, overrides)
     out = Path(out_dir)
     folder = OutputFolder(out, "grow", info={"tree_file": src})
@@ -202,7 +204,6 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     t_model = time.perf_counter() - t0
     ng_stats = None
     if data.get("nongrowth"):
-        from .nongrowth import deform
         ng = dict(data["nongrowth"])
         try:
             res = deform(trees, env, **ng)
@@ -220,17 +221,15 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
     mesh = _stand_mesh(trees, leaves=bool(oc.get("leaves", True)))
     for fmt in formats:
         f = out / f"tree.{fmt}"
-        tmp = out / f"tree.tmp.{fmt}"
-        mesh.export(str(tmp))
-        os.replace(tmp, f)
+        with atomic_write(f, out / f"tree.tmp.{fmt}") as tmp:
+            mesh.export(str(tmp))
         files["mesh"].append(str(f))
     metrics = {"trees": [t.metrics() for t in trees], "stand": _stand_metrics(trees)}
-    _write_json(out / "metrics.json", metrics)
+    write_json(out / "metrics.json", metrics)
     files["metrics"] = str(out / "metrics.json")
     if oc.get("picture", True):
         files["picture"] = picture(trees, out / "picture.png", env=env,
                                    title=f"{path.stem}: {model}, {len(trees)} tree(s)")
-    from mitsuba_veg.variant import versions
     vers = versions()
     summary = {
         "command": "grow", "tree_file": src, "model": model, "seed": seed,
@@ -243,18 +242,17 @@ def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> di
         "ray_casts": int(sum(h["casts"] for h in history)),
         "metrics": metrics["stand"], "files": files, "versions": vers,
     }
-    _write_json(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     files["summary"] = str(out / "summary.json")
     folder.release()
     return summary
 
 
 def _make_trees(model, data, positions, params, gens, env, seed, src, progress, history):
-    from .growth import _positions, branching, grow_forest
     if model == "growth":
         return grow_forest(positions, params, gens, env, seed, progress=progress,
                            history=history)
-    pos = _positions(positions, env)
+    pos = base_positions(positions, env)
     if model == "branching":
         return [branching(params, gens, p, seed) for p in pos]
     base = _weber_penn(data, seed, src)
@@ -271,7 +269,6 @@ def _stand_metrics(trees) -> dict:
 
 
 def _stand_mesh(trees, leaves=True):
-    import trimesh
     parts = []
     for t in trees:
         m = t.to_mesh(leaves=leaves)
@@ -316,7 +313,6 @@ def add_parser(subparsers):
     """Add the ``grow`` command to an argparse sub-parser set (``mitsuba-veg grow``)."""
     p = subparsers.add_parser("grow", help="grow trees from light (paper 001/002) or make a "
                               "Weber-Penn tree: mesh, metrics, picture")
-    from ..cliargs import add_out, add_quiet, add_set, ranged
     p.add_argument("tree", help="TREE.toml (see scenes/trees/)")
     add_out(p, "out/grow", "tree meshes, metrics.json, picture.png and summary.json")
     p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
@@ -330,8 +326,18 @@ def add_parser(subparsers):
 
 
 def main(argv=None) -> int:
-    """Stand-alone entry (``python -m mitsuba_veg.trees.grow_cli TREE.toml``)."""
-    from mitsuba_veg.cli import standalone
+    """Run ``mitsuba-veg grow`` on its own (``python -m mitsuba_veg.cli.grow TREE.toml``).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``grow`` (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     return standalone("grow", add_parser, argv)
 
 

@@ -7,10 +7,11 @@ default), typed and range-checked option values, and the options that several co
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
 import math
 import sys
 
-from .scenario import MAX_PHOTONS
+from ..scenario import MAX_PHOTONS
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -38,8 +39,25 @@ class Parser(argparse.ArgumentParser):
 
 
 def ranged(kind, lo=None, hi=None, unit: str = "", name: str | None = None):
-    """An argparse ``type``: parse ``kind`` (int or float) and check ``lo <= v <= hi``
-    (finite); the error names the value, the allowed range and the fix."""
+    """An argparse ``type`` that parses a number and checks its range.
+
+    Parameters
+    ----------
+    kind : {int, float}
+        The type (an integer also accepts ``1e6``).
+    lo, hi : float, optional
+        Inclusive bounds (None: open); the value must be finite.
+    unit : str
+        Unit shown in the error, e.g. ``"photons"``, ``"h"``.
+    name : str, optional
+        The type's name in argparse messages.
+
+    Returns
+    -------
+    callable
+        ``parse(text)``: the value, or ``argparse.ArgumentTypeError`` naming the value, the
+        allowed range and the fix.
+    """
 
     def parse(text: str):
         what = "an integer" if kind is int else "a number"
@@ -68,8 +86,18 @@ def ranged(kind, lo=None, hi=None, unit: str = "", name: str | None = None):
 
 
 def iso_datetime(text: str) -> str:
-    """An argparse ``type`` for ``--when``: an ISO 8601 date-time (returned as given)."""
-    import datetime as _dt
+    """An argparse ``type`` for ``--when``: an ISO 8601 date-time.
+
+    Parameters
+    ----------
+    text : str
+        E.g. ``2026-04-20T10:00:00+09:00`` or ``2026-04-20T01:00:00Z``.
+
+    Returns
+    -------
+    str
+        The text as given (stripped).
+    """
     t = text.strip()
     try:
         _dt.datetime.fromisoformat(t[:-1] + "+00:00" if t.endswith(("Z", "z")) else t)
@@ -82,23 +110,29 @@ def iso_datetime(text: str) -> str:
 
 
 def add_out(p, default: str | None, what: str) -> None:
-    """``--out DIR``: the output folder of ``what``."""
+    """Add ``--out DIR``: the output folder of ``what`` (``default``: its default path)."""
     p.add_argument("--out", default=default, metavar="DIR",
                    help=f"output folder for {what} (created; refused if another process is "
                         "writing it or it holds another kind of result)")
 
 
 def add_set(p, what: str = "scenario", example: str = "light.photons=2000000") -> None:
-    """``--set KEY=VALUE`` (repeatable): override a field of the ``what`` file."""
+    """Add ``--set KEY=VALUE`` (repeatable): override a field of the ``what`` file by its dotted
+    name; ``example`` is shown in the help.
+    """
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help=f"override a {what} field by its dotted name (TOML value syntax), "
                         f"e.g. --set {example}; unknown fields are refused")
 
 
-def add_quiet(p) -> None:
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+def add_quiet(p, what: str = "no progress bar") -> None:
+    """Add ``--quiet`` (``what`` it leaves out, for the help)."""
+    p.add_argument("--quiet", action="store_true", help=what)
 
 
 def add_photons(p, default: int | None, what: str = "per light pass") -> None:
+    """Add ``--photons N``: photons ``what`` (1 to ``scenario.MAX_PHOTONS``; ``default`` None: the
+    scenario's).
+    """
     p.add_argument("--photons", type=ranged(int, 1, MAX_PHOTONS, "photons"), default=default,
                    metavar="N", help=f"photons {what} (1 .. 1e9)")

@@ -1,4 +1,4 @@
-"""The moss scenario: the daily loop of paper 000 (§3.7) with outputs and checkpoints.
+"""The day step of the moss loop (paper 000 §3.7) and the loop over the days.
 
 Each simulated day:
 
@@ -17,76 +17,55 @@ Each simulated day:
 Everything per moss is a Dr.Jit array operation; per triangle, NumPy. Every ``checkpoint_every``
 days the whole state is written atomically; a killed run resumes from the last checkpoint and
 reproduces the uninterrupted run exactly (all random numbers derive from (seed, day)).
+
+Subclass hooks (the world's loop, ``world/simulation.py``, uses them): :meth:`_extra_shapes`
+(shapes added to the light scene), :meth:`_setup_extra` (set-up after the scene and the
+population), :meth:`_checkpoint_extra` and :meth:`_load_extra` (state beyond soil and moss).
 """
 from __future__ import annotations
 
-import datetime as _dt
-import json
-import os
 import signal
 import threading
 import time
-import zipfile
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import drjit as dr
 import mitsuba as mi
 import numpy as np
+from tqdm.auto import tqdm
 
-from . import soil as soil_model
-from .climate import ClimateTable, daily_weather, load_csv
-from .errors import MitsubaVegError, ParameterError, check_range
-from .integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
-from .light.sunpath import day_sun_path
-from .moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
+from .. import soil as soil_model
+from ..errors import MitsubaVegError
+from ..light.sunpath import day_sun_path
+from ..moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
                                SpeciesTable, concat_u32)
-from .moss.propagules import land, settle, spore_direction, uniform_sphere
-from .moss.spatial import SpotGrid, max_per_element, per_element_count
-from .moss.species import SPECIES, Species, load_species
-from .scenario import Scenario, load_scenario
-from .terrain import Terrain
+from ..moss.propagules import land, settle, spore_direction, uniform_sphere
+from ..moss.spatial import per_element_count
+from ..outputs import RUN_OUTPUTS, clear_outputs
+from ..scenario import Scenario
+from ..variant import versions
+from .checkpoint import Checkpoints
+from .config import BANDS
+from .site import MossSite
 
-BANDS = ("total", "par", "red", "far_red")
 _PCG_STREAM = 0xDA3E39CB94B95BDB  # Dr.Jit's default PCG32 stream (lane i adds i)
 
-#: [moss] defaults (scenario fields, documented in docs/moss.md)
-MOSS_DEFAULTS = {
-    "species": ["bryum_argenteum", "hypnum_plumaeforme", "polytrichum"],
-    "capacity": 16384,          # slots (paper: at most 16384 moss)
-    "initial": 200,             # moss placed at random on the surfaces at the start
-    "initial_growth": 1.0,      # their G_moss (established moss)
-    "size": 0.01,               # [m] moss size = cell of the spot grid (paper: 1 cm)
-    "gemma_distance": 0.02,     # k of eq 3.22 [m]
-    "spore_distance": 0.25,     # l of eq 3.23 [m]
-    "external_spore_interval": 5,   # days between spores arriving from outside (0 = none)
-    "clump_neighbours": 8,      # occupied neighbour cells that make a moss "inside a clump"
-    "albedo": [0.10, 0.07, 0.05, 0.45],   # moss reflectance per band (total, par, red, far-red)
-    "priority": None,           # species priority for occupancy conflicts (default all 0)
-    "shapes": None,             # shapes moss may live on (default: all meshes)
-}
-SIM_DEFAULTS = {"days": 300, "start_date": "2026-03-01", "checkpoint_every": 10,
-                "frame_every": 10}
 
+class MossSimulation(Checkpoints, MossSite):
+    """The moss loop: build from a :class:`~mitsuba_veg.scenario.Scenario`; :meth:`run` the
+    days.
 
-@dataclass
-class DayRecord:
-    day: int
-    date: str
-    alive: dict
-    propagules: int
-    covered_area_m2: float
-    mean_S: float
-    mean_Ts: float
-    mean_rhs: float
-    mean_theta: float
-    events: dict
-    regions: dict = field(default_factory=dict)
-    seconds: dict = field(default_factory=dict)
-
-
-class MossSimulation:
-    """Build from a :class:`~mitsuba_veg.scenario.Scenario`; :meth:`run` the days."""
+    Parameters
+    ----------
+    scenario : Scenario
+        The loaded scenario.
+    out_dir : path-like
+        The run folder (checkpoint; the outputs are written by :func:`mitsuba_veg.daily.run.run`).
+    days : int, optional
+        Simulated days [d] (default: the scenario's ``simulation.days``).
+    progress : bool
+        Show a progress bar.
+    """
 
     #: smallest batch of propagules traced at a time while the population is full (the batch
     #: doubles until the free slots are used up; results do not depend on it)
@@ -94,224 +73,28 @@ class MossSimulation:
 
     def __init__(self, scenario: Scenario, out_dir, days: int | None = None,
                  progress: bool = True):
-        self.scn = scenario
+        super().__init__(scenario, days)
         self.out = Path(out_dir)
         self.progress = progress
-        src = str(scenario.path)
-        sim = {**SIM_DEFAULTS, **scenario.get("simulation", {})}
-        self.days = int(days if days is not None else sim["days"])
-        check_range("simulation.days", self.days, 1, 100_000, source=src)
-        try:
-            self.start = _dt.date.fromisoformat(str(sim["start_date"]))
-        except ValueError:
-            raise ParameterError("simulation.start_date", sim["start_date"], "YYYY-MM-DD",
-                                 None, src) from None
-        self.checkpoint_every = int(sim["checkpoint_every"])
-        self.frame_every = int(sim["frame_every"])
-        m = {**MOSS_DEFAULTS, **scenario.get("moss", {})}
-        self.moss_cfg = m
-        check_range("moss.capacity", m["capacity"], 16, 50_000_000, source=src)
-        check_range("moss.initial", m["initial"], 0, m["capacity"], source=src,
-                    fix="no more initial moss than the capacity")
-        check_range("moss.size", m["size"], 1e-4, 1.0, source=src, fix="moss size in metres")
-        check_range("moss.gemma_distance", m["gemma_distance"], 0.0, 100.0, source=src)
-        check_range("moss.spore_distance", m["spore_distance"], 0.0, 100.0, source=src)
-        check_range("moss.external_spore_interval", m["external_spore_interval"], 0, 100_000,
-                    source=src)
-        check_range("moss.clump_neighbours", m["clump_neighbours"], 1, 26, source=src)
-        if len(m["albedo"]) != len(BANDS) or any(not (0 <= a <= 1) for a in m["albedo"]):
-            raise ParameterError("moss.albedo", m["albedo"], f"{len(BANDS)} values in [0, 1] "
-                                 f"(bands {', '.join(BANDS)})", None, src)
-        self.species = self._species(m, src)
-        self.light_cfg = {"photons": scenario.get("light.photons"),
-                          "max_depth": scenario.get("light.max_depth"),
-                          "indirect": scenario.get("light.indirect"),
-                          "seed": scenario.get("light.seed")}
-        self.seed = int(self.light_cfg["seed"])
-        self._setup_climate(src)
         self.timings = {"setup": 0.0, "light": 0.0, "soil": 0.0, "moss": 0.0, "output": 0.0}
 
-    # ---- configuration ----------------------------------------------------------------------
-    def _species(self, m, src) -> list[Species]:
-        known = dict(SPECIES)
-        custom = self.scn.get("species_file")
-        if custom:
-            known.update(load_species(self.scn.file("species_file")))
-        out = []
-        names = m["species"]
-        if isinstance(names, str) or not names:
-            raise ParameterError("moss.species", names, "a non-empty list of species keys", None,
-                                 src)
-        for k in names:
-            if k not in known:
-                raise ParameterError("moss.species", k, "one of " + ", ".join(sorted(known)),
-                                     "use a built-in species or add it in a species_file", src)
-            out.append(known[k])
-        return out
-
-    def _setup_climate(self, src):
-        c = self.scn.get("climate", {}) or {}
-        allowed = {"temperature", "humidity", "precipitation", "rain_days", "wind",
-                   "possible_sunshine", "sunshine", "angstrom_a", "angstrom_b", "csv"}
-        for k in c:
-            if k not in allowed:
-                raise ParameterError(f"climate.{k}", c[k], "one of " + ", ".join(sorted(allowed)),
-                                     "remove or rename the field", src)
-        table = ClimateTable(**{k: v for k, v in c.items() if k != "csv"}, source=src)
-        lat = float(self.scn.get("site.latitude"))
-        if c.get("csv"):
-            w = load_csv(self.scn.file("climate.csv"), lat, table)
-            if len(w) < self.days:
-                raise ParameterError("climate.csv", f"{len(w)} rows", f">= {self.days} rows "
-                                     "(one per simulated day)", "add rows or run fewer days", src)
-        else:
-            w = daily_weather(table, lat, self.days, seed=self.seed,
-                              start_day=self.start.timetuple().tm_yday)
-        self.weather = w
-        self.climate = table
-
-    # ---- scene, terrain, soil ---------------------------------------------------------------
     def setup(self):
+        """Build the site (:meth:`setup_site`), the empty population and the day counter; then
+        :meth:`_setup_extra`."""
         t0 = time.perf_counter()
-        base = self.scn.load_scene(daylight=False)
-        d = {"type": "scene"}
-        for sh in base.shapes():
-            d[sh.id()] = sh
-        self.terrain_shapes = [sh.id() for sh in base.shapes() if sh.is_mesh()]
-        d.update(self._extra_shapes(base))
-        d["sun"] = {"type": "veg_sun_path", "id": "sun"}
-        d["sky"] = {"type": "veg_sky", "id": "sky", "distribution": "uniform",
-                    "radiance": {"type": "uniform", "value": 1.0 / np.pi}}
-        self.scene = mi.load_dict(d, optimize=False)
-        self.sun = [e for e in self.scene.emitters() if e.id() == "sun"][0]
-        self.index = SceneIndex.build(self.scene)
-        self.integrator = PhotonIrradianceIntegrator()
-        self._setup_terrain()
-        lo, hi = np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max)
-        size = float(self.moss_cfg["size"])
-        span = float(np.max(hi - lo))
-        smallest = span / (SpotGrid.max_cells_per_axis - 3)
-        if size < smallest:
-            raise ParameterError("moss.size", size, f">= {smallest:.3g} m for this scene "
-                                 f"({span:.3g} m across: the spot grid holds at most "
-                                 f"{SpotGrid.max_cells_per_axis:,d} cells per axis)",
-                                 "use a larger moss size or a smaller scene",
-                                 str(self.scn.path))
-        self.grid = SpotGrid(lo, hi, size, int(self.moss_cfg["capacity"]))
+        self.setup_site()
         self.pop = MossPopulation(int(self.moss_cfg["capacity"]),
                                   SpeciesTable(self.species, self.moss_cfg["priority"]))
-        self.O = soil_model.bucket_capacity(self.h, self.geology).astype(np.float64)  # saturated
         self.history: list[dict] = []
         self.day = 0
         self._moss_version = 0
         self._setup_extra()
         self.timings["setup"] += time.perf_counter() - t0
 
-    def _extra_shapes(self, base) -> dict:
-        """Shapes added to the light scene besides the scenario's (a world adds its trees)."""
-        return {}
-
     def _setup_extra(self) -> None:
         """Set-up after the scene, terrain and population exist (a world: its canopy)."""
 
-    def _setup_terrain(self):
-        src = str(self.scn.path)
-        idx = self.index
-        n = idx.n_elements
-        ground = self.scn.get("terrain.ground", "ground")
-        meshes = [s for s in idx.shape_ids if s in idx.geometry]
-
-        def need_shape(field, sid):
-            if sid not in idx.geometry:
-                raise ParameterError(field, sid, "a mesh id of the scene: " + ", ".join(meshes),
-                                     "use one of the scene's shape ids (loaded with "
-                                     "optimize=False)", src)
-        need_shape("terrain.ground", ground)
-        for sec in ("geology", "soil_depth_mm"):
-            for sid in (self.scn.get(f"terrain.{sec}", {}) or {}):
-                need_shape(f"terrain.{sec}.{sid}", sid)
-        for name, reg in (self.scn.get("regions", {}) or {}).items():
-            for sid in reg["shapes"]:
-                need_shape(f"regions.{name}.shapes", sid)
-        self.geology = np.full(n, soil_model.geology_code("asphalt"), np.int64)
-        self.h = np.ones(n)
-        geo_over = self.scn.get("terrain.geology", {}) or {}
-        depth_over = self.scn.get("terrain.soil_depth_mm", {}) or {}
-        living = self.moss_cfg["shapes"] or [s for s in self.terrain_shapes if s in idx.geometry]
-        self.living = np.zeros(n, bool)
-        for sid in idx.shape_ids:
-            if sid not in idx.geometry:
-                continue
-            sl = idx.shape_slice(sid)
-            v, f = idx.geometry[sid]
-            terr = Terrain.from_arrays(v, f, name=sid)
-            if sid == ground:
-                shape = [s for s in self.scene.shapes() if s.id() == sid][0]
-                terr = Terrain.from_mitsuba(shape)
-                tex = self.scn.get("terrain.geology_texture")
-                if tex:
-                    path = self.scn.file("terrain.geology_texture")
-                    try:
-                        self.geology[sl] = terr.geology_from_texture(path)
-                    except (OSError, ValueError, SyntaxError) as e:  # PIL: unreadable image
-                        raise ParameterError("terrain.geology_texture", tex, "a readable PNG/JPEG "
-                                             "image", f"replace {path.name} ({e})", src) from None
-                base_y = self.scn.get("terrain.soil_base_y")
-                self.h[sl] = terr.soil_depth_mm(base_y)
-            if sid in geo_over:
-                self.geology[sl] = soil_model.geology_code(geo_over[sid])
-            if sid in depth_over:
-                self.h[sl] = check_range(f"terrain.soil_depth_mm.{sid}", depth_over[sid], 1.0,
-                                         1000.0, source=src)
-            if sid in living:
-                self.living[sl] = True
-        for sid in living:
-            if sid not in idx.geometry:
-                raise ParameterError("moss.shapes", sid, f"mesh ids among {list(idx.geometry)}",
-                                     None, src)
-        self.living_dr = mi.Bool(self.living)
-        self.M = max_per_element(idx.areas, self.grid_cell())
-        self.base_albedo = self._base_albedo()
-        self.regions = {}
-        for name, reg in (self.scn.get("regions", {}) or {}).items():
-            mask = np.zeros(n, bool)
-            for sid in reg["shapes"]:
-                sl = idx.shape_slice(sid)
-                c = idx.centroids[sl]
-                mask[sl] = np.all((c >= np.array(reg["min"])) & (c <= np.array(reg["max"])), 1)
-            self.regions[name] = mask
-
-    def grid_cell(self) -> float:
-        return float(self.moss_cfg["size"])
-
-    def _base_albedo(self) -> np.ndarray:
-        """Albedo of the bare surfaces per element and band, from their BSDFs at the band
-        centres (diffuse reflectance at the triangle's centroid)."""
-        n = self.index.n_elements
-        out = np.zeros((n, len(BANDS)))
-        from .integrators.photon_irradiance import BANDS as B
-        lam = [0.5 * (B[b][0] + B[b][1]) for b in BANDS]
-        for sh in self.scene.shapes():
-            if sh.id() not in self.terrain_shapes:
-                continue  # only the terrain's albedo is replaced (moss cover)
-            sl = self.index.shape_slice(sh.id())
-            m = sl.stop - sl.start
-            si = dr.zeros(mi.SurfaceInteraction3f, m)
-            c = self.index.centroids[sl]
-            si.p = mi.Point3f(*[mi.Float(c[:, k].astype(np.float32)) for k in range(3)])
-            nrm = self.index.normals[sl]
-            si.n = mi.Normal3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
-            si.sh_frame = mi.Frame3f(si.n)
-            si.wi = mi.Vector3f(0, 0, 1)
-            si.wavelengths = mi.Spectrum(*lam)
-            a = sh.bsdf().eval_diffuse_reflectance(si)
-            out[sl] = np.stack([np.asarray(a[k]) for k in range(len(BANDS))], 1)
-        return np.clip(out, 0.0, 1.0)
-
     # ---- one day ----------------------------------------------------------------------------
-    def _date(self, day: int) -> _dt.date:
-        return self.start + _dt.timedelta(days=day)
-
     def _rng(self, day: int, n: int, stream: int, offset: int = 0) -> mi.PCG32:
         """Lanes offset .. offset + n - 1 of the day's generator for ``stream`` (a batch of a
         larger draw gets the numbers the whole draw would give it)."""
@@ -320,8 +103,14 @@ class MossSimulation:
         return mi.PCG32(size=max(n, 1), initstate=dr.opaque(mi.UInt64, init + offset),
                         initseq=dr.opaque(mi.UInt64, (_PCG_STREAM + offset) % (1 << 64)))
 
-    def _counts(self):
-        """Live moss per element (cached until the population changes, i.e. per day step)."""
+    def counts(self) -> np.ndarray:
+        """Live moss per triangle (cached until the population changes, i.e. per day step).
+
+        Returns
+        -------
+        numpy.ndarray
+            (triangles,) moss count [-].
+        """
         key = (self.day, self._moss_version)
         if getattr(self, "_counts_cache", (None,))[0] != key:
             c = np.asarray(per_element_count(self.pop.elem, self.pop.moss,
@@ -330,9 +119,26 @@ class MossSimulation:
         return self._counts_cache[1]
 
     def light(self, day: int, counts: np.ndarray):
-        """Daily-mean insolation S per element [W m-2] and the photon-pass result."""
+        """The day's light: one photon pass with the day's sun path and the sky.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        counts : numpy.ndarray
+            Live moss per triangle (its cover sets the albedo).
+
+        Returns
+        -------
+        S : numpy.ndarray
+            Daily-mean insolation per triangle [W m-2] (S = B f_sun + D f_sky).
+        f_sun, f_sky : numpy.ndarray
+            Sun and sky fractions per triangle [-] (per unit horizontal beam and diffuse).
+        res : PhotonIrradianceResult
+            The photon pass.
+        """
         dirs, w, _ = day_sun_path(float(self.scn.get("site.latitude")),
-                                  float(self.scn.get("site.longitude")), self._date(day))
+                                  float(self.scn.get("site.longitude")), self.date(day))
         self.sun.set_day(dirs, w)
         cover = np.minimum(counts * self.grid_cell() ** 2 / np.maximum(self.index.areas, 1e-30),
                            1.0)[:, None]
@@ -354,6 +160,24 @@ class MossSimulation:
         return S, f_sun, f_sky, res
 
     def soil(self, day: int, S: np.ndarray, counts: np.ndarray):
+        """The day's soil heat and water (paper 000 eqs 3.2-3.16) per triangle; updates ``O``.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        S : numpy.ndarray
+            Insolation per triangle [W m-2].
+        counts : numpy.ndarray
+            Live moss per triangle (its density sets C_H).
+
+        Returns
+        -------
+        state : soil.SurfaceState
+            Surface temperature ``Ts`` [K], relative humidity ``rhs`` [-] and fluxes [W m-2].
+        theta : numpy.ndarray
+            Soil water content per triangle [-] at the start of the day.
+        """
         wd = self.weather
         C_H = soil_model.transfer_coefficient(np.minimum(counts / self.M, 1.0))
         theta = soil_model.water_content(self.O, self.h)
@@ -365,6 +189,23 @@ class MossSimulation:
         return st, theta
 
     def moss(self, day: int, S, Ts, rhs):
+        """The day's moss life cycle (eqs 3.17-3.24): germination, growth, death, release,
+        landing and settling of gemmae and spores, and a spore from outside every
+        ``external_spore_interval`` days.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        S, Ts, rhs : numpy.ndarray
+            Insolation [W m-2], surface temperature [K] and relative humidity [-] per triangle.
+
+        Returns
+        -------
+        dict
+            The day's events (counts of births, deaths, propagules released, traced, settled,
+            crowded out).
+        """
         pop, grid, cfg = self.pop, self.grid, self.moss_cfg
         f = lambda a: mi.Float(np.asarray(a, np.float32))  # noqa: E731
         cand, spores, ev = pop.live_day(f(S), f(Ts), f(rhs))
@@ -515,9 +356,17 @@ class MossSimulation:
 
     # ---- run --------------------------------------------------------------------------------
     def step(self) -> dict:
+        """Simulate one day (light, soil, moss) and append its record to ``history``.
+
+        Returns
+        -------
+        dict
+            The day's record (``day`` 1-based, ``date``, moss alive per species, covered area
+            [m2], area-mean S [W m-2], Ts [K], rhs and θ, events, regions, ``seconds``).
+        """
         day = self.day
         t0 = time.perf_counter()
-        counts = self._counts()
+        counts = self.counts()
         S, f_sun, f_sky, res = self.light(day, counts)
         t1 = time.perf_counter()
         st, theta = self.soil(day, S, counts)
@@ -537,11 +386,23 @@ class MossSimulation:
         return rec
 
     def covered_area(self, counts=None) -> np.ndarray:
-        counts = self._counts() if counts is None else counts
+        """Area covered by moss per triangle.
+
+        Parameters
+        ----------
+        counts : numpy.ndarray, optional
+            Live moss per triangle (default: :meth:`counts`).
+
+        Returns
+        -------
+        numpy.ndarray
+            (triangles,) covered area [m2]: min(moss x size², triangle area).
+        """
+        counts = self.counts() if counts is None else counts
         return np.minimum(counts * self.grid_cell() ** 2, self.index.areas)
 
     def _record(self, day, S, st, theta, events, secs) -> dict:
-        counts = self._counts()
+        counts = self.counts()
         cov = self.covered_area(counts)
         soil = self.living
         a = self.index.areas[soil]
@@ -553,7 +414,7 @@ class MossSimulation:
         # where eq 3.16's linearised q_SAT(Ts) is off by > 10 % (cold shaded surfaces)
         off = np.abs(np.asarray(soil_model.linearisation_error(self.weather.T[day],
                                                                np.asarray(st.Ts)))) > 0.1
-        return {"day": day + 1, "date": self._date(day).isoformat(), "alive": alive,
+        return {"day": day + 1, "date": self.date(day).isoformat(), "alive": alive,
                 "soil_linearisation_off": amean(off.astype(float)),
                 "moss_alive": int(sum(alive.values())),
                 "propagules": self.pop.count(PROPAGULE), "covered_area_m2": float(cov.sum()),
@@ -563,71 +424,31 @@ class MossSimulation:
                 "seconds": secs}
 
     def initialise(self):
+        """Place the initial moss (``moss.initial``) at random on the living surfaces."""
         self._moss_version += 1
         self._place_random(int(self.moss_cfg["initial"]), -1, MOSS, GEMMA,
                            float(self.moss_cfg["initial_growth"]), stream=3)
 
-    # ---- checkpoints ------------------------------------------------------------------------
-    @property
-    def checkpoint_path(self) -> Path:
-        return self.out / "checkpoint.npz"
-
-    def save_checkpoint(self):
-        d = self.pop.to_numpy()
-        d.update(self._checkpoint_extra())
-        d.update({"day": np.array(self.day), "O": self.O,
-                  "history": np.array(json.dumps(self.history)),
-                  "timings": np.array(json.dumps(self.timings)),
-                  "fingerprint": np.array(self._fingerprint())})
-        tmp = self.out / "checkpoint.tmp.npz"
-        np.savez_compressed(tmp, **d)
-        os.replace(tmp, self.checkpoint_path)
-
-    def _checkpoint_extra(self) -> dict:
-        """Arrays of the state beyond soil and moss (a world: its leaves)."""
-        return {}
-
-    def _load_extra(self, d: dict) -> None:
-        """Restore what :meth:`_checkpoint_extra` saved."""
-
-    def _fingerprint(self) -> str:
-        """What must match for a checkpoint to be resumed: the settings of the run."""
-        keep = {k: v for k, v in self.scn.data.items() if k != "simulation"}
-        return json.dumps({"scenario": keep, "start": self.start.isoformat()}, sort_keys=True,
-                          default=str)
-
-    def load_checkpoint(self) -> bool:
-        p = self.checkpoint_path
-        if not p.exists():
-            return False
-        try:
-            d = dict(np.load(p, allow_pickle=False))
-            fingerprint, day = str(d["fingerprint"]), int(d["day"])
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
-            raise ParameterError("checkpoint", str(p), "a complete checkpoint written by "
-                                 "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
-                                 "run again with --fresh to start over") from None
-        if fingerprint != self._fingerprint():
-            raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
-                                 "use --fresh (or another --out folder) to start afresh")
-        if day > self.days:
-            raise ParameterError("--days", self.days, f">= {day}: the checkpoint in "
-                                 f"{self.out} already holds day {day}",
-                                 f"pass --days {day} or more to resume, or --fresh to start "
-                                 "over with fewer days")
-        self.pop.load_numpy(d)
-        self._load_extra(d)
-        self.grid.rebuild(self.pop.pos, self.pop.state)
-        self._moss_version += 1
-        self.day = int(d["day"])
-        self.O = np.asarray(d["O"], np.float64)
-        self.history = json.loads(str(d["history"]))
-        self.timings.update(json.loads(str(d["timings"])))
-        return True
-
     def run(self, resume: bool = True, on_day=None) -> dict:
-        """Run (or resume) to ``self.days`` days; returns the summary dict."""
-        from .outputs import RUN_OUTPUTS, clear_outputs
+        """Run (or resume) to ``self.days`` days.
+
+        Parameters
+        ----------
+        resume : bool
+            Resume from ``checkpoint.npz`` in the run folder when there is one.
+        on_day : callable, optional
+            ``on_day(sim, record)`` after every day (maps, snapshots).
+
+        Returns
+        -------
+        dict
+            The summary (:meth:`summary`).
+
+        Raises
+        ------
+        Interrupted
+            After Ctrl-C: the day in progress ends and a checkpoint is written first.
+        """
         self.out.mkdir(parents=True, exist_ok=True)
         self.setup()
         resumed = resume and self.load_checkpoint()
@@ -644,7 +465,6 @@ class MossSimulation:
             self.initialise()
         bar = None
         if self.progress:
-            from tqdm.auto import tqdm
             bar = tqdm(total=self.days, initial=self.day, unit="day", desc="moss days")
         stop = _InterruptFlag()
         try:
@@ -671,8 +491,8 @@ class MossSimulation:
         return self.summary(resumed)
 
     def summary(self, resumed=False) -> dict:
-        from .variant import versions
-        counts = self._counts()
+        """The run's summary (settings, final state, timings, every day's record)."""
+        counts = self.counts()
         cov = self.covered_area(counts)
         regions = {k: {"covered_area_m2": float(cov[m].sum()),
                        "area_m2": float(self.index.areas[m].sum()),
@@ -729,42 +549,3 @@ class _InterruptFlag:
     def __exit__(self, *exc):
         if self._old is not None:
             signal.signal(signal.SIGINT, self._old)
-
-
-def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: bool = True,
-        progress: bool = True, frames: bool = True, snapshot_every: int | None = None) -> dict:
-    """Run a moss scenario (TOML path or Scenario) into ``out``; returns the summary dict
-    (also written to ``out/summary.json``).
-
-    The folder is claimed for the run (:class:`~mitsuba_veg.outputs.OutputFolder`: a second
-    process writing into it is refused; a folder holding another kind of result is refused).
-    ``resume=False`` (``--fresh``) discards the checkpoint and every output of an earlier run
-    in the folder (maps, snapshots, GIF, renders); so does a run that finds no checkpoint.
-    ``snapshot_every``: days between moss snapshots for exact animations (default: the
-    scenario's ``simulation.frame_every``)."""
-    from .outputs import RUN_OUTPUTS, DayFrames, OutputFolder, SnapshotWriter, write_summary
-    scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
-    if scn.get("trees"):
-        from .world import WorldSimulation
-        sim = WorldSimulation(scn, out, days=days, progress=progress)
-    else:
-        sim = MossSimulation(scn, out, days=days, progress=progress)
-    with OutputFolder(out, "run", info={"scenario": str(scn.path)}) as folder:
-        if not resume:
-            folder.clear(RUN_OUTPUTS)
-        frames_writer = DayFrames(sim) if frames else None
-        # living moss on frame days (exact animations)
-        snapshots = SnapshotWriter(snapshot_every) if frames else None
-
-        def on_day(s, rec):
-            if frames_writer is not None:
-                frames_writer(s, rec)
-            if snapshots is not None:
-                snapshots(s, rec)
-
-        summary = sim.run(resume=resume, on_day=on_day)
-        if frames_writer is not None:
-            summary["files"] = frames_writer.finish()
-            summary["files"]["snapshots"] = str(Path(out) / "snapshots")
-        write_summary(Path(out) / "summary.json", summary)
-    return summary

@@ -8,12 +8,17 @@ file or a missing extra (one line on stderr).
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
+from ..sweeps.runner import sweep
+from .args import add_out, add_quiet, add_set, ranged
+
 __all__ = ["add_parser"]
 
 
 def add_parser(subparsers) -> None:
     """Add ``sweep`` to the ``mitsuba-veg`` sub-command parsers."""
-    from ..cliargs import ranged
     s = subparsers.add_parser("sweep", help="many moss runs on Dask (axes x seeds) -> one table")
     s.add_argument("sweep_file", help="sweep TOML, e.g. scenes/moss_garden/sweep.toml")
     s.add_argument("--scheduler", metavar="ADDRESS",
@@ -24,19 +29,14 @@ def add_parser(subparsers) -> None:
                         "--scheduler: wait for N workers")
     s.add_argument("--threads", type=ranged(int, 1, 1024, "threads"), metavar="N",
                    help="Dr.Jit threads per worker (default: cores // worker processes)")
-    s.add_argument("--out", default="out/sweep", help="output folder (default out/sweep)")
-    s.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a field of the base scenario for every run")
+    add_out(s, "out/sweep", "the table, the runs and the plots")
+    add_set(s, "base scenario")
     s.add_argument("--no-plots", action="store_true", help="skip the standard plots")
-    s.add_argument("--quiet", action="store_true", help="no progress bar and no per-run lines")
+    add_quiet(s, "no progress bar and no per-run lines")
     s.set_defaults(func=_cmd_sweep)
 
 
 def _cmd_sweep(a) -> int:
-    import json
-    from pathlib import Path
-
-    from .runner import sweep
     out = Path(a.out)
     df = sweep(a.sweep_file, out, scheduler=a.scheduler, workers=a.workers,
                overrides=a.set or (), threads=a.threads, progress=not a.quiet,

@@ -11,18 +11,36 @@ SCENE is a Mitsuba XML file or a scenario TOML (which names the XML and the ligh
 """
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
+
+import mitsuba as mi
+import numpy as np
+
+from ..daily.run import run
+from ..errors import ParameterError, SceneError, check_range
+from ..foliage.light_study import add_parser as _add_light_study
+from ..light import photon_irradiance
+from ..outputs import OutputFolder, write_json
+from ..plots import irradiance_figure
+from ..render.still import run_render
+from ..scenario import MAX_PHOTONS, load_scenario
+from ..sweeps.frames import run_animate
+from ..tune.cli import add_parser as _add_tune
+from ..variant import __version__, versions
+from ..world.trees import scene_with_trees
+from . import grow, render, sweep
+from .args import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
+from .entry import run_parsed, standalone  # noqa: F401  (re-exported)
+
 
 def _default_scenario(name: str = "courtyard") -> Path:
     """A shipped scenario (default: the courtyard world): from the source tree, else from the
     installed package data."""
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parent.parent
     for p in (here.parent / "scenes", here / "scenes"):
         if (p / name / "scenario.toml").exists():
             return p / name / "scenario.toml"
-    from .errors import SceneError
     raise SceneError("the shipped scenes are missing from this installation; pass a scenario "
                      "file explicitly (mitsuba-veg run SCENARIO.toml)")
 
@@ -32,24 +50,36 @@ DEFAULT_SCENARIO = None  # resolved lazily by _default_scenario()
 DEMO_WHEN = "2026-07-15T10:00:00+09:00"
 
 
-from .outputs import write_json as _write_json  # noqa: E402
-from .variant import versions  # noqa: E402,F401 (re-exported)
 
 
 def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, indirect=None,
                    when=None, overrides=(), progress=True) -> dict:
-    """Photon pass on a scene or scenario; writes irradiance.npz, PNG maps and summary.json."""
-    import numpy as np
-    import mitsuba as mi
-    from .light import photon_irradiance
-    from .plots import irradiance_figure
-    from .scenario import load_scenario
+    """The photon pass of ``mitsuba-veg irradiance`` on a scene or scenario.
 
-    from .errors import ParameterError
-    from .outputs import OutputFolder
-    from .scenario import MAX_PHOTONS
-    from .errors import check_range
+    Parameters
+    ----------
+    scene_path : path-like
+        A Mitsuba XML scene or a scenario TOML.
+    out : path-like
+        Output folder: ``irradiance.npz``, PNG maps per shape and ``summary.json``.
+    photons, seed, max_depth : int, optional
+        Photons per emitter, random seed, bounces per photon (default: the scenario's, else
+        1000000, 0, 8).
+    indirect : bool, optional
+        Follow bounces (default: the scenario's, else True).
+    when : str, optional
+        ISO date-time: daylight for the scenario's site instead of its emitters (TOML only).
+    overrides : sequence of str
+        ``KEY=VALUE`` scenario fields.
+    progress : bool
+        Show a progress bar.
 
+    Returns
+    -------
+    dict
+        The summary (irradiance means per shape and region [W m-2], R:FR, energy balance [W],
+        timings [s], files, versions).
+    """
     scene_path = Path(scene_path)
     out = Path(out)
     if scene_path.suffix.lower() not in (".toml", ".xml") or not scene_path.is_file():
@@ -75,7 +105,6 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         scn = load_scenario(scene_path, ov)
         scene = scn.load_scene()
         if scn.get("trees"):   # a world: its trees in full green leaf
-            from .world.trees import scene_with_trees
             scene, tree_shapes = scene_with_trees(scn, scene)
         settings.update({k: scn.get(f"light.{k}") for k in settings})
         regions = scn.get("regions", {})
@@ -144,7 +173,7 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
                      "truncated": res.truncated.sum(0).tolist()},
         "shapes": shapes, "regions": reg_out, "files": {
             "npz": str(out / "irradiance.npz"), "png": pngs}, "versions": versions()}
-    _write_json(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     folder.release()
     return summary
 
@@ -177,7 +206,6 @@ def _report(s: dict) -> None:
 
 
 def _cmd_run(a) -> int:
-    from .simulation import run
     out = Path(a.out)
     s = run(a.scenario, out=out, days=a.days, overrides=a.set or (), resume=not a.fresh,
             progress=not a.quiet)
@@ -197,7 +225,6 @@ def _cmd_run(a) -> int:
 
 
 def _cmd_demo(a) -> int:
-    from .simulation import run
     out = Path(a.out)
     scen = _default_scenario()
     print(f"mitsuba-veg demo 1/4: light study of the courtyard (trees in full leaf) under "
@@ -226,7 +253,6 @@ def _cmd_demo(a) -> int:
               out / "world" / "maps"):
         if p:
             print(f"  {p}")
-    from .render.cli import run_animate, run_render
     print(f"\nmitsuba-veg demo 3/4: spectral render of the last day and of midsummer -> "
           f"{out / 'world' / 'render'}/")
     r = run_render(out / "world", camera="overview", progress=not a.quiet)
@@ -249,12 +275,15 @@ def _cmd_demo(a) -> int:
 
 
 def build_parser():
-    """The ``mitsuba-veg`` argument parser with every sub-command."""
-    import mitsuba_veg
-    from .cliargs import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
+    """The ``mitsuba-veg`` argument parser with every sub-command.
+
+    Returns
+    -------
+    cli.args.Parser
+    """
     ap = Parser(prog="mitsuba-veg", description="Grow vegetation from light with Mitsuba 3.")
     ap.add_argument("--version", action="version",
-                    version=f"mitsuba-veg {mitsuba_veg.__version__}")
+                    version=f"mitsuba-veg {__version__}")
     ap.add_argument("-v", "--verbose", action="store_true",
                     help="log more (level info) and show tracebacks of internal errors")
     ap.add_argument("--log-level", choices=("debug", "info", "warning", "error"),
@@ -295,78 +324,25 @@ def build_parser():
     add_out(p, "out/irradiance", "irradiance.npz, PNG maps and summary.json")
     add_quiet(p)
     p.set_defaults(func=_cmd_irradiance)
-    from .foliage.light_study import add_parser as _add_light_study
     _add_light_study(sub)
-    from .trees.grow_cli import add_parser as _add_grow
-    _add_grow(sub)
-    from .render.cli import add_parsers as _render_parsers
-    _render_parsers(sub)
-    from .tune.cli import add_parser as _add_tune
+    grow.add_parser(sub)
+    render.add_parsers(sub)
     _add_tune(sub)
-    from .sweeps.cli import add_parser as _add_sweep
-    _add_sweep(sub)
+    sweep.add_parser(sub)
     return ap
 
 
 def main(argv=None) -> int:
+    """Run the ``mitsuba-veg`` command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code (0 done, 1 internal error, 2 bad input, 130 interrupted).
+    """
     return run_parsed(build_parser().parse_args(argv))
-
-
-def _setup_logging(a) -> None:
-    import logging
-    level = (getattr(a, "log_level", None) or ("info" if getattr(a, "verbose", False)
-                                               else "warning")).upper()
-    log = logging.getLogger("mitsuba_veg")
-    log.setLevel(level)
-    if not any(getattr(h, "_mitsuba_veg", False) for h in log.handlers):
-        h = logging.StreamHandler(sys.stderr)
-        h.setFormatter(logging.Formatter("mitsuba-veg: %(levelname)s: %(message)s"))
-        h._mitsuba_veg = True
-        log.addHandler(h)
-        log.propagate = False
-
-
-def run_parsed(a) -> int:
-    """Run a parsed command. A library error (bad input) becomes one line on stderr and exit
-    code 2; an interrupted run exit code 130; an unexpected error one line and exit code 1
-    (``--verbose`` adds the traceback)."""
-    from .errors import MitsubaVegError
-    from .simulation import Interrupted
-    import mitsuba_veg  # noqa: F401  (variant + plugins)
-    _setup_logging(a)
-    try:
-        return a.func(a)
-    except Interrupted as e:
-        print(f"\nmitsuba-veg: {e}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print("\nmitsuba-veg: interrupted", file=sys.stderr)
-        return 130
-    except MitsubaVegError as e:
-        print(f"mitsuba-veg: error: {' '.join(str(e).split())}", file=sys.stderr)
-        return 2
-    except OSError as e:  # a file that cannot be read or written
-        where = f"{e.filename}: " if e.filename else ""
-        print(f"mitsuba-veg: error: {where}{e.strerror or e} (check the path and its "
-              "permissions)", file=sys.stderr)
-        return 2
-    except Exception as e:  # noqa: BLE001 - the command line's last resort
-        if getattr(a, "verbose", False):
-            raise
-        msg = " ".join(str(e).split())[:300]
-        print(f"mitsuba-veg: internal error: {type(e).__name__}: {msg} (run again with "
-              "--verbose for the traceback, and please report it)", file=sys.stderr)
-        return 1
-
-
-def standalone(command: str, add_parser, argv=None) -> int:
-    """Entry of one sub-command run on its own (``python -m ...``): ``argv`` without the
-    command's name."""
-    from .cliargs import Parser
-    ap = Parser(prog="mitsuba-veg")
-    add_parser(ap.add_subparsers(dest="cmd", required=True))
-    return run_parsed(ap.parse_args([command, *(sys.argv[1:] if argv is None else argv)]))
-
-
-if __name__ == "__main__":
-    sys.exit(main())
