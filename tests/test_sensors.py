@@ -291,3 +291,20 @@ def test_cli_series_refusals(tmp_path):
         p = subprocess.run(base + extra, capture_output=True, text=True, cwd=ROOT, timeout=120)
         assert p.returncode != 0 and word in p.stderr, p.stderr[-600:]
         assert "Traceback" not in p.stderr
+
+
+def test_single_time_light_study_reads_the_scenario_sensors(tmp_path):
+    """`light-study SCENARIO --when ...` reads [[sensors]] in its one pass: sensors.csv holds
+    one row per sensor x band x component; the open cosine sensor's PPFD is within 5 % of the
+    SPCTRAL2 open-sky PPFD (sun + sky; walls and a 0.2-albedo ground add a little)."""
+    import pandas as pd
+
+    from mitsuba_veg.foliage.light_study import run_light_study
+
+    sc = _scenario(tmp_path, GOOD)
+    s = run_light_study(sc, tmp_path / "o", photons=400_000, when="2026-06-21T12:00:00+09:00")
+    t = pd.read_csv(tmp_path / "o" / "sensors.csv")
+    assert list(t.columns) == ["time", "sensor", "band", "component", "value", "unit"]
+    assert len(t) == 18 * 5 * 3
+    assert s["sensors"]["open"]["ppfd"] == pytest.approx(s["open"]["ppfd"], rel=0.05)
+    assert s["sensors"]["fluence"]["ppfd"] > s["sensors"]["open"]["ppfd"]

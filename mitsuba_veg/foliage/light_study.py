@@ -12,7 +12,12 @@ indirect) and writes into ``out_dir``:
   and per leaf ``leaves/*`` (when the scene has leaves);
 - ``leaves.csv``: one row per leaf: position, PAR [W m-2 and µmol m-2 s-1], red, far-red [W m-2],
   R:FR (light arriving on both faces per unit one-sided leaf area);
-- ``summary.json``: settings, open-sky reference, means, fractions of open light, timings.
+- ``summary.json``: settings, open-sky reference, means, fractions of open light, timings;
+- ``sensors.csv``, ``sensors.parquet``: with a scenario that has ``[[sensors]]``, their readings
+  from the same pass (tidy: time, sensor, band, component, value, unit; docs/sensors.md).
+
+With ``--year`` or ``--from``/``--to`` the command makes sensor time series instead
+(:mod:`mitsuba_veg.foliage.light_series`).
 
 Leaves are meshes whose shape id starts with ``leaves`` and whose triangles come in pairs
 (one quad per leaf, as :func:`mitsuba_veg.trees.structure.leaf_quads` makes them); in trees built
@@ -214,6 +219,8 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
             info.update(when=w, latitude=lat, longitude=lon, sun_azimuth=az, sun_elevation=el,
                         open=open_reference(az, el, _day_of_year(w)))
         info["ground"] = scn.get("terrain.ground", "ground")
+        from mitsuba_veg.light.sensors import from_scenario
+        info["_sensors"] = from_scenario(scn, scene)
         return scene, None, info
     if when is not None:
         raise ParameterError("--when", when, "a scenario (.toml) with a [site], or a tree, as "
@@ -251,9 +258,15 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                                   tree_leaves)
     t_load = time.perf_counter() - t0
     folder = OutputFolder(out, "light-study")
+    sensors = info.pop("_sensors", None)
+    bands, modes = BANDS, None
+    if sensors is not None:  # the scenario's [[sensors]] are read in the same pass
+        from mitsuba_veg.light import sensors as S
+        scene, owner = S.scene_with_sensors(scene, sensors)
+        bands, modes = BANDS + ("shortwave",), {S.SENSOR_SHAPE: "sensor"}
     res = photon_irradiance(scene, photons=int(photons), seed=int(seed),
-                            max_depth=int(max_depth), bands=BANDS, indirect=bool(indirect),
-                            progress=progress)
+                            max_depth=int(max_depth), bands=bands, indirect=bool(indirect),
+                            progress=progress, modes=modes)
     gid = ground or info.get("ground") or "ground"
     if gid not in res.index.shape_ids:
         raise SceneError(f"no ground shape '{gid}' in the scene (shapes: "
@@ -303,12 +316,24 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                     "ppfd_p90": float(np.nanpercentile(lv["ppfd"], 90)),
                     "rfr_mean": float(np.nanmean(lv["rfr"])),
                     "rfr_min": float(np.nanmin(lv["rfr"]))}
+    sensor_sum = {}
+    if sensors is not None:
+        from .light_series import _write_table
+        r = S.SensorReadings.from_watts(sensors, S.sensor_watts(res, sensors, owner,
+                                                                S.beam_emitters(scene)))
+        files["sensors"] = _write_table(r.table(time=info.get("when")), out / "sensors")
+        sensor_sum = {str(n): {"ppfd": float(r.values[i, 0, 2]),
+                               "ppfd_direct": float(r.values[i, 0, 0]),
+                               "rfr": float(r.values[i, 3, 2]),
+                               "shortwave_W_m2": float(r.values[i, 4, 2])}
+                      for i, n in enumerate(sensors.names[:1000])}
     from mitsuba_veg.variant import versions
     summary = {"command": "light-study", **{k: v for k, v in info.items() if k != "_tree"},
                "settings": {"photons": int(photons), "seed": int(seed), "max_depth": int(max_depth),
                             "indirect": bool(indirect), "bands_nm": dict(zip(res.bands,
                                                                              res.band_ranges))},
                "ground_id": gid, "ground": ground_sum, "leaves": leaf_sum,
+               "sensors": sensor_sum,
                "timings_s": {"load": t_load, "photon_pass": res.seconds,
                              "total": time.perf_counter() - t0},
                "photons_per_s": float(res.photons.sum() / max(res.seconds, 1e-9)),
@@ -495,6 +520,9 @@ def _cmd(a) -> int:
     if "ppfd_fraction_of_open" in g:
         line += f", {100 * g['ppfd_fraction_of_open']:.1f} % of open PPFD"
     print(line)
+    for name, v in list(s.get("sensors", {}).items())[:8]:
+        print(f"  sensor {name}: PPFD {v['ppfd']:.1f} umol m-2 s-1 (direct {v['ppfd_direct']:.1f}),"
+              f" R:FR {v['rfr']:.3f}")
     if s["leaves"]:
         lv = s["leaves"]
         print(f"  {lv['leaves']} leaves: PPFD mean {lv['ppfd_mean']:.1f} (p10 {lv['ppfd_p10']:.1f},"

@@ -585,11 +585,18 @@ def quantities_from_watts(w: np.ndarray) -> np.ndarray:
 
 
 def sensor_watts(result, sensors: SensorSet, owner, beam=None) -> np.ndarray:
-    """Band irradiances of every sensor from a photon pass: (n, 2, bands) [W m-2], axis 1 =
-    (direct, diffuse). ``beam``: the result's emitters (ids) whose first-hit light is
-    "direct" (default: none)."""
+    """Band irradiances of every sensor from a photon pass over a scene from
+    :func:`scene_with_sensors` (bands including :data:`PASS_BANDS`): (n, 2, 4) [W m-2], axis 1
+    = (direct, diffuse), axis 2 = :data:`PASS_BANDS`. ``beam``: the result's emitters (ids)
+    whose first-hit light is "direct" (default: none; :func:`beam_emitters` lists a scene's
+    delta-direction emitters)."""
     sl = result.index.shape_slice(SENSOR_SHAPE)
-    f = result.flux[:, sl, :, 0, :]                       # (E, faces, comp, band), front side
+    missing = [b for b in PASS_BANDS if b not in result.bands]
+    if missing:
+        raise ParameterError("bands", list(result.bands), f"the sensor bands {PASS_BANDS}",
+                             f"trace {missing} too")
+    bi = [result.bands.index(b) for b in PASS_BANDS]
+    f = result.flux[:, sl, :, 0][..., bi]                 # (E, faces, comp, band), front side
     beam = set(beam or ())
     is_beam = np.array([e in beam for e in result.emitters])
     direct = f[is_beam, :, 0, :].sum(axis=0) if is_beam.any() else np.zeros(f.shape[1::2])
@@ -601,7 +608,7 @@ def sensor_watts(result, sensors: SensorSet, owner, beam=None) -> np.ndarray:
     return out / sensors.normalising_area()[:, None, None]
 
 
-def _beam_emitters(scene) -> list[str]:
+def beam_emitters(scene) -> list[str]:
     import mitsuba as mi
     return [em.id() or f"emitter{i}" for i, em in enumerate(scene.emitters())
             if mi.has_flag(em.flags(), mi.EmitterFlags.DeltaDirection)]
@@ -707,7 +714,7 @@ def read(scene, sensors: SensorSet, photons: int = 1_000_000, seed: int = 0,
     res = photon_irradiance(sc, photons=photons, seed=seed, max_depth=max_depth,
                             bands=PASS_BANDS, indirect=indirect, emitters=emitters,
                             progress=progress, modes={SENSOR_SHAPE: "sensor"})
-    w = sensor_watts(res, sensors, owner, beam=_beam_emitters(sc))
+    w = sensor_watts(res, sensors, owner, beam=beam_emitters(sc))
     return SensorReadings.from_watts(sensors, w, res, dict(photons=int(photons), seed=int(seed),
                                                            max_depth=int(max_depth),
                                                            indirect=bool(indirect)))
