@@ -46,18 +46,25 @@ def _date(field, text):
         raise ParameterError(field, text, "a date YYYY-MM-DD", "e.g. 2026-06-21") from None
 
 
-def _write_table(df, stem: Path) -> dict:
-    """``stem``.csv and ``stem``.parquet, atomically."""
-    out = {}
-    for ext in ("csv", "parquet"):
-        path = stem.with_suffix("." + ext)
-        tmp = stem.with_suffix(f".tmp.{ext}")
-        if ext == "csv":
-            df.to_csv(tmp, index=False, float_format="%.6g")
-        else:
-            df.to_parquet(tmp, index=False)
-        os.replace(tmp, path)
-        out[ext] = str(path)
+def _write_table(series_or_readings, stem: Path, keep=None, time=None) -> dict:
+    """``stem``.csv and ``stem``.parquet (the tidy table), atomically: a
+    :class:`~mitsuba_veg.light.sensor_study.SensorSeries` (rows ``keep``) or a
+    :class:`~mitsuba_veg.light.sensors.SensorReadings` at ``time``."""
+    from mitsuba_veg.light import sensors as S
+    x = series_or_readings
+    rows = np.arange(len(x.sensors)) if keep is None else np.arange(len(x.sensors))[keep]
+    if hasattr(x, "times"):
+        values, times, df = x.values[:, rows], x.iso_times(), x.table(rows)
+    else:
+        values = x.values[None, rows]
+        times = None if time is None else [str(time)]
+        df = S.tidy_table(values, x.sensors.names[rows], times)
+    out = {"csv": S.write_tidy_csv(stem.with_suffix(".csv"), values, x.sensors.names[rows],
+                                   times)}
+    tmp = stem.with_suffix(".tmp.parquet")
+    df.to_parquet(tmp, index=False)
+    os.replace(tmp, stem.with_suffix(".parquet"))
+    out["parquet"] = str(stem.with_suffix(".parquet"))
     return out
 
 
@@ -154,12 +161,12 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     elif heatmap_every > 0:
         hourly = _hourly_days(SS, scene, sensors, series, start, end, heatmap_every, kw)
     files = {}
-    files["sensors"] = _write_table(series.table(), out / "sensors")
+    files["sensors"] = _write_table(series, out / "sensors")
     if hourly is not None and hourly is not series:
         # point sensors (and the plotted one): grids' hourly rows would be most of the data
         keep = sensors.ij[:, 0] < 0
         keep[focus] = True
-        files["sensors_hourly"] = _write_table(hourly.table(keep), out / "sensors_hourly")
+        files["sensors_hourly"] = _write_table(hourly, out / "sensors_hourly", keep)
     days, dli, odli = SS.daily_light_integral(series)
     hdays, hrs = (SS.hours_above(hourly, par_threshold) if hourly is not None
                   else (np.array([], "datetime64[D]"), np.zeros((0, len(sensors)))))
@@ -180,9 +187,11 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
         files["dli_map"] = grid_map_figure(
             sensors, m, mean_dli, out / "dli_map.png", f"mean daily light integral, grid "
             f"'{grid}' ({start} to {end})", "DLI [mol m$^{-2}$ d$^{-1}$]", "viridis", vmin=0.0)
+        fin = mean_rfr[m][np.isfinite(mean_rfr[m])]
+        rng = f", {fin.min():.3f}-{fin.max():.3f}" if fin.size else ""
         files["rfr_map"] = grid_map_figure(
             sensors, m, mean_rfr, out / "rfr_map.png", f"red : far-red photon ratio, grid "
-            f"'{grid}' ({start} to {end})", "R:FR [-]", "RdYlGn", vmin=0.0,
+            f"'{grid}' ({start} to {end}{rng})", "R:FR [-]", "RdYlGn", vmin=0.0,
             vmax=max(1.3, float(np.nanmax(mean_rfr[m])) if np.isfinite(mean_rfr[m]).any()
                      else 1.3))
     from mitsuba_veg.variant import versions

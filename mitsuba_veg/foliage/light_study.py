@@ -321,7 +321,7 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
         from .light_series import _write_table
         r = S.SensorReadings.from_watts(sensors, S.sensor_watts(res, sensors, owner,
                                                                 S.beam_emitters(scene)))
-        files["sensors"] = _write_table(r.table(time=info.get("when")), out / "sensors")
+        files["sensors"] = _write_table(r, out / "sensors", time=info.get("when"))
         sensor_sum = {str(n): {"ppfd": float(r.values[i, 0, 2]),
                                "ppfd_direct": float(r.values[i, 0, 0]),
                                "rfr": float(r.values[i, 3, 2]),
