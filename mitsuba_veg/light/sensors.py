@@ -431,7 +431,6 @@ def ground_grid(scene, name: str, spacing: float, height: float = 0.5, x=None, z
     -------
     SensorSet
     """
-    import drjit as dr
     import mitsuba as mi
 
     check_range("spacing", spacing, 1e-3, 1e4, fix="grid spacing in metres, e.g. 0.25")
@@ -460,11 +459,11 @@ def ground_grid(scene, name: str, spacing: float, height: float = 0.5, x=None, z
     only = mi.load_dict({"type": "scene", ground: g}, optimize=False)
     top = float(hi[1]) + 1.0
     n = len(I)
-    ray = mi.Ray3f(mi.Point3f(mi.Float(xs[I].astype(np.float32)), mi.Float(np.full(n, top, np.float32)),
-                              mi.Float(zs[J].astype(np.float32))), mi.Vector3f(0.0, -1.0, 0.0))
+    origin = mi.Point3f(mi.Float(xs[I].astype(np.float32)), mi.Float(np.full(n, top, np.float32)),
+                        mi.Float(zs[J].astype(np.float32)))
+    ray = mi.Ray3f(origin, mi.Vector3f(0.0, -1.0, 0.0))
     si = only.ray_intersect_preliminary(ray)
     t = np.asarray(si.t, float)
-    dr.sync_thread()
     ok = np.isfinite(t)
     if not ok.any():
         raise ParameterError("x, z", (ext["x"], ext["z"]), "an extent over the ground "
