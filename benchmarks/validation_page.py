@@ -303,7 +303,7 @@ def ref_sensors(quick: bool) -> list[dict]:
              f"ratio of the readings of a cosine and a spherical sensor vs sin e (directional "
              f"sun, elevations {els}°)", e_ratio, "max relative error over 3 elevations", 0.03,
              test + "test_open_sensors_match_flat_ground_and_cosine_spherical_ratio",
-             detail="UV sphere 8 x 16, reading = power / (S/4)", seconds=secs),
+             detail="UV sphere 10 x 20, reading = power / (S/4)", seconds=secs),
         _row("sensor_sky", "sensors", "Spherical sensor under a uniform sky",
              "spherical / cosine reading vs 2 (scalar vs planar irradiance of a uniform sky)",
              e_sky, "relative error", 0.02,

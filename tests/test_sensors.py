@@ -48,19 +48,25 @@ def _trio(y=0.5, size=0.5):
 
 
 def test_templates_have_the_ideal_angular_response():
-    """Geometry only: projected area / normalising area vs cos θ, (1 + cos θ)/2, 1. The UV
-    sphere's faceting (8 x 16) costs < 1 % of the on-axis response."""
-    for el in (5.0, 20.0, 45.0, 70.0, 90.0):
-        s = V.sun_vector(el, 130.0)
-        c = math.sin(math.radians(el))
-        for kind, ideal in (("cosine", c), ("hemispherical", (1 + c) / 2), ("spherical", 1.0)):
-            p, a = S.projected_area(kind, s, size=0.3)
-            assert p / a == pytest.approx(ideal, abs=0.01), (kind, el)
-    # a sensor facing down sees nothing of a sun above; a dome facing down sees (1 - sin e)/2
-    s = V.sun_vector(40.0)
-    assert S.projected_area("cosine", s, normal=(0, -1, 0))[0] == 0
-    p, a = S.projected_area("hemispherical", s, normal=(0, -1, 0))
-    assert p / a == pytest.approx((1 - math.sin(math.radians(40))) / 2, abs=0.01)
+    """Geometry only: projected area / normalising area vs cos θ, (1 + cos θ)/2, 1 over 300
+    random directions and tilted axes. The UV sphere's faceting (10 x 20) costs < 1 % of the
+    on-axis response."""
+    rng = np.random.default_rng(7)
+    dirs = rng.normal(size=(300, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    axis = np.array([0.3, 0.9, -0.2]) / np.linalg.norm([0.3, 0.9, -0.2])
+    worst = {}
+    for kind in S.KINDS:
+        for s in dirs:
+            c = float(s @ axis)
+            ideal = {"cosine": max(c, 0.0), "hemispherical": (1 + c) / 2, "spherical": 1.0}[kind]
+            p, a = S.projected_area(kind, s, size=0.3, normal=axis)
+            worst[kind] = max(worst.get(kind, 0.0), abs(p / a - ideal))
+    assert worst["cosine"] < 1e-9
+    assert worst["hemispherical"] < 0.01 and worst["spherical"] < 0.01, worst
+    assert worst["spherical"] > 1e-4        # the faceting is real: the check can fail
+    # a sensor facing down sees nothing of a sun above
+    assert S.projected_area("cosine", V.sun_vector(40.0), normal=(0, -1, 0))[0] == 0
 
 
 @pytest.mark.parametrize("elevation", [20.0, 45.0, 70.0])

@@ -85,7 +85,7 @@ DEFAULT_SIZE = 0.1
 #: most sensors in one set (a grid finer than this is refused with the fix)
 MAX_SENSORS = 200_000
 #: latitude bands (even: the equator is an edge ring) and segments of the sphere template
-SPHERE_BANDS, SPHERE_SEGMENTS = 8, 16
+SPHERE_BANDS, SPHERE_SEGMENTS = 10, 20
 
 
 # --------------------------------------------------------------------------------------------
