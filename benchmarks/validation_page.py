@@ -14,6 +14,9 @@ References (all computed with the package's own functions; the references are in
   (:func:`mitsuba_veg.light.validation.path_reference`; direct sun added by shadow rays);
 - ``beer``: direct beam under a random leaf cloud vs the gap fraction exp(−G LAI / cos θ) of
   :func:`mitsuba_veg.foliage.attenuation.red_far_red_attenuation`;
+- ``sensors``: virtual sensors (:mod:`mitsuba_veg.light.sensors`): an open cosine sensor vs
+  E sin e, cosine / spherical vs sin e (directional sun), spherical / cosine vs 2 (uniform sky),
+  cosine sensors under a leaf cloud vs exp(−G LAI / sin e);
 - ``spctral2``: PAR of SPCTRAL2 daylight (sun + sky emitters) on open ground through the photon
   pass vs the PAR of pvlib's ``spectrl2`` output on its native wavelengths;
 - ``spa``: NREL SPA worked example (Reda & Andreas 2004) and pvlib's SPA on random cases;
@@ -51,7 +54,8 @@ DEFAULT_OUT = ROOT / "docs" / "validation.md"
 SCRIPT = "benchmarks/validation_page.py"
 PY = ".venv/bin/python"
 #: groups of references, in page order
-GROUPS = ("plane", "energy", "path", "beer", "spctral2", "spa", "prospect", "throughput")
+GROUPS = ("plane", "energy", "path", "beer", "sensors", "spctral2", "spa", "prospect",
+          "throughput")
 #: width of the "total" band [nm]: a uniform 1 W m-2 nm-1 spectrum gives 470 W m-2
 NM_TOTAL = BANDS["total"][1] - BANDS["total"][0]
 
@@ -239,6 +243,80 @@ def ref_beer(quick: bool) -> list[dict]:
                  seconds=time.perf_counter() - t0)]
 
 
+def ref_sensors(quick: bool) -> list[dict]:
+    """Virtual sensors in sensor mode (record and let photons pass) against analytic values:
+    the same scenes and photon counts as ``tests/test_sensors.py``."""
+    import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
+    from mitsuba_veg.foliage.canopy import random_leaf_cloud
+    from mitsuba_veg.foliage.light_study import tree_scene
+    from mitsuba_veg.light import sensors as S
+
+    t0 = time.perf_counter()
+    par = BANDS["par"][1] - BANDS["par"][0]
+    trio = (S.point("cos", (-0.8, 0.5, 0), size=0.5)
+            + S.point("sph", (0.0, 0.5, 0), kind="spherical", size=0.5)
+            + S.point("dome", (0.8, 0.5, 0), kind="hemispherical", size=0.5))
+    gv, gf = V.grid_mesh(4, 4, x=(-2, 2), z=(-2, 2))
+    e_open = e_ratio = 0.0
+    elevations = (20.0, 45.0, 70.0)
+    for el in elevations:
+        sun = V.sun_vector(el)
+        scene = mi.load_dict({
+            "type": "scene", "ground": V.make_mesh("ground", gv, gf, 0.0),
+            "sun": {"type": "directional", "direction": (-sun).tolist(),
+                    "irradiance": {"type": "uniform", "value": 1.0}}}, optimize=False)
+        r = S.read(scene, trio, photons=1_000_000, seed=4)
+        s = math.sin(math.radians(el))
+        w = r.watts[:, 0, 0]
+        e_open = max(e_open, abs(w[0] / (par * s) - 1))
+        e_ratio = max(e_ratio, abs(w[0] / w[1] / s - 1))
+    sky = mi.load_dict({"type": "scene", "sky": {
+        "type": "veg_sky", "distribution": "uniform",
+        "radiance": {"type": "uniform", "value": 1.0 / math.pi}}})
+    r = S.read(sky, trio, photons=1_000_000, seed=1)
+    w = r.watts[:, 1, 0]
+    e_sky = abs(w[1] / w[0] / 2.0 - 1)
+    e_beer, parts = 0.0, []
+    for el in (90.0, 55.0):
+        leaves = random_leaf_cloud(2.0, (-2, 1.0, -2), (2, 1.5, 2), leaf_size=0.05, seed=3)
+        sun = V.sun_vector(el)
+        em = {"sun": {"type": "directional", "direction": (-sun).tolist(),
+                      "irradiance": {"type": "uniform", "value": 1.0}}}
+        scene, _ = tree_scene(leaves, emitters=em, ground=False)
+        grid = S.grid("under", (-1, 0.5, -1), (0, 0, 2), (2, 0, 0), 0.25, size=0.2)
+        r = S.read(scene, grid, photons=1_000_000, seed=5)
+        s = math.sin(math.radians(el))
+        got = r.watts[:, 0, 0].mean() / (par * s)
+        want = math.exp(-0.5 * 2.0 / s)
+        e_beer = max(e_beer, abs(got / want - 1))
+        parts.append(f"e {el:g}°: {got:.4f} vs {want:.4f}")
+    secs = time.perf_counter() - t0
+    test = "tests/test_sensors.py::"
+    els = ", ".join(f"{e:g}" for e in elevations)
+    return [
+        _row("sensor_open", "sensors", "Open cosine sensor",
+             f"0.5 m cosine sensor (sensor mode) under a directional sun vs E sin e (elevations "
+             f"{els}°)", e_open, "max relative error over 3 elevations", 0.02,
+             test + "test_open_sensors_match_flat_ground_and_cosine_spherical_ratio",
+             detail="1,000,000 photons on 16 m2", seconds=secs),
+        _row("sensor_cos_sph", "sensors", "Cosine / spherical sensor",
+             f"ratio of the readings of a cosine and a spherical sensor vs sin e (directional "
+             f"sun, elevations {els}°)", e_ratio, "max relative error over 3 elevations", 0.03,
+             test + "test_open_sensors_match_flat_ground_and_cosine_spherical_ratio",
+             detail="UV sphere 10 x 20, reading = power / (S/4)", seconds=secs),
+        _row("sensor_sky", "sensors", "Spherical sensor under a uniform sky",
+             "spherical / cosine reading vs 2 (scalar vs planar irradiance of a uniform sky)",
+             e_sky, "relative error", 0.02,
+             test + "test_uniform_sky_spherical_reads_twice_cosine",
+             detail="1,000,000 photons", seconds=secs),
+        _row("sensor_beer", "sensors", "Sensors under a leaf cloud",
+             "mean direct reading of 64 cosine sensors under random leaves (LAI 2, spherical "
+             "angles) vs exp(−G LAI / sin e), G = 0.5", e_beer,
+             "max relative error over 2 sun elevations", 0.05,
+             test + "test_beer_lambert_under_a_leaf_cloud",
+             detail="1,000,000 photons; " + "; ".join(parts), seconds=secs)]
+
+
 def _trapz_band(wl, e, lo, hi):
     """∫ e dλ over [lo, hi] [nm] of the piecewise-linear spectrum through (wl, e)."""
     x = np.concatenate([[lo], wl[(wl > lo) & (wl < hi)], [hi]])
@@ -422,7 +500,7 @@ def _loadavg() -> str:
 
 
 REFERENCES = {"plane": ref_plane, "energy": ref_energy, "path": ref_path, "beer": ref_beer,
-              "spctral2": ref_spctral2, "spa": ref_spa, "prospect": ref_prospect,
+              "sensors": ref_sensors, "spctral2": ref_spctral2, "spa": ref_spa, "prospect": ref_prospect,
               "throughput": ref_throughput}
 
 

@@ -14,6 +14,7 @@ Sections used so far (paths relative to the scenario file):
 ``[terrain]``               ground (shape id), geology_texture, soil_base_y [m],
                             ``[terrain.soil_depth_mm]`` per-shape soil depth.
 ``[regions.NAME]``          shapes, min, max: boxes [m] naming parts of the terrain.
+``[[sensors]]``             virtual light sensors: points and grids (docs/sensors.md).
 """
 from __future__ import annotations
 
@@ -153,6 +154,29 @@ SCHEMA: dict[str, Field] = {
         "fall_sigma": _num("float", 0.0, 2.0, "log-sd of the fall threshold"),
         "stage_bins": _num("int", 1, 7, "leaf meshes (stage bins) of the light scene, "
                                            "default 4"),
+    }),
+    "sensors": Field("tables", doc="virtual light sensors (docs/sensors.md)", fields={
+        "name": Field("str", doc="sensor name (grids: NAME_iii_jjj)"),
+        "kind": Field("choice", choices=("cosine", "hemispherical", "spherical"),
+                      doc="default cosine (planar); spherical: fluence rate; hemispherical: "
+                          "dome"),
+        "layout": Field("choice", choices=("point", "ground_grid", "plane_grid"),
+                        doc="default point"),
+        "position": Field("vec3", doc="point: centre [x, y, z] [m]"),
+        "normal": Field("vec3", doc="axis: front of a cosine sensor, dome axis (default up; "
+                                    "plane_grid: u x v)"),
+        "size": _num("float", 0.001, 10.0, "[m] side / diameter (default 0.1)"),
+        "spacing": _num("float", 0.001, 1e4, "[m] grid spacing"),
+        "height": _num("float", -100.0, 1000.0, "ground_grid: [m] above the ground (default "
+                                                 "0.5)"),
+        "x": Field("floats", -1e5, 1e5, length=2, doc="ground_grid: [min, max] [m] (default: "
+                                                      "the ground)"),
+        "z": Field("floats", -1e5, 1e5, length=2, doc="ground_grid: [min, max] [m] (default: "
+                                                      "the ground)"),
+        "ground": Field("str", doc="ground_grid: terrain shape id (default terrain.ground)"),
+        "origin": Field("vec3", doc="plane_grid: a corner [m]"),
+        "u": Field("vec3", doc="plane_grid: first edge [m]"),
+        "v": Field("vec3", doc="plane_grid: second edge [m]"),
     }),
     "render": Field("table", fields={
         "when": Field("datetime", doc="daylight of the render (default: the day at 10:00)"),

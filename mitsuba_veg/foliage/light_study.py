@@ -12,7 +12,12 @@ indirect) and writes into ``out_dir``:
   and per leaf ``leaves/*`` (when the scene has leaves);
 - ``leaves.csv``: one row per leaf: position, PAR [W m-2 and µmol m-2 s-1], red, far-red [W m-2],
   R:FR (light arriving on both faces per unit one-sided leaf area);
-- ``summary.json``: settings, open-sky reference, means, fractions of open light, timings.
+- ``summary.json``: settings, open-sky reference, means, fractions of open light, timings;
+- ``sensors.csv``, ``sensors.parquet``: with a scenario that has ``[[sensors]]``, their readings
+  from the same pass (tidy: time, sensor, band, component, value, unit; docs/sensors.md).
+
+With ``--year`` or ``--from``/``--to`` the command makes sensor time series instead
+(:mod:`mitsuba_veg.foliage.light_series`).
 
 Leaves are meshes whose shape id starts with ``leaves`` and whose triangles come in pairs
 (one quad per leaf, as :func:`mitsuba_veg.trees.structure.leaf_quads` makes them); in trees built
@@ -214,6 +219,8 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
             info.update(when=w, latitude=lat, longitude=lon, sun_azimuth=az, sun_elevation=el,
                         open=open_reference(az, el, _day_of_year(w)))
         info["ground"] = scn.get("terrain.ground", "ground")
+        from mitsuba_veg.light.sensors import from_scenario
+        info["_sensors"] = from_scenario(scn, scene)
         return scene, None, info
     if when is not None:
         raise ParameterError("--when", when, "a scenario (.toml) with a [site], or a tree, as "
@@ -251,9 +258,15 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                                   tree_leaves)
     t_load = time.perf_counter() - t0
     folder = OutputFolder(out, "light-study")
+    sensors = info.pop("_sensors", None)
+    bands, modes = BANDS, None
+    if sensors is not None:  # the scenario's [[sensors]] are read in the same pass
+        from mitsuba_veg.light import sensors as S
+        scene, owner = S.scene_with_sensors(scene, sensors)
+        bands, modes = BANDS + ("shortwave",), {S.SENSOR_SHAPE: "sensor"}
     res = photon_irradiance(scene, photons=int(photons), seed=int(seed),
-                            max_depth=int(max_depth), bands=BANDS, indirect=bool(indirect),
-                            progress=progress)
+                            max_depth=int(max_depth), bands=bands, indirect=bool(indirect),
+                            progress=progress, modes=modes)
     gid = ground or info.get("ground") or "ground"
     if gid not in res.index.shape_ids:
         raise SceneError(f"no ground shape '{gid}' in the scene (shapes: "
@@ -303,12 +316,24 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                     "ppfd_p90": float(np.nanpercentile(lv["ppfd"], 90)),
                     "rfr_mean": float(np.nanmean(lv["rfr"])),
                     "rfr_min": float(np.nanmin(lv["rfr"]))}
+    sensor_sum = {}
+    if sensors is not None:
+        from .light_series import _write_table
+        r = S.SensorReadings.from_watts(sensors, S.sensor_watts(res, sensors, owner,
+                                                                S.beam_emitters(scene)))
+        files["sensors"] = _write_table(r, out / "sensors", time=info.get("when"))
+        sensor_sum = {str(n): {"ppfd": float(r.values[i, 0, 2]),
+                               "ppfd_direct": float(r.values[i, 0, 0]),
+                               "rfr": float(r.values[i, 3, 2]),
+                               "shortwave_W_m2": float(r.values[i, 4, 2])}
+                      for i, n in enumerate(sensors.names[:1000])}
     from mitsuba_veg.variant import versions
     summary = {"command": "light-study", **{k: v for k, v in info.items() if k != "_tree"},
                "settings": {"photons": int(photons), "seed": int(seed), "max_depth": int(max_depth),
                             "indirect": bool(indirect), "bands_nm": dict(zip(res.bands,
                                                                              res.band_ranges))},
                "ground_id": gid, "ground": ground_sum, "leaves": leaf_sum,
+               "sensors": sensor_sum,
                "timings_s": {"load": t_load, "photon_pass": res.seconds,
                              "total": time.perf_counter() - t0},
                "photons_per_s": float(res.photons.sum() / max(res.seconds, 1e-9)),
@@ -387,10 +412,13 @@ def add_parser(subparsers):
                     "'sphere-tree' (built-in test tree under daylight).")
     from mitsuba_veg.cli.args import add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
     p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
-    add_photons(p, 2_000_000)
-    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1), default=0, help="random seed")
-    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"), default=8,
-                   help="bounces per photon")
+    add_photons(p, None, "per light pass (default 2000000; time series: 500000 per sun "
+                         "pass)")
+    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
+                   help="random seed (default 0; time series: the scenario's light.seed)")
+    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
+                   help="bounces per photon (default 8; time series: the scenario's "
+                        "light.max_depth)")
     p.add_argument("--no-indirect", action="store_true", help="first hits only")
     p.add_argument("--when", metavar="ISO-DATETIME", type=iso_datetime,
                    help="daylight at this time, e.g. 2026-07-15T12:00:00+09:00 (scenario or "
@@ -402,17 +430,85 @@ def add_parser(subparsers):
     p.add_argument("--ground", help="shape id of the ground (default: scenario's or 'ground')")
     p.add_argument("--leaves", type=ranged(int, 1, 1_000_000, "leaves"), default=3000,
                    help="'sphere-tree': number of leaves")
+    g = p.add_argument_group(
+        "sensor time series (a scenario with [[sensors]]; docs/sensors.md)",
+        "--year or --from/--to: clear-sky daylight of the scenario's site over the days; writes "
+        "sensors.csv/.parquet (time x sensor x band x component), dli.csv, summary.json and "
+        "figures (DLI and R:FR maps of the first grid, one sensor's year, hour x day heat map)")
+    g.add_argument("--year", type=ranged(int, 1, 9999, "year"), nargs="?", const=-1,
+                   metavar="YYYY", help="a whole calendar year (default: this year)")
+    g.add_argument("--from", dest="date_from", metavar="YYYY-MM-DD", help="first local day")
+    g.add_argument("--to", dest="date_to", metavar="YYYY-MM-DD", help="last local day")
+    g.add_argument("--step", choices=("daily", "hourly"), default="daily",
+                   help="daily: one sun pass per day (the day's sun path); hourly: one per hour")
+    g.add_argument("--heatmap-every", type=ranged(int, 0, 366, "days"), default=7,
+                   metavar="DAYS", help="daily steps: hourly passes every DAYS days for the "
+                                        "hour x day heat map and hours above the threshold "
+                                        "(0: none)")
+    g.add_argument("--par-threshold", type=ranged(float, 0, 5000, "umol m-2 s-1"),
+                   default=200.0, help="PPFD threshold of the hours-above count")
+    g.add_argument("--sensor", help="sensor of the year plot and heat map (default: the first "
+                                    "point sensor)")
+    g.add_argument("--sky-photons", type=ranged(int, 1, 1_000_000_000, "photons"),
+                   metavar="N", help="photons of the one sky pass (default 10 x --photons)")
     add_set(p, "scenario")
-    add_out(p, "out/light_study", "maps, light_study.npz, leaves.csv and summary.json")
+    add_out(p, "out/light_study", "maps, light_study.npz, leaves.csv and summary.json (time "
+                                  "series: sensors.csv/.parquet, dli.csv, figures)")
     add_quiet(p)
     p.set_defaults(func=_cmd)
     return p
 
 
+def _series_cmd(a) -> int:
+    import datetime as _dt
+
+    from .light_series import SERIES_PHOTONS, run_sensor_study
+
+    year = a.year
+    if year == -1:
+        year = _dt.date.today().year
+    if a.when is not None:
+        raise ParameterError("--when", a.when, "not with --year/--from/--to",
+                             "a time series covers its own days")
+    s = run_sensor_study(a.scene, a.out, start=a.date_from, end=a.date_to, year=year,
+                         step=a.step, photons=a.photons or SERIES_PHOTONS,
+                         sky_photons=a.sky_photons, seed=a.seed, max_depth=a.max_depth,
+                         indirect=False if a.no_indirect else None,
+                         heatmap_every=a.heatmap_every, par_threshold=a.par_threshold,
+                         sensor=a.sensor, overrides=a.set or (), progress=not a.quiet)
+    per = s["per_sensor"]
+    print(f"light study (sensors): {s['scenario']}: {s['period']['from']} to "
+          f"{s['period']['to']}, {s['period']['steps']} {s['period']['step']} steps, "
+          f"{s['passes']['sun']} sun passes x {s['settings']['photons']:,d} photons, "
+          f"{s['timings_s']['total']:.1f} s")
+    print(f"  open sky: mean DLI {s['open_sky']['dli_mean']:.2f} mol m-2 d-1")
+    for name in list(per)[:8]:
+        v = per[name]
+        line = f"  {name} ({v['kind']}): mean DLI {v['dli_mean']:.2f} mol m-2 d-1"
+        if v["rfr"] is not None:
+            line += f", R:FR {v['rfr']:.3f}"
+        if v["hours_above_threshold_per_day"] is not None:
+            line += (f", {v['hours_above_threshold_per_day']:.1f} h/day above "
+                     f"{s['par_threshold_umol_m2_s']:g}")
+        print(line)
+    if len(per) > 8:
+        print(f"  ... {len(per) - 8} more sensors (summary.json, dli.csv)")
+    print("wrote:")
+    for v in s["files"].values():
+        for f in (v.values() if isinstance(v, dict) else [v]):
+            print(f"  {f}")
+    return 0
+
+
 def _cmd(a) -> int:
     import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
 
-    s = run_light_study(a.scene, a.out, photons=a.photons, seed=a.seed, max_depth=a.max_depth,
+    series = a.year is not None or a.date_from is not None or a.date_to is not None
+    if series:
+        return _series_cmd(a)
+    s = run_light_study(a.scene, a.out, photons=2_000_000 if a.photons is None else a.photons,
+                        seed=0 if a.seed is None else a.seed,
+                        max_depth=8 if a.max_depth is None else a.max_depth,
                         indirect=not a.no_indirect, when=a.when, latitude=a.latitude,
                         longitude=a.longitude, ground=a.ground, overrides=a.set or (),
                         tree_leaves=a.leaves, progress=not a.quiet)
@@ -424,6 +520,9 @@ def _cmd(a) -> int:
     if "ppfd_fraction_of_open" in g:
         line += f", {100 * g['ppfd_fraction_of_open']:.1f} % of open PPFD"
     print(line)
+    for name, v in list(s.get("sensors", {}).items())[:8]:
+        print(f"  sensor {name}: PPFD {v['ppfd']:.1f} umol m-2 s-1 (direct {v['ppfd_direct']:.1f}),"
+              f" R:FR {v['rfr']:.3f}")
     if s["leaves"]:
         lv = s["leaves"]
         print(f"  {lv['leaves']} leaves: PPFD mean {lv['ppfd_mean']:.1f} (p10 {lv['ppfd_p10']:.1f},"

@@ -1,0 +1,428 @@
+"""Time series of virtual sensors: clear-sky daylight over a date range, hourly or daily.
+
+One light scene holds the scene's shapes, the sensors (:mod:`mitsuba_veg.light.sensors`, one
+mesh in sensor mode) and two emitters built once:
+
+- ``sun``: ``veg_sun_steps`` (:class:`VegSunSteps`), a delta-direction emitter holding the sun
+  directions of one time step (every ``sub_minutes`` while the sun is up: 6 per hour, up to
+  144 per day) with weights; its spectrum is the SPCTRAL2 beam (DNI) of a reference sun
+  (elevation 45°, day 172). Each step sets its directions (no rebuild, no recompile) and
+  traces one photon pass of the sun alone;
+- ``sky``: ``veg_sky`` with a *uniform* (isotropic) radiance distribution and the SPCTRAL2
+  diffuse spectrum (DHI) of the reference sun. Its light does not depend on the time except for
+  a factor per band, so it is traced once, with ``sky_photons`` photons.
+
+Per step [t0, t1) and band b the reading is the mean over the step:
+
+    sun:  R_b = c_b × (pass reading),  weights w_k = (Δt/T) DNI_PAR(k) / DNI_PAR,ref,
+          c_b = Σ_k (Δt/T) DNI_b(k) sin e_k / Σ_k w_k DNI_b,ref sin e_k   (c_PAR = 1)
+    sky:  R_b = (Σ_k (Δt/T) DHI_b(k) / DHI_b,ref) × (sky pass reading)
+
+with DNI_b(k), DHI_b(k) the SPCTRAL2 band irradiances of the sun at sub-step k
+(:func:`mitsuba_veg.light.daylight.clear_sky_spectra`, tabulated over elevation and scaled by
+the Sun-Earth distance of the day). This is exact for PAR and for the open horizontal; other
+bands share the PAR weights of the sun positions (their spectra change little with elevation:
+docs/deviations.md). The sky is isotropic, as in the moss run (a Perez sky would need a rebuild
+per hour). Light is clear-sky: no clouds (twilight, el <= 0, is dark).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import time as _time
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from mitsuba_veg.errors import ParameterError, check_range
+
+from . import sensors as S
+
+#: reference sun of the emitters' spectra
+REF_ELEVATION, REF_DOY = 45.0, 172
+#: sun directions one step can hold (a day at 10-minute sub-steps has at most 144)
+SLOTS = 256
+
+
+class VegSunSteps(mi.Emitter):
+    """The sun over one time step: a discrete set of directions with weights and a spectrum.
+
+    Properties: ``irradiance`` (spectrum, the beam irradiance on a plane normal to it per unit
+    weight [W m-2 nm-1]). :meth:`set_directions` sets the step's directions (towards the sun)
+    and weights; a photon picks direction k with probability w_k / Σw and carries Σw × the
+    spectrum, so a pass gives Σ_k w_k × (the light of a sun in direction k). The tables have a
+    fixed size (:data:`SLOTS`) and opaque values: changing them does not recompile the kernel.
+    For the photon pass (``sample_direction``); ``sample_ray`` returns zero-weight rays.
+    """
+
+    def __init__(self, props: mi.Properties):
+        mi.Emitter.__init__(self, props)
+        self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.DeltaDirection
+        spec = props.get("irradiance", 1.0)
+        if isinstance(spec, (int, float)):
+            spec = mi.load_dict({"type": "uniform", "value": float(spec)})
+        self.m_spec = spec
+        self.set_directions(np.array([[0.0, 1.0, 0.0]]), np.array([1.0]))
+
+    def set_directions(self, directions, weights, seed: int = 0) -> None:
+        """Directions towards the sun (K, 3) and weights (K,) >= 0, K <= :data:`SLOTS`;
+        ``seed`` sets the random shift of the direction sequence (see :meth:`sample_direction`).
+        """
+        d = np.asarray(directions, float).reshape(-1, 3)
+        w = np.asarray(weights, float).reshape(-1)
+        if len(d) != len(w) or len(w) > SLOTS or (w < 0).any() or not np.isfinite(w).all():
+            raise ParameterError("sun directions", (len(d), len(w)), f"as many finite weights "
+                                 f">= 0 as directions, at most {SLOTS}")
+        total = float(w.sum())
+        cdf = np.ones(SLOTS)
+        dd = np.tile([0.0, 1.0, 0.0], (SLOTS, 1))
+        if total > 0:
+            cdf[:len(w)] = np.cumsum(w) / total
+            dd[:len(d)] = d
+        self.m_cdf = mi.Float(cdf.astype(np.float32))
+        self.m_dirs = mi.Vector3f(*[mi.Float(dd[:, k].astype(np.float32)) for k in range(3)])
+        self.m_total = dr.opaque(mi.Float, total)
+        self.m_shift = dr.opaque(mi.UInt32, int(np.random.default_rng(seed).integers(0, 2**32)))
+        self.total = total
+
+    def sample_direction(self, it, sample, active=True):
+        # The direction of photon i is not drawn independently but from a randomly shifted
+        # Weyl sequence over the photon index, frac(i (sqrt(2) - 1) + shift), so that each
+        # direction's photons are spread evenly over the pass's jittered-grid origin strata.
+        # Over the random shift each photon's direction follows the weights (unbiased). It
+        # helps little once a sensor gets under one photon per direction (a day of 144
+        # directions: the count on a small sensor is then Poisson-like, docs/sensors.md).
+        i = dr.arange(mi.UInt32, dr.width(sample.x))
+        bits = i * dr.opaque(mi.UInt32, 1779033704) + self.m_shift
+        u = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
+        k = dr.binary_search(0, SLOTS - 1,
+                             lambda i: dr.gather(mi.Float, self.m_cdf, i) <= u)
+        d = dr.gather(mi.Vector3f, self.m_dirs, k, active)
+        ds = dr.zeros(mi.DirectionSample3f)
+        ds.d = d
+        ds.p = it.p + d * 1e7
+        ds.dist = dr.inf
+        ds.pdf = 1.0
+        ds.delta = True
+        ds.emitter = mi.EmitterPtr(self)
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.wavelengths = it.wavelengths
+        value = self.m_spec.eval(si, active) * self.m_total
+        return ds, dr.select(active, value, 0.0)
+
+    def pdf_direction(self, it, ds, active=True):
+        return mi.Float(0.0)
+
+    def eval(self, si, active=True):
+        return mi.Spectrum(0.0)
+
+    def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
+        # zero-weight rays keep symbolic calls over all emitters valid (see VegSunPath)
+        ds, _ = self.sample_direction(dr.zeros(mi.Interaction3f), sample3, active)
+        ray = mi.Ray3f(ds.p, -ds.d, time, mi.Spectrum(wavelength_sample * 470.0 + 360.0))
+        return ray, mi.Spectrum(0.0)
+
+    def sample_wavelengths(self, si, sample, active=True):
+        return mi.Spectrum(mi.sample_shifted(sample) * 470.0 + 360.0), mi.Spectrum(470.0)
+
+    def traverse(self, callback):
+        pass
+
+    def parameters_changed(self, keys):
+        pass
+
+    def to_string(self):
+        return f"VegSunSteps[total weight={self.total:g}]"
+
+
+mi.register_emitter("veg_sun_steps", lambda props: VegSunSteps(props))
+
+
+# --------------------------------------------------------------------------------------------
+# SPCTRAL2 band irradiances, tabulated
+# --------------------------------------------------------------------------------------------
+def _bands_of(wl, spec):
+    from .daylight import band_irradiance
+    from .photon import BANDS
+    return np.array([band_irradiance(wl, spec, *BANDS[b]) for b in S.PASS_BANDS])
+
+
+@lru_cache(maxsize=1)
+def band_table():
+    """(elevations [deg], DNI bands (E, 4), DHI bands (E, 4)) [W m-2] of SPCTRAL2 at day
+    :data:`REF_DOY`, bands :data:`sensors.PASS_BANDS` (0.25° steps below 3°, 1° above)."""
+    from .daylight import clear_sky_spectra
+    els = np.concatenate([np.arange(0.05, 3.0, 0.25), np.arange(3.0, 90.01, 1.0)])
+    dni, dhi = [], []
+    for el in els:
+        wl, a, b = clear_sky_spectra(float(el), day_of_year=REF_DOY, step_nm=None)
+        dni.append(_bands_of(wl, a))
+        dhi.append(_bands_of(wl, b))
+    return els, np.array(dni), np.array(dhi)
+
+
+@lru_cache(maxsize=1)
+def _doy_table():
+    """Sun-Earth distance factor of SPCTRAL2 relative to day REF_DOY, every 5 days."""
+    from .daylight import clear_sky_spectra
+    days = np.arange(1, 372, 5)
+    out = []
+    for d in days:
+        wl, a, _ = clear_sky_spectra(REF_ELEVATION, day_of_year=int(min(d, 366)), step_nm=None)
+        v = float(np.trapezoid(a, wl))
+        out.append(v)
+    wl, a, _ = clear_sky_spectra(REF_ELEVATION, day_of_year=REF_DOY, step_nm=None)
+    ref = float(np.trapezoid(a, wl))
+    return days, np.array(out) / ref
+
+
+def daylight_bands(elevation, day_of_year):
+    """SPCTRAL2 DNI and DHI band irradiances [W m-2] (..., 4) for elevations [deg] and days;
+    0 where the sun is at or below the horizon."""
+    els, dni, dhi = band_table()
+    days, fac = _doy_table()
+    e = np.asarray(elevation, float)
+    f = np.interp(np.asarray(day_of_year, float), days, fac)
+    up = e > 0
+    ec = np.clip(e, els[0], els[-1])
+    a = np.stack([np.interp(ec, els, dni[:, b]) for b in range(dni.shape[1])], -1)
+    c = np.stack([np.interp(ec, els, dhi[:, b]) for b in range(dhi.shape[1])], -1)
+    m = (up * f)[..., None]
+    return a * m, c * m
+
+
+@lru_cache(maxsize=1)
+def reference():
+    """Emitter dicts' spectra and their band values: (sun dict, sky dict, DNI_ref (4,),
+    DHI_ref (4,))."""
+    from .daylight import clear_sky_spectra, regular_spectrum
+    wl, dni, dhi = clear_sky_spectra(REF_ELEVATION, day_of_year=REF_DOY)
+    sun = {"type": "veg_sun_steps", "id": "sun", "irradiance": regular_spectrum(wl, dni)}
+    sky = {"type": "veg_sky", "id": "sky", "distribution": "uniform",
+           "radiance": regular_spectrum(wl, dhi / math.pi)}
+    return sun, sky, _bands_of(wl, dni), _bands_of(wl, dhi)
+
+
+# --------------------------------------------------------------------------------------------
+# Time steps
+# --------------------------------------------------------------------------------------------
+def _tz(latitude, longitude, timezone):
+    if timezone is None:
+        return float(round(float(longitude) / 15.0))
+    check_range("timezone", timezone, -14.0, 14.0, fix="hours east of UTC, e.g. 9 for Japan")
+    return float(timezone)
+
+
+def step_starts(start: _dt.date, end: _dt.date, step: str) -> np.ndarray:
+    """Local start times (naive numpy datetime64[m]) of the steps covering the days
+    start..end (inclusive)."""
+    if step not in ("daily", "hourly"):
+        raise ParameterError("step", step, "daily or hourly")
+    if end < start:
+        raise ParameterError("--to", end.isoformat(), f">= --from ({start.isoformat()})",
+                             "swap the dates")
+    days = (end - start).days + 1
+    if days > 366 * 5:
+        raise ParameterError("--to", end.isoformat(), "at most 5 years after --from",
+                             "split the study")
+    t0 = np.datetime64(start.isoformat(), "m")
+    if step == "daily":
+        return t0 + np.arange(days).astype("timedelta64[D]").astype("timedelta64[m]")
+    return t0 + (np.arange(days * 24) * 60).astype("timedelta64[m]")
+
+
+@dataclass
+class SensorSeries:
+    """Readings of sensors over time steps.
+
+    ``values[t, s, q, c]``: mean over step ``t`` (local start :attr:`times`, length
+    :attr:`step_hours`) of quantity ``q`` (:data:`sensors.QUANTITIES`, units
+    :data:`sensors.UNITS`), component ``c`` (direct, diffuse, total) for sensor ``s``.
+    ``open_values[t, q, c]``: the same for an unobstructed horizontal cosine sensor (SPCTRAL2,
+    no scene).
+    """
+
+    sensors: S.SensorSet
+    times: np.ndarray              # naive local datetime64[m], step starts
+    step_hours: float
+    timezone: float
+    values: np.ndarray
+    open_values: np.ndarray
+    sun_passes: int = 0
+    photons: int = 0
+    seconds: float = 0.0
+    settings: dict = field(default_factory=dict)
+
+    def iso_times(self) -> list[str]:
+        """Step starts as ISO 8601 strings with the UTC offset."""
+        tz = _dt.timezone(_dt.timedelta(hours=self.timezone))
+        return [_dt.datetime.fromisoformat(str(t)).replace(tzinfo=tz).isoformat()
+                for t in self.times.astype("datetime64[s]")]
+
+    def table(self, sensors=None):
+        """Tidy ``pandas.DataFrame``: time (tz-aware), sensor, band, component, value, unit;
+        ``sensors``: a boolean mask or rows to keep (default all)."""
+        import pandas as pd
+        tz = _dt.timezone(_dt.timedelta(hours=self.timezone))
+        times = pd.DatetimeIndex(self.times.astype("datetime64[ns]")).tz_localize(tz)
+        keep = np.arange(len(self.sensors)) if sensors is None else \
+            np.arange(len(self.sensors))[sensors]
+        return S.tidy_table(self.values[:, keep], self.sensors.names[keep], times)
+
+
+def run_series(scene, sensors: S.SensorSet, *, latitude: float, longitude: float,
+               start: _dt.date, end: _dt.date, step: str = "daily", timezone=None,
+               photons: int = 200_000, sky_photons: int | None = None, seed: int = 0,
+               max_depth: int = 8, indirect: bool = True, sub_minutes: float = 10.0,
+               progress: bool = False, sky_readings=None, light_scene=None) -> SensorSeries:
+    """Sensor readings over the days ``start``..``end`` (inclusive) in ``step`` steps.
+
+    Parameters
+    ----------
+    scene : mi.Scene
+        Shapes (its emitters are not used: the sun and sky come from the site and time).
+    sensors : SensorSet
+        The sensors.
+    latitude, longitude : float
+        Site [deg], north / east positive.
+    start, end : datetime.date
+        First and last local day.
+    step : str
+        ``"daily"`` (one sun pass per day with the day's sun path) or ``"hourly"`` (one pass
+        per hour with the sun up).
+    timezone : float, optional
+        Local time offset from UTC [h] (default: longitude / 15 rounded).
+    photons : int
+        Photons per sun pass.
+    sky_photons : int, optional
+        Photons of the one sky pass (default 10 x photons: its noise is not averaged over the
+        steps).
+    seed, max_depth, indirect
+        As :func:`mitsuba_veg.light.photon_irradiance`.
+    sub_minutes : float
+        Sun positions every this many minutes inside a step [min] (divides 60).
+    progress : bool
+        Progress bar over the steps.
+    sky_readings, light_scene
+        Reuse the sky readings (n, 2, 4) [W m-2 per unit reference] and the light scene of an
+        earlier call with the same scene and sensors (the ``settings`` of its result).
+
+    Returns
+    -------
+    SensorSeries
+    """
+    from .photon import photon_irradiance
+    from .sun_position import sun_direction, sun_position
+
+    check_range("latitude", latitude, -90.0, 90.0)
+    check_range("longitude", longitude, -180.0, 180.0)
+    check_range("photons", photons, 1, 1_000_000_000)
+    check_range("sub_minutes", sub_minutes, 1.0, 60.0)
+    if 60.0 % sub_minutes:
+        raise ParameterError("sub_minutes", sub_minutes, "a divisor of 60", "e.g. 10")
+    sky_photons = 10 * int(photons) if sky_photons is None else int(sky_photons)
+    tz = _tz(latitude, longitude, timezone)
+    t_begin = _time.perf_counter()
+    starts = step_starts(start, end, step)
+    hours = 24.0 if step == "daily" else 1.0
+    per = int(round(hours * 60 / sub_minutes))
+    dt_m = np.timedelta64(int(sub_minutes), "m")
+    # every sub-step of every step, mid-points, local -> UTC, one vectorised sun position call
+    sub = starts.astype("datetime64[s]")[:, None] + (
+        np.arange(per) * int(sub_minutes * 60) + int(sub_minutes * 30)).astype(
+        "timedelta64[s]")[None, :]
+    utc = sub - np.timedelta64(int(round(tz * 3600)), "s")
+    az, el = sun_position(latitude, longitude, utc.ravel())
+    az, el = np.asarray(az, float).reshape(sub.shape), np.asarray(el, float).reshape(sub.shape)
+    doy = ((sub.astype("datetime64[D]") - sub.astype("datetime64[Y]")).astype(int) + 1)
+    dni, dhi = daylight_bands(el, doy)                          # (T, per, 4)
+    frac = 1.0 / per                                             # Δt / T
+    sin_e = np.maximum(np.sin(np.radians(el)), 0.0)
+
+    sun_d, sky_d, dni_ref, dhi_ref = reference()
+    if light_scene is None:
+        light_scene, owner = S.scene_with_sensors(scene, sensors,
+                                                  emitters={"sun": sun_d, "sky": sky_d})
+    else:
+        light_scene, owner = light_scene
+    sun_em = [e for e in light_scene.emitters() if e.id() == "sun"][0]
+    modes = {S.SENSOR_SHAPE: "sensor"}
+    kw = dict(max_depth=int(max_depth), bands=S.PASS_BANDS, indirect=bool(indirect),
+              modes=modes)
+    if sky_readings is None:
+        r = photon_irradiance(light_scene, photons=sky_photons, seed=int(seed),
+                              emitters=["sky"], **kw)
+        sky_readings = S.sensor_watts(r, sensors, owner, beam=())   # per unit DHI_ref
+    n = len(sensors)
+    watts = np.zeros((len(starts), n, 2, len(S.PASS_BANDS)))
+    open_w = np.zeros((len(starts), 2, len(S.PASS_BANDS)))
+    sky_fac = (dhi.sum(axis=1) * frac) / dhi_ref                # (T, 4)
+    watts += sky_readings[None] * sky_fac[:, None, None, :]
+    open_w[:, 1] = dhi.sum(axis=1) * frac
+    open_w[:, 0] = (dni * sin_e[..., None]).sum(axis=1) * frac
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=len(starts), unit="h" if step == "hourly" else "day",
+                   desc="sensor steps")
+    passes = 0
+    dirs_all = sun_direction(az, el)
+    for t in range(len(starts)):
+        up = el[t] > 0
+        if up.any():
+            w = frac * dni[t, up, 0] / dni_ref[0]
+            step_seed = (int(seed) * 100_003 + 1 + t) & 0x7FFFFFFF
+            sun_em.set_directions(dirs_all[t, up], w, seed=step_seed)
+            target = frac * (dni[t, up] * sin_e[t, up, None]).sum(axis=0)       # (4,)
+            got = (w[:, None] * dni_ref[None] * sin_e[t, up, None]).sum(axis=0)
+            c = np.divide(target, got, out=np.zeros(4), where=got > 0)
+            r = photon_irradiance(light_scene, photons=int(photons),
+                                  seed=step_seed, emitters=["sun"], **kw)
+            watts[t] += S.sensor_watts(r, sensors, owner, beam=("sun",)) * c[None, None, :]
+            passes += 1
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    vals = S.SensorReadings.from_watts(sensors, watts.reshape(-1, 2, 4)).values.reshape(
+        len(starts), n, len(S.QUANTITIES), len(S.COMPONENTS))
+    ov = np.moveaxis(S.quantities_from_watts(
+        np.concatenate([open_w, open_w.sum(axis=1, keepdims=True)], axis=1)), 1, 2)
+    return SensorSeries(sensors, starts, hours, tz, vals, ov, passes, int(photons),
+                        _time.perf_counter() - t_begin,
+                        dict(latitude=latitude, longitude=longitude, step=step,
+                             photons=int(photons), sky_photons=sky_photons, seed=int(seed),
+                             max_depth=int(max_depth), indirect=bool(indirect),
+                             sub_minutes=sub_minutes, sky_readings=sky_readings,
+                             light_scene=(light_scene, owner)))
+
+
+def daily_light_integral(series: SensorSeries):
+    """Daily light integrals [mol m-2 d-1] of PAR per local day: (days (datetime64[D]),
+    dli[day, sensor, component], open[day, component]) from the step means."""
+    day = series.times.astype("datetime64[D]")
+    days, inv = np.unique(day, return_inverse=True)
+    par = series.values[:, :, S.QUANTITIES.index("par"), :] * series.step_hours * 3600e-6
+    dli = np.zeros((len(days),) + par.shape[1:])
+    np.add.at(dli, inv, par)
+    op = series.open_values[:, S.QUANTITIES.index("par"), :] * series.step_hours * 3600e-6
+    odli = np.zeros((len(days), op.shape[-1]))
+    np.add.at(odli, inv, op)
+    return days, dli, odli
+
+
+def hours_above(series: SensorSeries, threshold: float):
+    """Hours per local day with total PPFD above ``threshold`` [µmol m-2 s-1] (hourly series):
+    (days, hours[day, sensor])."""
+    if series.step_hours != 1.0:
+        raise ParameterError("step", "daily", "an hourly series", "hours above a threshold "
+                             "need hourly steps")
+    day = series.times.astype("datetime64[D]")
+    days, inv = np.unique(day, return_inverse=True)
+    above = series.values[:, :, S.QUANTITIES.index("par"), 2] > threshold
+    h = np.zeros((len(days), above.shape[1]))
+    np.add.at(h, inv, above.astype(float))
+    return days, h
