@@ -103,7 +103,7 @@ def test_run_light_study_writes_maps_npz_leaves_and_summary(tmp_path):
 def test_cli_parser_helper():
     import argparse
 
-    from mitsuba_veg.foliage.light_study import add_parser
+    from mitsuba_veg.cli.light_study import add_parser
     ap = argparse.ArgumentParser()
     add_parser(ap.add_subparsers(dest="cmd"))
     a = ap.parse_args(["light-study", "sphere-tree", "--photons", "1000", "--out", "x"])

@@ -15,8 +15,8 @@ __all__ = ["main", "build_parser", "run_parsed", "standalone", "run_irradiance"]
 
 def __getattr__(name):
     # The command's functions load on first use, so that importing ``mitsuba_veg.cli.args``
-    # (the shared options) does not import every command: the parsers of ``tune/cli.py`` and
-    # ``foliage/light_study.py`` still live outside this package and import it.
+    # (the shared options) does not import every command: the parser of ``tune/cli.py`` still
+    # lives outside this package and imports it.
     if name in __all__:
         from . import command
         return getattr(command, name)

@@ -19,7 +19,6 @@ import numpy as np
 
 from ..daily.run import run
 from ..errors import ParameterError, SceneError, check_range
-from ..foliage.light_study import add_parser as _add_light_study
 from ..light import photon_irradiance
 from ..outputs import OutputFolder, write_json
 from ..plots import irradiance_figure
@@ -29,7 +28,7 @@ from ..sweeps.frames import run_animate
 from ..tune.cli import add_parser as _add_tune
 from ..variant import __version__, versions
 from ..world.trees import scene_with_trees
-from . import grow, render, sweep
+from . import grow, light_study, render, sweep
 from .args import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
 from .entry import run_parsed, standalone  # noqa: F401  (re-exported)
 
@@ -324,7 +323,7 @@ def build_parser():
     add_out(p, "out/irradiance", "irradiance.npz, PNG maps and summary.json")
     add_quiet(p)
     p.set_defaults(func=_cmd_irradiance)
-    _add_light_study(sub)
+    light_study.add_parser(sub)
     grow.add_parser(sub)
     render.add_parsers(sub)
     _add_tune(sub)

@@ -30,7 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
-from mitsuba_veg.outputs import write_json
+from mitsuba_veg.light import sensor_study as SS
+from mitsuba_veg.light import sensors as S
+from mitsuba_veg.outputs import OutputFolder, write_json
+from mitsuba_veg.plots import _mpl
+from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
+from mitsuba_veg.variant import versions
 
 FILES = ("sensors.csv", "sensors.parquet", "sensors_hourly.csv", "sensors_hourly.parquet",
          "dli.csv", "summary.json", "dli_map.png", "rfr_map.png", "sensor_year.png",
@@ -50,7 +55,6 @@ def _write_table(series_or_readings, stem: Path, keep=None, time=None) -> dict:
     """``stem``.csv and ``stem``.parquet (the tidy table), atomically: a
     :class:`~mitsuba_veg.light.sensor_study.SensorSeries` (rows ``keep``) or a
     :class:`~mitsuba_veg.light.sensors.SensorReadings` at ``time``."""
-    from mitsuba_veg.light import sensors as S
     x = series_or_readings
     rows = np.arange(len(x.sensors)) if keep is None else np.arange(len(x.sensors))[keep]
     if hasattr(x, "times"):
@@ -106,10 +110,6 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     progress : bool
         Progress bars.
     """
-    from mitsuba_veg.light import sensors as S
-    from mitsuba_veg.light import sensor_study as SS
-    from mitsuba_veg.outputs import OutputFolder
-    from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
 
     t0 = time.perf_counter()
     p = Path(scenario)
@@ -194,7 +194,6 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
             f"'{grid}' ({start} to {end}{rng})", "R:FR [-]", "RdYlGn", vmin=0.0,
             vmax=max(1.3, float(np.nanmax(mean_rfr[m])) if np.isfinite(mean_rfr[m]).any()
                      else 1.3))
-    from mitsuba_veg.variant import versions
     per = {}
     hours_mean = hrs.mean(axis=0) if len(hrs) else np.full(len(sensors), np.nan)
     for i, name in enumerate(sensors.names[:1000]):   # summary of at most 1000 sensors
@@ -293,7 +292,6 @@ def _write_dli(path, days, dli, odli, sensors, hdays, hrs) -> str:
 # Figures
 # --------------------------------------------------------------------------------------------
 def _save(fig, path):
-    from mitsuba_veg.plots import _mpl
     tmp = f"{path}.tmp.png"
     fig.savefig(tmp, dpi=90)
     _mpl().close(fig)
@@ -303,8 +301,6 @@ def _save(fig, path):
 
 def year_figure(series, days, dli, odli, i, path) -> str:
     """Daily DLI (total, direct, diffuse, open sky) and daily R:FR of sensor ``i``."""
-    from mitsuba_veg.light import sensors as S
-    from mitsuba_veg.plots import _mpl
     plt = _mpl()
     x = days.astype("datetime64[D]").astype(object)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True, constrained_layout=True,
@@ -335,8 +331,6 @@ def year_figure(series, days, dli, odli, i, path) -> str:
 
 def heatmap_figure(hourly, i, path) -> str:
     """PPFD of sensor ``i``: hour of the day × day."""
-    from mitsuba_veg.light import sensors as S
-    from mitsuba_veg.plots import _mpl
     plt = _mpl()
     day = hourly.times.astype("datetime64[D]")
     days, inv = np.unique(day, return_inverse=True)
@@ -368,7 +362,6 @@ def grid_map_figure(sensors, mask, values, path, title, label, cmap, vmin=None,
                     vmax=None) -> str:
     """One grid's values as a map: plan view (x east, north up) for grids facing up or down,
     else an elevation view along the grid."""
-    from mitsuba_veg.plots import _mpl
     plt = _mpl()
     idx = np.flatnonzero(mask)
     ij, pos, v = sensors.ij[idx], sensors.position[idx], np.asarray(values, float)[idx]

@@ -17,7 +17,7 @@ indirect) and writes into ``out_dir``:
   from the same pass (tidy: time, sensor, band, component, value, unit; docs/sensors.md).
 
 With ``--year`` or ``--from``/``--to`` the command makes sensor time series instead
-(:mod:`mitsuba_veg.foliage.light_series`).
+(:mod:`mitsuba_veg.foliage.light_series`). The command line is :mod:`mitsuba_veg.cli.light_study`.
 
 Leaves are meshes whose shape id starts with ``leaves`` and whose triangles come in pairs
 (one quad per leaf, as :func:`mitsuba_veg.trees.structure.leaf_quads` makes them); in trees built
@@ -29,19 +29,32 @@ import os
 import time
 from pathlib import Path
 
+import mitsuba as mi
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
-from mitsuba_veg.outputs import write_json
+from mitsuba_veg.light import photon_irradiance
+from mitsuba_veg.light import sensors as S
+from mitsuba_veg.light.daylight import (_day_of_year, band_irradiance, clear_sky_spectra,
+                                        daylight_from_angles, photon_flux, red_far_red_ratio,
+                                        umol_per_joule)
+from mitsuba_veg.light.sensors import from_scenario
+from mitsuba_veg.light.sun_position import sun_position
+from mitsuba_veg.light.validation import grid_mesh
+from mitsuba_veg.outputs import OutputFolder, write_json
+from mitsuba_veg.plots import _mpl, plan_map
+from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
+from mitsuba_veg.trees.structure import Tree
+from mitsuba_veg.variant import versions
+
+from .bsdf import leaf_bsdf_dict
+from .canopy import bark_mesh_arrays, class_meshes, mesh, sphere_crown_tree
+from .light_series import _write_table
+from .pigments import LeafTraits
+from .spectra import leaf_spectra
 
 BANDS = ("total", "par", "red", "far_red")
 DEFAULT_WHEN = "2026-07-15T12:00:00+09:00"
-_H, _C, _NA = 6.62607015e-34, 2.99792458e8, 6.02214076e23
-
-
-def _umol_per_joule(lo_nm, hi_nm):
-    lam = 0.5 * (lo_nm + hi_nm) * 1e-9
-    return lam / (_H * _C) / _NA * 1e6
 
 
 # --------------------------------------------------------------------------------------------
@@ -62,14 +75,8 @@ def tree_scene(tree, *, emitters: dict, tau=None, n_classes: int = 7, ground=Tru
     PROSPECT-D spectra of the class's mean τ; all green when ``tau`` is None) and ``emitters``
     (e.g. :func:`mitsuba_veg.light.daylight_from_angles`). Returns ``(scene, leaf_map)`` with
     ``leaf_map = {shape_id: leaf indices}`` (leaf ``idx[j]`` owns triangles 2j, 2j + 1)."""
-    import mitsuba as mi
 
-    from mitsuba_veg.light.validation import grid_mesh
 
-    from .bsdf import leaf_bsdf_dict
-    from .canopy import bark_mesh_arrays, class_meshes, mesh
-    from .pigments import LeafTraits
-    from .spectra import leaf_spectra
 
     if not emitters:
         raise SceneError("no emitters (is the sun below the horizon at that time?)")
@@ -138,17 +145,15 @@ def leaf_values(result, leaf_map: dict | None = None, n_leaves: int | None = Non
         for side in ("front", "back") if "par" in result.bands else ():
             f = result.flux_of(s, "par", side=side).reshape(-1, 2).sum(1)
             out[f"{side}_par_W_m2"][idx] = f / area
-    out["ppfd"] = out["par_W_m2"] * _umol_per_joule(400, 700)
+    out["ppfd"] = out["par_W_m2"] * umol_per_joule(400, 700)
     with np.errstate(divide="ignore", invalid="ignore"):
-        out["rfr"] = np.where(out["far_red_W_m2"] > 0, out["red_W_m2"] * _umol_per_joule(655, 665)
-                              / (out["far_red_W_m2"] * _umol_per_joule(725, 735)), np.nan)
+        out["rfr"] = np.where(out["far_red_W_m2"] > 0, out["red_W_m2"] * umol_per_joule(655, 665)
+                              / (out["far_red_W_m2"] * umol_per_joule(725, 735)), np.nan)
     return out
 
 
 def open_reference(azimuth: float, elevation: float, day_of_year: int = 172) -> dict:
     """Light on open flat ground from the daylight spectra (SPCTRAL2 beam + sky)."""
-    from mitsuba_veg.light.daylight import (band_irradiance, clear_sky_spectra, photon_flux,
-                                            red_far_red_ratio)
 
     wl, dni, dhi = clear_sky_spectra(elevation, day_of_year=day_of_year)
     ghi = dni * np.sin(np.radians(elevation)) + dhi
@@ -164,16 +169,11 @@ def open_reference(azimuth: float, elevation: float, day_of_year: int = 172) -> 
 # --------------------------------------------------------------------------------------------
 def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_leaves):
     """-> (scene, leaf_map, info dict)"""
-    import mitsuba as mi
 
-    from mitsuba_veg.light.daylight import _day_of_year, daylight_from_angles
-    from mitsuba_veg.light.sun_position import sun_position
-    from mitsuba_veg.trees.structure import Tree
 
     info: dict = {}
     obj = scene_or_scenario
     if isinstance(obj, str) and obj == "sphere-tree":
-        from .canopy import sphere_crown_tree
         obj = sphere_crown_tree(tree_leaves, seed=0)
         info["scene"] = f"built-in sphere-crown test tree ({tree_leaves} leaves)"
     if isinstance(obj, Tree):
@@ -206,7 +206,6 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
                              "'sphere-tree'", "check the path")
     info["scene"] = str(p)
     if p.suffix.lower() == ".toml":
-        from mitsuba_veg.scenario import load_scenario
         ov = list(overrides or ())
         if when is not None:
             ov.append(f'light.when="{when}"')
@@ -219,7 +218,6 @@ def _load(scene_or_scenario, when, latitude, longitude, overrides, tau, tree_lea
             info.update(when=w, latitude=lat, longitude=lon, sun_azimuth=az, sun_elevation=el,
                         open=open_reference(az, el, _day_of_year(w)))
         info["ground"] = scn.get("terrain.ground", "ground")
-        from mitsuba_veg.light.sensors import from_scenario
         info["_sensors"] = from_scenario(scn, scene)
         return scene, None, info
     if when is not None:
@@ -243,10 +241,7 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
     mid-July noon) for ``latitude``/``longitude`` (default 35 N, 139 E) and a ground grid;
     ``tau`` gives per-leaf autumn time for their spectra (default green).
     """
-    from mitsuba_veg.light import photon_irradiance
 
-    from mitsuba_veg.outputs import OutputFolder
-    from mitsuba_veg.scenario import MAX_PHOTONS
 
     check_range("photons", photons, 1, MAX_PHOTONS)
     check_range("max_depth", max_depth, 1, 1000)
@@ -261,7 +256,6 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
     sensors = info.pop("_sensors", None)
     bands, modes = BANDS, None
     if sensors is not None:  # the scenario's [[sensors]] are read in the same pass
-        from mitsuba_veg.light import sensors as S
         scene, owner = S.scene_with_sensors(scene, sensors)
         bands, modes = BANDS + ("shortwave",), {S.SENSOR_SHAPE: "sensor"}
     res = photon_irradiance(scene, photons=int(photons), seed=int(seed),
@@ -318,7 +312,6 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                     "rfr_min": float(np.nanmin(lv["rfr"]))}
     sensor_sum = {}
     if sensors is not None:
-        from .light_series import _write_table
         r = S.SensorReadings.from_watts(sensors, S.sensor_watts(res, sensors, owner,
                                                                 S.beam_emitters(scene)))
         files["sensors"] = _write_table(r, out / "sensors", time=info.get("when"))
@@ -327,7 +320,6 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                                "rfr": float(r.values[i, 3, 2]),
                                "shortwave_W_m2": float(r.values[i, 4, 2])}
                       for i, n in enumerate(sensors.names[:1000])}
-    from mitsuba_veg.variant import versions
     summary = {"command": "light-study", **{k: v for k, v in info.items() if k != "_tree"},
                "settings": {"photons": int(photons), "seed": int(seed), "max_depth": int(max_depth),
                             "indirect": bool(indirect), "bands_nm": dict(zip(res.bands,
@@ -376,7 +368,6 @@ def _write_leaves_csv(path, lv, leaf_map, src):
 
 def light_maps_figure(vertices, faces, values: dict, path, title: str = "") -> str:
     """2 x 2 plan-view maps (PPFD, red, far-red, R:FR) with colour bars."""
-    from mitsuba_veg.plots import _mpl, plan_map
 
     plt = _mpl()
     fig, axs = plt.subplots(2, 2, figsize=(11, 9.2), constrained_layout=True)
@@ -403,131 +394,3 @@ def light_maps_figure(vertices, faces, values: dict, path, title: str = "") -> s
 # --------------------------------------------------------------------------------------------
 # CLI
 # --------------------------------------------------------------------------------------------
-def add_parser(subparsers):
-    """Add ``light-study`` to an argparse subparsers object (``mitsuba_veg.cli``)."""
-    p = subparsers.add_parser(
-        "light-study", help="spectral light study: PAR, red, far-red, R:FR maps under trees",
-        description="Photon pass with PAR/red/far-red bands: ground maps (PNG + npz), per-leaf "
-                    "values (CSV) and summary.json. SCENE: scenario .toml, scene .xml, or "
-                    "'sphere-tree' (built-in test tree under daylight).")
-    from mitsuba_veg.cli.args import add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
-    p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
-    add_photons(p, None, "per light pass (default 2000000; time series: 500000 per sun "
-                         "pass)")
-    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
-                   help="random seed (default 0; time series: the scenario's light.seed)")
-    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
-                   help="bounces per photon (default 8; time series: the scenario's "
-                        "light.max_depth)")
-    p.add_argument("--no-indirect", action="store_true", help="first hits only")
-    p.add_argument("--when", metavar="ISO-DATETIME", type=iso_datetime,
-                   help="daylight at this time, e.g. 2026-07-15T12:00:00+09:00 (scenario or "
-                        "tree; default for trees: mid-July noon)")
-    p.add_argument("--latitude", type=ranged(float, -90, 90, "deg"),
-                   help="tree scenes: site latitude [deg] (default 35)")
-    p.add_argument("--longitude", type=ranged(float, -180, 180, "deg"),
-                   help="tree scenes: site longitude [deg] (default 139)")
-    p.add_argument("--ground", help="shape id of the ground (default: scenario's or 'ground')")
-    p.add_argument("--leaves", type=ranged(int, 1, 1_000_000, "leaves"), default=3000,
-                   help="'sphere-tree': number of leaves")
-    g = p.add_argument_group(
-        "sensor time series (a scenario with [[sensors]]; docs/sensors.md)",
-        "--year or --from/--to: clear-sky daylight of the scenario's site over the days; writes "
-        "sensors.csv/.parquet (time x sensor x band x component), dli.csv, summary.json and "
-        "figures (DLI and R:FR maps of the first grid, one sensor's year, hour x day heat map)")
-    g.add_argument("--year", type=ranged(int, 1, 9999, "year"), nargs="?", const=-1,
-                   metavar="YYYY", help="a whole calendar year (default: this year)")
-    g.add_argument("--from", dest="date_from", metavar="YYYY-MM-DD", help="first local day")
-    g.add_argument("--to", dest="date_to", metavar="YYYY-MM-DD", help="last local day")
-    g.add_argument("--step", choices=("daily", "hourly"), default="daily",
-                   help="daily: one sun pass per day (the day's sun path); hourly: one per hour")
-    g.add_argument("--heatmap-every", type=ranged(int, 0, 366, "days"), default=7,
-                   metavar="DAYS", help="daily steps: hourly passes every DAYS days for the "
-                                        "hour x day heat map and hours above the threshold "
-                                        "(0: none)")
-    g.add_argument("--par-threshold", type=ranged(float, 0, 5000, "umol m-2 s-1"),
-                   default=200.0, help="PPFD threshold of the hours-above count")
-    g.add_argument("--sensor", help="sensor of the year plot and heat map (default: the first "
-                                    "point sensor)")
-    g.add_argument("--sky-photons", type=ranged(int, 1, 1_000_000_000, "photons"),
-                   metavar="N", help="photons of the one sky pass (default 10 x --photons)")
-    add_set(p, "scenario")
-    add_out(p, "out/light_study", "maps, light_study.npz, leaves.csv and summary.json (time "
-                                  "series: sensors.csv/.parquet, dli.csv, figures)")
-    add_quiet(p)
-    p.set_defaults(func=_cmd)
-    return p
-
-
-def _series_cmd(a) -> int:
-    import datetime as _dt
-
-    from .light_series import SERIES_PHOTONS, run_sensor_study
-
-    year = a.year
-    if year == -1:
-        year = _dt.date.today().year
-    if a.when is not None:
-        raise ParameterError("--when", a.when, "not with --year/--from/--to",
-                             "a time series covers its own days")
-    s = run_sensor_study(a.scene, a.out, start=a.date_from, end=a.date_to, year=year,
-                         step=a.step, photons=a.photons or SERIES_PHOTONS,
-                         sky_photons=a.sky_photons, seed=a.seed, max_depth=a.max_depth,
-                         indirect=False if a.no_indirect else None,
-                         heatmap_every=a.heatmap_every, par_threshold=a.par_threshold,
-                         sensor=a.sensor, overrides=a.set or (), progress=not a.quiet)
-    per = s["per_sensor"]
-    print(f"light study (sensors): {s['scenario']}: {s['period']['from']} to "
-          f"{s['period']['to']}, {s['period']['steps']} {s['period']['step']} steps, "
-          f"{s['passes']['sun']} sun passes x {s['settings']['photons']:,d} photons, "
-          f"{s['timings_s']['total']:.1f} s")
-    print(f"  open sky: mean DLI {s['open_sky']['dli_mean']:.2f} mol m-2 d-1")
-    for name in list(per)[:8]:
-        v = per[name]
-        line = f"  {name} ({v['kind']}): mean DLI {v['dli_mean']:.2f} mol m-2 d-1"
-        if v["rfr"] is not None:
-            line += f", R:FR {v['rfr']:.3f}"
-        if v["hours_above_threshold_per_day"] is not None:
-            line += (f", {v['hours_above_threshold_per_day']:.1f} h/day above "
-                     f"{s['par_threshold_umol_m2_s']:g}")
-        print(line)
-    if len(per) > 8:
-        print(f"  ... {len(per) - 8} more sensors (summary.json, dli.csv)")
-    print("wrote:")
-    for v in s["files"].values():
-        for f in (v.values() if isinstance(v, dict) else [v]):
-            print(f"  {f}")
-    return 0
-
-
-def _cmd(a) -> int:
-    import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
-
-    series = a.year is not None or a.date_from is not None or a.date_to is not None
-    if series:
-        return _series_cmd(a)
-    s = run_light_study(a.scene, a.out, photons=2_000_000 if a.photons is None else a.photons,
-                        seed=0 if a.seed is None else a.seed,
-                        max_depth=8 if a.max_depth is None else a.max_depth,
-                        indirect=not a.no_indirect, when=a.when, latitude=a.latitude,
-                        longitude=a.longitude, ground=a.ground, overrides=a.set or (),
-                        tree_leaves=a.leaves, progress=not a.quiet)
-    g = s["ground"]
-    print(f"light study: {s['scene']}: photon pass {s['timings_s']['photon_pass']:.2f} s")
-    line = f"  ground '{s['ground_id']}': mean PPFD {g['ppfd']:.1f} umol m-2 s-1"
-    if g.get("rfr") is not None:
-        line += f", R:FR {g['rfr']:.3f} (min {g['rfr_min']:.3f})"
-    if "ppfd_fraction_of_open" in g:
-        line += f", {100 * g['ppfd_fraction_of_open']:.1f} % of open PPFD"
-    print(line)
-    for name, v in list(s.get("sensors", {}).items())[:8]:
-        print(f"  sensor {name}: PPFD {v['ppfd']:.1f} umol m-2 s-1 (direct {v['ppfd_direct']:.1f}),"
-              f" R:FR {v['rfr']:.3f}")
-    if s["leaves"]:
-        lv = s["leaves"]
-        print(f"  {lv['leaves']} leaves: PPFD mean {lv['ppfd_mean']:.1f} (p10 {lv['ppfd_p10']:.1f},"
-              f" p90 {lv['ppfd_p90']:.1f}), R:FR mean {lv['rfr_mean']:.3f}")
-    print("wrote:")
-    for k, v in s["files"].items():
-        print(f"  {v}")
-    return 0

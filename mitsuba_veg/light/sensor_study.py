@@ -40,6 +40,9 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError, check_range
 
 from . import sensors as S
+from .daylight import band_irradiance, clear_sky_spectra, regular_spectrum
+from .photon import BANDS, photon_irradiance
+from .sun_position import sun_direction, sun_position
 
 #: reference sun of the emitters' spectra
 REF_ELEVATION, REF_DOY = 45.0, 172
@@ -145,8 +148,6 @@ mi.register_emitter("veg_sun_steps", lambda props: VegSunSteps(props))
 # SPCTRAL2 band irradiances, tabulated
 # --------------------------------------------------------------------------------------------
 def _bands_of(wl, spec):
-    from .daylight import band_irradiance
-    from .photon import BANDS
     return np.array([band_irradiance(wl, spec, *BANDS[b]) for b in S.PASS_BANDS])
 
 
@@ -154,7 +155,6 @@ def _bands_of(wl, spec):
 def band_table():
     """(elevations [deg], DNI bands (E, 4), DHI bands (E, 4)) [W m-2] of SPCTRAL2 at day
     :data:`REF_DOY`, bands :data:`sensors.PASS_BANDS` (0.25° steps below 3°, 1° above)."""
-    from .daylight import clear_sky_spectra
     els = np.concatenate([np.arange(0.05, 3.0, 0.25), np.arange(3.0, 90.01, 1.0)])
     dni, dhi = [], []
     for el in els:
@@ -167,7 +167,6 @@ def band_table():
 @lru_cache(maxsize=1)
 def _doy_table():
     """Sun-Earth distance factor of SPCTRAL2 relative to day REF_DOY, every 5 days."""
-    from .daylight import clear_sky_spectra
     days = np.arange(1, 372, 5)
     out = []
     for d in days:
@@ -198,7 +197,6 @@ def daylight_bands(elevation, day_of_year):
 def reference():
     """Emitter dicts' spectra and their band values: (sun dict, sky dict, DNI_ref (4,),
     DHI_ref (4,))."""
-    from .daylight import clear_sky_spectra, regular_spectrum
     wl, dni, dhi = clear_sky_spectra(REF_ELEVATION, day_of_year=REF_DOY)
     sun = {"type": "veg_sun_steps", "id": "sun", "irradiance": regular_spectrum(wl, dni)}
     sky = {"type": "veg_sky", "id": "sky", "distribution": "uniform",
@@ -314,8 +312,6 @@ def run_series(scene, sensors: S.SensorSet, *, latitude: float, longitude: float
     -------
     SensorSeries
     """
-    from .photon import photon_irradiance
-    from .sun_position import sun_direction, sun_position
 
     check_range("latitude", latitude, -90.0, 90.0)
     check_range("longitude", longitude, -180.0, 180.0)
@@ -329,7 +325,6 @@ def run_series(scene, sensors: S.SensorSet, *, latitude: float, longitude: float
     starts = step_starts(start, end, step)
     hours = 24.0 if step == "daily" else 1.0
     per = int(round(hours * 60 / sub_minutes))
-    dt_m = np.timedelta64(int(sub_minutes), "m")
     # every sub-step of every step, mid-points, local -> UTC, one vectorised sun position call
     sub = starts.astype("datetime64[s]")[:, None] + (
         np.arange(per) * int(sub_minutes * 60) + int(sub_minutes * 30)).astype(

@@ -43,7 +43,7 @@ and all scattered light) and ``total``:
 - ``shortwave``: 300-3000 nm irradiance [W m-2].
 
 Photon units from band energies at the band's centre wavelength
-(:func:`mitsuba_veg.foliage.light_study._umol_per_joule`): exact to < 0.1 % for the 10 nm bands,
+(:func:`mitsuba_veg.light.daylight.umol_per_joule`): exact to < 0.1 % for the 10 nm bands,
 within ~1 % for PAR of daylight (docs/sensors.md).
 
 Example::
@@ -63,7 +63,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import mitsuba as mi
+
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
+
+from .daylight import umol_per_joule
+from .photon import BANDS, photon_irradiance
+from .validation import make_mesh
 
 __all__ = ["KINDS", "QUANTITIES", "UNITS", "COMPONENTS", "PASS_BANDS", "SensorSet",
            "SensorReadings", "point", "grid", "ground_grid", "read", "scene_with_sensors",
@@ -431,7 +437,6 @@ def ground_grid(scene, name: str, spacing: float, height: float = 0.5, x=None, z
     -------
     SensorSet
     """
-    import mitsuba as mi
 
     check_range("spacing", spacing, 1e-3, 1e4, fix="grid spacing in metres, e.g. 0.25")
     check_range("height", height, -100.0, 1000.0, fix="height above the ground in metres")
@@ -542,9 +547,7 @@ def scene_with_sensors(scene, sensors: SensorSet, emitters: dict | None = None):
     """A new scene: the shapes of ``scene``, its emitters (or ``emitters``: a dict of emitter
     dicts/objects replacing them) and the sensors as one mesh :data:`SENSOR_SHAPE` (trace it
     with ``modes={SENSOR_SHAPE: "sensor"}``). Returns ``(scene, face_owner)``."""
-    import mitsuba as mi
 
-    from .validation import make_mesh
 
     if sensors is None or not len(sensors):
         raise ParameterError("sensors", 0, "at least one sensor")
@@ -567,9 +570,7 @@ def scene_with_sensors(scene, sensors: SensorSet, emitters: dict | None = None):
 
 
 def _umol():
-    from mitsuba_veg.foliage.light_study import _umol_per_joule
-    from mitsuba_veg.light.photon import BANDS
-    return {b: _umol_per_joule(*BANDS[b]) for b in ("par", "red", "far_red")}
+    return {b: umol_per_joule(*BANDS[b]) for b in ("par", "red", "far_red")}
 
 
 def quantities_from_watts(w: np.ndarray) -> np.ndarray:
@@ -608,7 +609,6 @@ def sensor_watts(result, sensors: SensorSet, owner, beam=None) -> np.ndarray:
 
 
 def beam_emitters(scene) -> list[str]:
-    import mitsuba as mi
     return [em.id() or f"emitter{i}" for i, em in enumerate(scene.emitters())
             if mi.has_flag(em.flags(), mi.EmitterFlags.DeltaDirection)]
 
@@ -735,7 +735,6 @@ def read(scene, sensors: SensorSet, photons: int = 1_000_000, seed: int = 0,
         ``direct`` = unscattered light of delta-direction emitters (the sun's beam),
         ``diffuse`` = the rest (sky, scattered light).
     """
-    from .photon import photon_irradiance
 
     sc, owner = scene_with_sensors(scene, sensors)
     res = photon_irradiance(sc, photons=photons, seed=seed, max_depth=max_depth,
