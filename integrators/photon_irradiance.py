@@ -779,6 +779,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         check_range("seed", self.seed, 0, 2**31 - 1)
         check_range("batch", self.batch, 1024, None)
         self.result: PhotonIrradianceResult | None = None  # the last pass
+        #: element modes and per-triangle BSDF choices used by :meth:`trace` when its own
+        #: arguments are None (a daily loop sets them before each pass)
+        self.modes: dict | None = None
+        self.bsdf_override: dict | None = None
         self._vis = None  # (lookup, per-element irradiance) shown by the image output
 
     # ---- Mitsuba's render interface ---------------------------------------------------------
@@ -848,7 +852,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
     def trace(self, scene: mi.Scene, photons: int | None = None, seed: int | None = None,
               max_depth: int | None = None, bands=None, indirect: bool | None = None,
               reflectance: dict | None = None, emitters=None, batch: int | None = None,
-              progress: bool = False, modes: dict | None = None) -> PhotonIrradianceResult:
+              progress: bool = False, modes: dict | None = None,
+              bsdf_override: dict | None = None) -> PhotonIrradianceResult:
         """Trace a photon pass over ``scene`` and return per-element fluxes.
 
         Arguments left at None take the plugin's properties.
@@ -885,6 +890,15 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             :data:`SENSOR`, :data:`HIDDEN`. A photon crossing a sensor or hidden element keeps
             its direction, power and bounce count; changing the modes does not recompile the
             kernel.
+        bsdf_override : dict, optional
+            ``{shape_id: (bsdfs, index)}``: a list of Mitsuba BSDF objects and an integer array
+            (n_triangles,) choosing one of them per triangle (-1 keeps the shape's own BSDF).
+            Used for leaves whose optics change by autumn stage: a day's new choice is a new
+            table, not a new scene, and the kernel is recompiled only when the *set* of BSDF
+            objects changes (see :meth:`_bsdf_table`).
+
+        Arguments left at None also fall back to the plugin's attributes :attr:`modes` and
+        :attr:`bsdf_override` (a simulation sets them once a day before its pass).
 
         Returns
         -------
@@ -898,6 +912,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         bands = self.bands if bands is None else bands
         emitters = self.emitters if emitters is None else emitters
         batch = self.batch if batch is None else batch
+        modes = self.modes if modes is None else modes
+        bsdf_override = self.bsdf_override if bsdf_override is None else bsdf_override
         check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
         check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
         check_range("seed", seed, 0, 2**31 - 1)
@@ -928,6 +944,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         groups = [list(range(i, min(i + _SLOTS, n_b))) for i in range(0, n_b, _SLOTS)]
         refl = self._reflectance_table(index, reflectance, n_b)
         mode_arr = self._mode_table(index, modes)
+        bsdf_arr, bsdfs = self._bsdf_table(index, bsdf_override)
 
         # photon budget per emitter: proportional to the power each sends at the geometry
         pilots = [self._pilot_power(scene, all_emitters[i], index, ranges[0]) for i in em_idx]
@@ -965,7 +982,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
                                             slot_ranges, refl_g, max_depth, indirect,
-                                            mode_arr)
+                                            mode_arr, bsdf_arr, bsdfs)
                     # fixed point -> watts on the device (both threads), summed over batches
                     # in a fixed order (deterministic)
                     q, unit = acc
@@ -1037,6 +1054,50 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         if not table.any():
             return None
         return mi.UInt32(table)
+
+    @staticmethod
+    def _bsdf_table(index: SceneIndex, bsdf_override):
+        """Per-element BSDF choice as a device array of BSDF registry ids (0: the shape's own)
+        and the list of BSDFs the kernel dispatches to (the scene's plus the overrides').
+
+        Why a table of BSDF objects rather than a table of spectra: the element's optics stay
+        those of its Mitsuba BSDF (``veg_leaf``'s PROSPECT-D R(λ) and T(λ), the same object the
+        renderer uses), any BSDF type works, and a day's change is one integer per triangle.
+        The kernel calls each listed BSDF directly (up to :data:`_DIRECT_BSDFS`, more by a
+        virtual call), so the list, sorted by registry id, is part of the kernel: it must stay
+        the same from day to day (a few stage BSDFs built once), while the table is data.
+        """
+        if not bsdf_override:
+            return None, index.bsdf_objects
+        table = np.zeros(index.n_elements, dtype=np.uint32)
+        objs = dict(index.bsdf_objects)
+        for sid, spec in bsdf_override.items():
+            sl = index.shape_slice(sid)
+            n = sl.stop - sl.start
+            try:
+                bsdfs, choice = spec
+                bsdfs = list(bsdfs)
+            except (TypeError, ValueError):
+                raise ParameterError(f"bsdf_override['{sid}']", type(spec).__name__,
+                                     "a pair (list of BSDF objects, per-triangle index array)")
+            if not bsdfs or not all(isinstance(b, mi.BSDF) for b in bsdfs):
+                raise ParameterError(f"bsdf_override['{sid}']", "a list of "
+                                     f"{[type(b).__name__ for b in bsdfs]}",
+                                     "a non-empty list of Mitsuba BSDF objects",
+                                     "build them once with mi.load_dict")
+            a = np.asarray(choice)
+            if a.ndim == 0:
+                a = np.full(n, a)
+            if a.shape != (n,) or not np.issubdtype(a.dtype, np.integer) or \
+                    (a.size and (a.min() < -1 or a.max() >= len(bsdfs))):
+                raise ParameterError(f"bsdf_override['{sid}']", f"index array of shape {a.shape}"
+                                     f" ({a.dtype})", f"shape ({n},), integers in -1 .. "
+                                     f"{len(bsdfs) - 1} (-1: the shape's own BSDF)")
+            reg = np.array([_reg_id(b) for b in bsdfs] + [0], dtype=np.uint32)
+            table[sl] = reg[a]          # -1 -> the trailing 0
+            for r, b in zip(reg[:-1], bsdfs):
+                objs.setdefault(int(r), b)
+        return mi.UInt32(table), sorted(objs.items(), key=lambda kv: kv[0])
 
     @staticmethod
     def _reflectance_table(index: SceneIndex, reflectance, n_b):
@@ -1183,7 +1244,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     # the kernel -----------------------------------------------------------------------------
     def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
-              indirect, modes=None):
+              indirect, modes=None, bsdf_table=None, bsdfs=None):
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(stream, n)
         idx = dr.arange(mi.UInt32, n)
@@ -1234,7 +1295,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         throughput_left, rays_lane, esc, absd = self._loop(
             scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
             tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
-            dr.opaque(mi.Float, cap), modes)
+            dr.opaque(mi.Float, cap), modes, bsdf_table,
+            index.bsdf_objects if bsdfs is None else bsdfs)
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
         # one would re-run the loop for each); the bookkeeping sums are read back in one go
         dr.eval(acc, throughput_left, rays_lane, esc, absd)
@@ -1257,7 +1319,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
-              index, normals, refl_arr, one_hit, scale, cap, modes=None):
+              index, normals, refl_arr, one_hit, scale, cap, modes=None, bsdf_table=None,
+              bsdfs=()):
         """The random walk: one symbolic loop (a single kernel).
 
         Hits are found with ``ray_intersect_preliminary`` (the BVH traversal only). The element
@@ -1268,18 +1331,22 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         spatially varying BSDFs (textures, mesh attributes) use Mitsuba's full interaction.
         With ``modes`` (per-element :data:`SENSOR` / :data:`HIDDEN`), a photon crossing such
         an element is recorded (sensor) or not (hidden) and goes on unchanged from the hit.
+        With ``bsdf_table`` (per-element BSDF registry id, 0 = the shape's own), the element's
+        BSDF is gathered from the table; ``bsdfs`` lists every BSDF the kernel dispatches to.
+        Both tables are device arrays outside the loop state: new contents, same kernel.
         """
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
         lookup, blookup = index.lookup, index.bsdf_lookup
         has_instances = len(index.instances) > 0
-        bsdfs = index.bsdf_objects
         full = index.needs_full_interaction
         # read-only objects stay out of the loop state: traversing a scene with 1,000
         # instances for it cost ~0.1 s per pass
         has_modes = modes is not None
+        has_override = bsdf_table is not None
         while dr.hint(active, label="veg_photon_irradiance",
-                      exclude=[scene, index, bsdfs, lookup, blookup, normals, modes]):
+                      exclude=[scene, index, bsdfs, lookup, blookup, normals, modes,
+                               bsdf_table]):
             pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             nrays += dr.select(active, mi.UInt32(1), mi.UInt32(0))
             hit = active & pi.is_valid()
@@ -1311,6 +1378,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     si_a = shape.compute_surface_interaction(ray, pi, mi.RayFlags.Minimal, on)
                     ng = dr.select(on, si_a.n, ng)
                     elem = dr.select(on, dr.gather(mi.UInt32, lookup, sid, on), elem)
+
+            if dr.hint(has_override, mode='scalar'):
+                # the element's own BSDF choice (e.g. a leaf's autumn stage) where it has one
+                ov_id = dr.gather(mi.UInt32, bsdf_table, elem, hit)
+                bsdf_id = dr.select(ov_id != 0, ov_id, bsdf_id)
 
             rec, passing = mi.Bool(hit), mi.Bool(False)
             if dr.hint(has_modes, mode='scalar'):
