@@ -3,9 +3,9 @@
 A scenario with ``[[trees]]`` runs this loop (:func:`mitsuba_veg.run` chooses it). Each day:
 
 1. **leaves** — phenology (:mod:`.phenology`): leaf-out in spring, the leaves' autumn stage from
-   their accumulated light, leaf fall; the canopy's meshes follow (:mod:`.canopy`: a leaf is
-   shown in the mesh of its stage with that stage's PROSPECT-D reflectance and transmittance, or
-   collapsed once fallen);
+   their accumulated light, leaf fall; the canopy follows (:mod:`.canopy`: one leaf mesh, each
+   triangle given the day's stage BSDF (PROSPECT-D reflectance and transmittance) and hidden
+   from the photons once fallen, by per-triangle tables of the photon pass);
 2. **light** — one photon pass over terrain, buildings, wood and leaves (the day's sun path and
    the sky, as in the moss loop): per-triangle irradiance of the terrain **and** the light on
    every leaf from the same pass. Bands total, PAR, red and far-red; the unit-spectrum emitters
@@ -118,6 +118,8 @@ class WorldSimulation(MossSimulation):
         date = self._date(self.day)
         self.phen.start_of_day(date)
         self.canopy.update(self.params, self.phen.tau, self.phen.grown, self.phen.on_tree)
+        # the day's leaf state for the photon pass: per-triangle tables, not geometry
+        self.integrator.modes, self.integrator.bsdf_override = self.canopy.trace_tables()
         self.timings["leaves"] += time.perf_counter() - t0
         self._leaf_seconds = time.perf_counter() - t0
         return super().step()
@@ -137,11 +139,10 @@ class WorldSimulation(MossSimulation):
         width = {b: band_range(b)[1] - band_range(b)[0] for b in BANDS}
         # unit emitters: 1 W m-2 nm-1 horizontal -> fraction g = E / width
         ie = (res.emitters.index("sun"), res.emitters.index("sky"))
-        if not hasattr(self, "_leaf_elements"):
-            self._leaf_elements = c.leaf_elements(res.index)
-        # (n_leaf_slots, 2 emitters, n_b): both sides, both components, of the leaf slots only
-        slots = np.stack([res.flux[e][self._leaf_elements].sum(axis=(1, 2)) for e in ie], 1)
-        lf = c.leaf_flux(slots)                             # (n_leaves, 2, n_b)
+        lsl = c.leaf_slice(res.index)
+        # (n_leaf_triangles, 2 emitters, n_b): both sides, both components
+        tris = np.stack([res.flux[e][lsl].sum(axis=(1, 2)) for e in ie], 1)
+        lf = c.leaf_flux(tris)                              # (n_leaves, 2, n_b)
         gsl = self.ground_slice
         front = np.stack([res.flux[e][gsl].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
         garea = np.maximum(self.index.areas[gsl], 1e-30)
