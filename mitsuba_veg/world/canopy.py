@@ -204,12 +204,12 @@ class Canopy:
         return np.where(self._shown, self.area * self._scale ** 2, 0.0)
 
     # ---- light per leaf -----------------------------------------------------------------
-    def leaf_slice(self, index) -> slice:
-        """Elements of the leaf triangles in the photon pass's index (empty without leaves);
-        :attr:`face_leaf` gives the leaf of each."""
+    def leaf_triangle_flux(self, res) -> np.ndarray:
+        """Flux on every leaf triangle from a photon-pass result [W], shape (emitters,
+        triangles, 2 components, 2 sides, bands); :attr:`face_leaf` gives the leaf of each."""
         if self.n_leaves == 0:
-            return slice(0, 0)
-        return index.shape_slice(LEAF_MESH)
+            return np.zeros((len(res.emitters), 0) + res.flux.shape[2:])
+        return res.shape_flux(LEAF_MESH)
 
     def leaf_flux(self, tri_flux: np.ndarray) -> np.ndarray:
         """Flux incident on each leaf [W] from the fluxes of its triangles (rows in the order

@@ -99,7 +99,11 @@ class WorldSimulation(MossSimulation):
         self.phen = Phenology(c.n_leaves, self.phen_params, seed=self.seed, leaf_out_shift=shift)
         # ground triangles under each crown (centroid within the crown radius of the trunk)
         ground = self.scn.get("terrain.ground", "ground")
+        self.ground_id = ground
         sl = self.index.shape_slice(ground)
+        # the bark's many triangles block and scatter light but are not recorded (nothing
+        # reads their flux): a smaller accumulator and read-back every day
+        self.integrator.record = [s for s in self.index.shape_ids if s != "trees_bark"]
         cen = self.index.centroids[sl]
         self.ground_slice = sl
         self.crowns = []
@@ -139,12 +143,13 @@ class WorldSimulation(MossSimulation):
         width = {b: band_range(b)[1] - band_range(b)[0] for b in BANDS}
         # unit emitters: 1 W m-2 nm-1 horizontal -> fraction g = E / width
         ie = (res.emitters.index("sun"), res.emitters.index("sky"))
-        lsl = c.leaf_slice(res.index)
         # (n_leaf_triangles, 2 emitters, n_b): both sides, both components
-        tris = np.stack([res.flux[e][lsl].sum(axis=(1, 2)) for e in ie], 1)
+        lflux = c.leaf_triangle_flux(res)
+        tris = np.stack([lflux[e].sum(axis=(1, 2)) for e in ie], 1)
         lf = c.leaf_flux(tris)                              # (n_leaves, 2, n_b)
         gsl = self.ground_slice
-        front = np.stack([res.flux[e][gsl].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
+        gflux = res.shape_flux(self.ground_id)
+        front = np.stack([gflux[e].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
         garea = np.maximum(self.index.areas[gsl], 1e-30)
         leaf, ground, ground_sky = {}, {}, {}
         for k, b in enumerate(res.bands):
