@@ -1078,7 +1078,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     @staticmethod
     def _mode_table(index: SceneIndex, modes):
-        """Per-element modes as a device array (None when every element is a surface)."""
+        """Per-element modes as a device array (None when no modes are given)."""
         if not modes:
             return None
         table = np.zeros(index.n_elements, dtype=np.uint32)
@@ -1099,8 +1099,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                                      f"shape ({n},) with values 0 (surface), 1 (sensor), "
                                      f"2 (hidden)")
             table[sl] = a
-        if not table.any():
-            return None
+        # a given table is used even when every element is a surface: a loop whose modes
+        # come and go (leaves falling) keeps one kernel
         return mi.UInt32(table)
 
     @staticmethod

@@ -13,11 +13,18 @@ two per-triangle tables handed to the photon pass each day, not geometry:
   not recompile the kernel.
 
 Both tables are rebuilt every day from the phenology (a few integer arrays over the leaf
-triangles), so stage, fall and leaf-out are exact day by day in the light. Only leaf-out moves
-vertices: blades grow from their centre in steps of 0.1 of their size, and the mesh follows
-when 2 % of the shown leaves have a new blade size or 7 days after the first change
-(:attr:`Canopy.min_change`, :attr:`Canopy.max_lag_days`); each update rebuilds the leaf mesh's
-acceleration structure. Outside the few weeks of leaf-out no vertex moves.
+triangles), so stage, fall and leaf-out are exact day by day in the light. Vertices move only
+(each time one vertex update, which rebuilds the leaf mesh's acceleration structure):
+
+- during leaf-out: blades grow from their centre in steps of 0.1 of their size, and the mesh
+  follows when 2 % of the shown leaves have a new blade size or 7 days after the first change
+  (:attr:`Canopy.min_change`, :attr:`Canopy.max_lag_days`);
+- when 10 % of the leaves are hidden with their blades still in the mesh
+  (:attr:`Canopy.max_hidden_blades`): a photon crossing a hidden blade costs one more ray cast,
+  so in autumn, every few days of leaf fall, and for the bare winter the hidden blades are
+  collapsed to points.
+
+Outside leaf-out and leaf fall no vertex moves.
 
 Light per leaf comes from the same photon pass as the terrain's: the flux recorded on a leaf's
 triangles (both sides, direct + indirect), divided by the blade area the pass saw.
@@ -53,6 +60,10 @@ class Canopy:
     #: per-triangle tables, exact every day)
     min_change = 0.02
     max_lag_days = 7
+    #: a hidden leaf costs the photons that cross it one more ray cast each: once this share of
+    #: the leaves is hidden with its blade still in the mesh (falling in autumn, bare in
+    #: winter), their blades are collapsed to points (one vertex update; a few a year)
+    max_hidden_blades = 0.1
 
     def __init__(self, trees, bins: int = 4):
         self.trees = list(trees)
@@ -167,9 +178,12 @@ class Canopy:
         # only leaves on the tree matter: hidden ones keep whatever blade the mesh holds
         changed = live & (size != self._scale)
         moved = 0
-        if changed.any():
-            self._lag += 1
-            if changed.sum() >= self.min_change * max(int(live.sum()), 1) or \
+        # hidden leaves whose blades are still in the mesh (photons cross them, one cast each)
+        stale = (self._scale > 0) & ~live
+        collapse = stale.sum() > self.max_hidden_blades * self.n_leaves
+        if changed.any() or collapse:
+            self._lag = self._lag + 1 if changed.any() else 0
+            if collapse or changed.sum() >= self.min_change * max(int(live.sum()), 1) or \
                     self._lag >= self.max_lag_days:
                 # hidden leaves collapse to their centre: a leaf that comes out later shows
                 # no blade until the next update gives it its size

@@ -252,6 +252,10 @@ class WorldSimulation(MossSimulation):
                                  "crown_centre_xz_m": wt.crown_centre().tolist(), **wt.info}
                                 for wt in self.trees],
                       "leaf_elements": int(self.canopy.n_leaves),
+                      "leaf_triangles": int(len(self.canopy.tri)),
+                      # vertex updates of the leaf mesh in this process (leaf-out growth,
+                      # hidden blades collapsed); stage and fall changes need none
+                      "leaf_mesh_updates": int(self.canopy.mesh_updates),
                       "stage_bins": self.stage_bins,
                       "phenology": self.phen_params.to_dict(),
                       "trees_built_s": getattr(self, "tree_seconds", 0.0)}
