@@ -88,9 +88,10 @@ def main(argv=None) -> int:
           f"process CPU time {cpu:.0f} s ({cpu / wall:.2f} of one core on average, "
           f"{os.cpu_count()} cores); 1-min load average {load0[0]:.1f} at the start, "
           f"{load1[0]:.1f} at the end (load from other processes slows the wall time)")
-    print(f"leaf mesh: {s['world']['leaf_triangles']:,d} triangles, "
-          f"{s['world']['leaf_mesh_updates']} vertex updates (leaf-out growth, fallen blades "
-          f"collapsed); stage and fall changes are per-triangle tables")
+    if "leaf_mesh_updates" in s["world"]:
+        print(f"leaf mesh: {s['world']['leaf_triangles']:,d} triangles, "
+              f"{s['world']['leaf_mesh_updates']} vertex updates (leaf-out growth, fallen "
+              f"blades collapsed); stage and fall changes are per-triangle tables")
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

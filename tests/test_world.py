@@ -168,9 +168,9 @@ leaves_file = "{d / 'leaves.ply'}"
     print("R:FR mid", rfr(g, mid), "sky", rfr(sim.ground_sky_bands, mid), "open", open_rfr,
           "PAR mid / open", g["par"][mid].mean() / open_["par"])
     assert rfr(g, mid) < 0.5                   # measured 0.35 (sunflecks included)
-    assert rfr(g, mid) < 0.35 * open_rfr       # measured 0.30 of daylight's 1.16
+    assert rfr(g, mid) < 0.35 * open_rfr       # measured 0.29 of daylight's 1.18
     assert 1.05 < open_rfr < 1.25
-    assert g["par"][mid].mean() < 0.15 * open_["par"]
+    assert g["par"][mid].mean() < 0.15 * open_["par"]    # measured 3.3 %
 
 
 def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
@@ -361,3 +361,43 @@ def test_leaves_still_on_the_tree_stay_across_the_new_year():
     ph.fallen[0] = True
     ph.start_of_day(dt.date(2027, 1, 1))
     assert ph.grown[1] == 1.0 and ph.on_tree.tolist() == [False, True]
+
+
+def test_canopy_vertex_updates_are_bounded_and_tables_exact():
+    """A year of phenology for 3,000 leaves (no light: a fixed daily insolation): the leaf mesh
+    is updated (a vertex update, an acceleration-structure rebuild) on few days, at least
+    Canopy.min_update_days apart, while the tables show exactly the leaves on the tree every
+    day, each with its stage bin."""
+    from mitsuba_veg.world import Canopy
+    from mitsuba_veg.world.trees import WorldTree
+
+    rng = np.random.default_rng(2)
+    m = 3000
+    quads = rng.uniform(-1, 1, (m, 1, 3)) + 0.05 * rng.uniform(-1, 1, (m, 4, 3))
+    wt = WorldTree("t", "mesh", np.zeros(3), (np.zeros((0, 3)), np.zeros((0, 3), int)),
+                   quads, np.full(m, 0.01))
+
+    class Params(dict):
+        def update(self):
+            pass
+    c = Canopy([wt], bins=4)
+    c.shapes()
+    params = Params()
+    ph = Phenology(m, PhenologyParams(), seed=1, leaf_out_shift=-4 * rng.random(m))
+    days, start = [], dt.date(2026, 3, 1)
+    for k in range(365):
+        date = start + dt.timedelta(days=k)
+        ph.start_of_day(date)
+        if c.update(params, ph.tau, ph.grown, ph.on_tree):
+            days.append(k)
+        modes, over = c.trace_tables()
+        shown = modes["trees_leaves"][::2] == 0
+        assert np.array_equal(shown, ph.on_tree & (c._scale > 0))
+        assert np.array_equal(over["trees_leaves"][1][::2], c.leaf_bins(ph.tau))
+        if date == dt.date(2026, 7, 1):           # in full leaf: every blade shown, full size
+            assert shown.all() and np.all(c.displayed_area() == c.area)
+        ph.end_of_day(date, np.full(m, 12.0))
+    print("vertex updates on days", days)
+    assert 5 <= len(days) <= 16
+    assert np.all(np.diff(days) >= Canopy.min_update_days)
+    assert ph.fallen.any()

@@ -54,16 +54,18 @@ class Canopy:
         Number of autumn-stage bins (stage 1..7 split evenly), one ``veg_leaf`` BSDF each.
     """
 
-    #: the leaf mesh follows the blades' growth when this share of the shown leaves has a new
-    #: blade size (steps of 0.1), or ``max_lag_days`` after the first change: every update
-    #: rebuilds the leaf mesh's acceleration structure (stage, fall and leaf-out themselves are
-    #: per-triangle tables, exact every day)
+    #: a vertex update rebuilds the light scene's acceleration structure (about the time of a
+    #: photon pass): at most one every ``min_update_days`` days. Stage, fall and leaf-out
+    #: themselves are per-triangle tables, exact every day.
+    min_update_days = 5
+    #: growth: the mesh follows the blades (sizes in steps of 0.1) when this share of the
+    #: shown leaves has a new size, or ``max_lag_days`` after the first change
     min_change = 0.02
     max_lag_days = 7
-    #: a hidden leaf costs the photons that cross it one more ray cast each: once this share of
-    #: the leaves is hidden with its blade still in the mesh (falling in autumn, bare in
-    #: winter), their blades are collapsed to points (one vertex update; a few a year)
-    max_hidden_blades = 0.1
+    #: a hidden leaf costs the photons that cross it one more ray cast each: the hidden blades
+    #: still in the mesh are collapsed to points once they are this share of the leaves, or
+    #: (more than 1 %) once none has been added for ``max_lag_days`` (the leaf fall is over)
+    max_hidden_blades = 0.25
 
     def __init__(self, trees, bins: int = 4):
         self.trees = list(trees)
@@ -102,6 +104,8 @@ class Canopy:
         self._shown = np.zeros(n, bool)       # on the tree with a blade in the mesh
         self._scale = np.ones(n)              # blade size in the mesh (0..1, steps of 0.1)
         self._lag = 0
+        self._since = 1 << 30                 # days since the last vertex update
+        self._stale_prev, self._stale_days = -1, 0
         self.stage_bsdfs: list = []
         self.mesh_updates = 0                 # leaf-mesh vertex updates (BVH rebuilds) so far
 
@@ -169,7 +173,6 @@ class Canopy:
         int
             1 when the leaf mesh's vertices were updated (its BVH rebuilt) today, else 0.
         """
-        import mitsuba as mi
         if self.n_leaves == 0:
             return 0
         self._bin = self.leaf_bins(tau)
@@ -178,30 +181,55 @@ class Canopy:
         # only leaves on the tree matter: hidden ones keep whatever blade the mesh holds
         changed = live & (size != self._scale)
         moved = 0
+        self._since += 1
         # hidden leaves whose blades are still in the mesh (photons cross them, one cast each)
-        stale = (self._scale > 0) & ~live
-        collapse = stale.sum() > self.max_hidden_blades * self.n_leaves
-        if changed.any() or collapse:
-            self._lag = self._lag + 1 if changed.any() else 0
-            if collapse or changed.sum() >= self.min_change * max(int(live.sum()), 1) or \
-                    self._lag >= self.max_lag_days:
-                # hidden leaves collapse to their centre: a leaf that comes out later shows
-                # no blade until the next update gives it its size
-                want = np.where(live, size, 0.0)
-                s = want[self.face_leaf][:, None, None]
-                c = self.centre[self.face_leaf][:, None, :]
-                v = (c + s * (self.tri - c)).reshape(-1)
-                params[f"{LEAF_MESH}.vertex_positions"] = mi.Float(v.astype(np.float32))
-                params.update()
-                self._scale = want
-                self._lag = 0
-                self.mesh_updates += 1
-                moved = 1
-        else:
+        stale = int(((self._scale > 0) & ~live).sum())
+        self._stale_days = self._stale_days + 1 if stale == self._stale_prev else 0
+        self._stale_prev = stale
+        collapse = stale > self.max_hidden_blades * self.n_leaves or \
+            (stale > 0.01 * self.n_leaves and self._stale_days >= self.max_lag_days)
+        self._lag = self._lag + 1 if changed.any() else 0
+        grow = changed.sum() >= self.min_change * max(int(live.sum()), 1) or \
+            (changed.any() and self._lag >= self.max_lag_days)
+        if (collapse or grow) and self._since >= self.min_update_days:
+            # hidden leaves collapse to their centre: a leaf that comes out later shows no
+            # blade until the next update gives it its size
+            self._set_blades(params, np.where(live, size, 0.0))
             self._lag = 0
+            self._since = 0
+            self.mesh_updates += 1
+            moved = 1
         # a blade of size 0 in the mesh (round(scale, 1) == 0) is not shown
         self._shown = live & (self._scale > 0)
         return moved
+
+    def _set_blades(self, params, scale: np.ndarray) -> None:
+        """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene."""
+        import mitsuba as mi
+        s = scale[self.face_leaf][:, None, None]
+        c = self.centre[self.face_leaf][:, None, :]
+        v = (c + s * (self.tri - c)).reshape(-1)
+        params[f"{LEAF_MESH}.vertex_positions"] = mi.Float(v.astype(np.float32))
+        params.update()
+        self._scale = scale
+
+    # ---- checkpoints --------------------------------------------------------------------
+    def state(self, prefix: str = "canopy_") -> dict:
+        """The mesh's state (blade sizes, update clocks) for a checkpoint: a resumed run must
+        show the same blades and update on the same days as an uninterrupted one."""
+        clocks = np.array([self._lag, self._since, self._stale_prev, self._stale_days,
+                           self.mesh_updates], np.int64)
+        return {prefix + "scale": self._scale.copy(), prefix + "clocks": clocks}
+
+    def load_state(self, d: dict, params, prefix: str = "canopy_") -> None:
+        """Restore :meth:`state` (and the blades in the light scene)."""
+        scale = np.asarray(d[prefix + "scale"], float)
+        if scale.shape != (self.n_leaves,):
+            raise ValueError(f"{prefix}scale: {scale.shape} != ({self.n_leaves},)")
+        if self.n_leaves and not np.array_equal(scale, self._scale):
+            self._set_blades(params, scale)
+        (self._lag, self._since, self._stale_prev, self._stale_days,
+         self.mesh_updates) = (int(x) for x in np.asarray(d[prefix + "clocks"]))
 
     def trace_tables(self) -> tuple[dict, dict]:
         """The day's ``modes`` and ``bsdf_override`` for the photon pass (per leaf triangle:

@@ -171,6 +171,7 @@ class WorldSimulation(MossSimulation):
         dt = time.perf_counter() - t0
         self.timings["leaves"] += dt
         self.timings["light"] -= dt   # counted as leaves, not as the photon pass
+        self._leaf_light_seconds = dt
         self.last_result = res
         return S, f_sun, f_sky, res
 
@@ -219,7 +220,10 @@ class WorldSimulation(MossSimulation):
                 "ground_under_crown": ground_stats(self.crowns[t_i])}
         rec["trees"] = trees
         rec["ground_open"] = ground_stats(self.open_ground)
-        rec["seconds"]["leaves"] = getattr(self, "_leaf_seconds", 0.0)
+        # leaves: the canopy update and the per-leaf light (taken out of the photon pass's time)
+        ll = getattr(self, "_leaf_light_seconds", 0.0)
+        rec["seconds"] = {**rec["seconds"], "light": rec["seconds"]["light"] - ll,
+                          "leaves": getattr(self, "_leaf_seconds", 0.0) + ll}
         return rec
 
     def _bin_par_absorptance(self) -> np.ndarray:
@@ -234,11 +238,12 @@ class WorldSimulation(MossSimulation):
 
     # ---- checkpoints --------------------------------------------------------------------
     def _checkpoint_extra(self) -> dict:
-        return self.phen.to_numpy()
+        return {**self.phen.to_numpy(), **self.canopy.state()}
 
     def _load_extra(self, d: dict) -> None:
         try:
             self.phen.load_numpy(d)
+            self.canopy.load_state(d, self.params)
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(self.checkpoint_path), "a checkpoint of the "
                                  "same world (its leaves)", f"use --fresh ({e})") from None
