@@ -51,6 +51,12 @@ cylinder) get their normal from the shape. This avoids
 Mitsuba's per-instance virtual call: with 1,000 instances a full ``ray_intersect`` was 30-50x
 slower than a preliminary one on this 2-core machine.
 
+Per-element tables (``trace(..., modes=, bsdf_override=, record=)``): each element's mode
+(surface, sensor, hidden), its BSDF among a fixed list, and its row in the accumulator (or none:
+not recorded) are gathered from device arrays outside the loop state, so a daily loop changes
+them without recompiling the kernel (a world's leaves: stage optics, fallen leaves, bark not
+recorded).
+
 Instances. Each ``instance`` of a ``shapegroup`` of meshes gets its own elements (one per
 triangle of every mesh in the group), keyed by the instance id; an analytic shape inside a
 shapegroup is refused with an error naming it.
