@@ -10,7 +10,11 @@ The three timings are interleaved in every repetition and the ratio is the media
 per-repetition ratios, so that load from other processes on a shared machine hits both sides.
 Dr.Jit kernels are compiled before timing.
 
-    python benchmarks/photon_throughput.py [--scene garden|moss_garden|plants1000] [--reps 5]
+    python benchmarks/photon_throughput.py [--scene garden|moss_garden|plants1000|world] [--reps 5]
+
+``world``: the light scene of ``benchmarks/world_year.py``'s courtyard world on 1 July (trees
+in full leaf, > 100,000 leaves: one leaf mesh with its daily mode and stage tables, bark,
+terrain; the day's sun path and the sky), traced as the daily loop traces it.
 """
 import argparse
 import os
@@ -29,7 +33,35 @@ from mitsuba_veg.integrators.photon_irradiance import PhotonIrradianceIntegrator
 from mitsuba_veg.light import validation as V  # noqa: E402
 
 
+def world_scene(start="2026-07-01"):
+    """The benchmark world's light scene on ``start`` and its integrator with the day's leaf
+    tables (see benchmarks/world_year.py)."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from mitsuba_veg.scenario import load_scenario
+    from mitsuba_veg.world import WorldSimulation
+    from world_year import EXTRA
+    root = Path(__file__).resolve().parent.parent
+    tmp = Path(tempfile.mkdtemp())
+    shutil.copytree(root / "scenes" / "courtyard", tmp / "courtyard")
+    f = tmp / "courtyard" / "scenario.toml"
+    f.write_text(f.read_text().replace("[phenology]", EXTRA + "\n[phenology]", 1))
+    sim = WorldSimulation(load_scenario(f, [f'simulation.start_date="{start}"']), tmp / "run",
+                          days=1, progress=False)
+    sim.setup()
+    sim.initialise()
+    sim.step()          # sets the day's sun path and the leaf tables
+    shutil.rmtree(tmp, ignore_errors=True)
+    print(f"world: {sim.canopy.n_leaves:,d} leaves ({len(sim.canopy.tri):,d} triangles), "
+          f"bark {sim.index.shape_slice('trees_bark').stop - sim.index.shape_slice('trees_bark').start:,d} triangles")
+    return sim.scene, sim.integrator
+
+
 def load(name):
+    if name == "world":
+        return world_scene()
     if name == "garden":
         return garden_80k()
     if name == "plants1000":
@@ -81,17 +113,20 @@ def time_raw(scene, O, D, kind, r):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", default="garden", choices=["garden", "moss_garden", "plants1000"])
+    ap.add_argument("--scene", default="garden", choices=["garden", "moss_garden", "plants1000",
+                                                             "world"])
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--photons", type=int, nargs="*", default=[1_000_000, 4_000_000])
     a = ap.parse_args()
     scene = load(a.scene)
+    integ = PhotonIrradianceIntegrator()
+    if isinstance(scene, tuple):      # the world: its integrator holds the day's leaf tables
+        scene, integ = scene
     index = SceneIndex.build(scene)
     print(f"scene {a.scene}: {index.n_elements} elements ({len(index.instances)} instances), "
           f"{len(scene.emitters())} emitters, variant {mi.variant()}, {os.cpu_count()} CPU "
           f"threads")
     full = a.scene != "plants1000"
-    integ = PhotonIrradianceIntegrator()
     for n in a.photons:
         res = integ.trace(scene, photons=n, seed=0)  # compile
         O, D = raw_rays(integ, scene, res.rays_traced, seed=99)

@@ -51,6 +51,12 @@ cylinder) get their normal from the shape. This avoids
 Mitsuba's per-instance virtual call: with 1,000 instances a full ``ray_intersect`` was 30-50x
 slower than a preliminary one on this 2-core machine.
 
+Per-element tables (``trace(..., modes=, bsdf_override=, record=)``): each element's mode
+(surface, sensor, hidden), its BSDF among a fixed list, and its row in the accumulator (or none:
+not recorded) are gathered from device arrays outside the loop state, so a daily loop changes
+them without recompiling the kernel (a world's leaves: stage optics, fallen leaves, bark not
+recorded).
+
 Instances. Each ``instance`` of a ``shapegroup`` of meshes gets its own elements (one per
 triangle of every mesh in the group), keyed by the instance id; an analytic shape inside a
 shapegroup is refused with an error naming it.
@@ -96,6 +102,8 @@ SURFACE, SENSOR, HIDDEN = 0, 1, 2
 _MODE_NAMES = {"surface": SURFACE, "sensor": SENSOR, "hidden": HIDDEN}
 #: up to this many distinct BSDFs are called directly in the kernel, more by a virtual call
 _DIRECT_BSDFS = 16
+#: accumulator row of an element that is not recorded (``trace(..., record=...)``)
+_NO_ROW = 0xFFFFFFFF
 
 
 def _scalar(x) -> float:
@@ -524,6 +532,24 @@ class PhotonIrradianceResult:
     truncated: np.ndarray          # [e, b] power still travelling at max_depth / indirect off [W]
     seconds: float = 0.0
     settings: dict = field(default_factory=dict)
+    #: row of :attr:`flux` of every element, -1 where the element was not recorded
+    #: (``trace(..., record=...)``); None: every element recorded, row = element
+    rows: np.ndarray | None = None
+
+    def _rows(self, sl: slice, shape_id: str = "") -> slice:
+        """Rows of :attr:`flux` of the elements ``sl`` (a whole recorded shape)."""
+        if self.rows is None:
+            return sl
+        r = self.rows[sl]
+        if r.size and r[0] < 0:
+            raise ParameterError("shape", shape_id, "a shape recorded by the pass (trace(..., "
+                                 "record=...) left it out)", "add it to record=...")
+        return slice(int(r[0]), int(r[-1]) + 1) if r.size else slice(0, 0)
+
+    def shape_flux(self, shape_id: str) -> np.ndarray:
+        """Flux of a shape's elements [W], shape (emitters, n, 2 components, 2 sides,
+        bands): a view of :attr:`flux`."""
+        return self.flux[:, self._rows(self.index.shape_slice(shape_id), shape_id)]
 
     # ---- layout -------------------------------------------------------------------------
     @property
@@ -547,6 +573,10 @@ class PhotonIrradianceResult:
         those given). This is what ``mi.render`` returns for the integrator.
         """
         f = self.flux[self._emitters(emitter)].sum(axis=0)          # (n, comp, side, band)
+        if self.rows is not None:                                    # unrecorded: 0
+            full = np.zeros((self.index.n_elements,) + f.shape[1:])
+            full[self.rows >= 0] = f
+            f = full
         return np.moveaxis(f, -1, 1) / np.maximum(self.index.areas, 1e-30)[:, None, None, None]
 
     def shape_slice(self, shape_id: str) -> slice:
@@ -584,10 +614,9 @@ class PhotonIrradianceResult:
             raise ParameterError("component", component, f"one of {COMPONENTS}")
         if side not in SIDES + ("both",):
             raise ParameterError("side", side, "'front', 'back' or 'both'")
-        sl = self.index.shape_slice(shape_id)
+        sl = self._rows(self.index.shape_slice(shape_id), shape_id)
         b = self._band(band)
-        f = self.flux[self._emitters(emitter)][:, sl].sum(axis=0)  # (n, comp, side, band)
-        f = f[..., b]
+        f = self.flux[self._emitters(emitter), sl, ..., b].sum(axis=0)  # (n, comp, side)
         f = f.sum(axis=1) if component == "total" else f[:, COMPONENTS.index(component)]
         return f.sum(axis=1) if side == "both" else f[:, SIDES.index(side)]
 
@@ -607,12 +636,21 @@ class PhotonIrradianceResult:
 
     def element_irradiance(self, band="total", component="total", side="front",
                            emitter=None) -> np.ndarray:
-        """Irradiance of every element of the scene (all shapes, in index order) [W m-2]."""
+        """Irradiance of every element of the scene (all shapes, in index order) [W m-2];
+        0 for elements the pass did not record."""
         if component not in COMPONENTS:
             raise ParameterError("component", component, f"one of {COMPONENTS}")
-        f = self.flux[self._emitters(emitter)].sum(axis=0)[..., self._band(band)]
-        f = f.sum(axis=1) if component == "total" else f[:, COMPONENTS.index(component)]
-        f = f.sum(axis=1) if side == "both" else f[:, SIDES.index(side)]
+        if side not in SIDES + ("both",):
+            raise ParameterError("side", side, "'front', 'back' or 'both'")
+        # pick the band, component and side before summing: no copy of the whole flux array
+        c = slice(None) if component == "total" else COMPONENTS.index(component)
+        s = slice(None) if side == "both" else SIDES.index(side)
+        f = self.flux[self._emitters(emitter), :, c, s, self._band(band)]
+        f = f.reshape(f.shape[0], f.shape[1], -1).sum(axis=(0, 2))
+        if self.rows is not None:
+            full = np.zeros(self.index.n_elements)
+            full[self.rows >= 0] = f
+            f = full
         return f / np.maximum(self.index.areas, 1e-30)
 
     def photon_flux_density(self, shape_id: str, band="par", component="total", side="front",
@@ -674,6 +712,9 @@ class PhotonIrradianceResult:
         for sid in self.index.shape_ids:
             if not sid or (sid in inst and len(inst) > 100):
                 continue
+            if self.rows is not None and self.rows[self.index.shape_slice(sid)][:1].min(
+                    initial=0) < 0:
+                continue  # not recorded
             sl = self.index.shape_slice(sid)
             data[f"{sid}/area_m2"] = self.index.areas[sl]
             data[f"{sid}/centroid_m"] = self.index.centroids[sl]
@@ -779,6 +820,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         check_range("seed", self.seed, 0, 2**31 - 1)
         check_range("batch", self.batch, 1024, None)
         self.result: PhotonIrradianceResult | None = None  # the last pass
+        #: element modes and per-triangle BSDF choices used by :meth:`trace` when its own
+        #: arguments are None (a daily loop sets them before each pass)
+        self.modes: dict | None = None
+        self.bsdf_override: dict | None = None
+        self.record = None
         self._vis = None  # (lookup, per-element irradiance) shown by the image output
 
     # ---- Mitsuba's render interface ---------------------------------------------------------
@@ -848,7 +894,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
     def trace(self, scene: mi.Scene, photons: int | None = None, seed: int | None = None,
               max_depth: int | None = None, bands=None, indirect: bool | None = None,
               reflectance: dict | None = None, emitters=None, batch: int | None = None,
-              progress: bool = False, modes: dict | None = None) -> PhotonIrradianceResult:
+              progress: bool = False, modes: dict | None = None,
+              bsdf_override: dict | None = None, record=None) -> PhotonIrradianceResult:
         """Trace a photon pass over ``scene`` and return per-element fluxes.
 
         Arguments left at None take the plugin's properties.
@@ -885,6 +932,22 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             :data:`SENSOR`, :data:`HIDDEN`. A photon crossing a sensor or hidden element keeps
             its direction, power and bounce count; changing the modes does not recompile the
             kernel.
+        bsdf_override : dict, optional
+            ``{shape_id: (bsdfs, index)}``: a list of Mitsuba BSDF objects and an integer array
+            (n_triangles,) choosing one of them per triangle (-1 keeps the shape's own BSDF).
+            Used for leaves whose optics change by autumn stage: a day's new choice is a new
+            table, not a new scene, and the kernel is recompiled only when the *set* of BSDF
+            objects changes (see :meth:`_bsdf_table`).
+
+        record : sequence of str, optional
+            Ids of the shapes (or instances) whose flux is kept (default: all). Photons
+            interact with every shape as usual; the others are just not recorded, so the
+            pass's accumulator, read-back and result cover the recorded elements only (a world
+            records its terrain and leaves, not the bark's half a million triangles).
+            :attr:`PhotonIrradianceResult.rows` maps elements to rows of its ``flux``.
+
+        Arguments left at None also fall back to the plugin's attributes :attr:`modes`,
+        :attr:`bsdf_override` and :attr:`record` (a simulation sets them before its passes).
 
         Returns
         -------
@@ -898,6 +961,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         bands = self.bands if bands is None else bands
         emitters = self.emitters if emitters is None else emitters
         batch = self.batch if batch is None else batch
+        modes = self.modes if modes is None else modes
+        record = self.record if record is None else record
+        bsdf_override = self.bsdf_override if bsdf_override is None else bsdf_override
         check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
         check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
         check_range("seed", seed, 0, 2**31 - 1)
@@ -928,6 +994,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         groups = [list(range(i, min(i + _SLOTS, n_b))) for i in range(0, n_b, _SLOTS)]
         refl = self._reflectance_table(index, reflectance, n_b)
         mode_arr = self._mode_table(index, modes)
+        bsdf_arr, bsdfs = self._bsdf_table(index, bsdf_override)
+        rows, row_arr = self._record_table(index, record)
+        n_rec = n_el if rows is None else int((rows >= 0).sum())
 
         # photon budget per emitter: proportional to the power each sends at the geometry
         pilots = [self._pilot_power(scene, all_emitters[i], index, ranges[0]) for i in em_idx]
@@ -943,7 +1012,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
         book = np.zeros((4, len(em_idx), n_b))  # emitted, escaped, absorbed, truncated
         # flux of every (emitter, band group) on the device [W], read back once at the end
-        block = n_el * 2 * 2 * _SLOTS
+        block = n_rec * 2 * 2 * _SLOTS
         dev = dr.zeros(mi.Float64, len(em_idx) * len(groups) * block)
         in_block = dr.arange(mi.UInt32, block)
         rays = 0
@@ -958,6 +1027,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 slot_ranges = [ranges[b] for b in group]
                 slot_ranges += [slot_ranges[0]] * (_SLOTS - len(slot_ranges))
                 refl_g = None if refl is None else refl[:, group + [group[0]] * (_SLOTS - len(group))]
+                if refl_g is not None:   # one upload for all batches of the group
+                    refl_g = mi.Float(np.ascontiguousarray(refl_g, np.float32).ravel())
                 done = 0
                 while done < counts[e_i]:
                     n = int(min(batch, counts[e_i] - done))
@@ -965,7 +1036,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
                                             slot_ranges, refl_g, max_depth, indirect,
-                                            mode_arr)
+                                            mode_arr, bsdf_arr, bsdfs, row_arr, n_rec)
                     # fixed point -> watts on the device (both threads), summed over batches
                     # in a fixed order (deterministic)
                     q, unit = acc
@@ -981,7 +1052,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         if bar is not None:
             bar.close()
         # a view of the device buffer (no copy) when one band group holds all bands
-        dev = np.asarray(dev).reshape(len(em_idx), len(groups), n_el, 2, 2, _SLOTS)
+        dev = np.asarray(dev).reshape(len(em_idx), len(groups), n_rec, 2, 2, _SLOTS)
         flux = dev[:, 0] if len(groups) == 1 else np.concatenate(list(np.moveaxis(dev, 1, 0)),
                                                                   axis=-1)
         flux = flux[..., :n_b]
@@ -990,7 +1061,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             photons=counts, rays_traced=int(rays), emitted=book[0], escaped=book[1],
             absorbed=book[2], truncated=book[3], seconds=_time.perf_counter() - t0,
             settings=dict(photons=photons, seed=seed, max_depth=max_depth, indirect=indirect,
-                          bands=list(names)))
+                          bands=list(names)), rows=rows)
         self.result = res
         return res
 
@@ -1013,7 +1084,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     @staticmethod
     def _mode_table(index: SceneIndex, modes):
-        """Per-element modes as a device array (None when every element is a surface)."""
+        """Per-element modes as a device array (None when no modes are given)."""
         if not modes:
             return None
         table = np.zeros(index.n_elements, dtype=np.uint32)
@@ -1034,9 +1105,73 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                                      f"shape ({n},) with values 0 (surface), 1 (sensor), "
                                      f"2 (hidden)")
             table[sl] = a
-        if not table.any():
-            return None
+        # a given table is used even when every element is a surface: a loop whose modes
+        # come and go (leaves falling) keeps one kernel
         return mi.UInt32(table)
+
+    @staticmethod
+    def _record_table(index: SceneIndex, record):
+        """Accumulator row of every element (numpy, -1 = not recorded) and its device table
+        (``_NO_ROW`` for -1); (None, None) when every element is recorded."""
+        if record is None:
+            return None, None
+        if isinstance(record, str):
+            record = [record]
+        keep = np.zeros(index.n_elements, bool)
+        for sid in record:
+            if sid in index.sub_slices:
+                raise ParameterError("record", sid, "shape or instance ids (whole shapes)",
+                                     "record the whole instance")
+            keep[index.shape_slice(sid)] = True
+        if keep.all():
+            return None, None
+        rows = np.where(keep, np.cumsum(keep) - 1, -1)
+        table = np.where(keep, rows, _NO_ROW).astype(np.uint32)
+        return rows, mi.UInt32(table)
+
+    @staticmethod
+    def _bsdf_table(index: SceneIndex, bsdf_override):
+        """Per-element BSDF choice as a device array of BSDF registry ids (0: the shape's own)
+        and the list of BSDFs the kernel dispatches to (the scene's plus the overrides').
+
+        Why a table of BSDF objects rather than a table of spectra: the element's optics stay
+        those of its Mitsuba BSDF (``veg_leaf``'s PROSPECT-D R(λ) and T(λ), the same object the
+        renderer uses), any BSDF type works, and a day's change is one integer per triangle.
+        The kernel calls each listed BSDF directly (up to :data:`_DIRECT_BSDFS`, more by a
+        virtual call), so the list, sorted by registry id, is part of the kernel: it must stay
+        the same from day to day (a few stage BSDFs built once), while the table is data.
+        """
+        if not bsdf_override:
+            return None, index.bsdf_objects
+        table = np.zeros(index.n_elements, dtype=np.uint32)
+        objs = dict(index.bsdf_objects)
+        for sid, spec in bsdf_override.items():
+            sl = index.shape_slice(sid)
+            n = sl.stop - sl.start
+            try:
+                bsdfs, choice = spec
+                bsdfs = list(bsdfs)
+            except (TypeError, ValueError):
+                raise ParameterError(f"bsdf_override['{sid}']", type(spec).__name__,
+                                     "a pair (list of BSDF objects, per-triangle index array)")
+            if not bsdfs or not all(isinstance(b, mi.BSDF) for b in bsdfs):
+                raise ParameterError(f"bsdf_override['{sid}']", "a list of "
+                                     f"{[type(b).__name__ for b in bsdfs]}",
+                                     "a non-empty list of Mitsuba BSDF objects",
+                                     "build them once with mi.load_dict")
+            a = np.asarray(choice)
+            if a.ndim == 0:
+                a = np.full(n, a)
+            if a.shape != (n,) or not np.issubdtype(a.dtype, np.integer) or \
+                    (a.size and (a.min() < -1 or a.max() >= len(bsdfs))):
+                raise ParameterError(f"bsdf_override['{sid}']", f"index array of shape {a.shape}"
+                                     f" ({a.dtype})", f"shape ({n},), integers in -1 .. "
+                                     f"{len(bsdfs) - 1} (-1: the shape's own BSDF)")
+            reg = np.array([_reg_id(b) for b in bsdfs] + [0], dtype=np.uint32)
+            table[sl] = reg[a]          # -1 -> the trailing 0
+            for r, b in zip(reg[:-1], bsdfs):
+                objs.setdefault(int(r), b)
+        return mi.UInt32(table), sorted(objs.items(), key=lambda kv: kv[0])
 
     @staticmethod
     def _reflectance_table(index: SceneIndex, reflectance, n_b):
@@ -1183,7 +1318,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     # the kernel -----------------------------------------------------------------------------
     def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
-              indirect, modes=None):
+              indirect, modes=None, bsdf_table=None, bsdfs=None, rows=None, n_rec=None):
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(stream, n)
         idx = dr.arange(mi.UInt32, n)
@@ -1222,8 +1357,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         emitted = [dr.sum(throughput[k]) for k in range(_SLOTS)]
         hits = 1 if not indirect else max_depth
         scale, cap = fixed_point_scale(n, hits, pmax)
-        acc = dr.zeros(_UInt64, n_el * 2 * 2 * _SLOTS)
-        refl_arr = None if refl is None else mi.Float(np.ascontiguousarray(refl, np.float32).ravel())
+        acc = dr.zeros(_UInt64, (n_el if n_rec is None else n_rec) * 2 * 2 * _SLOTS)
+        refl_arr = refl if refl is None or isinstance(refl, mi.Float) else \
+            mi.Float(np.ascontiguousarray(refl, np.float32).ravel())
         esc = dr.zeros(mi.Spectrum, n)
         absd = dr.zeros(mi.Spectrum, n)
         depth = mi.UInt32(0)
@@ -1234,7 +1370,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         throughput_left, rays_lane, esc, absd = self._loop(
             scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
             tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
-            dr.opaque(mi.Float, cap), modes)
+            dr.opaque(mi.Float, cap), modes, bsdf_table,
+            index.bsdf_objects if bsdfs is None else bsdfs, rows)
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
         # one would re-run the loop for each); the bookkeeping sums are read back in one go
         dr.eval(acc, throughput_left, rays_lane, esc, absd)
@@ -1257,7 +1394,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
-              index, normals, refl_arr, one_hit, scale, cap, modes=None):
+              index, normals, refl_arr, one_hit, scale, cap, modes=None, bsdf_table=None,
+              bsdfs=(), rows=None):
         """The random walk: one symbolic loop (a single kernel).
 
         Hits are found with ``ray_intersect_preliminary`` (the BVH traversal only). The element
@@ -1268,18 +1406,25 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         spatially varying BSDFs (textures, mesh attributes) use Mitsuba's full interaction.
         With ``modes`` (per-element :data:`SENSOR` / :data:`HIDDEN`), a photon crossing such
         an element is recorded (sensor) or not (hidden) and goes on unchanged from the hit.
+        With ``bsdf_table`` (per-element BSDF registry id, 0 = the shape's own), the element's
+        BSDF is gathered from the table; ``bsdfs`` lists every BSDF the kernel dispatches to.
+        With ``rows`` (per-element accumulator row, ``0xFFFFFFFF`` = not recorded) only the
+        recorded elements have a place in ``acc``. All tables are device arrays outside the
+        loop state: new contents, same kernel.
         """
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
         lookup, blookup = index.lookup, index.bsdf_lookup
         has_instances = len(index.instances) > 0
-        bsdfs = index.bsdf_objects
         full = index.needs_full_interaction
         # read-only objects stay out of the loop state: traversing a scene with 1,000
         # instances for it cost ~0.1 s per pass
         has_modes = modes is not None
+        has_override = bsdf_table is not None
+        has_rows = rows is not None
         while dr.hint(active, label="veg_photon_irradiance",
-                      exclude=[scene, index, bsdfs, lookup, blookup, normals, modes]):
+                      exclude=[scene, index, bsdfs, lookup, blookup, normals, modes,
+                               bsdf_table, rows]):
             pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             nrays += dr.select(active, mi.UInt32(1), mi.UInt32(0))
             hit = active & pi.is_valid()
@@ -1312,6 +1457,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     ng = dr.select(on, si_a.n, ng)
                     elem = dr.select(on, dr.gather(mi.UInt32, lookup, sid, on), elem)
 
+            if dr.hint(has_override, mode='scalar'):
+                # the element's own BSDF choice (e.g. a leaf's autumn stage) where it has one
+                ov_id = dr.gather(mi.UInt32, bsdf_table, elem, hit)
+                bsdf_id = dr.select(ov_id != 0, ov_id, bsdf_id)
+
             rec, passing = mi.Bool(hit), mi.Bool(False)
             if dr.hint(has_modes, mode='scalar'):
                 # sensors record and pass; hidden elements only pass; surfaces go on below
@@ -1330,7 +1480,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             back = dr.dot(ng, ray.d) > 0
             comp = dr.select(depth > 0, mi.UInt32(1), mi.UInt32(0))
             side = dr.select(back, mi.UInt32(1), mi.UInt32(0))
-            base = ((elem * 2 + comp) * 2 + side) * _SLOTS
+            row = mi.UInt32(elem)
+            if dr.hint(has_rows, mode='scalar'):
+                row = dr.gather(mi.UInt32, rows, elem, rec)
+                rec = rec & (row != _NO_ROW)
+            base = ((row * 2 + comp) * 2 + side) * _SLOTS
             for k in range(_SLOTS):
                 # capped: no record can make a 64-bit sum wrap (see fixed_point_scale)
                 q_k = _UInt64(dr.round(dr.minimum(throughput[k] * scale, cap)))

@@ -1,18 +1,33 @@
-"""The trees in the world's light scene: wood, and leaves binned by autumn stage.
+"""The trees in the world's light scene: wood, and one leaf mesh whose optics follow the stages.
 
-Wood: one two-sided diffuse mesh (``trees_bark``) for all trees. Leaves: ``bins`` meshes
-(``leaves_00`` .. ``leaves_KK``), one per Ishikura stage bin, each with the ``veg_leaf`` BSDF
-of its stage (PROSPECT-D reflectance **and** transmittance, so far-red passes through the
-canopy and red does not). Every bin mesh holds a triangle slot for every leaf triangle; a leaf
-shows its blade in the mesh of its stage and is collapsed to a point (a zero-area triangle that
-no ray hits) in the others, and in all of them once it has fallen or before it has grown.
+Wood: one two-sided diffuse mesh (``trees_bark``) for all trees. Leaves: one mesh
+(``trees_leaves``) holding every leaf blade once (a quad leaf is two triangles). Its state is
+two per-triangle tables handed to the photon pass each day, not geometry:
 
-So the scene keeps its structure all year: a day moves vertices (``mi.traverse`` + ``update``,
-which rebuilds the acceleration structure of the changed meshes only) and the photon kernel is
-not recompiled. Leaf blades grow from their centre during leaf-out.
+- **mode** (``trace(..., modes=...)``): a leaf on the tree is a SURFACE; a fallen leaf, or one
+  not yet out, is HIDDEN: photons cross it unrecorded, as if it were not there;
+- **optics** (``trace(..., bsdf_override=...)``): the ``veg_leaf`` BSDF of the leaf's Ishikura
+  stage bin (PROSPECT-D reflectance **and** transmittance of the bin's centre stage, so far-red
+  passes the canopy and red does not). The ``bins`` BSDFs are built once; the kernel calls them
+  directly and gathers each triangle's choice from a device table, so a new day's table does
+  not recompile the kernel.
+
+Both tables are rebuilt every day from the phenology (a few integer arrays over the leaf
+triangles), so stage, fall and leaf-out are exact day by day in the light. Vertices move only
+(each time one vertex update, which rebuilds the leaf mesh's acceleration structure):
+
+- during leaf-out: blades grow from their centre in steps of 0.1 of their size, and the mesh
+  follows when 2 % of the shown leaves have a new blade size or 7 days after the first change
+  (:attr:`Canopy.min_change`, :attr:`Canopy.max_lag_days`);
+- when 10 % of the leaves are hidden with their blades still in the mesh
+  (:attr:`Canopy.max_hidden_blades`): a photon crossing a hidden blade costs one more ray cast,
+  so in autumn, every few days of leaf fall, and for the bare winter the hidden blades are
+  collapsed to points.
+
+Outside leaf-out and leaf fall no vertex moves.
 
 Light per leaf comes from the same photon pass as the terrain's: the flux recorded on a leaf's
-triangles (both sides, direct + indirect) in whichever bin mesh it is, divided by its area.
+triangles (both sides, direct + indirect), divided by the blade area the pass saw.
 """
 from __future__ import annotations
 
@@ -24,9 +39,33 @@ from ..foliage.pigments import stage_from_tau
 _BARK = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
          "values": "0.07, 0.08, 0.11, 0.15, 0.20, 0.26, 0.30"}
 
+#: id of the leaf mesh in the light scene
+LEAF_MESH = "trees_leaves"
+
 
 class Canopy:
-    """Leaves and wood of all world trees as Mitsuba meshes (see the module docstring)."""
+    """Leaves and wood of all world trees as Mitsuba meshes (see the module docstring).
+
+    Parameters
+    ----------
+    trees : sequence of WorldTree
+        The world's trees (their wood and leaf blades).
+    bins : int
+        Number of autumn-stage bins (stage 1..7 split evenly), one ``veg_leaf`` BSDF each.
+    """
+
+    #: a vertex update rebuilds the light scene's acceleration structure (about the time of a
+    #: photon pass): at most one every ``min_update_days`` days. Stage, fall and leaf-out
+    #: themselves are per-triangle tables, exact every day.
+    min_update_days = 5
+    #: growth: the mesh follows the blades (sizes in steps of 0.1) when this share of the
+    #: shown leaves has a new size, or ``max_lag_days`` after the first change
+    min_change = 0.02
+    max_lag_days = 7
+    #: a hidden leaf costs the photons that cross it one more ray cast each: the hidden blades
+    #: still in the mesh are collapsed to points once they are this share of the leaves, or
+    #: (more than 1 %) once none has been added for ``max_lag_days`` (the leaf fall is over)
+    max_hidden_blades = 0.25
 
     def __init__(self, trees, bins: int = 4):
         self.trees = list(trees)
@@ -58,9 +97,17 @@ class Canopy:
         if n:
             np.add.at(self.centre, self.face_leaf, self.tri.mean(1))
             self.centre /= np.bincount(self.face_leaf, minlength=n)[:, None]
-        self._bin = np.full(n, -1)        # bin each leaf is shown in (-1: none)
-        self._scale = np.zeros(n)
-        self.bin_names = [f"leaves_{b:02d}" for b in range(self.bins)]
+        # first triangle of each leaf (triangles of a leaf are consecutive): for reduceat
+        self._first = np.flatnonzero(np.r_[True, np.diff(self.face_leaf) != 0]) if n else \
+            np.zeros(0, np.int64)
+        self._bin = np.zeros(n, np.int64)     # stage bin of each leaf
+        self._shown = np.zeros(n, bool)       # on the tree with a blade in the mesh
+        self._scale = np.ones(n)              # blade size in the mesh (0..1, steps of 0.1)
+        self._lag = 0
+        self._since = 1 << 30                 # days since the last vertex update
+        self._stale_prev, self._stale_days = -1, 0
+        self.stage_bsdfs: list = []
+        self.mesh_updates = 0                 # leaf-mesh vertex updates (BVH rebuilds) so far
 
     # ---- the scene's shapes -------------------------------------------------------------
     def bin_stage(self, b: int) -> float:
@@ -68,8 +115,14 @@ class Canopy:
         return 1.0 + 6.0 * (b + 0.5) / self.bins if self.bins > 1 else 1.0
 
     def shapes(self, full_leaf: bool = False) -> dict:
-        """Mitsuba meshes: ``trees_bark`` and the leaf bin meshes (all leaves collapsed, or with
-        ``full_leaf`` every leaf shown green in the first bin: a summer light study)."""
+        """Mitsuba meshes: ``trees_bark`` and ``trees_leaves`` with every blade at full size.
+
+        The leaf mesh's own BSDF is the first stage bin's; without the daily tables
+        (:meth:`trace_tables`) every leaf is shown with it, green (``full_leaf``: a summer
+        light study). In the world loop the tables hide the leaves until they are out.
+        """
+        import mitsuba as mi
+
         from ..foliage import leaf_bsdf_dict, leaf_spectra
         out = {}
         bv, bf, nb = [], [], 0
@@ -83,24 +136,16 @@ class Canopy:
             out["trees_bark"] = _mesh("trees_bark", np.concatenate(bv), np.concatenate(bf),
                                       {"type": "twosided", "bsdf": {"type": "diffuse",
                                                                     "reflectance": _BARK}})
+        self.stage_bsdfs = [mi.load_dict(leaf_bsdf_dict(leaf_spectra(stage=self.bin_stage(b))))
+                            for b in range(self.bins)]
         F = len(self.tri)
-        faces = np.arange(3 * max(F, 1)).reshape(-1, 3)
-        collapsed = self._collapsed()
-        for b, name in enumerate(self.bin_names):
-            bsdf = leaf_bsdf_dict(leaf_spectra(stage=self.bin_stage(b)))
-            v = self.tri.reshape(-1, 3) if full_leaf and b == 0 and F else collapsed
-            out[name] = _mesh(name, v, faces, bsdf)
-        if full_leaf:
-            self._bin = np.zeros(self.n_leaves, np.int64)
-            self._scale = np.ones(self.n_leaves)
+        if F:
+            out[LEAF_MESH] = _mesh(LEAF_MESH, self.tri.reshape(-1, 3),
+                                   np.arange(3 * F).reshape(-1, 3), self.stage_bsdfs[0])
+        self._scale = np.ones(self.n_leaves)
+        self._bin = np.zeros(self.n_leaves, np.int64)
+        self._shown = np.full(self.n_leaves, bool(full_leaf))
         return out
-
-    def _collapsed(self) -> np.ndarray:
-        F = len(self.tri)
-        if F == 0:
-            return np.zeros((3, 3))
-        c = self.centre[self.face_leaf]
-        return np.repeat(c[:, None, :], 3, axis=1).reshape(-1, 3)
 
     # ---- daily update -------------------------------------------------------------------
     def leaf_bins(self, tau: np.ndarray) -> np.ndarray:
@@ -108,70 +153,114 @@ class Canopy:
         s = stage_from_tau(np.clip(tau, 0.0, 1.0))
         return np.minimum(((s - 1.0) / 6.0 * self.bins).astype(np.int64), self.bins - 1)
 
-    #: the light scene follows the leaves when this share of them shows a new state (bin, fallen
-    #: or grown, blade size in steps of 0.1) or after ``max_lag_days`` with any change: every
-    #: update rebuilds the acceleration structure of the leaf meshes (the leaves' own state is
-    #: kept exactly, day by day, by the phenology)
-    min_change = 0.02
-    max_lag_days = 7
-
     def update(self, params, tau: np.ndarray, scale: np.ndarray, on_tree: np.ndarray) -> int:
-        """Show each leaf on the tree in the bin of its stage, at blade size ``scale`` (0..1),
-        collapse the others; move only the meshes whose content changed (see
-        :attr:`min_change`). Returns the number of meshes updated."""
-        import mitsuba as mi
+        """Set the day's stage bin and shown/hidden state of every leaf (exact, tables only)
+        and, during leaf-out, grow the blades in the mesh (see :attr:`min_change`).
+
+        Parameters
+        ----------
+        params : mi.SceneParameters
+            ``mi.traverse`` of the light scene (vertex updates go through it).
+        tau : np.ndarray
+            Autumn logical time τ of each leaf (0..1).
+        scale : np.ndarray
+            Blade size of each leaf (0..1, leaf-out).
+        on_tree : np.ndarray
+            Leaves out and not fallen (bool).
+
+        Returns
+        -------
+        int
+            1 when the leaf mesh's vertices were updated (its BVH rebuilt) today, else 0.
+        """
         if self.n_leaves == 0:
             return 0
-        b = np.where(on_tree & (scale > 1e-3), self.leaf_bins(tau), -1)
-        sc = np.where(b >= 0, np.round(scale, 1), 0.0)
-        changed_leaf = (b != self._bin) | (sc != self._scale)
-        if not changed_leaf.any():
+        self._bin = self.leaf_bins(tau)
+        live = on_tree & (scale > 1e-3)
+        size = np.round(scale, 1)
+        # only leaves on the tree matter: hidden ones keep whatever blade the mesh holds
+        changed = live & (size != self._scale)
+        moved = 0
+        self._since += 1
+        # hidden leaves whose blades are still in the mesh (photons cross them, one cast each)
+        stale = int(((self._scale > 0) & ~live).sum())
+        self._stale_days = self._stale_days + 1 if stale == self._stale_prev else 0
+        self._stale_prev = stale
+        collapse = stale > self.max_hidden_blades * self.n_leaves or \
+            (stale > 0.01 * self.n_leaves and self._stale_days >= self.max_lag_days)
+        self._lag = self._lag + 1 if changed.any() else 0
+        grow = changed.sum() >= self.min_change * max(int(live.sum()), 1) or \
+            (changed.any() and self._lag >= self.max_lag_days)
+        if (collapse or grow) and self._since >= self.min_update_days:
+            # hidden leaves collapse to their centre: a leaf that comes out later shows no
+            # blade until the next update gives it its size
+            self._set_blades(params, np.where(live, size, 0.0))
             self._lag = 0
-            return 0
-        self._lag = getattr(self, "_lag", 0) + 1
-        if changed_leaf.mean() < self.min_change and \
-                self._lag < self.max_lag_days:
-            return 0
-        self._lag = 0
-        touched = set(np.unique(self._bin[changed_leaf]).tolist()) | \
-            set(np.unique(b[changed_leaf]).tolist())
-        touched.discard(-1)
-        fb = b[self.face_leaf]
+            self._since = 0
+            self.mesh_updates += 1
+            moved = 1
+        # a blade of size 0 in the mesh (round(scale, 1) == 0) is not shown
+        self._shown = live & (self._scale > 0)
+        return moved
+
+    def _set_blades(self, params, scale: np.ndarray) -> None:
+        """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene."""
+        import mitsuba as mi
+        s = scale[self.face_leaf][:, None, None]
         c = self.centre[self.face_leaf][:, None, :]
-        grown = c + sc[self.face_leaf][:, None, None] * (self.tri - c)
-        for k in sorted(touched):
-            show = (fb == k)[:, None, None]
-            v = np.where(show, grown, np.broadcast_to(c, self.tri.shape)).reshape(-1)
-            params[f"{self.bin_names[k]}.vertex_positions"] = mi.Float(v.astype(np.float32))
+        v = (c + s * (self.tri - c)).reshape(-1)
+        params[f"{LEAF_MESH}.vertex_positions"] = mi.Float(v.astype(np.float32))
         params.update()
-        self._bin, self._scale = b, sc
-        return len(touched)
+        self._scale = scale
+
+    # ---- checkpoints --------------------------------------------------------------------
+    def state(self, prefix: str = "canopy_") -> dict:
+        """The mesh's state (blade sizes, update clocks) for a checkpoint: a resumed run must
+        show the same blades and update on the same days as an uninterrupted one."""
+        clocks = np.array([self._lag, self._since, self._stale_prev, self._stale_days,
+                           self.mesh_updates], np.int64)
+        return {prefix + "scale": self._scale.copy(), prefix + "clocks": clocks}
+
+    def load_state(self, d: dict, params, prefix: str = "canopy_") -> None:
+        """Restore :meth:`state` (and the blades in the light scene)."""
+        scale = np.asarray(d[prefix + "scale"], float)
+        if scale.shape != (self.n_leaves,):
+            raise ValueError(f"{prefix}scale: {scale.shape} != ({self.n_leaves},)")
+        if self.n_leaves and not np.array_equal(scale, self._scale):
+            self._set_blades(params, scale)
+        (self._lag, self._since, self._stale_prev, self._stale_days,
+         self.mesh_updates) = (int(x) for x in np.asarray(d[prefix + "clocks"]))
+
+    def trace_tables(self) -> tuple[dict, dict]:
+        """The day's ``modes`` and ``bsdf_override`` for the photon pass (per leaf triangle:
+        HIDDEN unless the leaf is shown; the BSDF of its stage bin)."""
+        from ..integrators.photon_irradiance import HIDDEN, SURFACE
+        if self.n_leaves == 0 or not self.stage_bsdfs:
+            return {}, {}
+        mode = np.where(self._shown, SURFACE, HIDDEN).astype(np.uint32)[self.face_leaf]
+        return ({LEAF_MESH: mode},
+                {LEAF_MESH: (self.stage_bsdfs, self._bin[self.face_leaf])})
 
     def displayed_area(self) -> np.ndarray:
         """Blade area of each leaf as the light scene shows it now [m2] (0 when hidden)."""
-        return np.where(self._bin >= 0, self.area * self._scale ** 2, 0.0)
+        return np.where(self._shown, self.area * self._scale ** 2, 0.0)
 
     # ---- light per leaf -----------------------------------------------------------------
-    def leaf_elements(self, index) -> np.ndarray:
-        """Element numbers (in the photon pass's index) of every leaf triangle slot, bin by
-        bin; :attr:`slot_leaf` gives the leaf of each."""
-        return np.concatenate([np.arange(index.shape_slice(n).start, index.shape_slice(n).stop)
-                               for n in self.bin_names])
+    def leaf_triangle_flux(self, res) -> np.ndarray:
+        """Flux on every leaf triangle from a photon-pass result [W], shape (emitters,
+        triangles, 2 components, 2 sides, bands); :attr:`face_leaf` gives the leaf of each."""
+        if self.n_leaves == 0:
+            return np.zeros((len(res.emitters), 0) + res.flux.shape[2:])
+        return res.shape_flux(LEAF_MESH)
 
-    @property
-    def slot_leaf(self) -> np.ndarray:
-        return np.tile(self.face_leaf, self.bins)
-
-    def leaf_flux(self, slot_flux: np.ndarray) -> np.ndarray:
-        """Flux incident on each leaf [W] from the fluxes of its triangle slots (rows in the
-        order of :meth:`leaf_elements`, any trailing axes); returns (n_leaves, ...)."""
-        f = np.asarray(slot_flux)
-        tail = f.shape[1:]
-        f = f.reshape(len(f), -1)
-        leaf = self.slot_leaf
-        out = np.stack([np.bincount(leaf, weights=f[:, j], minlength=self.n_leaves)
-                        for j in range(f.shape[1])], axis=1)
-        return out.reshape((self.n_leaves,) + tail)
+    def leaf_flux(self, tri_flux: np.ndarray) -> np.ndarray:
+        """Flux incident on each leaf [W] from the fluxes of its triangles (rows in the order
+        of :meth:`leaf_slice`, any trailing axes); returns (n_leaves, ...)."""
+        f = np.asarray(tri_flux)
+        if self.n_leaves == 0:
+            return np.zeros((0,) + f.shape[1:])
+        # a leaf's triangles are consecutive: one segmented sum
+        return np.add.reduceat(f, self._first, axis=0)
 
 
 def _mesh(name, vertices, faces, bsdf):

@@ -3,9 +3,9 @@
 A scenario with ``[[trees]]`` runs this loop (:func:`mitsuba_veg.run` chooses it). Each day:
 
 1. **leaves** — phenology (:mod:`.phenology`): leaf-out in spring, the leaves' autumn stage from
-   their accumulated light, leaf fall; the canopy's meshes follow (:mod:`.canopy`: a leaf is
-   shown in the mesh of its stage with that stage's PROSPECT-D reflectance and transmittance, or
-   collapsed once fallen);
+   their accumulated light, leaf fall; the canopy follows (:mod:`.canopy`: one leaf mesh, each
+   triangle given the day's stage BSDF (PROSPECT-D reflectance and transmittance) and hidden
+   from the photons once fallen, by per-triangle tables of the photon pass);
 2. **light** — one photon pass over terrain, buildings, wood and leaves (the day's sun path and
    the sky, as in the moss loop): per-triangle irradiance of the terrain **and** the light on
    every leaf from the same pass. Bands total, PAR, red and far-red; the unit-spectrum emitters
@@ -99,7 +99,11 @@ class WorldSimulation(MossSimulation):
         self.phen = Phenology(c.n_leaves, self.phen_params, seed=self.seed, leaf_out_shift=shift)
         # ground triangles under each crown (centroid within the crown radius of the trunk)
         ground = self.scn.get("terrain.ground", "ground")
+        self.ground_id = ground
         sl = self.index.shape_slice(ground)
+        # the bark's many triangles block and scatter light but are not recorded (nothing
+        # reads their flux): a smaller accumulator and read-back every day
+        self.integrator.record = [s for s in self.index.shape_ids if s != "trees_bark"]
         cen = self.index.centroids[sl]
         self.ground_slice = sl
         self.crowns = []
@@ -118,6 +122,8 @@ class WorldSimulation(MossSimulation):
         date = self._date(self.day)
         self.phen.start_of_day(date)
         self.canopy.update(self.params, self.phen.tau, self.phen.grown, self.phen.on_tree)
+        # the day's leaf state for the photon pass: per-triangle tables, not geometry
+        self.integrator.modes, self.integrator.bsdf_override = self.canopy.trace_tables()
         self.timings["leaves"] += time.perf_counter() - t0
         self._leaf_seconds = time.perf_counter() - t0
         return super().step()
@@ -137,13 +143,13 @@ class WorldSimulation(MossSimulation):
         width = {b: band_range(b)[1] - band_range(b)[0] for b in BANDS}
         # unit emitters: 1 W m-2 nm-1 horizontal -> fraction g = E / width
         ie = (res.emitters.index("sun"), res.emitters.index("sky"))
-        if not hasattr(self, "_leaf_elements"):
-            self._leaf_elements = c.leaf_elements(res.index)
-        # (n_leaf_slots, 2 emitters, n_b): both sides, both components, of the leaf slots only
-        slots = np.stack([res.flux[e][self._leaf_elements].sum(axis=(1, 2)) for e in ie], 1)
-        lf = c.leaf_flux(slots)                             # (n_leaves, 2, n_b)
+        # (n_leaf_triangles, 2 emitters, n_b): both sides, both components
+        lflux = c.leaf_triangle_flux(res)
+        tris = np.stack([lflux[e].sum(axis=(1, 2)) for e in ie], 1)
+        lf = c.leaf_flux(tris)                              # (n_leaves, 2, n_b)
         gsl = self.ground_slice
-        front = np.stack([res.flux[e][gsl].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
+        gflux = res.shape_flux(self.ground_id)
+        front = np.stack([gflux[e].sum(axis=1)[:, 0] for e in ie])  # (2, n_g, n_b)
         garea = np.maximum(self.index.areas[gsl], 1e-30)
         leaf, ground, ground_sky = {}, {}, {}
         for k, b in enumerate(res.bands):
@@ -165,6 +171,7 @@ class WorldSimulation(MossSimulation):
         dt = time.perf_counter() - t0
         self.timings["leaves"] += dt
         self.timings["light"] -= dt   # counted as leaves, not as the photon pass
+        self._leaf_light_seconds = dt
         self.last_result = res
         return S, f_sun, f_sky, res
 
@@ -213,7 +220,10 @@ class WorldSimulation(MossSimulation):
                 "ground_under_crown": ground_stats(self.crowns[t_i])}
         rec["trees"] = trees
         rec["ground_open"] = ground_stats(self.open_ground)
-        rec["seconds"]["leaves"] = getattr(self, "_leaf_seconds", 0.0)
+        # leaves: the canopy update and the per-leaf light (taken out of the photon pass's time)
+        ll = getattr(self, "_leaf_light_seconds", 0.0)
+        rec["seconds"] = {**rec["seconds"], "light": rec["seconds"]["light"] - ll,
+                          "leaves": getattr(self, "_leaf_seconds", 0.0) + ll}
         return rec
 
     def _bin_par_absorptance(self) -> np.ndarray:
@@ -228,11 +238,12 @@ class WorldSimulation(MossSimulation):
 
     # ---- checkpoints --------------------------------------------------------------------
     def _checkpoint_extra(self) -> dict:
-        return self.phen.to_numpy()
+        return {**self.phen.to_numpy(), **self.canopy.state()}
 
     def _load_extra(self, d: dict) -> None:
         try:
             self.phen.load_numpy(d)
+            self.canopy.load_state(d, self.params)
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(self.checkpoint_path), "a checkpoint of the "
                                  "same world (its leaves)", f"use --fresh ({e})") from None
@@ -246,6 +257,10 @@ class WorldSimulation(MossSimulation):
                                  "crown_centre_xz_m": wt.crown_centre().tolist(), **wt.info}
                                 for wt in self.trees],
                       "leaf_elements": int(self.canopy.n_leaves),
+                      "leaf_triangles": int(len(self.canopy.tri)),
+                      # vertex updates of the leaf mesh in this process (leaf-out growth,
+                      # hidden blades collapsed); stage and fall changes need none
+                      "leaf_mesh_updates": int(self.canopy.mesh_updates),
                       "stage_bins": self.stage_bins,
                       "phenology": self.phen_params.to_dict(),
                       "trees_built_s": getattr(self, "tree_seconds", 0.0)}
