@@ -46,7 +46,8 @@ _KIND_FILES = {"run": ("checkpoint.npz",), "irradiance": ("irradiance.npz",),
                "tune": ("fitted.json",), "sweep": ("sweep.json",)}
 #: files and folders of a moss run that belong to one run (cleared when a run starts afresh)
 RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.json.tmp",
-               "days.gif", "days.tmp.gif", "maps", "snapshots", "render", "animation")
+               "days.gif", "days.tmp.gif", "maps", "snapshots", "render", "animation",
+               "sensors_daily.csv", "sensors_daily.csv.tmp")
 
 
 def folder_kind(path) -> str | None:

@@ -76,6 +76,18 @@ position = [0.0, 0.0, 0.0]
 height = 4.0
 seed = 3
 """
+# a PAR sensor under the crown and one in the open, read by the world's daily pass
+SENSORS = """
+[[sensors]]
+name = "under_crown"
+size = 0.3
+position = [0.8, 0.3, 0.0]
+
+[[sensors]]
+name = "open"
+size = 0.3
+position = [2.5, 0.3, 2.5]
+"""
 SMALL = ["light.photons=300000", "simulation.checkpoint_every=2", "simulation.frame_every=5",
          "moss.initial=50"]
 
@@ -83,7 +95,7 @@ SMALL = ["light.photons=300000", "simulation.checkpoint_every=2", "simulation.fr
 @pytest.fixture(scope="module")
 def summer(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("world")
-    scen = _world(tmp, ONE_TREE)
+    scen = _world(tmp, ONE_TREE + SENSORS)
     s = mv.run(scen, out=tmp / "run", days=2, overrides=SMALL, progress=False)
     return s, tmp
 
@@ -103,6 +115,43 @@ def test_summer_crown_shades_ground_and_lowers_red_far_red(summer):
     assert under["red_far_red"] < open_["red_far_red"]
     assert under["red_far_red_sky"] < open_["red_far_red_sky"]
     assert oak["absorbed_par_W"] > 0
+
+
+def test_sensors_read_under_the_trees_by_the_daily_pass(summer):
+    """[[sensors]] in a world: read every day by the same pass, under the day's trees. The open
+    sensor reads at least the open ground's mean PAR and at most 1.35x it (measured 1.21: the
+    open ground's mean includes the morning and evening shade of the house and the walls, and a
+    0.3 m sensor at 300,000 photons scatters by ~7 %), the one under the crown gets less PAR
+    (measured 0.64 of the open sensor) and a lower R:FR, and the tidy CSV holds every day."""
+    from mitsuba_veg.light.daylight import umol_per_joule
+    s, tmp = summer
+    sen = s["sensors"]
+    assert sen["count"] == 2 and sen["days"] == 2
+    rec = s["days_record"][-1]
+    assert rec["sensors"]["count"] == 2
+    per = sen["per_sensor"]
+    open_dli = per["open"]["dli_mean_mol_m2_d"]
+    ground_dli = np.mean([r["ground_open"]["par_W_m2"] for r in s["days_record"]]) \
+        * umol_per_joule(400, 700) * 0.0864
+    assert 0.95 < open_dli / ground_dli < 1.35
+    assert per["under_crown"]["dli_mean_mol_m2_d"] < 0.7 * open_dli
+    assert per["under_crown"]["red_far_red_mean"] < per["open"]["red_far_red_mean"]
+    assert 1.05 <= per["open"]["red_far_red_mean"] <= 1.3
+    rows = (tmp / "run" / "sensors_daily.csv").read_text().splitlines()
+    assert rows[0] == "time,sensor,band,component,value,unit"
+    assert len(rows) == 1 + 2 * 2 * 5 * 3          # days x sensors x quantities x components
+    assert rows[1].startswith("2026-07-01,under_crown,par,direct,")
+
+
+def test_light_study_series_refuses_a_world_scenario(summer, tmp_path):
+    """A light-study time series traces the scene file's shapes only: with [[trees]] it would
+    leave the trees out, so it is refused, naming the world run as the way."""
+    from mitsuba_veg.errors import ParameterError
+    from mitsuba_veg.foliage.light_series import run_sensor_study
+    _, tmp = summer
+    with pytest.raises(ParameterError, match=r"trees.*mitsuba-veg run"):
+        run_sensor_study(tmp / "scen" / "scenario.toml", tmp_path / "ls", year=2026,
+                         progress=False)
 
 
 def test_closed_canopy_red_far_red_below_half(tmp_path):
@@ -190,7 +239,7 @@ def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
     sim.initialise()
     sim.step()                                  # compiles; July: all leaves green, on the tree
     c, ph = sim.canopy, sim.phen
-    counts = sim._counts()
+    counts = sim.counts()
     under, open_ = sim.crowns[0], sim.open_ground
 
     def day(tau, on_tree):
@@ -261,7 +310,7 @@ def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
     ground's PAR and R:FR come back to the open values once the leaves are down; a run stopped
     and resumed gives the same records."""
     ph = "autumn_onset_doy = 250\ninsolation_full = 60.0\ntime_weight = 0.5\ndays_full = 3.0\n"
-    scen = _world(tmp_path, ONE_TREE, ph, start="2026-09-07")
+    scen = _world(tmp_path, ONE_TREE + SENSORS, ph, start="2026-09-07")
     a = mv.run(scen, out=tmp_path / "a", days=8, overrides=SMALL, progress=False, frames=False)
     first, last = a["days_record"][0], a["days_record"][-1]
     o0, o1 = first["trees"]["oak"], last["trees"]["oak"]
@@ -282,6 +331,9 @@ def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
     b = mv.run(scen, out=tmp_path / "b", days=8, overrides=SMALL, progress=False, frames=False)
     strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa
     assert b["resumed"] and strip(b["days_record"]) == strip(a["days_record"])
+    # the sensors' days come back from the checkpoint: the same table as the unbroken run
+    assert (tmp_path / "b" / "sensors_daily.csv").read_text() == \
+        (tmp_path / "a" / "sensors_daily.csv").read_text()
     assert json.loads((tmp_path / "b" / "summary.json").read_text())["world"]["trees"][0][
         "name"] == "oak"
 

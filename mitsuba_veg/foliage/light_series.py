@@ -134,6 +134,12 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     start, end = _date("--from", start), _date("--to", end)
     SS.step_starts(start, end, step)            # refuses a reversed or too long period first
     scn = load_scenario(p, overrides)
+    if scn.get("trees"):
+        # the series' light scene is the scene file's shapes: it would leave the trees out
+        raise ParameterError("trees", f"{len(scn.get('trees'))} [[trees]] entries",
+                             "a scenario without [[trees]] for a light-study time series",
+                             "a world run (mitsuba-veg run) reads the [[sensors]] under its "
+                             "trees every day (sensors_daily.csv)", str(p))
     scene = scn.load_scene(daylight=False)
     sensors = S.from_scenario(scn, scene)
     if sensors is None:

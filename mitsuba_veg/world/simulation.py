@@ -17,6 +17,14 @@ A scenario with ``[[trees]]`` runs this loop (:func:`mitsuba_veg.run` chooses it
 
 Per day the record adds, per tree: leaves on the tree, mean stage, absorbed PAR [W], the
 ground's PAR and red:far-red under its crown; and the ground's PAR and R:FR in the open.
+
+Sensors. The scenario's ``[[sensors]]`` (:mod:`mitsuba_veg.light.sensors`) are read by the same
+daily pass, as sensor elements (they record the photons that cross them and cast no shadow),
+under the trees of the day: daily-mean PPFD, red and far-red photon flux densities
+[µmol m-2 s-1], R:FR [-] and shortwave [W m-2], direct (the sun's unscattered beam) and diffuse,
+scaled like the ground (the day's climate beam and diffuse irradiance x the clear-sky band
+shapes). The run writes them to ``sensors_daily.csv`` (tidy: time, sensor, band, component,
+value, unit); each day's record gives their mean PPFD, DLI [mol m-2 d-1] and R:FR.
 """
 from __future__ import annotations
 
@@ -26,7 +34,9 @@ import time
 import numpy as np
 
 from ..errors import ParameterError
+from ..light import sensors as sensors_mod
 from ..light.daylight import clear_sky_spectra
+from ..light.validation import make_mesh
 from ..daily import BANDS, MossSimulation
 from .canopy import Canopy
 from .phenology import Phenology, PhenologyParams
@@ -82,7 +92,15 @@ class WorldSimulation(MossSimulation):
                                  str(self.scn.path), progress=False)
         self.tree_seconds = time.perf_counter() - t0
         self.canopy = Canopy(self.trees, self.stage_bins)
-        return self.canopy.shapes()
+        shapes = self.canopy.shapes()
+        # the scenario's sensors: one mesh, recorded and passed through by the daily pass
+        self.sensors = sensors_mod.from_scenario(self.scn, base)
+        self.sensor_days: list[np.ndarray] = []
+        if self.sensors is not None:
+            v, f, self.sensor_owner = self.sensors.mesh()
+            shapes[sensors_mod.SENSOR_SHAPE] = make_mesh(sensors_mod.SENSOR_SHAPE, v, f,
+                                                         albedo=0.0)
+        return shapes
 
     def _setup_extra(self) -> None:
         import mitsuba as mi
@@ -123,7 +141,10 @@ class WorldSimulation(MossSimulation):
         self.phen.start_of_day(date)
         self.canopy.update(self.params, self.phen.tau, self.phen.grown, self.phen.on_tree)
         # the day's leaf state for the photon pass: per-triangle tables, not geometry
-        self.integrator.modes, self.integrator.bsdf_override = self.canopy.trace_tables()
+        modes, self.integrator.bsdf_override = self.canopy.trace_tables()
+        if self.sensors is not None:
+            modes = {**modes, sensors_mod.SENSOR_SHAPE: "sensor"}
+        self.integrator.modes = modes
         self.timings["leaves"] += time.perf_counter() - t0
         self._leaf_seconds = time.perf_counter() - t0
         return super().step()
@@ -167,6 +188,8 @@ class WorldSimulation(MossSimulation):
         self.ground_bands = ground
         self.ground_sky_bands = ground_sky
         self.leaf_area_in_pass = shown
+        if self.sensors is not None:
+            self.sensor_days.append(self._sensor_values(res, shapes, B, D, width))
         self.phen.end_of_day(date, S_leaf * 86400.0 / 1e6)
         dt = time.perf_counter() - t0
         self.timings["leaves"] += dt
@@ -175,9 +198,54 @@ class WorldSimulation(MossSimulation):
         self.last_result = res
         return S, f_sun, f_sky, res
 
+    def _sensor_values(self, res, shapes, B, D, width) -> np.ndarray:
+        """The day's sensor readings (n, quantities, components) (module docstring)."""
+        flux = res.shape_flux(sensors_mod.SENSOR_SHAPE)[:, :, :, 0]  # (E, faces, comp, bands)
+        ie_sun, ie_sky = res.emitters.index("sun"), res.emitters.index("sky")
+        n = len(self.sensors)
+        area = self.sensors.normalising_area()[:, None]
+
+        def per_sensor(x):      # (faces, bands) flux of unit emitters [W] -> per sensor
+            out = np.zeros((n, x.shape[-1]))
+            np.add.at(out, self.sensor_owner, x)
+            return out / area
+        sun_direct = per_sensor(flux[ie_sun, :, 0])
+        sun_scattered = per_sensor(flux[ie_sun, :, 1])
+        sky = per_sensor(flux[ie_sky].sum(axis=1))
+        watts = np.zeros((n, 2, len(sensors_mod.PASS_BANDS)))   # direct, diffuse [W m-2]
+        for j, b in enumerate(sensors_mod.PASS_BANDS):
+            if b == "shortwave":
+                # as the terrain's S: broadband daily means x the unit-spectrum fractions
+                k = res.bands.index("total")
+                sb, sd = B / width["total"], D / width["total"]
+            else:
+                k = res.bands.index(b)
+                sb, sd = B * shapes["beam"][b], D * shapes["diffuse"][b]
+            watts[:, 0, j] = sb * sun_direct[:, k]
+            watts[:, 1, j] = sb * sun_scattered[:, k] + sd * sky[:, k]
+        return sensors_mod.SensorReadings.from_watts(self.sensors, watts).values
+
+    def write_sensors(self) -> str | None:
+        """``sensors_daily.csv`` of the run so far (None without sensors): daily means."""
+        if self.sensors is None or not self.sensor_days:
+            return None
+        times = [self._date(d).isoformat() for d in range(len(self.sensor_days))]
+        return sensors_mod.write_tidy_csv(self.out / "sensors_daily.csv",
+                                          np.stack(self.sensor_days), self.sensors.names, times)
+
     # ---- records ------------------------------------------------------------------------
     def _record(self, day, S, st, theta, events, secs) -> dict:
         rec = super()._record(day, S, st, theta, events, secs)
+        if self.sensors is not None and self.sensor_days:
+            v = self.sensor_days[-1]
+            q, c = sensors_mod.QUANTITIES, sensors_mod.COMPONENTS
+            ppfd = v[:, q.index("par"), c.index("total")]
+            rfr = v[:, q.index("rfr"), c.index("total")]
+            rec["sensors"] = {"count": int(len(ppfd)),
+                              "mean_ppfd_umol_m2_s": float(np.mean(ppfd)),
+                              "mean_dli_mol_m2_d": float(np.mean(ppfd)) * 0.0864,
+                              "mean_red_far_red": float(np.nanmean(rfr))
+                              if np.isfinite(rfr).any() else None}
         c, ph = self.canopy, self.phen
         on = ph.on_tree
         # PAR absorptance per leaf from its stage's spectra (bin centres, as the light scene)
@@ -238,12 +306,20 @@ class WorldSimulation(MossSimulation):
 
     # ---- checkpoints --------------------------------------------------------------------
     def _checkpoint_extra(self) -> dict:
-        return {**self.phen.to_numpy(), **self.canopy.state()}
+        out = {**self.phen.to_numpy(), **self.canopy.state()}
+        if self.sensors is not None:
+            n = len(self.sensors)
+            out["sensor_days"] = (np.stack(self.sensor_days) if self.sensor_days else
+                                  np.zeros((0, n, len(sensors_mod.QUANTITIES),
+                                            len(sensors_mod.COMPONENTS))))
+        return out
 
     def _load_extra(self, d: dict) -> None:
         try:
             self.phen.load_numpy(d)
             self.canopy.load_state(d, self.params)
+            if self.sensors is not None:
+                self.sensor_days = list(np.asarray(d["sensor_days"]))
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(self.checkpoint_path), "a checkpoint of the "
                                  "same world (its leaves)", f"use --fresh ({e})") from None
@@ -265,4 +341,20 @@ class WorldSimulation(MossSimulation):
                       "phenology": self.phen_params.to_dict(),
                       "trees_built_s": getattr(self, "tree_seconds", 0.0)}
         s["timings_s"]["per_day"]["leaves"] = self.timings["leaves"] / max(len(self.history), 1)
+        path = self.write_sensors()
+        if path is not None:
+            v = np.stack(self.sensor_days)
+            q, c = sensors_mod.QUANTITIES, sensors_mod.COMPONENTS
+            ppfd = v[:, :, q.index("par"), c.index("total")]
+            rfr = v[:, :, q.index("rfr"), c.index("total")]
+            names = self.sensors.names
+            s["sensors"] = {
+                "file": path, "count": len(names), "days": int(v.shape[0]),
+                "units": "daily means: PPFD, red, far-red umol m-2 s-1; shortwave W m-2; "
+                         "DLI mol m-2 d-1",
+                # the first 100 sensors by name (all of them are in the CSV)
+                "per_sensor": {names[i]: {"dli_mean_mol_m2_d": float(ppfd[:, i].mean() * 0.0864),
+                                          "red_far_red_mean": float(np.nanmean(rfr[:, i]))
+                                          if np.isfinite(rfr[:, i]).any() else None}
+                               for i in range(min(len(names), 100))}}
         return s
