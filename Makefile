@@ -27,6 +27,7 @@ bench: setup
 	$(BIN)/python benchmarks/weber_penn_generation.py
 	$(BIN)/python benchmarks/autumn_insolation.py
 	$(BIN)/python benchmarks/world_year.py
+	$(BIN)/python benchmarks/animate_daily_light.py
 	$(BIN)/python benchmarks/validation_page.py
 	$(BIN)/python benchmarks/sweep_throughput.py
 

@@ -115,3 +115,35 @@ def test_options_and_cameras_are_validated(scn, terrain):
     with pytest.raises(ParameterError):      # night: no daylight
         build_scene(scn, None, options=RenderOptions(when="2026-06-21T01:00+09:00", width=8,
                                                      height=8, spp=1), terrain=terrain)
+
+
+def test_set_light_moves_the_daylight_in_place_without_a_recompile(scn, terrain):
+    """An animation's daily light: a scene built for one time and given another time's daylight
+    with set_light renders as a scene built for that time (same seed: same image), and the
+    second render reuses the compiled kernel."""
+    import drjit as dr
+    from mitsuba_veg.render.scene import sky_emitters
+
+    o = RenderOptions(width=32, height=24, spp=4, camera="overview",
+                      when="2026-06-21T12:00+09:00")
+    rs = build_scene(scn, None, options=o, terrain=terrain)
+    render(rs, seed=1)                                # compiles (or loads) the kernel
+    autumn = "2026-09-21T10:00+09:00"                 # set_light's own small kernels, once
+    rs.set_light(sky_emitters(scn, autumn), autumn)
+    render(rs, seed=1)
+    winter = "2026-12-21T10:00+09:00"
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+        rs.set_light(sky_emitters(scn, winter), winter)
+        moved = render(rs, seed=1)
+        hist = dr.kernel_history([dr.KernelType.JIT])
+    assert hist and all(h["cache_hit"] for h in hist)
+    assert rs.info["when"] == winter
+    fresh = render(build_scene(scn, None, options=o, terrain=terrain,
+                               emitters=sky_emitters(scn, winter)), seed=1)
+    a, b = moved["XYZ"][..., 1], fresh["XYZ"][..., 1]
+    assert abs(a.mean() / b.mean() - 1) < 1e-4
+    assert np.max(np.abs(a - b)) <= 1e-4 * b.max()
+    summer = render(build_scene(scn, None, options=o, terrain=terrain), seed=1)
+    assert a.mean() < 0.8 * summer["XYZ"][..., 1].mean()   # a December morning is darker
+    with pytest.raises(ParameterError, match="emitters"):
+        rs.set_light({"lamp": {"type": "point"}})

@@ -67,9 +67,10 @@ def add_parsers(subparsers) -> None:
                         "over the run)")
     a.add_argument("--fps", type=ranged(int, 1, 120, "frames/s"),
                    help=f"frames per second (default {ANIMATE_DEFAULTS['fps']})")
-    a.add_argument("--light", choices=("fixed", "daily"), default="fixed",
-                   help="fixed: the last day's light in every frame (fast); daily: each "
-                        "frame's date (slower)")
+    a.add_argument("--light", choices=("daily", "fixed"), default=None,
+                   help="daily (default without --when): each frame's date, moved into one "
+                        "scene (~0.1 s a frame); fixed (default with --when): one light for "
+                        "every frame")
     a.add_argument("--scheduler", metavar="ADDRESS",
                    help="render the frames as Dask tasks on this scheduler (tcp://host:8786)")
     a.add_argument("--workers", type=ranged(int, 1, 1024, "processes"), metavar="N",

@@ -271,10 +271,18 @@ class VegSky(mi.Emitter):
         if not 4 <= rows <= 2048:
             raise ParameterError("veg_sky resolution", rows, "[4, 2048]", "use 64-256")
 
-        self.distribution, self.coefficients, self.sun = dist, tuple(coeffs), sun
         self.rows, self.cols = rows, 4 * rows
+        self._tables(dist, coeffs, sun)
+        self.m_center = mi.Point3f(0.0, 0.0, 0.0)
+        self.m_radius = _opaque(1.0)
+        dr.make_opaque(self.m_center)
+
+    def _tables(self, dist, coeffs, sun) -> None:
+        """Normalisation, sampling table and opaque coefficients for a sun and distribution
+        (arrays of the same sizes for every sun: a rendering kernel is reused)."""
+        self.distribution, self.coefficients, self.sun = dist, tuple(coeffs), sun
         self.norm = _normalisation(sun, coeffs)
-        cos_e, pdf, pmf = _sampling_table(sun, coeffs, self.norm, rows)
+        cos_e, pdf, pmf = _sampling_table(sun, coeffs, self.norm, self.rows)
         self.m_cos_edges = mi.Float(cos_e)
         self.m_cell_pdf = mi.Float(pdf)
         self.m_distr = mi.DiscreteDistribution(mi.Float(pmf))
@@ -282,9 +290,35 @@ class VegSky(mi.Emitter):
         self.m_norm = _opaque(self.norm * self.m_scale)
         self.m_sun = mi.Vector3f(*[float(v) for v in sun])
         dr.make_opaque(self.m_sun)
-        self.m_center = mi.Point3f(0.0, 0.0, 0.0)
-        self.m_radius = _opaque(1.0)
-        dr.make_opaque(self.m_center)
+
+    def set_sky(self, sun_direction, epsilon: float | None = None,
+                delta: float | None = None) -> None:
+        """Move the sky to another sun (and Perez sky clearness/brightness) in place.
+
+        Parameters
+        ----------
+        sun_direction : array_like
+            (3,) direction towards the sun (scene frame, +y up).
+        epsilon, delta : float, optional
+            Perez sky clearness and brightness [-] (``distribution="perez"``).
+
+        The tables keep their sizes and the coefficients stay opaque, so a scene rendered
+        before renders again with the same compiled kernel (an animation's daily light).
+        """
+        sun = np.asarray(sun_direction, dtype=float).reshape(-1)
+        if sun.shape != (3,) or not np.all(np.isfinite(sun)) or np.linalg.norm(sun) == 0:
+            raise ParameterError("veg_sky sun_direction", sun.tolist(), "a non-zero 3-vector "
+                                 "towards the sun")
+        sun = sun / np.linalg.norm(sun)
+        if self.distribution == "perez" and sun[1] <= 0.0:
+            raise ParameterError("veg_sky sun_direction", sun.tolist(), "above the horizon "
+                                 "(y > 0) for the Perez sky")
+        if self.distribution == "custom":
+            coeffs = self.coefficients
+        else:
+            zenith = math.acos(min(1.0, max(-1.0, float(sun[1]))))
+            coeffs = sky_coefficients(self.distribution, zenith, epsilon=epsilon, delta=delta)
+        self._tables(self.distribution, coeffs, sun)
 
     # ------------------------------------------------------------------ helpers
     def _f(self, d, active=True):

@@ -1,6 +1,6 @@
 """Animations of a run: :func:`run_animate` renders the run's days (the snapshot days, thinned
-to ``frames``) at lower settings, with one light (the last day's, so that the rendering kernel is
-compiled once) and writes ``frames/frame_NNNN.png``, ``animation.mp4`` (H.264, ffmpeg),
+to ``frames``) at lower settings, each in its day's daylight moved into one scene (or one fixed
+light), so that the rendering kernel is compiled once, and writes ``frames/frame_NNNN.png``, ``animation.mp4`` (H.264, ffmpeg),
 ``animation.gif`` and ``animate.json``. The same frames as Dask tasks:
 :mod:`mitsuba_veg.sweeps.frames`.
 """
@@ -133,6 +133,16 @@ def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> P
     return path
 
 
+def default_light(light, when) -> str:
+    """The animation's light: ``light`` checked, or the default (``"fixed"`` when a time
+    ``when`` is given, else ``"daily"``)."""
+    if light is None:
+        return "fixed" if when is not None else "daily"
+    if light not in ("fixed", "daily"):
+        raise ParameterError("light", light, "'fixed' or 'daily'")
+    return light
+
+
 def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height=None,
                       spp=None, frames=None, every=None, fps=None, when=None, hour=None,
                       seed=0):
@@ -177,7 +187,7 @@ def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height
 
 
 def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
-                frames=None, every=None, fps=None, when=None, hour=None, light="fixed",
+                frames=None, every=None, fps=None, when=None, hour=None, light=None,
                 trees=None, scenario=None, gif_width=None, seed=0, progress=True) -> dict:
     """Render the days of a run to ``animation.mp4`` and ``animation.gif`` in this process.
 
@@ -198,9 +208,10 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
         Frames per second (default 6).
     when : str, optional
         ISO date-time of a fixed light; ``hour``: local hour of the light [h] (default 10).
-    light : {"fixed", "daily"}
-        ``"fixed"``: the last day's light for every frame (one kernel compile); ``"daily"``:
-        each frame's own date (recompiles per frame).
+    light : {"daily", "fixed"}, optional
+        ``"daily"`` (the default without ``when``): each frame's own date, moved into the one
+        scene (:meth:`RenderScene.set_light`, ~0.1 s a frame, no recompile); ``"fixed"`` (the
+        default with ``when``): the light of ``when`` or of the last day in every frame.
     trees : list of Tree, optional
         Trees instead of the scenario's.
     gif_width : int, optional
@@ -212,8 +223,7 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
         The summary written to ``animate.json``. The same frames as Dask tasks:
         :func:`mitsuba_veg.sweeps.frames.run_animate`.
     """
-    if light not in ("fixed", "daily"):
-        raise ParameterError("light", light, "'fixed' or 'daily'")
+    light = default_light(light, when)
     if gif_width is not None:
         check_range("gif_width", gif_width, 0, 16384)
     t0 = time.perf_counter()
@@ -243,8 +253,7 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
             for s in seasons:
                 s.apply(fr.date)
             t1 = time.perf_counter()
-            if rs is None or light == "daily":
-                rs = None
+            if rs is None:
                 gc.collect()
                 rs = build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=tree_list,
                                  date=fr.date, options=o, terrain=terrain, emitters=emitters,
@@ -252,6 +261,10 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
                 timings["build"] += time.perf_counter() - t1
             else:
                 rs.update(fr.moss, tree_list if tree_list else None)
+                if light == "daily":
+                    # the frame's daylight moved into the same scene: no rebuild, no recompile
+                    when_k = render_time(run.scenario, fr.date, o)
+                    rs.set_light(sky_emitters(run.scenario, when_k), when_k)
                 timings["update"] += time.perf_counter() - t1
             images = render(rs, seed=int(seed) + k)
             timings["render"] += images["seconds"]
@@ -262,7 +275,8 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
             p = write_png(fdir / f"frame_{k:04d}.png", label_frame(img8, text))
             paths[k] = p
             records[k] = {"day": day, "date": fr.date.isoformat(), "moss": len(fr.moss),
-                          "exact": fr.exact, "render_s": images["seconds"]}
+                          "exact": fr.exact, "render_s": images["seconds"],
+                          "light": rs.info.get("when")}
             timings["write"] += time.perf_counter() - t2
             if bar is not None:
                 bar.update(1)

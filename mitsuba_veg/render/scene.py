@@ -35,7 +35,7 @@ import numpy as np
 
 from ..errors import ParameterError, SceneError, check_range
 from ..light.daylight import daylight
-from ..light.sky import attach_scene
+from ..light.sky import VegSky, attach_scene
 from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
 from ..terrain import classify_geology, load_texture_rgb
 from . import materials as mat
@@ -142,6 +142,62 @@ class RenderScene:
         params.update()
         self.info.update(info)
         return info
+
+    def set_light(self, emitters: dict, when: str | None = None) -> None:
+        """Give the scene another daylight in place (an animation's ``--light daily``).
+
+        Parameters
+        ----------
+        emitters : dict
+            ``{"sun": directional dict, "sky": veg_sky dict}`` as
+            :func:`mitsuba_veg.light.daylight` makes them for the scene's spectral range (the
+            same number of spectrum values as the scene was built with).
+        when : str, optional
+            The light's time, kept in :attr:`info` (``"when"``).
+
+        The sun's direction and spectrum and the sky's spectrum are traversed parameters; the
+        sky's sun and Perez distribution are moved with :meth:`VegSky.set_sky`. Array sizes do
+        not change, so the rendering kernel compiled for the first frame is reused.
+        """
+        params = mi.traverse(self.scene)
+        keys = set(params.keys())
+        sky_objs = {em.id(): em for em in self.scene.emitters() if isinstance(em, VegSky)}
+        for name, d in emitters.items():
+            kind = d.get("type")
+            if kind == "directional":
+                key = f"{name}.irradiance.values"
+                if key not in keys:
+                    raise SceneError(f"set_light(): the scene has no directional '{name}' "
+                                     "with a spectrum: build it with daylight emitters")
+                dv = np.asarray(d["direction"], dtype=float)
+                dv = [float(x) for x in dv / np.linalg.norm(dv)]
+                params[f"{name}.to_world"] = mi.AffineTransform4f().to_frame(
+                    mi.Frame3f(mi.Vector3f(*dv)))
+                params[key] = _spectrum_values(d["irradiance"], params[key], name)
+            elif kind == "veg_sky":
+                if name not in sky_objs:
+                    raise SceneError(f"set_light(): the scene has no veg_sky '{name}'")
+                params[f"{name}.radiance.values"] = _spectrum_values(
+                    d["radiance"], params[f"{name}.radiance.values"], name)
+                sky_objs[name].set_sky(d["sun_direction"], d.get("perez_epsilon"),
+                                       d.get("perez_delta"))
+            else:
+                raise ParameterError(f"emitters['{name}'].type", kind,
+                                     "'directional' or 'veg_sky' (daylight emitters)")
+        params.update()
+        if when is not None:
+            self.info["when"] = when
+
+
+def _spectrum_values(spec: dict, current, name: str):
+    """The values of a ``regular`` spectrum dict as the traversed array it replaces."""
+    vals = spec["values"]
+    vals = np.array([float(v) for v in vals.split(",")] if isinstance(vals, str) else vals,
+                    dtype=np.float32)
+    if len(vals) != dr.width(current):
+        raise SceneError(f"set_light(): '{name}' has {dr.width(current)} spectrum values, the "
+                         f"new light {len(vals)}: use the same wavelength range")
+    return type(current)(vals)
 
 
 # ---- meshes ------------------------------------------------------------------------------------

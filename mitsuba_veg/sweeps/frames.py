@@ -16,8 +16,8 @@ from pathlib import Path
 from ..errors import ParameterError
 from ..outputs import write_json
 from ..render import animation
-from ..render.animation import (ANIMATE_DEFAULTS, label_frame, prepare_animation, write_gif,
-                                write_mp4)
+from ..render.animation import (ANIMATE_DEFAULTS, default_light, label_frame, prepare_animation,
+                                write_gif, write_mp4)
 from ..render.film import to_srgb8, write_png
 from ..render.history import load_run
 from ..render.scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters
@@ -73,7 +73,7 @@ def render_frame(spec: dict) -> dict:
 
 def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=None,
                     threads=None, camera=None, width=None, height=None, spp=None, frames=None,
-                    every=None, fps=None, when=None, hour=None, light="fixed", scenario=None,
+                    every=None, fps=None, when=None, hour=None, light=None, scenario=None,
                     gif_width=None, seed=0, progress=True) -> dict:
     """Render the days of a moss run as Dask tasks into ``animation.mp4`` and
     ``animation.gif`` (module docstring).
@@ -99,8 +99,7 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
         The summary written to ``animate.json`` (as ``run_animate``'s, plus ``dask``).
     """
 
-    if light not in ("fixed", "daily"):
-        raise ParameterError("light", light, "'fixed' or 'daily'")
+    light = default_light(light, when)
     t0 = time.perf_counter()
     run, out, fdir, days, fps, opts, o, folder = prepare_animation(
         run_dir, out, scenario, camera=camera, width=width, height=height, spp=spp,
@@ -199,8 +198,7 @@ def run_animate(run_dir, out=None, *, scheduler=None, workers=None, client=None,
     """
     if scheduler is None and workers is None and client is None:
         return animation.run_animate(run_dir, out, trees=trees, **kwargs)
-    if kwargs.get("light", "fixed") not in ("fixed", "daily"):
-        raise ParameterError("light", kwargs["light"], "'fixed' or 'daily'")
+    default_light(kwargs.get("light"), kwargs.get("when"))
     if trees is not None:
         raise ParameterError("trees", "a list of Tree", "None when the frames run on Dask "
                              "(the workers build the scenario's [[render.trees]])",
