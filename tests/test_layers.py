@@ -264,9 +264,6 @@ PENDING = {
     "mitsuba_veg.tune.lifecycle": "imports not hoisted yet",
     "mitsuba_veg.tune.photon_ad": "imports not hoisted yet",
     "mitsuba_veg.tune.smooth": "imports not hoisted yet",
-    "mitsuba_veg.world.canopy": "imports not hoisted yet",
-    "mitsuba_veg.world.simulation": "imports not hoisted yet",
-    "mitsuba_veg.world.trees": "imports not hoisted yet",
 }
 
 

@@ -31,9 +31,13 @@ triangles (both sides, direct + indirect), divided by the blade area the pass sa
 """
 from __future__ import annotations
 
+import mitsuba as mi
 import numpy as np
 
+from ..foliage import leaf_bsdf_dict, leaf_spectra
 from ..foliage.pigments import stage_from_tau
+from ..integrators.photon_irradiance import HIDDEN, SURFACE
+from ..meshes import make_mesh
 
 #: bark reflectance: 0.08 at 400 nm rising to 0.30 at 830 nm (a grey-brown bark)
 _BARK = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
@@ -121,9 +125,7 @@ class Canopy:
         (:meth:`trace_tables`) every leaf is shown with it, green (``full_leaf``: a summer
         light study). In the world loop the tables hide the leaves until they are out.
         """
-        import mitsuba as mi
 
-        from ..foliage import leaf_bsdf_dict, leaf_spectra
         out = {}
         bv, bf, nb = [], [], 0
         for wt in self.trees:
@@ -205,7 +207,6 @@ class Canopy:
 
     def _set_blades(self, params, scale: np.ndarray) -> None:
         """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene."""
-        import mitsuba as mi
         s = scale[self.face_leaf][:, None, None]
         c = self.centre[self.face_leaf][:, None, :]
         v = (c + s * (self.tri - c)).reshape(-1)
@@ -234,7 +235,6 @@ class Canopy:
     def trace_tables(self) -> tuple[dict, dict]:
         """The day's ``modes`` and ``bsdf_override`` for the photon pass (per leaf triangle:
         HIDDEN unless the leaf is shown; the BSDF of its stage bin)."""
-        from ..integrators.photon_irradiance import HIDDEN, SURFACE
         if self.n_leaves == 0 or not self.stage_bsdfs:
             return {}, {}
         mode = np.where(self._shown, SURFACE, HIDDEN).astype(np.uint32)[self.face_leaf]
@@ -264,5 +264,4 @@ class Canopy:
 
 
 def _mesh(name, vertices, faces, bsdf):
-    from ..meshes import make_mesh
     return make_mesh(name, vertices, faces, bsdf)

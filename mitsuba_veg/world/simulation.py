@@ -31,9 +31,12 @@ from __future__ import annotations
 import functools
 import time
 
+import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
+from ..foliage import leaf_spectra
+from ..light.photon import band_range
 from ..light import sensors as sensors_mod
 from ..light.daylight import clear_sky_spectra
 from ..light.validation import make_mesh
@@ -52,7 +55,6 @@ def band_shapes(latitude: float, day_of_year: int) -> dict:
     clear-sky beam and diffuse light at the day's noon sun (SPCTRAL2): ``{"beam": {band: s},
     "diffuse": {...}}``. Multiplied by a broadband daily mean [W m-2] they give the band-mean
     spectral irradiance [W m-2 nm-1]."""
-    from ..light.photon import band_range
     dec = 23.45 * np.sin(np.radians(360.0 * (284 + day_of_year) / 365.0))
     el = float(np.clip(90.0 - abs(latitude - dec), 1.0, 90.0))
     s = clear_sky_spectra(el, day_of_year=day_of_year)
@@ -103,7 +105,6 @@ class WorldSimulation(MossSimulation):
         return shapes
 
     def _setup_extra(self) -> None:
-        import mitsuba as mi
         self.params = mi.traverse(self.scene)
         c = self.canopy
         # sunnier (higher, outer) leaves unfold a few days earlier
@@ -156,7 +157,6 @@ class WorldSimulation(MossSimulation):
         wd = self.weather
         shapes = band_shapes(float(self.scn.get("site.latitude")), date.timetuple().tm_yday)
         B, D = float(wd.beam[day]), float(wd.diffuse[day])
-        from ..light.photon import band_range
         c = self.canopy
         # the blades as the pass saw them (grown from their centres during leaf-out)
         shown = c.displayed_area()
@@ -296,7 +296,6 @@ class WorldSimulation(MossSimulation):
 
     def _bin_par_absorptance(self) -> np.ndarray:
         if getattr(self, "_a_par", None) is None:
-            from ..foliage import leaf_spectra
             a = []
             for b in range(self.canopy.bins):
                 R, T = leaf_spectra(stage=self.canopy.bin_stage(b)).band_mean(400, 700)

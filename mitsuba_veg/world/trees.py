@@ -20,10 +20,18 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import mitsuba as mi
 import numpy as np
+import trimesh
 
 from ..errors import ParameterError
+from ..trees import weber_penn as wp
+from ..trees.environment import Environment
+from ..trees.growth import GrowthParams, grow
+from ..trees.junction import tree_mesh
+from ..trees.nongrowth import deform
 from ..trees.structure import Tree, leaf_quads, scaled_tree, tube_mesh
+from .canopy import Canopy
 
 MODELS = ("growth", "weber_penn", "mesh")
 
@@ -70,7 +78,6 @@ class WorldTree:
 def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
     a = tree.alive if tree.alive is not None else np.ones(len(tree), bool)
     if getattr(tree, "weber_penn", None) is not None:
-        from ..trees.junction import tree_mesh
         b, _ = tree_mesh(tree, smooth=True, leaves=False)
         bark = (np.asarray(b.vertices, float), np.asarray(b.faces, np.int64))
     else:
@@ -86,7 +93,6 @@ def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
 
 def _obstacles(base_scene, built: list[WorldTree]):
     """Environment of the scene's meshes plus the trees built so far (wood and leaves)."""
-    from ..trees.environment import Environment
     env = Environment.from_mitsuba(base_scene)
     for wt in built:
         env.add(wt.bark, name=f"{wt.name}.bark")
@@ -112,7 +118,6 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
         pos = np.asarray(cfg.get("position", [0.0, 0.0, 0.0]), float)
         seed = int(cfg.get("seed", i))
         if model == "growth":
-            from ..trees.growth import GrowthParams, grow
             params = GrowthParams.from_dict(dict(cfg.get("growth", {}) or {}), source,
                                             prefix=f"{field_}.growth.")
             env = _obstacles(base_scene, out)
@@ -122,7 +127,6 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
             wt = _tree_to_world(name, model, tree, pos, {"generations": int(cfg.get(
                 "generations", 8)), "unit_m": params.unit})
         elif model == "weber_penn":
-            from ..trees import weber_penn as wp
             try:
                 tree = wp.generate(cfg.get("preset", "quaking_aspen"), seed=seed,
                                    overrides=cfg.get("overrides"))
@@ -135,7 +139,6 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
             tree = scaled_tree(tree, f, pos - base)
             info = {"preset": cfg.get("preset", "quaking_aspen"), "scale": f}
             if cfg.get("adapt", False):
-                from ..trees.nongrowth import deform
                 res = deform([tree], _obstacles(base_scene, out), shade_from="leaves",
                              voxel_size=float(cfg.get("voxel_size", 0.25)),
                              death_threshold=float(cfg.get("death_threshold", 0.5)))
@@ -152,7 +155,6 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
 
 
 def _load_mesh(path: Path, field_: str, source):
-    import trimesh
     if not path.is_file():
         raise ParameterError(field_, str(path), "an existing PLY/OBJ/GLB file (relative to the "
                              "scenario)", "check the path", source)
@@ -181,9 +183,7 @@ def _mesh_tree(name, cfg, pos, root: Path, field_, source) -> WorldTree:
 def scene_with_trees(scenario, scene, bins: int = 4):
     """``scene`` (the scenario's, with its emitters) plus the scenario's ``[[trees]]`` in full
     green leaf (for light studies of a world scenario). Returns (scene, tree shape ids)."""
-    import mitsuba as mi
 
-    from .canopy import Canopy
     trees = build_trees(scenario.get("trees"), scene, scenario.root, str(scenario.path))
     shapes = Canopy(trees, bins).shapes(full_leaf=True)
     d = {"type": "scene"}
