@@ -22,18 +22,10 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def layer_scenario(tmp: Path, half: float, seed: int = 0) -> Path:
     import trimesh
-    rng = np.random.default_rng(seed)
-    n = int(60_000 * (2 * half) ** 2 / 49.0)
-    c = np.column_stack([rng.uniform(-half, half, n), rng.uniform(1.0, 2.5, n),
-                         rng.uniform(-half, half, n)])
-    nrm = rng.normal(size=(n, 3))
-    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    a = np.cross(nrm, rng.normal(size=(n, 3)))
-    a /= np.linalg.norm(a, axis=1, keepdims=True)
-    b = np.cross(nrm, a)
-    r = np.sqrt(6 * 49.0 / 60_000 / (0.75 * np.sqrt(3)))
-    tri = np.stack([c + r * a, c + r * (-0.5 * a + 0.866 * b), c + r * (-0.5 * a - 0.866 * b)],
-                   1)
+
+    from mitsuba_veg.foliage.canopy import leaf_layer_triangles
+    tri = leaf_layer_triangles(half, seed=seed)          # LAI 6, 4.9e-3 m2 leaves
+    n = len(tri)
     d = tmp / "scen"
     shutil.copytree(ROOT / "scenes" / "courtyard", d)
     trimesh.Trimesh(tri.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3),

@@ -166,19 +166,10 @@ def test_closed_canopy_red_far_red_below_half(tmp_path):
     import trimesh
 
     from mitsuba_veg.world.simulation import band_shapes
-    rng = np.random.default_rng(0)
-    half = 6.0
-    n = int(60_000 * (2 * half) ** 2 / 49.0)                # leaf area 6 x 144 m2
-    c = np.column_stack([rng.uniform(-half, half, n), rng.uniform(1.0, 2.5, n),
-                         rng.uniform(-half, half, n)])
-    nrm = rng.normal(size=(n, 3))
-    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    a = np.cross(nrm, rng.normal(size=(n, 3)))
-    a /= np.linalg.norm(a, axis=1, keepdims=True)
-    b = np.cross(nrm, a)
-    r = np.sqrt(6 * 49.0 / 60_000 / (0.75 * np.sqrt(3)))   # equilateral, 4.9e-3 m2 each
-    tri = np.stack([c + r * a, c + r * (-0.5 * a + 0.866 * b), c + r * (-0.5 * a - 0.866 * b)],
-                   1)
+    from mitsuba_veg.foliage.canopy import leaf_layer_triangles
+    tri = leaf_layer_triangles(6.0, seed=0)                 # LAI 6 over 12 m x 12 m
+    n = len(tri)
+    assert n == int(60_000 * 144 / 49.0)                    # leaf area 6 x 144 m2
     d = tmp_path / "meshes"
     d.mkdir()
     trimesh.Trimesh(tri.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3),

@@ -59,6 +59,47 @@ def random_leaf_cloud(lai: float, box_min, box_max, leaf_size: float = 0.05, see
     return Leaves(pos, nrm, np.full(n, float(leaf_size)), np.full(n, -1, np.int64), up)
 
 
+def leaf_layer_triangles(half: float, y_range=(1.0, 2.5), lai: float = 6.0,
+                         leaf_area: float = 4.9e-3, seed=0) -> np.ndarray:
+    """A horizontally unbounded-looking leaf layer: equilateral triangles with uniformly random
+    centres in a (2 half) x (2 half) m square between two heights and isotropic (spherical)
+    orientations, as many as give the leaf area index ``lai``.
+
+    Parameters
+    ----------
+    half : float
+        Half the side of the square [m].
+    y_range : (float, float)
+        Lowest and highest leaf centre [m].
+    lai : float
+        One-sided leaf area per ground area [m2 m-2].
+    leaf_area : float
+        Area of one leaf triangle [m2].
+    seed : int
+        Random seed.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3, 3) triangle vertices [m], n = int(lai (2 half)^2 / leaf_area).
+    """
+    check_range("half", half, 0.0, 1e4, lo_open=True)
+    check_range("lai", lai, 0.0, 50.0, lo_open=True)
+    check_range("leaf_area", leaf_area, 0.0, 100.0, lo_open=True)
+    rng = np.random.default_rng(seed)
+    n = int(lai * (2 * half) ** 2 / leaf_area)
+    c = np.column_stack([rng.uniform(-half, half, n), rng.uniform(y_range[0], y_range[1], n),
+                         rng.uniform(-half, half, n)])
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    a = np.cross(nrm, rng.normal(size=(n, 3)))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = np.cross(nrm, a)
+    r = np.sqrt(leaf_area / (0.75 * np.sqrt(3)))     # circumradius of the equilateral leaf
+    return np.stack([c + r * a, c + r * (-0.5 * a + 0.866 * b), c + r * (-0.5 * a - 0.866 * b)],
+                    1)
+
+
 def sphere_crown_tree(n_leaves: int = 2000, crown_radius: float = 1.5, crown_height: float = 3.0,
                       trunk_radius: float = 0.08, leaf_size: float = 0.08, seed=0,
                       branches: int = 12) -> Tree:

@@ -43,6 +43,7 @@ from . import sensors as S
 from .daylight import band_irradiance, clear_sky_spectra, regular_spectrum
 from .photon import BANDS, photon_irradiance
 from .sun_position import sun_direction, sun_position
+from .sunpath import DeltaSun
 
 #: reference sun of the emitters' spectra
 REF_ELEVATION, REF_DOY = 45.0, 172
@@ -50,7 +51,7 @@ REF_ELEVATION, REF_DOY = 45.0, 172
 SLOTS = 256
 
 
-class VegSunSteps(mi.Emitter):
+class VegSunSteps(DeltaSun):
     """The sun over one time step: a discrete set of directions with weights and a spectrum.
 
     Properties: ``irradiance`` (spectrum, the beam irradiance on a plane normal to it per unit
@@ -62,8 +63,7 @@ class VegSunSteps(mi.Emitter):
     """
 
     def __init__(self, props: mi.Properties):
-        mi.Emitter.__init__(self, props)
-        self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.DeltaDirection
+        DeltaSun.__init__(self, props)
         spec = props.get("irradiance", 1.0)
         if isinstance(spec, (int, float)):
             spec = mi.load_dict({"type": "uniform", "value": float(spec)})
@@ -103,39 +103,12 @@ class VegSunSteps(mi.Emitter):
         u = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
         k = dr.binary_search(0, SLOTS - 1,
                              lambda i: dr.gather(mi.Float, self.m_cdf, i) <= u)
-        d = dr.gather(mi.Vector3f, self.m_dirs, k, active)
-        ds = dr.zeros(mi.DirectionSample3f)
-        ds.d = d
-        ds.p = it.p + d * 1e7
-        ds.dist = dr.inf
-        ds.pdf = 1.0
-        ds.delta = True
+        ds = self._direction_sample(it, dr.gather(mi.Vector3f, self.m_dirs, k, active))
         ds.emitter = mi.EmitterPtr(self)
         si = dr.zeros(mi.SurfaceInteraction3f)
         si.wavelengths = it.wavelengths
         value = self.m_spec.eval(si, active) * self.m_total
         return ds, dr.select(active, value, 0.0)
-
-    def pdf_direction(self, it, ds, active=True):
-        return mi.Float(0.0)
-
-    def eval(self, si, active=True):
-        return mi.Spectrum(0.0)
-
-    def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
-        # zero-weight rays keep symbolic calls over all emitters valid (see VegSunPath)
-        ds, _ = self.sample_direction(dr.zeros(mi.Interaction3f), sample3, active)
-        ray = mi.Ray3f(ds.p, -ds.d, time, mi.Spectrum(wavelength_sample * 470.0 + 360.0))
-        return ray, mi.Spectrum(0.0)
-
-    def sample_wavelengths(self, si, sample, active=True):
-        return mi.Spectrum(mi.sample_shifted(sample) * 470.0 + 360.0), mi.Spectrum(470.0)
-
-    def traverse(self, callback):
-        pass
-
-    def parameters_changed(self, keys):
-        pass
 
     def to_string(self):
         return f"VegSunSteps[total weight={self.total:g}]"

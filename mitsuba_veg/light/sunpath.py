@@ -205,7 +205,55 @@ def day_sun_path(latitude, longitude, date, step_minutes: float = 10.0):
     return p.direction, w, p.elevation
 
 
-class VegSunPath(mi.Emitter):
+class DeltaSun(mi.Emitter):
+    """Base of the package's sun emitters: delta directions towards a discrete set of suns.
+
+    Subclasses pick a direction and its weight in :meth:`sample_direction` (through
+    :meth:`_direction_sample`). Light tracers that call ``sample_ray`` get zero-weight rays:
+    emission from a scene-sized disk needs the scene's bounds, which Mitsuba does not give
+    Python emitters; these emitters serve the photon pass (which aims photons itself) and
+    integrators that use ``sample_direction`` (path tracing). A zero-weight ray keeps symbolic
+    virtual calls over all emitters valid: Dr.Jit traces every live emitter, also ones of other
+    scenes, so raising there broke unrelated renders in the process.
+    """
+
+    def __init__(self, props: mi.Properties):
+        mi.Emitter.__init__(self, props)
+        self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.DeltaDirection
+
+    @staticmethod
+    def _direction_sample(it, d):
+        """A delta direction sample towards ``d`` (unit vectors) from ``it``."""
+        ds = dr.zeros(mi.DirectionSample3f)
+        ds.d = d
+        ds.p = it.p + d * 1e7
+        ds.dist = dr.inf
+        ds.pdf = 1.0
+        ds.delta = True
+        return ds
+
+    def pdf_direction(self, it, ds, active=True):
+        return mi.Float(0.0)
+
+    def eval(self, si, active=True):
+        return mi.Spectrum(0.0)
+
+    def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
+        ds, _ = self.sample_direction(dr.zeros(mi.Interaction3f), sample3, active)
+        ray = mi.Ray3f(ds.p, -ds.d, time, mi.Spectrum(wavelength_sample * 470.0 + 360.0))
+        return ray, mi.Spectrum(0.0)
+
+    def sample_wavelengths(self, si, sample, active=True):
+        return mi.Spectrum(mi.sample_shifted(sample) * 470.0 + 360.0), mi.Spectrum(470.0)
+
+    def traverse(self, callback):
+        pass
+
+    def parameters_changed(self, keys):
+        pass
+
+
+class VegSunPath(DeltaSun):
     """Delta-direction emitter with a discrete set of sun directions (see module docstring).
 
     Properties: ``scale`` (float, 1: spectral irradiance per unit weight [W m-2 nm-1], flat).
@@ -215,8 +263,7 @@ class VegSunPath(mi.Emitter):
     """
 
     def __init__(self, props: mi.Properties):
-        mi.Emitter.__init__(self, props)
-        self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.DeltaDirection
+        DeltaSun.__init__(self, props)
         self.scale = float(props.get("scale", 1.0))
         self.set_day(np.array([[0.0, 1.0, 0.0]]), np.array([1.0]))
 
@@ -234,42 +281,11 @@ class VegSunPath(mi.Emitter):
 
     def sample_direction(self, it, sample, active=True):
         k = self.dist.sample(sample.x, active)
-        d = dr.gather(mi.Vector3f, self.dirs, k, active)
-        ds = dr.zeros(mi.DirectionSample3f)
-        ds.d = d
-        ds.p = it.p + d * 1e7
-        ds.dist = dr.inf
-        ds.pdf = 1.0
-        ds.delta = True
+        ds = self._direction_sample(it, dr.gather(mi.Vector3f, self.dirs, k, active))
         ds.emitter = mi.EmitterPtr(self)
         # weight / pmf = total weight (flat spectrum): unbiased for the weighted sum over k
         value = dr.select(active, self.total * self.scale, 0.0)
         return ds, mi.Spectrum(value)
-
-    def pdf_direction(self, it, ds, active=True):
-        return mi.Float(0.0)
-
-    def eval(self, si, active=True):
-        return mi.Spectrum(0.0)
-
-    def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
-        # Emission from a scene-sized disk needs the scene's bounds, which Mitsuba does not
-        # give Python emitters; this emitter serves the photon pass (which aims photons itself)
-        # and integrators that use sample_direction (path tracing). A zero-weight ray keeps
-        # symbolic virtual calls over all emitters valid: Dr.Jit traces every live emitter,
-        # also ones of other scenes, so raising here broke unrelated renders in the process.
-        ds, _ = self.sample_direction(dr.zeros(mi.Interaction3f), sample3, active)
-        ray = mi.Ray3f(ds.p, -ds.d, time, mi.Spectrum(wavelength_sample * 470.0 + 360.0))
-        return ray, mi.Spectrum(0.0)
-
-    def sample_wavelengths(self, si, sample, active=True):
-        return mi.Spectrum(mi.sample_shifted(sample) * 470.0 + 360.0), mi.Spectrum(470.0)
-
-    def traverse(self, callback):
-        pass
-
-    def parameters_changed(self, keys):
-        pass
 
     def to_string(self):
         return f"VegSunPath[directions={self.count}, scale={self.scale}]"
