@@ -327,7 +327,7 @@ def ref_spctral2(quick: bool) -> list[dict]:
     """PAR of clear-sky daylight (SPCTRAL2 sun + Perez sky) on open flat ground through the
     photon pass vs the 400-700 nm integral of pvlib's ``spectrl2`` global horizontal spectrum
     on its native 122 wavelengths (no resampling)."""
-    from mitsuba_veg.light.daylight import (DEFAULT_ATMOSPHERE, _spectrl2_native,
+    from mitsuba_veg.light.clear_sky import (DEFAULT_ATMOSPHERE, _spectrl2_native,
                                             band_irradiance, clear_sky_spectra,
                                             daylight_from_angles)
 
@@ -546,7 +546,7 @@ def run(groups=GROUPS, quick: bool = False, log=print) -> dict:
     log : callable
         Progress printer.
     """
-    from mitsuba_veg.variant import versions
+    from mitsuba_veg.backend import versions
 
     rows = []
     t0 = time.perf_counter()

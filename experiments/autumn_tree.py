@@ -40,8 +40,8 @@ def render_tree(tree, tau, when, lat=35.0, lon=139.0, size=256, spp=32, n_classe
     import mitsuba as mi
 
     from mitsuba_veg.foliage.light_study import tree_scene
-    from mitsuba_veg.light.daylight import _day_of_year, daylight_from_angles
-    from mitsuba_veg.light.sun_position import sun_position
+    from mitsuba_veg.light.clear_sky import _day_of_year, daylight_from_angles
+    from mitsuba_veg.light.solar_position import sun_position
 
     az, el = (float(np.asarray(x)) for x in sun_position(lat, lon, when))
     em = daylight_from_angles(az, el, day_of_year=_day_of_year(when))

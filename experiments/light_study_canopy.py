@@ -22,7 +22,7 @@ def canopy_point(lai, tau, photons, elevation=60.0, seed=0):
     import mitsuba_veg as mv
     from mitsuba_veg.foliage.canopy import random_leaf_cloud
     from mitsuba_veg.foliage.light_study import open_reference, tree_scene
-    from mitsuba_veg.light.daylight import daylight_from_angles
+    from mitsuba_veg.light.clear_sky import daylight_from_angles
 
     leaves = random_leaf_cloud(lai, (-3, 0.3, -3), (3, 1.5, 3), leaf_size=0.08, seed=seed)
     sc, _ = tree_scene(leaves, emitters=daylight_from_angles(180.0, elevation),

@@ -13,7 +13,7 @@ import mitsuba_veg  # noqa: F401
 import drjit as dr
 import mitsuba as mi
 
-from mitsuba_veg.moss.fitness import fitness
+from mitsuba_veg.moss.fitness_model import fitness
 from mitsuba_veg.scenario import load_scenario
 from mitsuba_veg.daily import MossSimulation
 

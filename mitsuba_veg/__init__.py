@@ -6,7 +6,7 @@ Mitsuba (integrator ``veg_photon_irradiance``, emitter ``veg_sky``).
 """
 from __future__ import annotations
 
-from .variant import __version__, select_variant as _select_variant, variant
+from .backend import __version__, select_variant as _select_variant, variant
 
 _select_variant()
 

@@ -403,7 +403,7 @@ class Scenario:
         if when is None:
             raise ParameterError("light.when", None, "an ISO date-time like "
                                  "'2026-06-21T12:00:00+09:00'", "set light.when", str(self.path))
-        from .light.daylight import daylight as _daylight
+        from .light.clear_sky import daylight as _daylight
         emitters = _daylight(self.get("site.latitude"), self.get("site.longitude"), when)
         if not emitters:
             raise ParameterError("light.when", when, "a time when the sun is above the horizon",

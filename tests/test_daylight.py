@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import datetime as dt
-import importlib
 import math
 
 import numpy as np
@@ -12,25 +11,12 @@ mi = pytest.importorskip("mitsuba")
 dr = pytest.importorskip("drjit")
 
 
-def _import():
-    """``mitsuba_veg.light.daylight`` and ``.sky``; if the package's __init__ cannot import
-    (another module being edited), set the variant and import the light modules directly."""
-    try:
-        importlib.import_module("mitsuba_veg")
-    except Exception:  # pragma: no cover - only while other modules are half-written
-        if mi.variant() is None:
-            mi.set_variant("llvm_ad_spectral")
-    return (importlib.import_module("mitsuba_veg.light.daylight"),
-            importlib.import_module("mitsuba_veg.light.sky"),
-            importlib.import_module("mitsuba_veg.errors"))
-
-
-daylight_mod, sky_mod, errors = _import()
-from mitsuba_veg.light.daylight import (  # noqa: E402
+import mitsuba_veg  # noqa: E402,F401  (selects the variant, registers the plugins)
+from mitsuba_veg.errors import ParameterError  # noqa: E402
+from mitsuba_veg.light import sky as sky_mod  # noqa: E402
+from mitsuba_veg.light.clear_sky import (  # noqa: E402
     Atmosphere, DEFAULT_ATMOSPHERE, band_irradiance, clear_sky_spectra, daylight,
     daylight_from_angles, photon_flux, red_far_red_ratio, regular_spectrum)
-
-ParameterError = errors.ParameterError
 
 
 def _global(el, **kw):
@@ -151,7 +137,7 @@ def test_daylight_dicts():
 
 
 def test_daylight_from_place_and_time():
-    from mitsuba_veg.light.sun_position import sun_position
+    from mitsuba_veg.light.solar_position import sun_position
 
     when = dt.datetime(2024, 6, 21, 11, 0, tzinfo=dt.timezone.utc)
     az, el = sun_position(48.14, 11.58, when)

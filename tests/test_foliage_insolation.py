@@ -28,7 +28,7 @@ def test_sun_path_noon_elevation_and_daylight_steps():
 
 
 def test_clear_sky_broadband_matches_the_spectral_model():
-    from mitsuba_veg.light.daylight import clear_sky_spectra
+    from mitsuba_veg.light.clear_sky import clear_sky_spectra
     dni, dhi = clear_sky_broadband([45.0], 172)
     wl, d, h = clear_sky_spectra(45.0, step_nm=None)
     assert dni[0] == pytest.approx(np.trapezoid(d, wl), rel=1e-6)

@@ -12,7 +12,7 @@ import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
 from mitsuba_veg.foliage.canopy import random_leaf_cloud
 from mitsuba_veg.foliage.light_study import (leaf_values, open_reference, run_light_study,
                                              tree_scene)
-from mitsuba_veg.light.daylight import daylight_from_angles
+from mitsuba_veg.light.clear_sky import daylight_from_angles
 from mitsuba_veg.light.validation import grid_mesh, make_mesh, sun_vector
 
 

@@ -37,7 +37,7 @@ def test_open_daylight_red_far_red_through_photon_pass(elevation):
     rfr = res.red_far_red("ground")
     assert np.all((rfr > 1.05) & (rfr < 1.25))
     # the photon pass reproduces the spectra's own horizontal band irradiance
-    from mitsuba_veg.light.daylight import clear_sky_spectra, band_irradiance
+    from mitsuba_veg.light.clear_sky import clear_sky_spectra, band_irradiance
     wl, dni, dhi = clear_sky_spectra(elevation)
     ghi = dni * np.sin(np.radians(elevation)) + dhi
     par = (res.irradiance("ground", "par") * area).sum() / area.sum()

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 import mitsuba_veg as mv
-from mitsuba_veg.moss.fitness import fitness
+from mitsuba_veg.moss.fitness_model import fitness
 from mitsuba_veg.scenario import load_scenario
 from mitsuba_veg.daily import MossSimulation
 

@@ -28,9 +28,9 @@ from mitsuba_veg.errors import ParameterError
 import drjit as dr
 from drjit.llvm.ad import Float, Float64
 
-# `mitsuba_veg.moss.fitness` is the function g (eq 3.19, as in the API sketch); the module of the
-# same name is reached through importlib.
-fit = importlib.import_module("mitsuba_veg.moss.fitness")
+# `mitsuba_veg.moss.fitness` is the function g (eq 3.19, as in the API sketch); its module is
+# mitsuba_veg.moss.fitness_model.
+fit = importlib.import_module("mitsuba_veg.moss.fitness_model")
 
 LN2x4 = 4 * math.log(2)
 

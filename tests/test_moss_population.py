@@ -10,7 +10,7 @@ import mitsuba as mi
 import drjit as dr
 
 from mitsuba_veg.moss import SPECIES
-from mitsuba_veg.moss.fitness import fitness as g_fn
+from mitsuba_veg.moss.fitness_model import fitness as g_fn
 from mitsuba_veg.moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation,
                                          SpeciesTable)
 from mitsuba_veg.moss.propagules import land, settle, spore_direction

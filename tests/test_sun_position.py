@@ -1,54 +1,13 @@
-"""Tests of mitsuba_veg.light.sun_position (NREL SPA, scene-frame sun directions).
-
-The module is pure numpy. It is imported through the package when that works; if the package
-cannot be imported (e.g. Mitsuba or another module is unavailable), the two pure-python files it
-needs are loaded on their own under a private package name, so these tests never depend on
-Mitsuba.
-"""
+"""Tests of mitsuba_veg.light.solar_position (NREL SPA, scene-frame sun directions)."""
 from __future__ import annotations
 
 import datetime as dt
-import importlib
-import importlib.util
-import sys
-import types
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-
-def _load_sun_position():
-    try:
-        # `mitsuba_veg.light` re-exports the *function* `sun_position`, which shadows the
-        # submodule as an attribute: use import_module to get the module itself.
-        sp = importlib.import_module("mitsuba_veg.light.sun_position")
-        errors = importlib.import_module("mitsuba_veg.errors")
-        return sp, errors.ParameterError
-    except Exception:  # noqa: BLE001 - any failure of the package import: go standalone
-        pass
-    root = Path(__file__).resolve().parents[1] / "mitsuba_veg"
-    name = "_mitsuba_veg_standalone"
-    for pkg, path in ((name, root), (f"{name}.light", root / "light")):
-        mod = types.ModuleType(pkg)
-        mod.__path__ = [str(path)]
-        sys.modules.setdefault(pkg, mod)
-
-    def load(modname, path):
-        if modname in sys.modules and hasattr(sys.modules[modname], "__file__"):
-            return sys.modules[modname]
-        spec = importlib.util.spec_from_file_location(modname, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[modname] = mod
-        spec.loader.exec_module(mod)
-        return mod
-
-    errors = load(f"{name}.errors", root / "errors.py")
-    sp = load(f"{name}.light.sun_position", root / "light" / "sun_position.py")
-    return sp, errors.ParameterError
-
-
-sp, ParameterError = _load_sun_position()
+from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.light import solar_position as sp
 
 
 def _wrap180(a):

@@ -31,7 +31,7 @@ from mitsuba_veg.foliage.light_series import grid_map_figure
 from mitsuba_veg.foliage.light_study import tree_scene
 from mitsuba_veg.light import sensor_study as SS
 from mitsuba_veg.light import sensors as S
-from mitsuba_veg.light.daylight import daylight_from_angles
+from mitsuba_veg.light.clear_sky import daylight_from_angles
 
 
 def main(argv=None) -> int:

@@ -26,7 +26,7 @@ from ..render.still import run_render
 from ..scenario import MAX_PHOTONS, load_scenario
 from ..sweeps.frames import run_animate
 from ..tune.cli import add_parser as _add_tune
-from ..variant import __version__, versions
+from ..backend import __version__, versions
 from ..world.trees import scene_with_trees
 from . import grow, light_study, render, sweep
 from .args import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged

@@ -48,7 +48,7 @@ from ..trees.environment import Environment
 from ..trees.figures import picture
 from ..trees.growth import GrowthParams, base_positions, branching, grow_forest
 from ..trees.nongrowth import deform
-from ..variant import versions
+from ..backend import versions
 from .args import add_out, add_quiet, add_set, ranged
 from .entry import standalone
 

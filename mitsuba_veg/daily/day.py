@@ -43,7 +43,7 @@ from ..moss.propagules import land, settle, spore_direction, uniform_sphere
 from ..moss.spatial import per_element_count
 from ..outputs import RUN_OUTPUTS, clear_outputs
 from ..scenario import Scenario
-from ..variant import versions
+from ..backend import versions
 from .checkpoint import Checkpoints
 from .config import BANDS
 from .site import MossSite

@@ -11,7 +11,7 @@ Here:
   (:func:`mitsuba_veg.light.sun_position`, more accurate than the paper's almanac formulas;
   same horizontal frame), and gives the clear-sky broadband
   (300-4000 nm) direct-normal irradiance I(t) and diffuse horizontal irradiance from SPCTRAL2
-  with the package's default atmosphere (:mod:`mitsuba_veg.light.daylight`), or a constant I.
+  with the package's default atmosphere (:mod:`mitsuba_veg.light.clear_sky`), or a constant I.
 - :func:`leaf_insolation` traces one shadow ray from every leaf centre towards the sun at every
   daytime step: all leaves × all steps in one Dr.Jit kernel per ≤ 8M rays
   (``scene.ray_test`` against the tree's leaf quads, bark tubes and any obstacles), and sums

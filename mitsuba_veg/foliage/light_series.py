@@ -35,7 +35,7 @@ from mitsuba_veg.light import sensors as S
 from mitsuba_veg.outputs import OutputFolder, write_json
 from mitsuba_veg.plots import _mpl
 from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
-from mitsuba_veg.variant import versions
+from mitsuba_veg.backend import versions
 
 FILES = ("sensors.csv", "sensors.parquet", "sensors_hourly.csv", "sensors_hourly.parquet",
          "dli.csv", "summary.json", "dli_map.png", "rfr_map.png", "sensor_year.png",

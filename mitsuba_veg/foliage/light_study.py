@@ -35,17 +35,17 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
 from mitsuba_veg.light import photon_irradiance
 from mitsuba_veg.light import sensors as S
-from mitsuba_veg.light.daylight import (_day_of_year, band_irradiance, clear_sky_spectra,
+from mitsuba_veg.light.clear_sky import (_day_of_year, band_irradiance, clear_sky_spectra,
                                         daylight_from_angles, photon_flux, red_far_red_ratio,
                                         umol_per_joule)
 from mitsuba_veg.light.sensors import from_scenario
-from mitsuba_veg.light.sun_position import sun_position
+from mitsuba_veg.light.solar_position import sun_position
 from mitsuba_veg.light.validation import grid_mesh
 from mitsuba_veg.outputs import OutputFolder, write_json
 from mitsuba_veg.plots import _mpl, plan_map
 from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
 from mitsuba_veg.trees.structure import Tree
-from mitsuba_veg.variant import versions
+from mitsuba_veg.backend import versions
 
 from .bsdf import leaf_bsdf_dict
 from .canopy import bark_mesh_arrays, class_meshes, mesh, sphere_crown_tree

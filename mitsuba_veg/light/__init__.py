@@ -8,8 +8,8 @@
 from __future__ import annotations
 
 from .photon import photon_irradiance, PhotonIrradianceResult, BANDS, band_range
-from .sun_position import sun_position, sun_direction, direction_to_angles, sun_ephemeris
-from .daylight import daylight, daylight_from_angles, clear_sky_spectra
+from .solar_position import sun_position, sun_direction, direction_to_angles, sun_ephemeris
+from .clear_sky import daylight, daylight_from_angles, clear_sky_spectra
 from . import sky  # noqa: F401  (registers the `veg_sky` emitter)
 from . import sunpath  # noqa: F401  (registers the `veg_sun_path` emitter)
 from . import sensors  # noqa: F401  (virtual sensors: mv.light.sensors.point/grid/read)

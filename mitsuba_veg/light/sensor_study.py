@@ -19,7 +19,7 @@ Per step [t0, t1) and band b the reading is the mean over the step:
     sky:  R_b = (Σ_k (Δt/T) DHI_b(k) / DHI_b,ref) × (sky pass reading)
 
 with DNI_b(k), DHI_b(k) the SPCTRAL2 band irradiances of the sun at sub-step k
-(:func:`mitsuba_veg.light.daylight.clear_sky_spectra`, tabulated over elevation and scaled by
+(:func:`mitsuba_veg.light.clear_sky.clear_sky_spectra`, tabulated over elevation and scaled by
 the Sun-Earth distance of the day). This is exact for PAR and for the open horizontal; other
 bands share the PAR weights of the sun positions (their spectra change little with elevation:
 docs/deviations.md). The sky is isotropic, as in the moss run (a Perez sky would need a rebuild
@@ -40,9 +40,9 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError, check_range
 
 from . import sensors as S
-from .daylight import band_irradiance, clear_sky_spectra, regular_spectrum
+from .clear_sky import band_irradiance, clear_sky_spectra, regular_spectrum
 from .photon import BANDS, photon_irradiance
-from .sun_position import sun_direction, sun_position
+from .solar_position import sun_direction, sun_position
 from .sunpath import DeltaSun
 
 #: reference sun of the emitters' spectra

@@ -23,8 +23,8 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, check_range
-from .daylight import DEFAULT_ATMOSPHERE
-from .sun_position import sun_direction, sun_position
+from .clear_sky import DEFAULT_ATMOSPHERE
+from .solar_position import sun_direction, sun_position
 
 
 @dataclass
@@ -58,7 +58,7 @@ def clear_sky_broadband(elevation_deg, day_of_year, atmosphere=None):
     day_of_year : int or array_like
         Day of the year (Earth-Sun distance), broadcast against the elevations.
     atmosphere : daylight.Atmosphere, optional
-        Default :data:`mitsuba_veg.light.daylight.DEFAULT_ATMOSPHERE`.
+        Default :data:`mitsuba_veg.light.clear_sky.DEFAULT_ATMOSPHERE`.
 
     Returns
     -------

@@ -24,7 +24,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .fitness import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
+from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
 from .species import Species
 
 FREE, PROPAGULE, MOSS = 0, 1, 2

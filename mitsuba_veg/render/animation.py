@@ -18,7 +18,7 @@ from tqdm.auto import tqdm
 
 from ..errors import ParameterError, check_range
 from ..outputs import OutputFolder, atomic_write, write_json
-from ..variant import versions
+from ..backend import versions
 from .film import to_srgb8, write_png
 from .history import load_run
 from .scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters

@@ -34,7 +34,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, SceneError, check_range
-from ..light.daylight import daylight
+from ..light.clear_sky import daylight
 from ..light.sky import VegSky, attach_scene
 from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
 from ..terrain import classify_geology, load_texture_rgb

@@ -12,7 +12,7 @@ from tqdm.auto import tqdm
 
 from ..errors import check_range
 from ..outputs import OutputFolder, write_json
-from ..variant import versions
+from ..backend import versions
 from . import film as _film
 from .history import load_run
 from .scene import RenderOptions, Terrain, build_scene

@@ -23,7 +23,7 @@ from ..render.history import load_run
 from ..render.scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters
 from ..render.still import render
 from ..render.world import trees_for_run
-from ..variant import versions
+from ..backend import versions
 from .cluster import open_client, set_drjit_threads, worker_drjit_threads
 
 #: task key prefix (groups the frames on the Dask dashboard)

@@ -40,7 +40,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..moss.fitness import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
+from ..moss.fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
 from . import relax
 
 __all__ = ["SpeciesState", "CohortLifeCycle", "relaxed_life_cycle", "discrete_life_cycle", "GEMMA_STEP", "SPORE_THRESHOLD",

@@ -38,7 +38,7 @@ from ..errors import ParameterError
 from ..foliage import leaf_spectra
 from ..light.photon import band_range
 from ..light import sensors as sensors_mod
-from ..light.daylight import clear_sky_spectra
+from ..light.clear_sky import clear_sky_spectra
 from ..light.validation import make_mesh
 from ..daily import BANDS, MossSimulation
 from .canopy import Canopy

@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ParameterError, check_range
-from .sun_position import sun_direction, sun_position
+from .solar_position import sun_direction, sun_position
 
 __all__ = [
     "Atmosphere", "DEFAULT_ATMOSPHERE", "DaylightSpectra", "clear_sky_spectra",
@@ -134,7 +134,7 @@ def _atmosphere(atmosphere: Atmosphere | None, overrides: dict) -> Atmosphere:
         atmosphere = DEFAULT_ATMOSPHERE
     elif not isinstance(atmosphere, Atmosphere):
         raise ParameterError("atmosphere", atmosphere, "an Atmosphere instance or None",
-                             "use mitsuba_veg.light.daylight.Atmosphere(...) or keyword "
+                             "use mitsuba_veg.light.clear_sky.Atmosphere(...) or keyword "
                              "arguments such as aerosol_turbidity=0.2")
     names = {f.name for f in fields(Atmosphere)}
     given = {k: v for k, v in overrides.items() if v is not None}
@@ -420,7 +420,7 @@ def daylight(latitude: float, longitude: float, when, *, sun: bool = True, sky: 
              **kwargs) -> dict:
     """Emitter dicts for the sun and sky at a place [deg, deg] and time.
 
-    The sun's azimuth/elevation come from :func:`mitsuba_veg.light.sun_position.sun_position`
+    The sun's azimuth/elevation come from :func:`mitsuba_veg.light.solar_position.sun_position`
     (``when`` as it accepts, e.g. a timezone-aware ``datetime``); the day of year from ``when``.
     Keyword arguments are those of :func:`daylight_from_angles`. Returns ``{}`` at night.
     """
