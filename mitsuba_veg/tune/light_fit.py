@@ -83,6 +83,9 @@ class LightStudy:
             if sid not in self.shape_slices:
                 raise ParameterError("albedo", sid, f"a shape id among {list(self.shape_slices)}")
             for b in self.bands:
+                if isinstance(v, dict) and b not in v:
+                    raise ParameterError(f"albedo[{sid!r}]", v, f"a number or a value for every "
+                                         f"traced band {self.bands}")
                 x = float(v[b] if isinstance(v, dict) else v)
                 if not 0.0 <= x <= 1.0:
                     raise ParameterError(f"albedo[{sid!r}]", x, "[0, 1]")
@@ -165,7 +168,7 @@ class LightFitResult:
 
 def fit_light(study: LightStudy, target, params, quantity: str = "par", init: dict | None = None,
               mask=None, steps: int = 150, lr: float = 0.05, lr_final: float = 0.02,
-              bounds: dict | None = None) -> LightFitResult:
+              bounds: dict | None = None, method: str = "least_squares") -> LightFitResult:
     """Fit light parameters so that ``quantity`` per element matches ``target``.
 
     Parameters
@@ -183,8 +186,13 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
     mask : bool array, optional
         Elements that count (e.g. the ground's); combined with the finite targets.
     steps, lr, lr_final : int, float, float
-        Adam steps and learning rate on the parameters scaled by their start (decaying to
-        ``lr * lr_final``).
+        ``method="adam"``: Adam steps and learning rate on the parameters scaled by their start
+        (decaying to ``lr * lr_final``); ``method="least_squares"`` (default): SciPy's
+        trust-region reflective least squares on the same residuals with the Jacobian from
+        Dr.Jit forward mode (one pass per parameter), at most ``steps`` evaluations. The
+        irradiance is linear in the strengths and polynomial in the reflectances, so
+        Gauss-Newton steps converge in a few evaluations where Adam creeps along the valley of
+        correlated parameters (sun and sky strength).
     bounds : dict, optional
         ``{name: (lo, hi)}``; default strengths [0, 100], reflectances [0, 0.99].
     """
@@ -252,6 +260,11 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
             g = {}
         return float(np.asarray(dr.detach(loss))[0]), g
 
+    if method not in ("adam", "least_squares"):
+        raise ParameterError("method", method, "'adam' or 'least_squares'")
+    if method == "least_squares":
+        return _least_squares(study, params, quantity, start, bnd, scale, ok, w / norm ** 2,
+                              t_dr, steps, t0)
     for k in range(steps):
         vals = values()
         loss, g = evaluate(vals, True)
@@ -271,3 +284,43 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
     return LightFitResult(vals, start, history, loss, time.perf_counter() - t0,
                           {"quantity": quantity, "steps": steps, "lr": lr, "scales": scale,
                            "bounds": bnd, "photons": next(iter(study.paths.values())).photons})
+
+
+def _least_squares(study, params, quantity, start, bnd, scale, ok, w, t_dr, steps, t0):
+    from scipy.optimize import least_squares
+    F = study.F
+    sw = np.sqrt(w[ok])
+    history = []
+
+    def vals_of(z):
+        return {p: start[p] + scale[p] * float(z[i]) for i, p in enumerate(params)}
+
+    def res(z):
+        v = vals_of(z)
+        q = np.asarray(study.quantity({p: F(x) for p, x in v.items()}, quantity))
+        r = sw * (q[ok] - np.asarray(t_dr)[ok])
+        history.append({"step": len(history), "loss": float(r @ r), "params": v, "grad": {}})
+        return r
+
+    def jac(z):
+        v = vals_of(z)
+        J = np.zeros((int(ok.sum()), len(params)))
+        for i, p in enumerate(params):
+            xs = {k: F(x) for k, x in v.items()}
+            dr.enable_grad(xs[p])
+            q = study.quantity(xs, quantity)
+            dr.forward(xs[p])
+            J[:, i] = sw * np.asarray(dr.grad(q))[ok] * scale[p]
+        return J
+
+    lo = [(bnd[p][0] - start[p]) / scale[p] for p in params]
+    hi = [(bnd[p][1] - start[p]) / scale[p] for p in params]
+    sol = least_squares(res, np.zeros(len(params)), jac=jac, bounds=(lo, hi), method="trf",
+                        max_nfev=max(int(steps), 2), x_scale=1.0)
+    vals = vals_of(sol.x)
+    loss = float(sol.fun @ sol.fun)
+    history.append({"step": len(history), "loss": loss, "params": vals, "grad": {}})
+    return LightFitResult(vals, start, history, loss, time.perf_counter() - t0,
+                          {"quantity": quantity, "method": "least_squares", "nfev": sol.nfev,
+                           "scales": scale, "bounds": bnd,
+                           "photons": next(iter(study.paths.values())).photons})

@@ -159,7 +159,7 @@ def _read_image(image) -> np.ndarray:
     return a.astype(float)
 
 
-def cover_from_image(image, camera, scene: mi.Scene, index, living=None, mode: str = "gray",
+def cover_from_image(image, camera, scene: mi.Scene, index, living=None, mode: str = "colour",
                      bare=(0.45, 0.36, 0.26), moss=(0.22, 0.42, 0.12), min_pixels: int = 1
                      ) -> np.ndarray:
     """Covered fraction per element [-] from an image of the scene seen by ``camera``.
@@ -167,8 +167,9 @@ def cover_from_image(image, camera, scene: mi.Scene, index, living=None, mode: s
     image: a PNG/JPEG path or an array (height, width[, channels]) with values 0-1; camera: a
     dict or JSON file (module docstring); scene, index: the moss scene and its
     :class:`SceneIndex` (``ModelData.scene``, ``ModelData.index``); living: elements that may
-    hold moss (others NaN); mode: "gray" (pixel value = cover) or "colour" (unmixed between the
-    ``bare`` and ``moss`` sRGB colours); min_pixels: fewer pixels on a triangle -> NaN.
+    hold moss (others NaN); mode: "colour" (default: unmixed between the ``bare`` and ``moss``
+    sRGB colours) or "gray" (pixel value = cover); min_pixels: fewer pixels on a triangle ->
+    NaN.
     Returns one value per element (NaN where not seen).
     """
     c = load_camera(camera)
@@ -206,12 +207,14 @@ def cover_from_image(image, camera, scene: mi.Scene, index, living=None, mode: s
 
 
 def render_cover_image(cover, camera, scene: mi.Scene, index, path=None, mode: str = "colour",
-                       bare=(0.45, 0.36, 0.26), moss=(0.22, 0.42, 0.12), background=(0, 0, 0)
-                       ) -> np.ndarray:
+                       bare=(0.45, 0.36, 0.26), moss=(0.22, 0.42, 0.12), background=(0, 0, 0),
+                       bits: int = 8) -> np.ndarray:
     """The synthetic photograph of a cover map (per element, 0-1) seen by ``camera``: each pixel
     shows the triangle its centre sees, its colour mixed in linear light between ``bare`` and
-    ``moss`` by the cover (``mode="gray"``: the cover itself). Written as an 8-bit PNG to
-    ``path`` (if given); returns the image (0-1)."""
+    ``moss`` by the cover (``mode="gray"``: the cover itself). Written as a PNG with ``bits``
+    = 8 or 16 (gray only) bits per channel to ``path`` (if given); returns the image (0-1)."""
+    if bits not in (8, 16) or (bits == 16 and mode != "gray"):
+        raise ParameterError("bits", bits, "8, or 16 with mode='gray'")
     c = load_camera(camera)
     e = pixel_elements(scene, index, c)
     cov = np.nan_to_num(np.clip(np.asarray(cover, float), 0, 1))
@@ -229,5 +232,8 @@ def render_cover_image(cover, camera, scene: mi.Scene, index, path=None, mode: s
     if path is not None:
         from PIL import Image
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)).save(path)
+        if bits == 16:
+            Image.fromarray(np.round(np.clip(img, 0, 1) * 65535).astype(np.uint16)).save(path)
+        else:
+            Image.fromarray(np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)).save(path)
     return img
