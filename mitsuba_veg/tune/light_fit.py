@@ -48,8 +48,9 @@ class LightStudy:
     ----------
     scene : mitsuba.Scene
         The scene (emitters with ids; shapes loaded with ``optimize=False``).
-    albedo : dict
-        Base reflectance per shape id, a number or ``{band: number}`` [-] (shapes not listed: 0).
+    albedo : dict or array
+        Base reflectance per shape id, a number or ``{band: number}`` [-] (shapes not listed: 0),
+        or one value per element for every band.
     bands : sequence of str
         Bands of ``BANDS`` to trace ("par", "red", "far_red", "total" ...).
     emitters : sequence of str, optional
@@ -79,6 +80,13 @@ class LightStudy:
                 raise ParameterError("emitters", e, f"ids among {ems}")
         self.shape_slices = {sid: self.index.shape_slice(sid) for sid in self.index.shape_ids}
         self.base = {b: np.zeros(self.index.n_elements) for b in self.bands}
+        if not isinstance(albedo, dict):             # one value per element, every band
+            a = np.asarray(albedo, float)
+            if a.shape != (self.index.n_elements,) or np.any(~(a >= 0)) or np.any(a > 1):
+                raise ParameterError("albedo", f"array of shape {a.shape}",
+                                     f"({self.index.n_elements},) values in [0, 1], or a dict")
+            self.base = {b: a.copy() for b in self.bands}
+            albedo = {}
         for sid, v in (albedo or {}).items():
             if sid not in self.shape_slices:
                 raise ParameterError("albedo", sid, f"a shape id among {list(self.shape_slices)}")
@@ -168,7 +176,8 @@ class LightFitResult:
 
 def fit_light(study: LightStudy, target, params, quantity: str = "par", init: dict | None = None,
               mask=None, steps: int = 150, lr: float = 0.05, lr_final: float = 0.02,
-              bounds: dict | None = None, method: str = "least_squares") -> LightFitResult:
+              bounds: dict | None = None, method: str = "least_squares",
+              patch: float | None = None) -> LightFitResult:
     """Fit light parameters so that ``quantity`` per element matches ``target``.
 
     Parameters
@@ -195,6 +204,13 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
         correlated parameters (sun and sky strength).
     bounds : dict, optional
         ``{name: (lo, hi)}``; default strengths [0, 100], reflectances [0, 0.99].
+    patch : float, optional
+        Compare area-weighted means over patches (the triangles of one shape within a cube of
+        side ``patch`` [m]) instead of single triangles (``method="least_squares"`` only). A
+        measured map and a photon pass are both noisy per triangle; with noise in the model's
+        own light as well as in the target, a per-triangle least-squares fit is biased
+        (errors in variables: on the moss garden with 300 k photons per map, sun and sky
+        strength came out +9 % / -14 %); patches average the noise away.
     """
     t0 = time.perf_counter()
     params = [params] if isinstance(params, str) else list(params)
@@ -262,9 +278,16 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
 
     if method not in ("adam", "least_squares"):
         raise ParameterError("method", method, "'adam' or 'least_squares'")
+    if patch is not None and method != "least_squares":
+        raise ParameterError("patch", patch, "None with method='adam'",
+                             "use method='least_squares' for patch means")
     if method == "least_squares":
+        labels = None
+        if patch is not None:
+            from .discrete import patch_labels
+            labels = patch_labels(study.index.centroids, study.shape_slices, ok, float(patch))
         return _least_squares(study, params, quantity, start, bnd, scale, ok, w / norm ** 2,
-                              t_dr, steps, t0)
+                              t_dr, steps, t0, labels, areas)
     for k in range(steps):
         vals = values()
         loss, g = evaluate(vals, True)
@@ -286,10 +309,24 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
                            "bounds": bnd, "photons": next(iter(study.paths.values())).photons})
 
 
-def _least_squares(study, params, quantity, start, bnd, scale, ok, w, t_dr, steps, t0):
+def _least_squares(study, params, quantity, start, bnd, scale, ok, w, t_dr, steps, t0,
+                   labels=None, areas=None):
     from scipy.optimize import least_squares
     F = study.F
-    sw = np.sqrt(w[ok])
+    if labels is None:
+        sw = np.sqrt(w[ok])
+
+        def agg(x):
+            return x[ok]
+    else:
+        lab = labels[ok]
+        n_p = int(lab.max()) + 1
+        pa = np.bincount(lab, weights=areas[ok], minlength=n_p)
+        # w = area / sum(area) / norm^2 per element -> per patch: its share / norm^2
+        sw = np.sqrt(np.bincount(lab, weights=w[ok], minlength=n_p))
+
+        def agg(x):
+            return np.bincount(lab, weights=(areas * x)[ok], minlength=n_p) / pa
     history = []
 
     def vals_of(z):
@@ -298,19 +335,19 @@ def _least_squares(study, params, quantity, start, bnd, scale, ok, w, t_dr, step
     def res(z):
         v = vals_of(z)
         q = np.asarray(study.quantity({p: F(x) for p, x in v.items()}, quantity))
-        r = sw * (q[ok] - np.asarray(t_dr)[ok])
+        r = sw * (agg(q) - agg(np.asarray(t_dr)))
         history.append({"step": len(history), "loss": float(r @ r), "params": v, "grad": {}})
         return r
 
     def jac(z):
         v = vals_of(z)
-        J = np.zeros((int(ok.sum()), len(params)))
+        J = np.zeros((len(sw), len(params)))
         for i, p in enumerate(params):
             xs = {k: F(x) for k, x in v.items()}
             dr.enable_grad(xs[p])
             q = study.quantity(xs, quantity)
             dr.forward(xs[p])
-            J[:, i] = sw * np.asarray(dr.grad(q))[ok] * scale[p]
+            J[:, i] = sw * agg(np.asarray(dr.grad(q))) * scale[p]
         return J
 
     lo = [(bnd[p][0] - start[p]) / scale[p] for p in params]
