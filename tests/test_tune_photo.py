@@ -93,3 +93,21 @@ def test_bad_inputs(model, tmp_path):
     bad.write_text("not an image")
     with pytest.raises(ParameterError, match="image"):
         photo.cover_from_image(bad, CAM, d.scene, d.index)
+
+
+def test_cli_image_target(model, cover, tmp_path, capsys):
+    from mitsuba_veg.tune.cli import main
+    d = model.data
+    png = tmp_path / "photo.png"
+    photo.render_cover_image(cover, CAM, d.scene, d.index, png)
+    cam = tmp_path / "camera.json"
+    cam.write_text(json.dumps(CAM))
+    args = [str(SCEN), "--target", str(png), "--params", "S1", "--species", "bryum_argenteum",
+            "--days", "3", "--steps", "2", "--photons", "20000", "--out", str(tmp_path / "o"),
+            "--quiet"]
+    assert main(args + ["--camera", str(cam)]) == 0
+    f = json.loads((tmp_path / "o" / "fitted.json").read_text())
+    assert f["steps"] == 2
+    assert main(args) == 2 and "--camera" in capsys.readouterr().err
+    assert main(args + ["--camera", str(cam), "--discrete-seeds", "x"]) == 2
+    assert "--discrete-seeds" in capsys.readouterr().err
