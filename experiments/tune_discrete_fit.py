@@ -59,6 +59,8 @@ def main():
                     "X,Z [m] (3 m tall) to the scenario and run WorldSimulation")
     ap.add_argument("--start-date", default=None, help="simulation.start_date override")
     ap.add_argument("--patch", type=float, default=0.2)
+    ap.add_argument("--report", default=None, help="target days, e.g. 10,20,30 (a time series "
+                    "of maps; default: the last day)")
     ap.add_argument("--closure", default="near-field")
     ap.add_argument("--temperature", type=float, default=0.02)
     ap.add_argument("--out", default="out/tune_discrete_fit")
@@ -91,11 +93,13 @@ def main():
         truth[k] = float(v)
     tm = DiscreteMossModel(scn, a.days, species=species, seeds=seeds_arg(a.target_seeds),
                            photons=a.photons, world=world)
-    tr = tm.run(truth)
-    target = tm.to_layout(tr.mean(), data.shape_slices)
+    report = [int(d) for d in a.report.split(",")] if a.report else [a.days]
+    tr = tm.run(truth, report=report)
+    target = {d: tm.to_layout(tr.mean(d), data.shape_slices) for d in report}
     print(f"target: mean of {len(tm.seeds)} discrete runs ({'world: garden + aspen' if world else 'garden'}, "
           f"{a.days} days, {a.photons} photons), truth {truth}: covered "
-          f"{np.mean(tr.total[:, -1]):.4f} m2 (sd {np.std(tr.total[:, -1]):.4f}); "
+          f"{np.mean(tr.total[:, -1]):.4f} m2 (sd {np.std(tr.total[:, -1]):.4f}); maps of days "
+          f"{report}; "
           f"set-up {time.perf_counter() - t0:.0f} s", flush=True)
     scale = {p: parameter_scale(sm, p) for p in names}
     box = {p: 0.3 * (scale[p] if p in ("T1", "T0") else truth[p]) for p in names}

@@ -13,7 +13,7 @@ supplies the gradient, the discrete model D supplies the values. At iterate thet
     shift_k = D(theta_k) - R(theta_k)              (per triangle; mean over the seeds)
     theta_(k+1) = argmin_theta  loss(R(theta) + shift_k, target)
 
-(an Adam fit of the relaxed model, :func:`mitsuba_veg.tune.fit`, from theta_k). A fixed point
+(an Adam fit of the relaxed model from theta_k, gradients by the day-by-day adjoint). A fixed point
 has R(theta*) + shift = D(theta*), i.e. the *discrete* coverage matches the target as well as
 the relaxed model's parameter directions allow; the relaxed model's error (the spatial closure,
 docs/tuning.md) only enters through its Jacobian, which sets the rate of convergence, not the
@@ -368,6 +368,43 @@ def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> 
     return float(np.sum(w * d * d))
 
 
+def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_final):
+    """Adam on the shifted relaxed losses (mean over the target days) from ``theta``, on the
+    normalised parameters (p - theta) / scale as :func:`mitsuba_veg.tune.fit`."""
+    import mitsuba as mi
+
+    from .grad import value_and_grad
+    T = model.T
+    opt = mi.ad.Adam(lr=lr, beta_1=0.9, beta_2=0.9)
+    for p in params:
+        opt[p] = T(0.0)
+    decay = lr_final ** (1.0 / max(steps - 1, 1))
+
+    def physical():
+        return {p: theta[p] + scale[p] * float(np.asarray(dr.detach(opt[p])).ravel()[0])
+                for p in params}
+    L = float("nan")
+    for k in range(steps):
+        vals = physical()
+        L, G = 0.0, {p: 0.0 for p in params}
+        for d, lf in zip(days, losses):
+            r = value_and_grad(model, vals, lf, days=d)
+            L += r.loss / len(days)
+            for p in params:
+                G[p] += r.grad[p] / len(days)
+        if not math.isfinite(L) or not all(math.isfinite(g) for g in G.values()):
+            raise FloatingPointError(f"fit_discrete: non-finite loss or gradient {L}, {G} at "
+                                     f"{vals}")
+        for p in params:
+            dr.set_grad(opt[p], T(G[p] * scale[p]))
+        opt.set_learning_rate(lr * decay ** k)
+        opt.step()
+        for p in params:
+            lo, hi = (bnd[p][0] - theta[p]) / scale[p], (bnd[p][1] - theta[p]) / scale[p]
+            opt[p] = dr.clip(dr.detach(opt[p]), lo, hi)
+    return physical(), L
+
+
 def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: dict | None = None,
                  iterations: int = 5, steps: int = 25, lr: float = 0.08, lr_final: float = 0.05,
                  loss: str = "sqrt", patch: float = 0.2, tol: float = 0.01,
@@ -382,8 +419,10 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         The discrete model (its seeds are the common random numbers of every evaluation).
     surrogate : SmoothMossModel
         The relaxed model of the same scenario, days and species; it supplies the gradients.
-    target : ndarray
-        Covered fraction per triangle [-] (scene order, NaN = ignore).
+    target : ndarray or dict
+        Covered fraction per triangle [-] (scene order, NaN = ignore) on the last day, or
+        ``{day: map}`` for several days (a time series of maps: the loss is the mean over
+        the days; growth rate and light thresholds act differently over time).
     params : list of str
         Parameter names (valid for both models).
     init : dict, optional
@@ -391,7 +430,8 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
     iterations : int
         Outer iterations (one discrete ensemble each) at most.
     steps, lr, lr_final : int, float, float
-        The inner Adam fit of the shifted relaxed model (:func:`mitsuba_veg.tune.fit`).
+        The inner Adam fit of the shifted relaxed model (as :func:`mitsuba_veg.tune.fit`:
+        normalised parameters, geometric decay to ``lr * lr_final``, bounds).
     loss : {"sqrt", "mse"}
         Squared difference of the square roots (default) or of the covered fractions, of
         *patches*: the area-weighted cover of the triangles of one shape within a cube of side
@@ -413,13 +453,15 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         ``values`` (the last iterate), the per-iteration record (parameters, discrete loss,
         inner-fit loss) and the discrete loss at ``values``.
     """
-    from .fit import fit, parameter_scale, target_array
+    from .fit import parameter_bounds, parameter_scale, target_array
     t0 = time.perf_counter()
     params = [params] if isinstance(params, str) else list(params)
     if not params:
         raise ParameterError("params", params, "at least one parameter name")
     if iterations < 1:
         raise ParameterError("iterations", iterations, ">= 1")
+    if steps < 1:
+        raise ParameterError("steps", steps, ">= 1")
     if loss not in ("sqrt", "mse"):
         raise ParameterError("loss", loss, "'sqrt' or 'mse'")
     discrete.to_layout(np.zeros(discrete.n), surrogate.data.shape_slices)  # same terrain?
@@ -429,47 +471,64 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
     for p in params:
         discrete._canonical(p)
         surrogate._canonical(p)
-    tgt = target_array(surrogate, target)
+    if not isinstance(target, dict):
+        target = {discrete.days: target}
+    days = sorted(int(d) for d in target)
+    for d in days:
+        if not 1 <= d <= discrete.days:
+            raise ParameterError("target", f"day {d}", f"days in [1, {discrete.days}]",
+                                 "give {day: map} for simulated days")
     data = surrogate.data
-    labels = patch_labels(data.index.centroids, data.shape_slices,
-                          data.living & np.isfinite(tgt), patch)
-    tgt_patch = patch_cover(np.where(np.isfinite(tgt), tgt, 0.0), data.areas, labels)
+    T = surrogate.T
+    tgt, labels, tgt_patch = {}, {}, {}
+    for d in days:
+        tgt[d] = target_array(surrogate, target[d])
+        labels[d] = patch_labels(data.index.centroids, data.shape_slices,
+                                 data.living & np.isfinite(tgt[d]), patch)
+        tgt_patch[d] = patch_cover(np.where(np.isfinite(tgt[d]), tgt[d], 0.0), data.areas,
+                                   labels[d])
     theta = {p: float((init or {}).get(p, discrete.default_value(p))) for p in params}
     start = dict(theta)
     scale = {p: float((scales or {}).get(p, parameter_scale(surrogate, p))) for p in params}
-    T = surrogate.T
+    bnd = {p: parameter_bounds(surrogate, p) for p in params}
     rows = []
-    D = None
+
+    def discrete_eval(th):
+        r = discrete.run(th, report=days)
+        D = {d: discrete.to_layout(r.mean(d), data.shape_slices) for d in days}
+        ld = float(np.mean([patch_loss_value(D[d], data.areas, labels[d], tgt_patch[d], loss)
+                            for d in days]))
+        return D, ld
+
     for k in range(iterations):
-        D = discrete.to_layout(discrete.run(theta).mean(), data.shape_slices)
-        ld = patch_loss_value(D, data.areas, labels, tgt_patch, loss)
+        D, ld = discrete_eval(theta)
+        losses = []
         with dr.suspend_grad():
-            R = np.asarray(surrogate.run(theta).cover, float)
-        shift = D - R
-        r = fit(surrogate, tgt, params=params, init=theta, steps=steps, lr=lr,
-                lr_final=lr_final, out=None,
-                loss=_patch_loss(T(shift), data.areas, labels, tgt_patch, loss, T),
-                progress=progress, plots=False, scales=scale)
-        new = r.values
+            R = {d: np.asarray(surrogate.run(theta, days=d).cover, float) for d in days}
+        for d in days:
+            lf = _patch_loss(T(D[d] - R[d]), data.areas, labels[d], tgt_patch[d], loss, T)
+            losses.append(lambda res, m, lf=lf: lf(res.cover, None, None, m))
+        new, inner = _inner_adam(surrogate, days, losses, params, theta, scale, bnd, steps, lr,
+                                 lr_final)
         move = max(abs(new[p] - theta[p]) / scale[p] for p in params)
+        last = days[-1]
         rows.append({"iteration": k, "params": dict(theta), "discrete_loss": ld,
-                     "covered_m2_discrete": float(np.sum(D * surrogate.data.areas)),
-                     "covered_m2_relaxed": float(np.sum(R * surrogate.data.areas)),
-                     "inner_loss": r.loss, "next": dict(new), "move": move,
+                     "covered_m2_discrete": float(np.sum(D[last] * data.areas)),
+                     "covered_m2_relaxed": float(np.sum(R[last] * data.areas)),
+                     "inner_loss": inner, "next": dict(new), "move": move,
                      "seconds": time.perf_counter() - t0})
         if verbose:
             print(f"  iteration {k}: " + ", ".join(f"{p} {theta[p]:.5g} -> {new[p]:.5g}"
                                                     for p in params)
-                  + f"; discrete loss {ld:.3e}, covered discrete "
+                  + f"; discrete loss {ld:.3e}, covered on day {last}: discrete "
                   f"{rows[-1]['covered_m2_discrete']:.4f} / relaxed "
                   f"{rows[-1]['covered_m2_relaxed']:.4f} m2", flush=True)
         theta = new
         if move < tol:
             break
-    D = discrete.to_layout(discrete.run(theta).mean(), data.shape_slices)
-    ld = patch_loss_value(D, data.areas, labels, tgt_patch, loss)
+    D, ld = discrete_eval(theta)
     rows.append({"iteration": len(rows), "params": dict(theta), "discrete_loss": ld,
-                 "covered_m2_discrete": float(np.sum(D * surrogate.data.areas)),
+                 "covered_m2_discrete": float(np.sum(D[days[-1]] * data.areas)),
                  "seconds": time.perf_counter() - t0})
     res = DiscreteFitResult(theta, start, rows, ld, time.perf_counter() - t0)
     if out is not None:
