@@ -5,14 +5,17 @@ Target: the mean covered fraction per triangle of ``--target-seeds`` discrete ru
 scenario's (true) values, or with ``--truth NAME=VALUE`` changed; the fit runs the discrete
 model on other seeds (``--seeds``, common random numbers) and the relaxed model (near field) for
 the gradient. One parameter at a time from -30 % and +30 % starts, then jointly from box corners.
-For T1 the +-30 % is of its range T1 - T0 (25 K). ``--tree X,Z`` adds a 3 m Weber-Penn aspen to the scenario and
-makes the target (and the fit's discrete runs) with WorldSimulation: the tree shades the ground;
-the relaxed surrogate has no tree.
+For T1 the +-30 % is of its range T1 - T0 (25 K). ``--tree X,Z`` adds a 3 m Weber-Penn aspen
+to the scenario and makes the target (and the fit's discrete runs) with WorldSimulation: the
+tree shades the ground; the relaxed surrogate has no tree. ``--report 10,20,30``: the target
+is the maps of those days (a time series).
 
     python experiments/tune_discrete_fit.py --params S1,T1,alpha_g --days 30 --photons 250000
     python experiments/tune_discrete_fit.py --params strength.sky --joint 0
     python experiments/tune_discrete_fit.py --tree 0.3,1.4 --start-date 2026-05-01 \
-        --params S1 --joint 0 --seeds 0-5
+        --params S1 --starts -0.3 --joint 0 --days 25 --target-seeds 100-103 --seeds 0-3
+    python experiments/tune_discrete_fit.py --params S1,T1,alpha_g --starts "" --joint 1 \
+        --iterations 6 --steps 20 --report 10,20,30
 """
 from __future__ import annotations
 
@@ -96,7 +99,8 @@ def main():
     report = [int(d) for d in a.report.split(",")] if a.report else [a.days]
     tr = tm.run(truth, report=report)
     target = {d: tm.to_layout(tr.mean(d), data.shape_slices) for d in report}
-    print(f"target: mean of {len(tm.seeds)} discrete runs ({'world: garden + aspen' if world else 'garden'}, "
+    kind = "world: garden + aspen" if world else "garden"
+    print(f"target: mean of {len(tm.seeds)} discrete runs ({kind}, "
           f"{a.days} days, {a.photons} photons), truth {truth}: covered "
           f"{np.mean(tr.total[:, -1]):.4f} m2 (sd {np.std(tr.total[:, -1]):.4f}); maps of days "
           f"{report}; "

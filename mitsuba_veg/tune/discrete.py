@@ -172,8 +172,8 @@ class DiscreteMossModel:
         n = max(sl.stop for sl in shape_slices.values())
         out = np.full(n, np.nan)
         for sid, sl in shape_slices.items():
-            if sid not in self.shape_slices or \
-                    sl.stop - sl.start != self.shape_slices[sid].stop - self.shape_slices[sid].start:
+            own = self.shape_slices.get(sid)
+            if own is None or sl.stop - sl.start != own.stop - own.start:
                 raise ParameterError("shape_slices", sid, "shapes of the discrete model's terrain "
                                      f"({list(self.shape_slices)}) with the same triangles")
             out[sl] = np.asarray(cover)[self.shape_slices[sid]]

@@ -18,7 +18,8 @@ occlusion is handled by the ray cast; pixels that hit nothing or a shape without
   (sRGB 0-1, as a colour picker gives them) in linear light: c = clip(<p - b, m - b> / |m - b|^2,
   0, 1), with p, b, m linearised by the sRGB transfer curve.
 
-Triangles seen by fewer than ``min_pixels`` pixels are NaN (ignored by :func:`mitsuba_veg.tune.fit`).
+Triangles seen by fewer than ``min_pixels`` pixels are NaN (ignored by
+:func:`mitsuba_veg.tune.fit`).
 :func:`render_cover_image` makes the synthetic photograph of a cover map with the same camera
 (the example and the tests use it for round trips).
 """
@@ -52,7 +53,8 @@ def load_camera(camera) -> dict:
         raise ParameterError("camera", type(camera).__name__, "a dict or a JSON file")
     for k in camera:
         if k not in _CAMERA_KEYS:
-            raise ParameterError(f"camera.{k}", camera[k], "one of " + ", ".join(sorted(_CAMERA_KEYS)),
+            raise ParameterError(f"camera.{k}", camera[k],
+                                 "one of " + ", ".join(sorted(_CAMERA_KEYS)),
                                  "remove or rename the field")
     out = {"up": [0.0, 0.0, -1.0]}
     out.update(camera)
