@@ -66,6 +66,8 @@ def main():
                     "of maps; default: the last day)")
     ap.add_argument("--closure", default="near-field")
     ap.add_argument("--temperature", type=float, default=0.02)
+    ap.add_argument("--eval", action="append", default=[],
+                    help="only print the discrete loss (fit seeds) at NAME=V,NAME=V points")
     ap.add_argument("--out", default="out/tune_discrete_fit")
     a = ap.parse_args()
     out = Path(a.out)
@@ -105,6 +107,22 @@ def main():
           f"{np.mean(tr.total[:, -1]):.4f} m2 (sd {np.std(tr.total[:, -1]):.4f}); maps of days "
           f"{report}; "
           f"set-up {time.perf_counter() - t0:.0f} s", flush=True)
+    if a.eval:
+        from mitsuba_veg.tune.discrete import patch_cover, patch_labels, patch_loss_value
+        for point in a.eval:
+            th = {k: float(v) for k, v in (x.split("=") for x in point.split(","))}
+            r = dm.run(th, report=report)
+            ls = []
+            for d in report:
+                lab = patch_labels(data.index.centroids, data.shape_slices,
+                                   data.living & np.isfinite(target[d]), a.patch)
+                tp = patch_cover(np.nan_to_num(target[d]), data.areas, lab)
+                D = dm.to_layout(r.mean(d), data.shape_slices)
+                ls.append(patch_loss_value(D, data.areas, lab, tp))
+            per_day = ", ".join(f"{x:.3e}" for x in ls)
+            print(f"discrete loss at {th}: {np.mean(ls):.4e} (per day {per_day}); covered on "
+                  f"day {report[-1]} {np.mean(r.total[:, -1]):.4f} m2", flush=True)
+        return
     scale = {p: parameter_scale(sm, p) for p in names}
     box = {p: 0.3 * (scale[p] if p in ("T1", "T0") else truth[p]) for p in names}
     rows = []
