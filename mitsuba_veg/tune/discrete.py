@@ -13,8 +13,8 @@ supplies the gradient, the discrete model D supplies the values. At iterate thet
     shift_k = D(theta_k) - R(theta_k)              (per triangle; mean over the seeds)
     theta_(k+1) = argmin_theta  loss(R(theta) + shift_k, target)
 
-(an Adam fit of the relaxed model from theta_k, gradients by the day-by-day adjoint). A fixed point
-has R(theta*) + shift = D(theta*), i.e. the *discrete* coverage matches the target as well as
+(an Adam fit of the relaxed model from theta_k, gradients by the day-by-day adjoint). A fixed
+point has R(theta*) + shift = D(theta*), i.e. the *discrete* coverage matches the target as well as
 the relaxed model's parameter directions allow; the relaxed model's error (the spatial closure,
 docs/tuning.md) only enters through its Jacobian, which sets the rate of convergence, not the
 answer. Linearised, the step is theta_(k+1) - theta_k = J_R^+ (target - D(theta_k)): a
@@ -408,8 +408,8 @@ def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_fi
 def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: dict | None = None,
                  iterations: int = 5, steps: int = 25, lr: float = 0.08, lr_final: float = 0.05,
                  loss: str = "sqrt", patch: float = 0.2, tol: float = 0.01,
-                 scales: dict | None = None,
-                 out=None, progress: bool = False, verbose: bool = False) -> DiscreteFitResult:
+                 scales: dict | None = None, out=None,
+                 verbose: bool = False) -> DiscreteFitResult:
     """Fit parameters of the *discrete* model to ``target`` by defect correction (module
     docstring).
 
@@ -446,6 +446,8 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         Natural scale per parameter (default: :func:`mitsuba_veg.tune.fit.parameter_scale`).
     out : path, optional
         Folder for ``fitted_discrete.json``.
+    verbose : bool
+        Print one line per outer iteration.
 
     Returns
     -------
