@@ -56,6 +56,8 @@ def main():
     ap.add_argument("--truth", action="append", default=[], help="NAME=VALUE of the target")
     ap.add_argument("--starts", default="-0.3,0.3", help="relative starts, one at a time")
     ap.add_argument("--joint", type=int, default=2, help="joint fits (box corners)")
+    ap.add_argument("--corners", default=None, help="which corners (indices 0-3 of (-,+,-), "
+                    "(+,-,+), (-,-,-), (+,+,+)), e.g. 1; default: the first --joint")
     ap.add_argument("--iterations", type=int, default=5)
     ap.add_argument("--steps", type=int, default=25)
     ap.add_argument("--tree", default=None, help="world target: add a Weber-Penn aspen at "
@@ -145,7 +147,8 @@ def main():
     for p in names:
         for sgn in starts:
             one([p], {p: truth[p] + sgn / 0.3 * box[p]})
-    corners = [(-1, 1, -1), (1, -1, 1), (-1, -1, -1), (1, 1, 1)][:a.joint]
+    corners = [(-1, 1, -1), (1, -1, 1), (-1, -1, -1), (1, 1, 1)]
+    corners = [corners[int(i)] for i in a.corners.split(",")] if a.corners else corners[:a.joint]
     if len(names) > 1 and corners:
         print("jointly:")
         for c in corners:
