@@ -56,7 +56,6 @@ def test_bad_parameters(dm):
 
 
 def test_patches(dm, base):
-    from mitsuba_veg.scenario import load_scenario  # noqa: F401
     data_c = np.asarray(base.cover[0, -1])
     cen = np.zeros((dm.n, 3))
     lab = patch_labels(cen, dm.shape_slices, np.ones(dm.n, bool), 0.2)
