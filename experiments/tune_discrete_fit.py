@@ -68,6 +68,8 @@ def main():
                     "of maps; default: the last day)")
     ap.add_argument("--closure", default="near-field")
     ap.add_argument("--temperature", type=float, default=0.02)
+    ap.add_argument("--init", default=None, help="a joint start NAME=V,NAME=V (instead of "
+                    "box corners; e.g. to continue a fit)")
     ap.add_argument("--eval", action="append", default=[],
                     help="only print the discrete loss (fit seeds) at NAME=V,NAME=V points")
     ap.add_argument("--out", default="out/tune_discrete_fit")
@@ -149,7 +151,10 @@ def main():
             one([p], {p: truth[p] + sgn / 0.3 * box[p]})
     corners = [(-1, 1, -1), (1, -1, 1), (-1, -1, -1), (1, 1, 1)]
     corners = [corners[int(i)] for i in a.corners.split(",")] if a.corners else corners[:a.joint]
-    if len(names) > 1 and corners:
+    if a.init:
+        print("jointly, from --init:")
+        one(names, {k: float(v) for k, v in (x.split("=") for x in a.init.split(","))})
+    elif len(names) > 1 and corners:
         print("jointly:")
         for c in corners:
             one(names, {p: truth[p] + s * box[p] for p, s in zip(names, c)})
