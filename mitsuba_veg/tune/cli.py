@@ -5,9 +5,13 @@
     python -m mitsuba_veg.tune SCENARIO.toml --target synthetic:S1=60,T1=299.15 --init S1=42
 
 TARGET: a discrete run's ``checkpoint.npz`` (its covered fraction per triangle), a ``.npy``
-file with one covered fraction per triangle (scene order, NaN = ignore), or
+file with one covered fraction per triangle (scene order, NaN = ignore), an image of the
+terrain (``.png``/``.jpg``) with ``--camera camera.json`` (``tune.photo``: per-triangle cover
+from the pixels each triangle covers; ``--photo-mode colour|gray``), or
 ``synthetic:NAME=VALUE,...`` (a relaxed run with those parameters). Writes ``fitted.json``,
-``loss_curve.png`` and ``coverage.png`` into ``--out``.
+``loss_curve.png`` and ``coverage.png`` into ``--out``. ``--discrete-seeds 0-7`` fits the
+*discrete* model on those seeds (``tune.fit_discrete``: defect correction, the relaxed model
+supplies the gradient; writes ``fitted_discrete.json``).
 """
 from __future__ import annotations
 
@@ -35,6 +39,22 @@ def _pairs(text: str | None, what: str) -> dict:
         if not math.isfinite(out[k.strip()]):
             raise ParameterError(f"{what} {k.strip()}", v.strip(), "a finite number",
                                  f"e.g. {what} {k.strip()}=42")
+    return out
+
+
+def _seeds(text: str) -> list[int]:
+    from ..errors import ParameterError
+    try:
+        if "-" in text:
+            lo, hi = (int(x) for x in text.split("-"))
+            out = list(range(lo, hi + 1))
+        else:
+            out = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        out = []
+    if not out or min(out) < 0:
+        raise ParameterError("--discrete-seeds", text, "a range A-B or a list A,B,C of seeds "
+                             ">= 0", "e.g. --discrete-seeds 0-7")
     return out
 
 
@@ -68,9 +88,18 @@ def _cmd_tune(a) -> int:
                                  "e.g. --target synthetic:S1=60")
     else:
         p = Path(t)
-        if not p.is_file() or p.suffix not in (".npz", ".npy"):
-            raise ParameterError("--target", t, "an existing .npz checkpoint, .npy file or "
-                                 "synthetic:NAME=VALUE,...", "check the path")
+        image = p.suffix.lower() in (".png", ".jpg", ".jpeg")
+        if not p.is_file() or not (p.suffix in (".npz", ".npy") or image):
+            raise ParameterError("--target", t, "an existing .npz checkpoint, .npy file, "
+                                 ".png/.jpg image (with --camera) or synthetic:NAME=VALUE,...",
+                                 "check the path")
+        if image and not a.camera:
+            raise ParameterError("--camera", None, "a camera JSON file for an image target",
+                                 "give --camera camera.json (origin, target, up, fov, width, "
+                                 "height; docs/tuning.md)")
+        if image:
+            from .photo import load_camera
+            load_camera(a.camera)  # refused before any work
         if p.suffix == ".npy":
             try:
                 target = np.load(p, allow_pickle=False)
@@ -96,12 +125,32 @@ def _cmd_tune(a) -> int:
     if t.startswith("synthetic:"):
         with dr.suspend_grad():
             target = np.asarray(model.run(synthetic).cover)
+    elif target is None and Path(t).suffix.lower() in (".png", ".jpg", ".jpeg"):
+        from .photo import cover_from_image
+        target = cover_from_image(Path(t), a.camera, data.scene, data.index, living=data.living,
+                                  mode=a.photo_mode)
     elif target is None:
         target = coverage_from_checkpoint(Path(t), data)
     if target.shape != (data.n,):
         raise ParameterError("--target", t, f"one covered fraction per triangle ({data.n} "
                              f"values; got {target.shape[0]})", "use a target made for this "
                              "scenario's scene")
+    if a.discrete_seeds:
+        from .discrete import DiscreteMossModel, fit_discrete
+        seeds = _seeds(a.discrete_seeds)
+        if a.loss == "l1":
+            raise ParameterError("--loss", a.loss, "sqrt or mse with --discrete-seeds")
+        dm = DiscreteMossModel(a.scenario, data.days, species=species, seeds=seeds,
+                               photons=a.photons, overrides=a.set or ())
+        dres = fit_discrete(dm, model, target, params, init=init, loss=a.loss,
+                            out=a.out, verbose=not a.quiet)
+        folder.release()
+        if not a.quiet:
+            for k, v in dres.values.items():
+                print(f"{k}: {dres.initial[k]:.6g} -> {v:.6g} (discrete model, seeds "
+                      f"{a.discrete_seeds})")
+            print(f"  {dres.files['fitted']}")
+        return 0
     res = fit(model, target, params=params, loss=a.loss, steps=a.steps, lr=a.lr,
               init=init, out=a.out, progress=not a.quiet)
     folder.release()
@@ -147,6 +196,13 @@ def add_parser(subparsers):
     p.add_argument("--closure", default="mean-field", choices=("mean-field", "near-field"),
                    help="spatial closure of the relaxed model (near-field: gemmae crowded by "
                         "their siblings, closer to discrete runs; docs/tuning.md)")
+    p.add_argument("--camera", help="camera JSON of an image target (origin, target, up, fov, "
+                   "width, height)")
+    p.add_argument("--photo-mode", default="colour", choices=("colour", "gray"),
+                   help="image target: colour photograph unmixed between bare soil and moss, "
+                        "or gray value = covered fraction")
+    p.add_argument("--discrete-seeds", help="fit the discrete model on these seeds, e.g. 0-7 "
+                   "(defect correction; slow: 1 discrete run per seed and iteration)")
     add_photons(p, None, "per up-front light pass (default: the scenario's light.photons)")
     p.add_argument("--light-every", type=ranged(int, 1, 100_000, "days"), default=15,
                    help="days between sun-path light passes")

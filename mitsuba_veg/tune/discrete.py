@@ -1,0 +1,545 @@
+"""The discrete moss run as a function of its parameters, and fits *of the discrete model*.
+
+:class:`DiscreteMossModel` runs :class:`~mitsuba_veg.simulation.MossSimulation` (or a
+:class:`~mitsuba_veg.world.simulation.WorldSimulation`: trees in the light) with given parameter
+values on a fixed set of seeds (common random numbers: the same seeds at every evaluation, so
+that two evaluations differ only through the parameters) and returns the covered fraction per
+triangle, per seed and day.
+
+:func:`fit_discrete` fits the parameters of the discrete model to a target coverage map by
+*defect correction* (output space mapping): the relaxed model R (:class:`SmoothMossModel`)
+supplies the gradient, the discrete model D supplies the values. At iterate theta_k
+
+    shift_k = D(theta_k) - R(theta_k)              (per triangle; mean over the seeds)
+    theta_(k+1) = argmin_theta  loss(R(theta) + shift_k, target)
+
+(an Adam fit of the relaxed model from theta_k, gradients by the day-by-day adjoint). A fixed
+point has R(theta*) + shift = D(theta*), i.e. the *discrete* coverage matches the target as well as
+the relaxed model's parameter directions allow; the relaxed model's error (the spatial closure,
+docs/tuning.md) only enters through its Jacobian, which sets the rate of convergence, not the
+answer. Linearised, the step is theta_(k+1) - theta_k = J_R^+ (target - D(theta_k)): a
+Gauss-Newton step with the relaxed Jacobian in place of the discrete one (whose pathwise
+derivative is zero almost everywhere: the discrete coverage is a step function of every
+parameter). docs/tuning.md has the measurements.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import drjit as dr
+import numpy as np
+
+from ..errors import ParameterError
+from ..moss.species import PARAMETER_FIELDS
+
+__all__ = ["DiscreteMossModel", "DiscreteResult", "DiscreteFitResult", "fit_discrete",
+           "patch_labels", "patch_cover", "patch_loss_value"]
+
+_CLIMATE = ("T", "rh")
+
+
+def _tuned_class(base):
+    """A subclass of ``base`` whose light is scaled by emitter strengths (s_sun, s_sky): the
+    photon pass is linear in each emitter's strength, so f_sun s_sun and f_sky s_sky are the
+    pass of scaled emitters (same photons)."""
+
+    class Tuned(base):
+        strength = (1.0, 1.0)
+
+        def light(self, day, counts):
+            S, f_sun, f_sky, res = super().light(day, counts)
+            s_sun, s_sky = self.strength
+            if (s_sun, s_sky) != (1.0, 1.0):
+                f_sun, f_sky = f_sun * s_sun, f_sky * s_sky
+                wd = self.weather
+                S = wd.beam[day] * f_sun + wd.diffuse[day] * f_sky
+            return S, f_sun, f_sky, res
+
+    Tuned.__name__ = f"Tuned{base.__name__}"
+    return Tuned
+
+
+@dataclass
+class DiscreteResult:
+    """Discrete runs of one parameter set, one per seed."""
+
+    params: dict                  # the parameter values of the runs
+    seeds: list                   # the seeds (``light.seed``)
+    report: list                  # reported days (1-based)
+    cover: np.ndarray             # (seeds, len(report), n) covered fraction per terrain
+    #                               triangle [-] (DiscreteMossModel.shape_slices' layout)
+    total: np.ndarray             # (seeds, days) covered area [m2]
+    regions: dict                 # name -> (seeds, days) covered area of the region [m2]
+    seconds: float = 0.0
+
+    def mean(self, day: int | None = None) -> np.ndarray:
+        """Mean over the seeds of the covered fraction per triangle on ``day`` (default: the
+        last reported day)."""
+        k = len(self.report) - 1 if day is None else self.report.index(int(day))
+        return self.cover[:, k].mean(0)
+
+
+class DiscreteMossModel:
+    """The discrete moss run of a scenario as a function of parameters, on fixed seeds.
+
+    Parameters
+    ----------
+    scenario : path or Scenario
+        The scenario (TOML path or loaded :class:`~mitsuba_veg.scenario.Scenario`).
+    days : int
+        Days to run [d].
+    species : list of str, optional
+        Species keys replacing ``moss.species``.
+    seeds : iterable of int
+        ``light.seed`` of the runs (light, rain days, placement and dispersal all change);
+        the same seeds at every evaluation (common random numbers).
+    photons : int, optional
+        Photons per daily light pass (default: the scenario's).
+    overrides : list of str
+        Further ``KEY=VALUE`` scenario overrides.
+    world : bool
+        Run :class:`~mitsuba_veg.world.simulation.WorldSimulation` (the scenario's trees shade
+        the terrain) instead of :class:`~mitsuba_veg.simulation.MossSimulation`.
+
+    Parameter names (as :class:`~mitsuba_veg.tune.SmoothMossModel`): species fields (``"S1"``,
+    ``"bryum_argenteum.alpha_g"`` ...), ``"T"`` and ``"rh"`` (the daily air temperature [K] and
+    humidity [-] shifted so that their mean is the value), ``"albedo.<shape>"`` (the bare
+    surface's reflectance in the total band [-]) and ``"strength.sun"``, ``"strength.sky"``
+    (emitter scale [-]).
+    """
+
+    def __init__(self, scenario, days: int, species=None, seeds=range(8),
+                 photons: int | None = None, overrides=(), world: bool = False):
+        from ..scenario import Scenario, load_scenario
+        scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
+        if isinstance(scenario, Scenario) and overrides:
+            raise ParameterError("overrides", list(overrides), "none with a loaded Scenario",
+                                 "apply them when loading it (load_scenario(path, overrides))")
+        data = copy.deepcopy(scn.data)
+        if species is not None:
+            data.setdefault("moss", {})["species"] = list(species)
+        if photons is not None:
+            data.setdefault("light", {})["photons"] = int(photons)
+        data.setdefault("simulation", {})["checkpoint_every"] = 0
+        self.scenario = Scenario(scn.path, data)
+        if int(days) < 1:
+            raise ParameterError("days", days, ">= 1")
+        self.days = int(days)
+        self.seeds = [int(s) for s in seeds]
+        if not self.seeds:
+            raise ParameterError("seeds", list(seeds), "at least one seed")
+        self.world = bool(world)
+        if self.world:
+            from ..world.simulation import WorldSimulation as base
+            if not self.scenario.get("trees"):
+                raise ParameterError("trees", None, "at least one [[trees]] entry for world=True",
+                                     "add trees to the scenario or use world=False")
+        else:
+            from ..simulation import MossSimulation as base
+        self._cls = _tuned_class(base)
+        sim = self._sim(self.seeds[0], {})
+        # the terrain's elements (a world's tree leaves left out), shape by shape
+        terrain = sorted((sim.index.shape_slice(sid).start, sid) for sid in sim.terrain_shapes
+                         if sid in sim.index.geometry)
+        self.elements = np.concatenate([np.arange(sim.index.shape_slice(sid).start,
+                                                  sim.index.shape_slice(sid).stop)
+                                        for _, sid in terrain])
+        self.shape_slices, k = {}, 0
+        for _, sid in terrain:
+            sl = sim.index.shape_slice(sid)
+            self.shape_slices[sid] = slice(k, k + sl.stop - sl.start)
+            k += sl.stop - sl.start
+        self.n = len(self.elements)
+        self.areas = np.asarray(sim.index.areas, float)[self.elements]
+        self.cell = float(sim.moss_cfg["size"])
+        self.species_keys = list(sim.moss_cfg["species"])
+        self.species = list(sim.species)
+        self.base_albedo = np.asarray(sim.base_albedo[:, 0], float)[self.elements]
+        self.region_masks = dict(sim.regions)
+        self.climate_mean = {"T": float(np.mean(sim.weather.T)),
+                             "rh": float(np.mean(sim.weather.rh))}
+        self.evaluations = 0
+
+    def to_layout(self, cover, shape_slices: dict) -> np.ndarray:
+        """A per-element array of this model (``self.shape_slices``' layout) in another model's
+        layout (``{shape_id: slice}``, e.g. ``ModelData.shape_slices``): shape by shape."""
+        n = max(sl.stop for sl in shape_slices.values())
+        out = np.full(n, np.nan)
+        for sid, sl in shape_slices.items():
+            own = self.shape_slices.get(sid)
+            if own is None or sl.stop - sl.start != own.stop - own.start:
+                raise ParameterError("shape_slices", sid, "shapes of the discrete model's terrain "
+                                     f"({list(self.shape_slices)}) with the same triangles")
+            out[sl] = np.asarray(cover)[self.shape_slices[sid]]
+        return out
+
+    # ---- parameters -------------------------------------------------------------------------
+    def _canonical(self, name: str):
+        if name in _CLIMATE:
+            return ("climate", name)
+        if name.startswith("albedo."):
+            sid = name.split(".", 1)[1]
+            if sid not in getattr(self, "shape_slices", {sid: None}):
+                raise ParameterError(name, None, f"albedo.<shape> with a shape among "
+                                     f"{list(self.shape_slices)}")
+            return ("albedo", sid)
+        if name in ("strength.sun", "strength.sky"):
+            if self.world:
+                raise ParameterError("params", name, "species, climate or albedo parameters "
+                                     "with world=True", "the trees' leaf light is not scaled: "
+                                     "fit emitter strengths on a scenario without trees")
+            return ("strength", name.split(".")[1])
+        keys = getattr(self, "species_keys", None) or \
+            list(self.scenario.get("moss.species", []) or [])
+        if "." in name:
+            key, f = name.split(".", 1)
+            if key in keys and f in PARAMETER_FIELDS:
+                return ("species", keys.index(key), f)
+        elif name in PARAMETER_FIELDS:
+            if len(keys) != 1:
+                raise ParameterError("params", name, f"'<species>.{name}' with a species among "
+                                     f"{keys}", "name the species (the run has several)")
+            return ("species", 0, name)
+        raise ParameterError("params", name, "a species field (" + ", ".join(PARAMETER_FIELDS)
+                             + "), T, rh, albedo.<shape>, strength.sun or strength.sky")
+
+    def default_value(self, name: str) -> float:
+        """The scenario's value of a parameter."""
+        c = self._canonical(name)
+        if c[0] == "climate":
+            return self.climate_mean[c[1]]
+        if c[0] == "albedo":
+            return float(np.mean(self.base_albedo[self.shape_slices[c[1]]]))
+        if c[0] == "strength":
+            return 1.0
+        return float(getattr(self.species[c[1]], c[2]))
+
+    def _sim(self, seed: int, params: dict):
+        data = copy.deepcopy(self.scenario.data)
+        data.setdefault("light", {})["seed"] = int(seed)
+        from ..scenario import Scenario
+        scn = Scenario(self.scenario.path, data)
+        sim = self._cls(scn, tempfile.gettempdir(), days=self.days, progress=False)
+        albedo, strength = {}, [1.0, 1.0]
+        for name, v in params.items():
+            v = float(v)
+            if not math.isfinite(v):
+                raise ParameterError(f"params[{name!r}]", v, "a finite number")
+            c = self._canonical(name)
+            if c[0] == "species":
+                sim.species[c[1]] = dataclasses.replace(sim.species[c[1]], **{c[2]: v})
+            elif c[0] == "climate":
+                w = sim.weather
+                if c[1] == "T":
+                    sim.weather = dataclasses.replace(w, T=w.T + (v - np.mean(w.T)))
+                else:
+                    if not 0.0 < v <= 1.0:
+                        raise ParameterError("params['rh']", v, "(0, 1]")
+                    sim.weather = dataclasses.replace(w, rh=w.rh + (v - np.mean(w.rh)))
+            elif c[0] == "albedo":
+                if not 0.0 <= v <= 1.0:
+                    raise ParameterError(f"params[{name!r}]", v, "[0, 1]")
+                albedo[c[1]] = v
+            else:
+                if v < 0:
+                    raise ParameterError(f"params[{name!r}]", v, ">= 0")
+                strength[0 if c[1] == "sun" else 1] = v
+        sim.strength = tuple(strength)
+        sim.setup()
+        for sid, v in albedo.items():
+            sim.base_albedo[sim.index.shape_slice(sid), 0] = v
+        return sim
+
+    # ---- runs -------------------------------------------------------------------------------
+    def run(self, params: dict | None = None, report=None, seeds=None) -> DiscreteResult:
+        """Run every seed with ``params`` (other parameters: the scenario's).
+
+        report: days (1-based) whose per-triangle cover is kept (default: the last day).
+        """
+        t0 = time.perf_counter()
+        params = dict(params or {})
+        report = [self.days] if report is None else sorted(int(d) for d in report)
+        for d in report:
+            if not 1 <= d <= self.days:
+                raise ParameterError("report", d, f"days in [1, {self.days}]")
+        seeds = self.seeds if seeds is None else [int(s) for s in seeds]
+        covers, totals, regions = [], [], {k: [] for k in self.region_masks}
+        for s in seeds:
+            sim = self._sim(s, params)
+            sim.initialise()
+            cov, tot, reg = [], [], {k: [] for k in self.region_masks}
+            for day in range(1, self.days + 1):
+                rec = sim.step()
+                tot.append(rec["covered_area_m2"])
+                for k in reg:
+                    reg[k].append(rec["regions"][k])
+                if day in report:
+                    c = sim._counts()[self.elements]
+                    cov.append(np.minimum(c * self.cell ** 2, self.areas) / self.areas)
+            covers.append(cov)
+            totals.append(tot)
+            for k in reg:
+                regions[k].append(reg[k])
+        self.evaluations += 1
+        return DiscreteResult(params, seeds, report, np.asarray(covers), np.asarray(totals),
+                              {k: np.asarray(v) for k, v in regions.items()},
+                              time.perf_counter() - t0)
+
+
+# ------------------------------------------------------------------------------------------
+# the fit of the discrete model
+# ------------------------------------------------------------------------------------------
+@dataclass
+class DiscreteFitResult:
+    values: dict                  # fitted values (the last iterate)
+    initial: dict
+    iterations: list              # per outer iteration: params, discrete loss, shift norm ...
+    discrete_loss: float          # loss of the discrete mean at ``values``
+    seconds: float = 0.0
+    files: dict = field(default_factory=dict)
+
+
+def patch_labels(centroids, shape_slices: dict, usable, size: float) -> np.ndarray:
+    """Patch number of every triangle: triangles of one shape whose centroids fall into the same
+    cube of side ``size`` [m] form a patch; triangles not ``usable`` get -1."""
+    if not size > 0:
+        raise ParameterError("patch", size, "> 0 [m]")
+    n = len(centroids)
+    key = np.full((n, 4), -1, np.int64)
+    for k, sl in enumerate(shape_slices.values()):
+        key[sl, 0] = k
+    key[:, 1:] = np.floor(np.asarray(centroids) / size).astype(np.int64)
+    labels = np.full(n, -1, np.int64)
+    ok = np.asarray(usable, bool) & (key[:, 0] >= 0)
+    _, inv = np.unique(key[ok], axis=0, return_inverse=True)
+    labels[ok] = inv.ravel()
+    return labels
+
+
+def patch_cover(cover, areas, labels) -> np.ndarray:
+    """Area-weighted covered fraction of every patch (NumPy)."""
+    n_p = int(labels.max()) + 1
+    ok = labels >= 0
+    a = np.bincount(labels[ok], weights=areas[ok], minlength=n_p)
+    c = np.bincount(labels[ok], weights=(np.asarray(cover, float) * areas)[ok], minlength=n_p)
+    return c / np.maximum(a, 1e-30)
+
+
+def _patch_loss(shift, areas, labels, target_patch, kind: str, T):
+    """Loss of the shifted relaxed cover, aggregated to patches (Dr.Jit, differentiable)."""
+    n_p = len(target_patch)
+    ok = labels >= 0
+    pa = np.bincount(labels[ok], weights=areas[ok], minlength=n_p)
+    idx = dr.uint32_array_t(T)(np.where(ok, labels, n_p).astype(np.uint32))
+    a_dr = T(np.where(ok, areas, 0.0))
+    inv = T(np.append(1.0 / np.maximum(pa, 1e-30), 0.0))
+    w = T(np.append(pa / pa.sum(), 0.0))
+    tg = T(np.append(target_patch, 0.0))
+
+    def loss(cover, target, weights, model):
+        pc = dr.zeros(T, n_p + 1)
+        dr.scatter_add(pc, (cover + shift) * a_dr, idx)
+        c = dr.maximum(pc * inv, 0.0)
+        if kind == "sqrt":
+            d = dr.sqrt(c + 1e-6) - dr.sqrt(tg + 1e-6)
+        else:
+            d = c - tg
+        return dr.sum(d * d * w)
+    loss.__name__ = f"{kind} of patch cover (shifted by the discrete defect)"
+    return loss
+
+
+def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> float:
+    """The loss of :func:`fit_discrete` (patch cover) with NumPy."""
+    c = patch_cover(cover, areas, labels)
+    ok = labels >= 0
+    pa = np.bincount(labels[ok], weights=areas[ok], minlength=len(c))
+    w = pa / pa.sum()
+    if kind == "sqrt":
+        d = np.sqrt(np.maximum(c, 0) + 1e-6) - np.sqrt(target_patch + 1e-6)
+    else:
+        d = c - target_patch
+    return float(np.sum(w * d * d))
+
+
+def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_final):
+    """Adam on the shifted relaxed losses (mean over the target days) from ``theta``, on the
+    normalised parameters (p - theta) / scale as :func:`mitsuba_veg.tune.fit`."""
+    import mitsuba as mi
+
+    from .grad import value_and_grad
+    T = model.T
+    opt = mi.ad.Adam(lr=lr, beta_1=0.9, beta_2=0.9)
+    for p in params:
+        opt[p] = T(0.0)
+    decay = lr_final ** (1.0 / max(steps - 1, 1))
+
+    def physical():
+        return {p: theta[p] + scale[p] * float(np.asarray(dr.detach(opt[p])).ravel()[0])
+                for p in params}
+    L = float("nan")
+    for k in range(steps):
+        vals = physical()
+        L, G = 0.0, {p: 0.0 for p in params}
+        for d, lf in zip(days, losses):
+            r = value_and_grad(model, vals, lf, days=d)
+            L += r.loss / len(days)
+            for p in params:
+                G[p] += r.grad[p] / len(days)
+        if not math.isfinite(L) or not all(math.isfinite(g) for g in G.values()):
+            raise FloatingPointError(f"fit_discrete: non-finite loss or gradient {L}, {G} at "
+                                     f"{vals}")
+        for p in params:
+            dr.set_grad(opt[p], T(G[p] * scale[p]))
+        opt.set_learning_rate(lr * decay ** k)
+        opt.step()
+        for p in params:
+            lo, hi = (bnd[p][0] - theta[p]) / scale[p], (bnd[p][1] - theta[p]) / scale[p]
+            opt[p] = dr.clip(dr.detach(opt[p]), lo, hi)
+    return physical(), L
+
+
+def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: dict | None = None,
+                 iterations: int = 5, steps: int = 25, lr: float = 0.08, lr_final: float = 0.05,
+                 loss: str = "sqrt", patch: float = 0.2, tol: float = 0.01,
+                 scales: dict | None = None, out=None,
+                 verbose: bool = False) -> DiscreteFitResult:
+    """Fit parameters of the *discrete* model to ``target`` by defect correction (module
+    docstring).
+
+    Parameters
+    ----------
+    discrete : DiscreteMossModel
+        The discrete model (its seeds are the common random numbers of every evaluation).
+    surrogate : SmoothMossModel
+        The relaxed model of the same scenario, days and species; it supplies the gradients.
+    target : ndarray or dict
+        Covered fraction per triangle [-] (scene order, NaN = ignore) on the last day, or
+        ``{day: map}`` for several days (a time series of maps: the loss is the mean over
+        the days; growth rate and light thresholds act differently over time).
+    params : list of str
+        Parameter names (valid for both models).
+    init : dict, optional
+        Starting values (default: the scenario's).
+    iterations : int
+        Outer iterations (one discrete ensemble each) at most.
+    steps, lr, lr_final : int, float, float
+        The inner Adam fit of the shifted relaxed model (as :func:`mitsuba_veg.tune.fit`:
+        normalised parameters, geometric decay to ``lr * lr_final``, bounds).
+    loss : {"sqrt", "mse"}
+        Squared difference of the square roots (default) or of the covered fractions, of
+        *patches*: the area-weighted cover of the triangles of one shape within a cube of side
+        ``patch``, weighted by the patch's area.
+    patch : float
+        Patch size [m]. A discrete map is a count of 1-cm individuals per triangle: per
+        triangle it is mostly noise (and zero), and the square root of a noisy zero biases the
+        fit; patches of 0.2 m on the garden hold 0-400 moss spots each.
+    tol : float
+        Stop when no parameter moved by more than ``tol`` times its scale in an iteration.
+    scales : dict, optional
+        Natural scale per parameter (default: :func:`mitsuba_veg.tune.fit.parameter_scale`).
+    out : path, optional
+        Folder for ``fitted_discrete.json``.
+    verbose : bool
+        Print one line per outer iteration.
+
+    Returns
+    -------
+    DiscreteFitResult
+        ``values`` (the last iterate), the per-iteration record (parameters, discrete loss,
+        inner-fit loss) and the discrete loss at ``values``.
+    """
+    from .fit import parameter_bounds, parameter_scale, target_array
+    t0 = time.perf_counter()
+    params = [params] if isinstance(params, str) else list(params)
+    if not params:
+        raise ParameterError("params", params, "at least one parameter name")
+    if iterations < 1:
+        raise ParameterError("iterations", iterations, ">= 1")
+    if steps < 1:
+        raise ParameterError("steps", steps, ">= 1")
+    if loss not in ("sqrt", "mse"):
+        raise ParameterError("loss", loss, "'sqrt' or 'mse'")
+    discrete.to_layout(np.zeros(discrete.n), surrogate.data.shape_slices)  # same terrain?
+    if surrogate.days != discrete.days:
+        raise ParameterError("surrogate.days", surrogate.days, f"{discrete.days} (the discrete "
+                             "model's days)", "run both models for the same days")
+    for p in params:
+        discrete._canonical(p)
+        surrogate._canonical(p)
+    if not isinstance(target, dict):
+        target = {discrete.days: target}
+    days = sorted(int(d) for d in target)
+    for d in days:
+        if not 1 <= d <= discrete.days:
+            raise ParameterError("target", f"day {d}", f"days in [1, {discrete.days}]",
+                                 "give {day: map} for simulated days")
+    data = surrogate.data
+    T = surrogate.T
+    tgt, labels, tgt_patch = {}, {}, {}
+    for d in days:
+        tgt[d] = target_array(surrogate, target[d])
+        labels[d] = patch_labels(data.index.centroids, data.shape_slices,
+                                 data.living & np.isfinite(tgt[d]), patch)
+        tgt_patch[d] = patch_cover(np.where(np.isfinite(tgt[d]), tgt[d], 0.0), data.areas,
+                                   labels[d])
+    theta = {p: float((init or {}).get(p, discrete.default_value(p))) for p in params}
+    start = dict(theta)
+    scale = {p: float((scales or {}).get(p, parameter_scale(surrogate, p))) for p in params}
+    bnd = {p: parameter_bounds(surrogate, p) for p in params}
+    rows = []
+
+    def discrete_eval(th):
+        r = discrete.run(th, report=days)
+        D = {d: discrete.to_layout(r.mean(d), data.shape_slices) for d in days}
+        ld = float(np.mean([patch_loss_value(D[d], data.areas, labels[d], tgt_patch[d], loss)
+                            for d in days]))
+        return D, ld
+
+    for k in range(iterations):
+        D, ld = discrete_eval(theta)
+        losses = []
+        with dr.suspend_grad():
+            R = {d: np.asarray(surrogate.run(theta, days=d).cover, float) for d in days}
+        for d in days:
+            lf = _patch_loss(T(D[d] - R[d]), data.areas, labels[d], tgt_patch[d], loss, T)
+            losses.append(lambda res, m, lf=lf: lf(res.cover, None, None, m))
+        new, inner = _inner_adam(surrogate, days, losses, params, theta, scale, bnd, steps, lr,
+                                 lr_final)
+        move = max(abs(new[p] - theta[p]) / scale[p] for p in params)
+        last = days[-1]
+        rows.append({"iteration": k, "params": dict(theta), "discrete_loss": ld,
+                     "covered_m2_discrete": float(np.sum(D[last] * data.areas)),
+                     "covered_m2_relaxed": float(np.sum(R[last] * data.areas)),
+                     "inner_loss": inner, "next": dict(new), "move": move,
+                     "seconds": time.perf_counter() - t0})
+        if verbose:
+            print(f"  iteration {k}: " + ", ".join(f"{p} {theta[p]:.5g} -> {new[p]:.5g}"
+                                                    for p in params)
+                  + f"; discrete loss {ld:.3e}, covered on day {last}: discrete "
+                  f"{rows[-1]['covered_m2_discrete']:.4f} / relaxed "
+                  f"{rows[-1]['covered_m2_relaxed']:.4f} m2", flush=True)
+        theta = new
+        if move < tol:
+            break
+    D, ld = discrete_eval(theta)
+    rows.append({"iteration": len(rows), "params": dict(theta), "discrete_loss": ld,
+                 "covered_m2_discrete": float(np.sum(D[days[-1]] * data.areas)),
+                 "seconds": time.perf_counter() - t0})
+    res = DiscreteFitResult(theta, start, rows, ld, time.perf_counter() - t0)
+    if out is not None:
+        import json
+        o = Path(out)
+        o.mkdir(parents=True, exist_ok=True)
+        p = o / "fitted_discrete.json"
+        p.write_text(json.dumps({"fitted": theta, "initial": start, "iterations": rows,
+                                 "discrete_loss": ld, "seeds": discrete.seeds,
+                                 "days": discrete.days, "seconds": res.seconds}, indent=1))
+        res.files["fitted"] = str(p)
+    return res

@@ -1,0 +1,102 @@
+"""Fits of the *discrete* moss model (mitsuba_veg.tune.discrete): the discrete run as a function
+of its parameters on fixed seeds, patch losses, and parameter recovery by defect correction from
+targets made by discrete runs on other seeds (docs/tuning.md). The acceptance here is small
+(15 days, 100 k photons, 4 + 4 seeds); experiments/tune_discrete_fit.py runs the 30-day set."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mitsuba_veg import tune
+from mitsuba_veg.errors import ParameterError
+from mitsuba_veg.tune.discrete import (DiscreteMossModel, fit_discrete, patch_cover,
+                                       patch_labels, patch_loss_value)
+
+ROOT = Path(__file__).resolve().parent.parent
+SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
+SP = ["bryum_argenteum"]
+DAYS, PHOTONS = 15, 100_000
+
+
+@pytest.fixture(scope="module")
+def dm():
+    return DiscreteMossModel(SCEN, DAYS, species=SP, seeds=range(4), photons=PHOTONS)
+
+
+@pytest.fixture(scope="module")
+def base(dm):
+    return dm.run({}, report=[10, 15], seeds=[0, 1])
+
+
+def test_common_random_numbers_and_parameters(dm, base):
+    again = dm.run({}, report=[10, 15], seeds=[0, 1])
+    assert np.array_equal(again.cover, base.cover)           # same seeds: identical runs
+    assert base.cover.shape == (2, 2, dm.n)
+    assert np.allclose(base.total[:, -1], (base.cover[:, -1] * dm.areas).sum(1))
+    # parameters reach the run: more growth -> more cover, less light -> other cover
+    more = dm.run({"alpha_g": 0.4}, seeds=[0, 1])
+    assert more.total[:, -1].mean() > 1.1 * base.total[:, -1].mean()
+    dark = dm.run({"strength.sky": 0.5, "strength.sun": 0.5}, seeds=[0, 1])
+    assert not np.array_equal(dark.cover[:, -1], base.cover[:, -1])
+    assert dm.default_value("S1") == 60.0 and dm.default_value("strength.sky") == 1.0
+    assert 0 < dm.default_value("albedo.ground") < 1
+
+
+def test_bad_parameters(dm):
+    with pytest.raises(ParameterError, match="S2"):
+        dm.run({"S2": 1.0})
+    with pytest.raises(ParameterError, match="albedo.moon"):
+        dm.run({"albedo.moon": 0.2})
+    with pytest.raises(ParameterError, match="alpha_g"):
+        dm.run({"alpha_g": 1.5})                              # species validation (0, 1)
+    with pytest.raises(ParameterError, match="report"):
+        dm.run({}, report=[DAYS + 1])
+    with pytest.raises(ParameterError, match="trees"):
+        DiscreteMossModel(SCEN, 2, species=SP, seeds=[0], photons=10_000, world=True)
+
+
+def test_patches(dm, base):
+    data_c = np.asarray(base.cover[0, -1])
+    cen = np.zeros((dm.n, 3))
+    lab = patch_labels(cen, dm.shape_slices, np.ones(dm.n, bool), 0.2)
+    assert lab.max() + 1 == len(dm.shape_slices)                  # one patch per shape
+    pc = patch_cover(data_c, dm.areas, lab)
+    for k, sl in enumerate(dm.shape_slices.values()):
+        assert pc[k] == pytest.approx((data_c[sl] * dm.areas[sl]).sum() / dm.areas[sl].sum())
+    assert patch_loss_value(data_c, dm.areas, lab, pc) == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(ParameterError):
+        patch_labels(cen, dm.shape_slices, np.ones(dm.n, bool), 0.0)
+
+
+@pytest.fixture(scope="module")
+def surrogate():
+    data = tune.prepare(SCEN, days=DAYS, species=SP, photons=PHOTONS, light_every=15)
+    return tune.SmoothMossModel(data, temperature=0.02, closure="near-field")
+
+
+@pytest.mark.slow
+def test_fit_discrete_recovers_alpha_g(dm, surrogate, tmp_path):
+    """alpha_g from -30 %: target = mean of 4 discrete runs on seeds 100-103 (~3 min on 2
+    shared cores: each iteration runs the 4 discrete runs and a 25-step relaxed fit)."""
+    tm = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=range(100, 104), photons=PHOTONS)
+    target = tm.run({}).mean()
+    res = fit_discrete(dm, surrogate, target, ["alpha_g"], init={"alpha_g": 0.21},
+                       iterations=4, steps=25, out=tmp_path)
+    assert abs(res.values["alpha_g"] / 0.3 - 1) < 0.05, res.iterations
+    # the discrete cover at the fit matches the target's (at the start it is far below)
+    tot = float(np.sum(target * dm.areas))
+    assert abs(res.iterations[-1]["covered_m2_discrete"] / tot - 1) < 0.1, res.iterations
+    assert res.iterations[0]["covered_m2_discrete"] < 0.9 * tot, res.iterations
+    assert (tmp_path / "fitted_discrete.json").exists()
+
+
+def test_fit_discrete_arguments(dm, surrogate):
+    t = np.zeros(dm.n)
+    with pytest.raises(ParameterError):
+        fit_discrete(dm, surrogate, t, [], iterations=1)
+    with pytest.raises(ParameterError):
+        fit_discrete(dm, surrogate, t, ["S1"], iterations=0)
+    with pytest.raises(ParameterError):
+        fit_discrete(dm, surrogate, t, ["S1"], loss="l1")
+    with pytest.raises(ParameterError):
+        fit_discrete(dm, surrogate, np.zeros(3), ["S1"])
