@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 
 from mitsuba_veg import tune  # noqa: E402
 from mitsuba_veg.tune.discrete import DiscreteMossModel, fit_discrete  # noqa: E402
-from mitsuba_veg.tune.fit import parameter_scale  # noqa: E402
+from mitsuba_veg.tune.fitting import parameter_scale  # noqa: E402
 from mitsuba_veg.scenario import Scenario, load_scenario  # noqa: E402
 
 

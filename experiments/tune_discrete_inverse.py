@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitsuba_veg import tune  # noqa: E402
-from mitsuba_veg.tune.fit import parameter_scale  # noqa: E402
+from mitsuba_veg.tune.fitting import parameter_scale  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 

@@ -54,7 +54,7 @@ def accuracy(days=30):
     import numpy as np
 
     from mitsuba_veg import tune
-    from mitsuba_veg.tune.fit import coverage_loss
+    from mitsuba_veg.tune.fitting import coverage_loss
     data = tune.prepare(SCEN, days=days, species=["bryum_argenteum"], photons=200_000,
                         light_every=15, differentiable_light=True)
     m = tune.SmoothMossModel(data, temperature=0.05, precision="float64")

@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 import drjit as dr  # noqa: E402
 
 from mitsuba_veg import tune  # noqa: E402
-from mitsuba_veg.tune.fit import parameter_scale  # noqa: E402
+from mitsuba_veg.tune.fitting import parameter_scale  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 

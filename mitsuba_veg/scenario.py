@@ -19,11 +19,16 @@ Sections used so far (paths relative to the scenario file):
 from __future__ import annotations
 
 import copy
+import datetime as _dt
+import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+import mitsuba as mi
+
 from .errors import ParameterError, unknown_field
+from .light.clear_sky import daylight as _daylight
 
 #: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
 #: (more gains little: the estimate's noise falls as 1/sqrt(N) and a day has other errors)
@@ -256,9 +261,6 @@ def _unknown(field: str, value, known: list[str], source):
 
 def _check_value(name: str, f: Field, v, source, known: list[str]):
     """Check one value against its field (recursively for tables)."""
-    import datetime as _dt
-    import math
-
     def bad(allowed, fix=None):
         return ParameterError(name, v, allowed, fix or f"set {name} to a value in the allowed "
                               "range (docs/scenario.md lists every field)", source)
@@ -388,8 +390,6 @@ class Scenario:
     def load_scene(self, daylight: bool | None = None):
         """The Mitsuba scene; with ``light.when`` set (or ``daylight=True``) its emitters are
         replaced by daylight for the site and time."""
-        import mitsuba as mi
-
         path = self.file("scene.file")
         try:
             scene = mi.load_file(str(path), optimize=False)
@@ -403,7 +403,6 @@ class Scenario:
         if when is None:
             raise ParameterError("light.when", None, "an ISO date-time like "
                                  "'2026-06-21T12:00:00+09:00'", "set light.when", str(self.path))
-        from .light.clear_sky import daylight as _daylight
         emitters = _daylight(self.get("site.latitude"), self.get("site.longitude"), when)
         if not emitters:
             raise ParameterError("light.when", when, "a time when the sun is above the horizon",

@@ -26,22 +26,19 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 # The layers, lowest first; a module belongs to the layer of its longest matching prefix (the
 # names are relative to ``mitsuba_veg``). Keep this table and docs/architecture.md the same.
 LAYERS: list[tuple[str, list[str]]] = [
-    ("base", ["backend", "errors", "atomic", "meshes", "outputs", "scenario", "plots"]),
+    ("base", ["backend", "errors", "atomic", "meshes", "outputs", "plots"]),
     ("light", ["light", "integrators"]),
-    ("ground", ["soil", "climate", "terrain"]),
+    ("ground", ["soil", "climate", "terrain", "scenario"]),
     ("models", ["moss", "trees", "foliage"]),
     ("daily loop", ["daily", "world"]),
     ("render/tune/sweeps", ["render", "tune", "sweeps"]),
-    ("cli", ["cli", "tune.cli"]),
+    ("cli", ["cli", "tune.__main__"]),
 ]
 # the package's own __init__ (the public facade, ``import mitsuba_veg as mv``) sits above all
 FACADE = PACKAGE
 
 # Imports inside functions that stay, with the reason (importer, imported module).
 LAZY_ALLOWED: dict[tuple[str, str], str] = {
-    ("mitsuba_veg.cli", "mitsuba_veg.cli.command"):
-        "module __getattr__ for `from mitsuba_veg.cli import main` (the installed entry point): "
-        "importing cli.args must not import every command while parsers outside cli/ use it",
     ("mitsuba_veg.cli.grow", "mitsuba_veg.trees.weber_penn"):
         "`model = \"weber_penn\"` without the module is a one-line error "
         "(tests/test_tree_cli.py::test_weber_penn_model)",
@@ -252,19 +249,9 @@ def test_every_module_has_a_layer():
         layer_of(m)
 
 
-# Modules being rewritten elsewhere while this checker landed: their findings are listed,
-# not fixed, here (issue 14 follow-up: move the light-study and tune parsers into cli/, hoist
-# their imports). Nothing else may import a function body's worth of the package.
-PENDING = {
-    "mitsuba_veg.scenario": "imports light.clear_sky to check [light] fields",
-    "mitsuba_veg.tune.__main__": "`python -m mitsuba_veg.tune` runs tune/cli.py",
-    "mitsuba_veg.tune.cli": "the tune parser, still outside cli/",
-    "mitsuba_veg.tune.fit": "imports not hoisted yet",
-    "mitsuba_veg.tune.leaf_colour": "imports not hoisted yet",
-    "mitsuba_veg.tune.lifecycle": "imports not hoisted yet",
-    "mitsuba_veg.tune.photon_ad": "imports not hoisted yet",
-    "mitsuba_veg.tune.smooth": "imports not hoisted yet",
-}
+# Modules whose findings are listed, not failed, while they are being rewritten (module: reason).
+# Empty: every module follows the layers.
+PENDING: dict[str, str] = {}
 
 
 def _open(kind) -> list[str]:
@@ -297,9 +284,9 @@ def test_pending_modules_still_exist():
 
 # `mv.<package>.<name>` should name the module <name>.py, not a function that the package's
 # __init__ imports over it (the modules of `variant`, `light.daylight`, `light.sun_position` and
-# `moss.fitness` are backend, light.clear_sky, light.solar_position and moss.fitness_model).
-# This one remains until tune/ is renamed; no new ones.
-SHADOWED = {"mitsuba_veg.tune.fit"}
+# `moss.fitness` and `tune.fit` are backend, light.clear_sky, light.solar_position,
+# moss.fitness_model and tune.fitting). None may come back.
+SHADOWED: set[str] = set()
 
 
 def test_package_attributes_name_modules():

@@ -100,7 +100,7 @@ def test_target_from_a_discrete_run(model, tmp_path):
 
 
 def test_cli_tune(tmp_path, capsys):
-    from mitsuba_veg.tune.cli import main
+    from mitsuba_veg.cli.tune import main
     rc = main([str(SCEN), "--target", "synthetic:S1=60", "--params", "S1", "--init", "S1=50",
                "--species", "bryum_argenteum", "--days", "4", "--steps", "3", "--photons",
                "50000", "--out", str(tmp_path), "--quiet"])

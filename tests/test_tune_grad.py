@@ -12,7 +12,7 @@ import pytest
 import mitsuba_veg  # noqa: F401
 from mitsuba_veg import tune
 from mitsuba_veg.errors import ParameterError
-from mitsuba_veg.tune.fit import coverage_loss
+from mitsuba_veg.tune.fitting import coverage_loss
 
 ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"

@@ -96,7 +96,7 @@ def test_bad_inputs(model, tmp_path):
 
 
 def test_cli_image_target(model, cover, tmp_path, capsys):
-    from mitsuba_veg.tune.cli import main
+    from mitsuba_veg.cli.tune import main
     d = model.data
     png = tmp_path / "photo.png"
     photo.render_cover_image(cover, CAM, d.scene, d.index, png)

@@ -25,10 +25,9 @@ from ..plots import irradiance_figure
 from ..render.still import run_render
 from ..scenario import MAX_PHOTONS, load_scenario
 from ..sweeps.frames import run_animate
-from ..tune.cli import add_parser as _add_tune
 from ..backend import __version__, versions
 from ..world.trees import scene_with_trees
-from . import grow, light_study, render, sweep
+from . import grow, light_study, render, sweep, tune
 from .args import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
 from .entry import run_parsed, standalone  # noqa: F401  (re-exported)
 
@@ -326,7 +325,7 @@ def build_parser():
     light_study.add_parser(sub)
     grow.add_parser(sub)
     render.add_parsers(sub)
-    _add_tune(sub)
+    tune.add_parser(sub)
     sweep.add_parser(sub)
     return ap
 

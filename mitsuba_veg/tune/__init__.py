@@ -6,7 +6,7 @@
 - :mod:`.dispersal`  expected propagule landing kernels (eqs 3.22-3.23);
 - :mod:`.photon_ad`  a differentiable photon pass (weights instead of Russian roulette);
 - :mod:`.grad`       gradients through many days (optionally checkpointed), finite differences;
-- :mod:`.fit`        ``fit(scenario, target, params=[...], loss=..., steps=...)`` with Adam;
+- :mod:`.fitting`        ``fit(scenario, target, params=[...], loss=..., steps=...)`` with Adam;
 - :mod:`.discrete`   the discrete run as a function of parameters (common random numbers) and
                      ``fit_discrete``: fits of the discrete model by defect correction;
 - :mod:`.photo`      a photographed map (image + camera) -> covered fraction per triangle;
@@ -17,7 +17,7 @@
 from __future__ import annotations
 
 from . import dispersal, grad, lifecycle, photon_ad, relax, smooth  # noqa: F401
-from .fit import FitResult, coverage_figure, coverage_from_checkpoint, fit  # noqa: F401
+from .fitting import FitResult, coverage_figure, coverage_from_checkpoint, fit  # noqa: F401
 from .grad import finite_difference, value_and_grad  # noqa: F401
 from . import leaf_colour  # noqa: F401
 from . import discrete, light_fit, photo  # noqa: F401

@@ -1,6 +1,7 @@
-"""``python -m mitsuba_veg.tune SCENARIO.toml --target ...`` (see :mod:`mitsuba_veg.tune.cli`)."""
+"""``python -m mitsuba_veg.tune SCENARIO.toml --target ...``: the ``tune`` command
+(:mod:`mitsuba_veg.cli.tune`) as a module entry point."""
 import sys
 
-from .cli import main
+from ..cli.tune import main
 
 sys.exit(main())

@@ -1,6 +1,6 @@
 """The discrete moss run as a function of its parameters, and fits *of the discrete model*.
 
-:class:`DiscreteMossModel` runs :class:`~mitsuba_veg.simulation.MossSimulation` (or a
+:class:`DiscreteMossModel` runs :class:`~mitsuba_veg.daily.MossSimulation` (or a
 :class:`~mitsuba_veg.world.simulation.WorldSimulation`: trees in the light) with given parameter
 values on a fixed set of seeds (common random numbers: the same seeds at every evaluation, so
 that two evaluations differ only through the parameters) and returns the covered fraction per
@@ -33,10 +33,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
+from ..daily import MossSimulation
 from ..moss.species import PARAMETER_FIELDS
+from ..scenario import Scenario, load_scenario
+from ..world.simulation import WorldSimulation
+from .fitting import parameter_bounds, parameter_scale, target_array
+from .grad import value_and_grad
 
 __all__ = ["DiscreteMossModel", "DiscreteResult", "DiscreteFitResult", "fit_discrete",
            "patch_labels", "patch_cover", "patch_loss_value"]
@@ -105,7 +111,7 @@ class DiscreteMossModel:
         Further ``KEY=VALUE`` scenario overrides.
     world : bool
         Run :class:`~mitsuba_veg.world.simulation.WorldSimulation` (the scenario's trees shade
-        the terrain) instead of :class:`~mitsuba_veg.simulation.MossSimulation`.
+        the terrain) instead of :class:`~mitsuba_veg.daily.MossSimulation`.
 
     Parameter names (as :class:`~mitsuba_veg.tune.SmoothMossModel`): species fields (``"S1"``,
     ``"bryum_argenteum.alpha_g"`` ...), ``"T"`` and ``"rh"`` (the daily air temperature [K] and
@@ -116,7 +122,6 @@ class DiscreteMossModel:
 
     def __init__(self, scenario, days: int, species=None, seeds=range(8),
                  photons: int | None = None, overrides=(), world: bool = False):
-        from ..scenario import Scenario, load_scenario
         scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
         if isinstance(scenario, Scenario) and overrides:
             raise ParameterError("overrides", list(overrides), "none with a loaded Scenario",
@@ -136,12 +141,12 @@ class DiscreteMossModel:
             raise ParameterError("seeds", list(seeds), "at least one seed")
         self.world = bool(world)
         if self.world:
-            from ..world.simulation import WorldSimulation as base
+            base = WorldSimulation
             if not self.scenario.get("trees"):
                 raise ParameterError("trees", None, "at least one [[trees]] entry for world=True",
                                      "add trees to the scenario or use world=False")
         else:
-            from ..simulation import MossSimulation as base
+            base = MossSimulation
         self._cls = _tuned_class(base)
         sim = self._sim(self.seeds[0], {})
         # the terrain's elements (a world's tree leaves left out), shape by shape
@@ -223,7 +228,6 @@ class DiscreteMossModel:
     def _sim(self, seed: int, params: dict):
         data = copy.deepcopy(self.scenario.data)
         data.setdefault("light", {})["seed"] = int(seed)
-        from ..scenario import Scenario
         scn = Scenario(self.scenario.path, data)
         sim = self._cls(scn, tempfile.gettempdir(), days=self.days, progress=False)
         albedo, strength = {}, [1.0, 1.0]
@@ -280,7 +284,7 @@ class DiscreteMossModel:
                 for k in reg:
                     reg[k].append(rec["regions"][k])
                 if day in report:
-                    c = sim._counts()[self.elements]
+                    c = sim.counts()[self.elements]
                     cov.append(np.minimum(c * self.cell ** 2, self.areas) / self.areas)
             covers.append(cov)
             totals.append(tot)
@@ -371,9 +375,6 @@ def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> 
 def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_final):
     """Adam on the shifted relaxed losses (mean over the target days) from ``theta``, on the
     normalised parameters (p - theta) / scale as :func:`mitsuba_veg.tune.fit`."""
-    import mitsuba as mi
-
-    from .grad import value_and_grad
     T = model.T
     opt = mi.ad.Adam(lr=lr, beta_1=0.9, beta_2=0.9)
     for p in params:
@@ -443,7 +444,7 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
     tol : float
         Stop when no parameter moved by more than ``tol`` times its scale in an iteration.
     scales : dict, optional
-        Natural scale per parameter (default: :func:`mitsuba_veg.tune.fit.parameter_scale`).
+        Natural scale per parameter (default: :func:`mitsuba_veg.tune.fitting.parameter_scale`).
     out : path, optional
         Folder for ``fitted_discrete.json``.
     verbose : bool
@@ -455,7 +456,6 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         ``values`` (the last iterate), the per-iteration record (parameters, discrete loss,
         inner-fit loss) and the discrete loss at ``values``.
     """
-    from .fit import parameter_bounds, parameter_scale, target_array
     t0 = time.perf_counter()
     params = [params] if isinstance(params, str) else list(params)
     if not params:

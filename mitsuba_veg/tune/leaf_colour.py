@@ -51,6 +51,7 @@ from ..foliage import colour_dr as cdr
 from ..foliage.pigments import LeafTraits
 from ..foliage.prospect import WAVELENGTHS
 from ..foliage.prospect_dr import BOUNDS, PARAMETERS, Float64, prospect_d
+from ..plots import _mpl, loss_curve_figure
 
 __all__ = ["fit_leaf_colour", "LeafColourFit", "LeafColourTarget", "parse_target",
            "predict_leaf_colour", "colour_sensitivity", "DEFAULTS", "SCALES"]
@@ -595,7 +596,6 @@ def write_outputs(res: LeafColourFit, out: Path, plots: bool = True) -> dict:
     files = {"fitted": str(p)}
     if not plots:
         return files
-    from ..plots import loss_curve_figure
     files["loss_curve"] = loss_curve_figure(res.history, out / "loss_curve.png",
                                             res.stats.get("loss", ""))
     files["leaf_colour"] = str(leaf_colour_figure(res, out / "leaf_colour.png"))
@@ -604,7 +604,6 @@ def write_outputs(res: LeafColourFit, out: Path, plots: bool = True) -> dict:
 
 def leaf_colour_figure(res: LeafColourFit, path) -> str:
     """Swatches (start, target, fit) and the spectra (start, target if measured, fit)."""
-    from ..plots import _mpl
     plt = _mpl()
     t = res.target
     fig = plt.figure(figsize=(10.5, 3.6))

@@ -41,6 +41,8 @@ import mitsuba as mi
 import numpy as np
 
 from ..moss.fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
+from ..moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
+from ..moss.species import PARAMETER_FIELDS
 from . import relax
 
 __all__ = ["SpeciesState", "CohortLifeCycle", "relaxed_life_cycle", "discrete_life_cycle", "GEMMA_STEP", "SPORE_THRESHOLD",
@@ -230,7 +232,6 @@ def relaxed_life_cycle(species, env, start, t: float, growth0: float = 1.0,
     an array [days, n], without space (no landing): ``start`` = (moss, gemmae, spores) per
     triangle, the moss at G_moss = ``growth0``. Returns per day and triangle the moss alive and
     the gemmae and spores made (arrays [days, n])."""
-    from ..moss.species import PARAMETER_FIELDS
     (S, Ts, rhs), (m0, g0, s0) = env, start
     days, n = S.shape
     T = real_type(precision)
@@ -257,7 +258,6 @@ def relaxed_life_cycle(species, env, start, t: float, growth0: float = 1.0,
 def discrete_life_cycle(species, env, start, growth0: float = 1.0,
                         capacity: int = 4096) -> dict:
     """The same with the discrete population (``MossPopulation.live_day``, individuals)."""
-    from ..moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
     (S, Ts, rhs), (m0, g0, s0) = env, start
     days, n = S.shape
     pop = MossPopulation(capacity, SpeciesTable([species]))

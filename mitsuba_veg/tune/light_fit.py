@@ -29,7 +29,9 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
+from ..integrators.photon_irradiance import BANDS, SceneIndex
 from . import photon_ad
+from .discrete import patch_labels
 
 __all__ = ["LightStudy", "LightFitResult", "fit_light"]
 
@@ -37,7 +39,6 @@ _H_C = 6.62607015e-34 * 2.99792458e8   # h c [J m]
 
 
 def _bands():
-    from ..integrators.photon_irradiance import BANDS
     return BANDS
 
 
@@ -65,7 +66,6 @@ class LightStudy:
 
     def __init__(self, scene: mi.Scene, albedo: dict, bands=("par",), emitters=None,
                  photons: int = 200_000, max_depth: int = 8, seed: int = 0, index=None):
-        from ..integrators.photon_irradiance import SceneIndex
         B = _bands()
         self.bands = [b for b in bands]
         for b in self.bands:
@@ -284,7 +284,6 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
     if method == "least_squares":
         labels = None
         if patch is not None:
-            from .discrete import patch_labels
             labels = patch_labels(study.index.centroids, study.shape_slices, ok, float(patch))
         return _least_squares(study, params, quantity, start, bnd, scale, ok, w / norm ** 2,
                               t_dr, steps, t0, labels, areas)

@@ -34,6 +34,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, SceneError, check_range
+from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 
 __all__ = ["PhotonPaths", "trace_paths", "replay", "irradiance"]
 
@@ -97,7 +98,6 @@ def trace_paths(scene: mi.Scene, emitter, photons: int, index=None, max_depth: i
     """
     import time
 
-    from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 
     check_range("photons", photons, 16, 2**26, fix="a photon count such as 200000")
     check_range("max_depth", max_depth, 1, 64)

@@ -49,12 +49,15 @@ import numpy as np
 
 from .. import soil as soil_model
 from ..errors import ParameterError
+from ..daily import prepare_site
+from ..light.sunpath import day_sun_path
 from ..moss.species import PARAMETER_FIELDS
+from ..scenario import Scenario, load_scenario
 from . import relax
 from .dispersal import dispersal_kernel
 from .lifecycle import (GEMMA_STEP, SPORE_THRESHOLD, CohortLifeCycle, SpeciesState,
                         real_type, species_fitness)
-from .photon_ad import PhotonPaths, irradiance, trace_paths
+from .photon_ad import PhotonPaths, albedo_array, irradiance, trace_paths
 
 __all__ = ["ModelData", "LightSetup", "prepare", "SmoothMossModel", "State", "SpeciesState",
            "RunResult", "CLIMATE_PARAMS", "GEMMA_STEP", "SPORE_THRESHOLD", "NEIGHBOUR_CELLS"]
@@ -154,9 +157,6 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     differentiable_light: keep the photon paths so that albedo and emitter strengths can be
     tuned (memory: ~ photons x max_depth x 5 bytes per pass).
     """
-    from ..scenario import Scenario, load_scenario
-    from ..daily import prepare_site
-    from ..light.sunpath import day_sun_path
 
     t0 = time.perf_counter()
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
@@ -458,7 +458,6 @@ class SmoothMossModel:
                 raise ParameterError("params", list(P.albedo),
                                      "albedo parameters need prepare(..., "
                                      "differentiable_light=True)")
-            from .photon_ad import albedo_array
             a = albedo_array(self.n, self.data.base_albedo, P.albedo, self.data.shape_slices,
                              self.T)
             sun = []

@@ -18,11 +18,23 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import drjit as dr
+import numpy as np
+
+from ..errors import ParameterError
+from ..outputs import OutputFolder
+from ..scenario import load_scenario
+from ..tune import coverage_from_checkpoint, fit, prepare
+from ..tune.discrete import DiscreteMossModel, fit_discrete
+from ..tune.photo import cover_from_image, load_camera
+from ..tune.smooth import SmoothMossModel
+from .args import add_out, add_photons, add_quiet, add_set, ranged
+from .entry import standalone
+
 __all__ = ["add_parser", "main"]
 
 
 def _pairs(text: str | None, what: str) -> dict:
-    from ..errors import ParameterError
     out = {}
     for item in (text or "").split(","):
         item = item.strip()
@@ -43,7 +55,6 @@ def _pairs(text: str | None, what: str) -> dict:
 
 
 def _seeds(text: str) -> list[int]:
-    from ..errors import ParameterError
     try:
         if "-" in text:
             lo, hi = (int(x) for x in text.split("-"))
@@ -59,14 +70,7 @@ def _seeds(text: str) -> list[int]:
 
 
 def _cmd_tune(a) -> int:
-    import drjit as dr
-    import numpy as np
 
-    from ..errors import ParameterError
-    from . import coverage_from_checkpoint, fit, prepare
-    from .smooth import SmoothMossModel
-    from ..outputs import OutputFolder
-    from ..scenario import load_scenario
     species = [s.strip() for s in a.species.split(",")] if a.species else None
     params = [p.strip() for p in a.params.split(",") if p.strip()]
     if not params:
@@ -98,7 +102,6 @@ def _cmd_tune(a) -> int:
                                  "give --camera camera.json (origin, target, up, fov, width, "
                                  "height; docs/tuning.md)")
         if image:
-            from .photo import load_camera
             load_camera(a.camera)  # refused before any work
         if p.suffix == ".npy":
             try:
@@ -126,7 +129,6 @@ def _cmd_tune(a) -> int:
         with dr.suspend_grad():
             target = np.asarray(model.run(synthetic).cover)
     elif target is None and Path(t).suffix.lower() in (".png", ".jpg", ".jpeg"):
-        from .photo import cover_from_image
         target = cover_from_image(Path(t), a.camera, data.scene, data.index, living=data.living,
                                   mode=a.photo_mode)
     elif target is None:
@@ -136,7 +138,6 @@ def _cmd_tune(a) -> int:
                              f"values; got {target.shape[0]})", "use a target made for this "
                              "scenario's scene")
     if a.discrete_seeds:
-        from .discrete import DiscreteMossModel, fit_discrete
         seeds = _seeds(a.discrete_seeds)
         if a.loss == "l1":
             raise ParameterError("--loss", a.loss, "sqrt or mse with --discrete-seeds")
@@ -165,7 +166,6 @@ def _cmd_tune(a) -> int:
 
 def add_parser(subparsers):
     """Add the ``tune`` command to an argparse sub-parser set (``mitsuba-veg tune``)."""
-    from ..cli.args import add_out, add_photons, add_quiet, add_set, ranged
     p = subparsers.add_parser("tune", help="fit model parameters to a target coverage map "
                               "(differentiable relaxed moss model, Dr.Jit AD)")
     p.add_argument("scenario", help="scenario TOML, e.g. scenes/moss_garden/scenario.toml")
@@ -215,5 +215,4 @@ def add_parser(subparsers):
 
 def main(argv=None) -> int:
     """Stand-alone entry (``python -m mitsuba_veg.tune SCENARIO.toml --target ...``)."""
-    from ..cli.entry import standalone
     return standalone("tune", add_parser, argv)

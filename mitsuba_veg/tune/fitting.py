@@ -34,7 +34,9 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
-from .grad import value_and_grad
+from ..moss.population import MOSS
+from ..plots import _mpl, loss_curve_figure, plan_map
+from .grad import loss_value, value_and_grad
 from .smooth import ModelData, RunResult, SmoothMossModel, prepare
 
 __all__ = ["fit", "FitResult", "target_array", "parameter_scale", "parameter_bounds",
@@ -258,7 +260,6 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
     if bar is not None:
         bar.close()
     values = physical()
-    from .grad import loss_value
     final_loss = loss_value(model, values, loss_fn)
     history.append({"step": steps, "loss": final_loss, "params": values, "grad": {},
                     "seconds": 0.0})
@@ -286,7 +287,6 @@ def write_outputs(res: FitResult, out: Path, target: np.ndarray, plots: bool = T
     files["fitted"] = str(p)
     if not plots:
         return files
-    from ..plots import loss_curve_figure
     p = loss_curve_figure(res.history, out / "loss_curve.png")
     files["loss_curve"] = str(p)
     m = res.model
@@ -301,7 +301,6 @@ def write_outputs(res: FitResult, out: Path, target: np.ndarray, plots: bool = T
 
 def coverage_figure(data: ModelData, maps: dict, path, shape: str | None = None) -> str:
     """Plan view of covered fractions on the ground (one panel per entry of ``maps``)."""
-    from ..plots import _mpl, plan_map
     plt = _mpl()
     gid = shape or data.scenario.get("terrain.ground", "ground")
     sl = data.shape_slices[gid]
@@ -331,7 +330,6 @@ def coverage_figure(data: ModelData, maps: dict, path, shape: str | None = None)
 def coverage_from_checkpoint(path, data: ModelData) -> np.ndarray:
     """Per-element covered fraction of a *discrete* run (its ``checkpoint.npz``), as the run
     computes it: min(moss on the triangle x size², area) / area. Use it as a fit target."""
-    from ..moss.population import MOSS
     d = np.load(path, allow_pickle=False)
     moss = np.asarray(d["state"]) == MOSS
     counts = np.bincount(np.asarray(d["elem"])[moss].astype(np.int64), minlength=data.n)
