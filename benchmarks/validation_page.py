@@ -361,12 +361,9 @@ def ref_spctral2(quick: bool) -> list[dict]:
 def ref_spa(quick: bool) -> list[dict]:
     """NREL SPA worked example (Reda & Andreas 2004, NREL/TP-560-34302, Table A5.1) and pvlib's
     SPA (``pvlib.spa.solar_position_numpy``) on random times and places."""
-    import importlib
-
     from pvlib import spa as pspa
 
-    # `mitsuba_veg.light.sun_position` is shadowed by the function of that name: get the module
-    sp = importlib.import_module("mitsuba_veg.light.sun_position")
+    from mitsuba_veg.light import solar_position as sp
 
     t0 = time.perf_counter()
     when = dt.datetime(2003, 10, 17, 12, 30, 30, tzinfo=dt.timezone(dt.timedelta(hours=-7)))

@@ -71,7 +71,9 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
+from mitsuba_veg.meshes import triangle_geometry
 
 #: Named spectral bands [nm]. "total" is Mitsuba's spectral range (360-830 nm, what its
 #: irradiancemeter integrates); "shortwave" is the solar broadband range used for energy budgets.
@@ -267,13 +269,6 @@ def _mesh_arrays(sh, to_world=None):
     return v, f
 
 
-def _triangles(v, f):
-    p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    cr = np.cross(p1 - p0, p2 - p0)
-    ln = np.linalg.norm(cr, axis=1)
-    return 0.5 * ln, cr / np.maximum(ln, 1e-30)[:, None], (p0 + p1 + p2) / 3.0
-
-
 def _matrix(transform) -> np.ndarray:
     return np.asarray(transform.matrix, dtype=np.float64).reshape(4, 4)
 
@@ -400,7 +395,7 @@ class SceneIndex:
                 T = _matrix(mi.traverse(sh)["to_world"])
                 a_l, n_l, c_l = [], [], []
                 for v, f in items:
-                    a, nrm, c = _triangles(v @ T[:3, :3].T + T[:3, 3], f)
+                    a, nrm, c = triangle_geometry(v @ T[:3, :3].T + T[:3, 3], f)
                     a_l.append(a), n_l.append(nrm), c_l.append(c)
                 counts.append(k)
                 areas.append(np.concatenate(a_l))
@@ -413,7 +408,7 @@ class SceneIndex:
                 inst_base[_reg_id(sh)] = g_base[gname]
             elif sh.is_mesh() and sh.face_count() > 0:
                 v, f = _mesh_arrays(sh)
-                a, nrm, c = _triangles(v, f)
+                a, nrm, c = triangle_geometry(v, f)
                 counts.append(len(f))
                 areas.append(a)
                 normals.append(nrm)
@@ -722,10 +717,8 @@ class PhotonIrradianceResult:
             for b in self.bands:
                 for c in COMPONENTS:
                     data[f"{sid}/{b}/{c}"] = self.irradiance(sid, b, c)
-        tmp = str(path) + ".tmp.npz"
-        np.savez_compressed(tmp, **data)
-        import os
-        os.replace(tmp, path)
+        with atomic_write(path, str(path) + ".tmp.npz") as tmp:
+            np.savez_compressed(tmp, **data)
 
 
 # --------------------------------------------------------------------------------------------

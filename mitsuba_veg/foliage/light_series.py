@@ -23,12 +23,12 @@ site (:func:`mitsuba_veg.light.sensor_study.run_series`) and writes into the out
 from __future__ import annotations
 
 import datetime as _dt
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
+from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, check_range
 from mitsuba_veg.light import sensor_study as SS
 from mitsuba_veg.light import sensors as S
@@ -65,9 +65,8 @@ def _write_table(series_or_readings, stem: Path, keep=None, time=None) -> dict:
         df = S.tidy_table(values, x.sensors.names[rows], times)
     out = {"csv": S.write_tidy_csv(stem.with_suffix(".csv"), values, x.sensors.names[rows],
                                    times)}
-    tmp = stem.with_suffix(".tmp.parquet")
-    df.to_parquet(tmp, index=False)
-    os.replace(tmp, stem.with_suffix(".parquet"))
+    with atomic_write(stem.with_suffix(".parquet"), stem.with_suffix(".tmp.parquet")) as tmp:
+        df.to_parquet(tmp, index=False)
     out["parquet"] = str(stem.with_suffix(".parquet"))
     return out
 
@@ -288,9 +287,8 @@ def _write_dli(path, days, dli, odli, sensors, hdays, hrs) -> str:
         "dli_diffuse_mol_m2_d": dli[..., 1].ravel(),
         "open_dli_mol_m2_d": np.repeat(odli[:, 2], ns),
         "hours_above_threshold": hours.ravel()})
-    tmp = str(path) + ".tmp"
-    df.to_csv(tmp, index=False, float_format="%.6g")
-    os.replace(tmp, path)
+    with atomic_write(path, str(path) + ".tmp") as tmp:
+        df.to_csv(tmp, index=False, float_format="%.6g")
     return str(path)
 
 
@@ -298,10 +296,9 @@ def _write_dli(path, days, dli, odli, sensors, hdays, hrs) -> str:
 # Figures
 # --------------------------------------------------------------------------------------------
 def _save(fig, path):
-    tmp = f"{path}.tmp.png"
-    fig.savefig(tmp, dpi=90)
+    with atomic_write(path, f"{path}.tmp.png") as tmp:
+        fig.savefig(tmp, dpi=90)
     _mpl().close(fig)
-    os.replace(tmp, path)
     return str(path)
 
 

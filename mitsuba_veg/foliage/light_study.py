@@ -25,13 +25,13 @@ here they carry the ``veg_leaf`` BSDF with PROSPECT-D spectra of their autumn st
 """
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
 import mitsuba as mi
 import numpy as np
 
+from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
 from mitsuba_veg.light import photon_irradiance
 from mitsuba_veg.light import sensors as S
@@ -294,9 +294,8 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
     npz.update({"ground/vertices": verts, "ground/faces": faces, "ground/area_m2": area,
                 "ground/centroid_m": res.index.centroids[sl]})
     npz.update({f"leaves/{k}": v for k, v in lv.items()})
-    tmp = out / "light_study.tmp.npz"
-    np.savez_compressed(tmp, **npz)
-    os.replace(tmp, out / "light_study.npz")
+    with atomic_write(out / "light_study.npz", out / "light_study.tmp.npz") as tmp:
+        np.savez_compressed(tmp, **npz)
     files = {"npz": str(out / "light_study.npz")}
     files["png"] = light_maps_figure(verts, faces, g, out / "light_maps.png",
                                      title=_title(info, res))
@@ -354,7 +353,7 @@ def _write_leaves_csv(path, lv, leaf_map, src):
     cols = ["par_W_m2", "ppfd", "red_W_m2", "far_red_W_m2", "rfr", "front_par_W_m2",
             "back_par_W_m2", "area_m2"]
     n = len(lv["par_W_m2"])
-    with open(str(path) + ".tmp", "w") as fh:
+    with atomic_write(path, str(path) + ".tmp") as tmp, open(tmp, "w") as fh:
         fh.write("leaf," + ("x_m,y_m,z_m," if pos is not None else "") + ",".join(cols) + "\n")
         for i in range(n):
             row = [str(i)]
@@ -362,7 +361,6 @@ def _write_leaves_csv(path, lv, leaf_map, src):
                 row += [f"{pos[i, 0]:.4f}", f"{pos[i, 1]:.4f}", f"{pos[i, 2]:.4f}"]
             row += [f"{lv[c][i]:.6g}" for c in cols]
             fh.write(",".join(row) + "\n")
-    os.replace(str(path) + ".tmp", path)
     return str(path)
 
 
@@ -384,10 +382,9 @@ def light_maps_figure(vertices, faces, values: dict, path, title: str = "") -> s
     plan_map(axs[1, 1], vertices, faces, rfr, title="red : far-red (photon ratio)",
              label="R:FR", cmap="RdYlGn", vmin=0.0, vmax=max(1.3, top))
     fig.suptitle(title, fontsize=10)
-    tmp = f"{path}.tmp.png"
-    fig.savefig(tmp, dpi=90)
+    with atomic_write(path, f"{path}.tmp.png") as tmp:
+        fig.savefig(tmp, dpi=90)
     plt.close(fig)
-    os.replace(tmp, path)
     return str(path)
 
 

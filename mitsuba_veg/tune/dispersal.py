@@ -1,6 +1,6 @@
 """Expected propagule dispersal between triangles: the kernels of eqs 3.22-3.23, precomputed.
 
-In the discrete model (``simulation.py``, ``moss/propagules.py``) a gemma leaves its parent M
+In the discrete model (``daily/day.py``, ``moss/propagules.py``) a gemma leaves its parent M
 towards B = M + k I (eq 3.22, I uniform on the sphere), a spore towards Q = M + l I_N (eq 3.23,
 I_N in the 45° cones about the normal), both stop at a surface in the way, else fall along -y;
 nothing hit or a back face: lost; a landing on a surface where moss may not live: lost.
@@ -112,7 +112,7 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
         src = src_all[start:start + batch]
         m = len(src)
         pts, nrm = random_points(index, src, rng)
-        pts = pts + nrm * 1e-4  # individuals sit 0.1 mm off the surface (simulation.py)
+        pts = pts + nrm * 1e-4  # individuals sit 0.1 mm off the surface (daily/day.py)
         P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
         N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
         r = rng.random((m, 3)).astype(np.float32)

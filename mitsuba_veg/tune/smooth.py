@@ -1,6 +1,6 @@
 """The relaxed (differentiable) daily soil + moss model of paper 000 on a scenario's triangles.
 
-Same physics as the discrete run (``simulation.py``), with three changes (docs/tuning.md):
+Same physics as the discrete run (``daily/day.py``), with three changes (docs/tuning.md):
 
 1. **Expected densities instead of individuals.** Every moss on one triangle, of one species,
    germinated on the same day, has the same G_moss trajectory in the discrete model (G depends
@@ -593,7 +593,7 @@ class SmoothMossModel:
             scale_g = scale_s = 1.0
             if self.capacity_on:
                 # the discrete run settles the day's gemmae first, then the spores, while free
-                # slots last (simulation.py, _release): the gemmae take the room first
+                # slots last (daily/day.py, _release): the gemmae take the room first
                 room = dr.maximum(self.capacity - dr.sum(M * occ), 0.0)
                 want_g, want_s = dr.zeros(T, n), dr.zeros(T, n)
                 for a, b in zip(arr_g, arr_s):
@@ -653,7 +653,7 @@ class SmoothMossModel:
         return c
 
     def cover(self, st: State):
-        """Covered fraction of each triangle: min(moss x size², area) / area (as simulation.py)."""
+        """Covered fraction of each triangle: min(moss x size², area) / area (as daily/day.py)."""
         c = self.moss_density(st)
         a = self.areas
         return dr.minimum(c * self.M * self.cell2, a) / a

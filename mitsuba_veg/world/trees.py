@@ -25,6 +25,7 @@ import numpy as np
 import trimesh
 
 from ..errors import ParameterError
+from ..meshes import triangle_geometry
 from ..trees import weber_penn as wp
 from ..trees.environment import Environment
 from ..trees.growth import GrowthParams, grow
@@ -173,8 +174,7 @@ def _mesh_tree(name, cfg, pos, root: Path, field_, source) -> WorldTree:
     if cfg.get("leaves_file"):
         lv, lf = _load_mesh(root / str(cfg["leaves_file"]), f"{field_}.leaves_file", source)
         tri = lv[lf] * s + pos                                  # (m, 3, 3)
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                    axis=1)
+        area = triangle_geometry(tri.reshape(-1, 3), np.arange(3 * len(tri)).reshape(-1, 3))[0]
     else:
         tri, area = np.zeros((0, 3, 3)), np.zeros(0)
     return WorldTree(name, "mesh", pos, bark, tri, area, None, {"file": str(cfg["file"])})
