@@ -166,7 +166,8 @@ class WorldSimulation(MossSimulation):
         ie = (res.emitters.index("sun"), res.emitters.index("sky"))
         # (n_leaf_triangles, 2 emitters, n_b): both sides, both components
         lflux = c.leaf_triangle_flux(res)
-        tris = np.stack([lflux[e].sum(axis=(1, 2)) for e in ie], 1)
+        # (einsum: 4-5x faster than sum(axis=(1, 2)) over the strided component/side axes)
+        tris = np.stack([np.einsum("fcsb->fb", lflux[e]) for e in ie], 1)
         lf = c.leaf_flux(tris)                              # (n_leaves, 2, n_b)
         gsl = self.ground_slice
         gflux = res.shape_flux(self.ground_id)
