@@ -41,7 +41,7 @@ from ..daily import MossSimulation
 from ..moss.species import PARAMETER_FIELDS
 from ..scenario import Scenario, load_scenario
 from ..world.simulation import WorldSimulation
-from .fitting import parameter_bounds, parameter_scale, target_array
+from .fitting import param_names, parameter_bounds, parameter_scale, target_array
 from .grad import value_and_grad
 
 __all__ = ["DiscreteMossModel", "DiscreteResult", "DiscreteFitResult", "fit_discrete",
@@ -457,9 +457,7 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         inner-fit loss) and the discrete loss at ``values``.
     """
     t0 = time.perf_counter()
-    params = [params] if isinstance(params, str) else list(params)
-    if not params:
-        raise ParameterError("params", params, "at least one parameter name")
+    params = param_names(params)
     if iterations < 1:
         raise ParameterError("iterations", iterations, ">= 1")
     if steps < 1:

@@ -58,6 +58,20 @@ class FitResult:
 # ------------------------------------------------------------------------------------------
 # parameter scales and bounds
 # ------------------------------------------------------------------------------------------
+def param_names(params) -> list[str]:
+    """The names of the parameters to fit as a list (one name may be given as a string).
+
+    Raises
+    ------
+    ParameterError
+        When no name is given.
+    """
+    params = [params] if isinstance(params, str) else list(params)
+    if not params:
+        raise ParameterError("params", params, "at least one parameter name")
+    return params
+
+
 def parameter_scale(model: SmoothMossModel, name: str) -> float:
     """Natural scale of a parameter (the step that matters): the width of its range for range
     bounds, 0.1 for fractions, 5 K for air temperature ..."""
@@ -189,9 +203,7 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
     albedo or strength is fitted).
     """
     t0 = time.perf_counter()
-    params = [params] if isinstance(params, str) else list(params)
-    if not params:
-        raise ParameterError("params", params, "at least one parameter name")
+    params = param_names(params)
     if steps < 1:
         raise ParameterError("steps", steps, ">= 1")
     for k in (init or {}):

@@ -32,6 +32,7 @@ from ..errors import ParameterError
 from ..integrators.photon_irradiance import BANDS, SceneIndex
 from . import photon_ad
 from .discrete import patch_labels
+from .fitting import param_names
 
 __all__ = ["LightStudy", "LightFitResult", "fit_light"]
 
@@ -213,9 +214,7 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
         strength came out +9 % / -14 %); patches average the noise away.
     """
     t0 = time.perf_counter()
-    params = [params] if isinstance(params, str) else list(params)
-    if not params:
-        raise ParameterError("params", params, "at least one parameter name")
+    params = param_names(params)
     if steps < 1:
         raise ParameterError("steps", steps, ">= 1")
     for p in params:
