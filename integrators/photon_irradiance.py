@@ -74,6 +74,7 @@ import numpy as np
 from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
 from mitsuba_veg.meshes import triangle_geometry
+from mitsuba_veg.units import umol_per_joule
 
 #: Named spectral bands [nm]. "total" is Mitsuba's spectral range (360-830 nm, what its
 #: irradiancemeter integrates); "shortwave" is the solar broadband range used for energy budgets.
@@ -653,10 +654,8 @@ class PhotonIrradianceResult:
         """Photon flux density [umol m-2 s-1] per triangle, converting each band's energy at its
         centre wavelength (exact to < 0.1 % for narrow bands; for PAR it assumes the band's
         spectrum is flat in energy, which for daylight is within ~2 %)."""
-        lo, hi = self.band_ranges[self._band(band)]
-        lam = 0.5 * (lo + hi) * 1e-9
-        quanta_per_joule = lam / (6.62607015e-34 * 2.99792458e8) / 6.02214076e23 * 1e6
-        return self.irradiance(shape_id, band, component, side, emitter) * quanta_per_joule
+        return self.irradiance(shape_id, band, component, side, emitter) \
+            * umol_per_joule(*self.band_ranges[self._band(band)])
 
     def red_far_red(self, shape_id: str, component="total", side="front", emitter=None,
                     red="red", far_red="far_red") -> np.ndarray:

@@ -26,7 +26,7 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 # The layers, lowest first; a module belongs to the layer of its longest matching prefix (the
 # names are relative to ``mitsuba_veg``). Keep this table and docs/architecture.md the same.
 LAYERS: list[tuple[str, list[str]]] = [
-    ("base", ["backend", "errors", "atomic", "meshes", "outputs", "plots"]),
+    ("base", ["backend", "errors", "atomic", "meshes", "outputs", "plots", "units"]),
     ("light", ["light", "integrators"]),
     ("ground", ["soil", "climate", "terrain", "scenario"]),
     ("models", ["moss", "trees", "foliage"]),

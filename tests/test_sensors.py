@@ -87,7 +87,7 @@ def test_open_sensors_match_flat_ground_and_cosine_spherical_ratio(elevation):
     assert w[0] / w[1] == pytest.approx(s, rel=0.03)
     assert np.all(r.watts[:, 1] == 0)            # black ground, no sky: nothing diffuse
     # the photon units: PPFD = W x (550 nm photons per joule) of the one source
-    from mitsuba_veg.light.clear_sky import umol_per_joule
+    from mitsuba_veg.units import umol_per_joule
     assert r.value("cos", "par", "direct") == pytest.approx(w[0] * umol_per_joule(400, 700))
     assert r.value("cos", "rfr") == pytest.approx(660.0 / 730.0, rel=0.02)  # flat in energy
 

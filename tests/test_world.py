@@ -123,7 +123,7 @@ def test_sensors_read_under_the_trees_by_the_daily_pass(summer):
     open ground's mean includes the morning and evening shade of the house and the walls, and a
     0.3 m sensor at 300,000 photons scatters by ~7 %), the one under the crown gets less PAR
     (measured 0.64 of the open sensor) and a lower R:FR, and the tidy CSV holds every day."""
-    from mitsuba_veg.light.clear_sky import umol_per_joule
+    from mitsuba_veg.units import umol_per_joule
     s, tmp = summer
     sen = s["sensors"]
     assert sen["count"] == 2 and sen["days"] == 2

@@ -36,8 +36,7 @@ from mitsuba_veg.errors import ParameterError, SceneError, check_range
 from mitsuba_veg.light import photon_irradiance
 from mitsuba_veg.light import sensors as S
 from mitsuba_veg.light.clear_sky import (_day_of_year, band_irradiance, clear_sky_spectra,
-                                        daylight_from_angles, photon_flux, red_far_red_ratio,
-                                        umol_per_joule)
+                                        daylight_from_angles, photon_flux, red_far_red_ratio)
 from mitsuba_veg.light.sensors import from_scenario
 from mitsuba_veg.light.solar_position import sun_position
 from mitsuba_veg.light.validation import grid_mesh
@@ -45,6 +44,7 @@ from mitsuba_veg.outputs import OutputFolder, write_json
 from mitsuba_veg.plots import _mpl, plan_map
 from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
 from mitsuba_veg.trees.structure import Tree
+from mitsuba_veg.units import umol_per_joule
 from mitsuba_veg.backend import versions
 
 from .bsdf import leaf_bsdf_dict

@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ParameterError, check_range
+from ..units import AVOGADRO, LIGHT_SPEED, PLANCK
 from .solar_position import sun_direction, sun_position
 
 __all__ = [
@@ -38,28 +39,7 @@ __all__ = [
 #: wavelength range covered by SPCTRAL2 [nm]
 SPCTRL2_RANGE_NM = (300.0, 4000.0)
 
-_H = 6.62607015e-34      # Planck constant [J s]
-_C = 2.99792458e8        # speed of light [m s-1]
-_NA = 6.02214076e23      # Avogadro constant [mol-1]
-
-
-def umol_per_joule(lo_nm: float, hi_nm: float) -> float:
-    """Photons per joule of a narrow band, at its centre wavelength [µmol J-1].
-
-    Parameters
-    ----------
-    lo_nm, hi_nm : float
-        Band limits [nm].
-
-    Returns
-    -------
-    float
-        lambda / (h c N_A) x 1e6 at lambda = (lo + hi) / 2: 4.57 for PAR's 550 nm centre (the
-        flat-spectrum value; the exact value of a spectrum is :func:`photon_flux`), exact to
-        < 0.1 % for 10 nm bands such as red (655-665) and far-red (725-735).
-    """
-    lam = 0.5 * (lo_nm + hi_nm) * 1e-9
-    return lam / (_H * _C) / _NA * 1e6
+_H, _C, _NA = PLANCK, LIGHT_SPEED, AVOGADRO
 
 
 @dataclass(frozen=True)

@@ -43,7 +43,7 @@ and all scattered light) and ``total``:
 - ``shortwave``: 300-3000 nm irradiance [W m-2].
 
 Photon units from band energies at the band's centre wavelength
-(:func:`mitsuba_veg.light.clear_sky.umol_per_joule`): exact to < 0.1 % for the 10 nm bands,
+(:func:`mitsuba_veg.units.umol_per_joule`): exact to < 0.1 % for the 10 nm bands,
 within ~1 % for PAR of daylight (docs/sensors.md).
 
 Example::
@@ -67,8 +67,8 @@ import mitsuba as mi
 
 from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
+from mitsuba_veg.units import umol_per_joule
 
-from .clear_sky import umol_per_joule
 from .photon import BANDS, photon_irradiance
 from .validation import make_mesh
 

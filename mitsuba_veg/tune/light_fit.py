@@ -30,13 +30,13 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..integrators.photon_irradiance import BANDS, SceneIndex
+from ..units import umol_per_joule
 from . import photon_ad
 from .discrete import patch_labels
 from .fitting import param_names
 
 __all__ = ["LightStudy", "LightFitResult", "fit_light"]
 
-_H_C = 6.62607015e-34 * 2.99792458e8   # h c [J m]
 
 
 def _bands():
@@ -157,10 +157,8 @@ class LightStudy:
                 if b not in self.bands:
                     raise ParameterError("quantity", quantity, "a band among the traced "
                                          f"{self.bands}", "trace bands=('red', 'far_red')")
-            lr = 0.5 * sum(B["red"]) * 1e-9
-            lf = 0.5 * sum(B["far_red"]) * 1e-9
-            r = self.irradiance(params, "red") * (lr / _H_C)
-            f = self.irradiance(params, "far_red") * (lf / _H_C)
+            r = self.irradiance(params, "red") * umol_per_joule(*B["red"])
+            f = self.irradiance(params, "far_red") * umol_per_joule(*B["far_red"])
             return r / dr.maximum(f, 1e-30)
         return self.irradiance(params, quantity)
 

@@ -40,13 +40,12 @@ from ..light.photon import band_range
 from ..light import sensors as sensors_mod
 from ..light.clear_sky import clear_sky_spectra
 from ..light.validation import make_mesh
+from ..units import umol_per_joule
 from ..daily import BANDS, MossSimulation
 from .canopy import Canopy
 from .phenology import Phenology, PhenologyParams
 from .trees import build_trees
 
-_H_C = 6.62607015e-34 * 2.99792458e8
-_CENTRE_NM = {"red": 660.0, "far_red": 730.0, "par": 550.0, "total": 595.0}
 
 
 @functools.lru_cache(maxsize=1024)
@@ -259,8 +258,8 @@ class WorldSimulation(MossSimulation):
         Ts, rhs, Sg = np.asarray(st.Ts)[gsl], np.asarray(st.rhs)[gsl], np.asarray(S)[gsl]
 
         def rfr(bands, mask, w):
-            red = float((bands["red"][mask] * w).sum()) * _CENTRE_NM["red"]
-            fr = float((bands["far_red"][mask] * w).sum()) * _CENTRE_NM["far_red"]
+            red = float((bands["red"][mask] * w).sum()) * umol_per_joule(*band_range("red"))
+            fr = float((bands["far_red"][mask] * w).sum()) * umol_per_joule(*band_range("far_red"))
             return red / fr if fr > 0 else None
 
         def ground_stats(mask):
