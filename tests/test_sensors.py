@@ -69,6 +69,23 @@ def test_templates_have_the_ideal_angular_response():
     assert S.projected_area("cosine", V.sun_vector(40.0), normal=(0, -1, 0))[0] == 0
 
 
+def test_sensor_meshes_use_the_one_triangle_helper():
+    """meshes.triangle_geometry, the triangle helper of the sensors and the photon pass: a
+    known triangle, a degenerate one (zero normal); the sphere template's faces point outwards
+    and its area is the 1 m sphere's pi m2 less the faceting."""
+    from mitsuba_veg.meshes import triangle_geometry
+    a, n, c = triangle_geometry([[0, 0, 0], [2, 0, 0], [0, 0, -1], [1, 0, 0]],
+                                [[0, 1, 2], [0, 1, 3]])
+    np.testing.assert_allclose(a, [1.0, 0.0])
+    np.testing.assert_allclose(n, [[0, 1, 0], [0, 0, 0]])
+    np.testing.assert_allclose(c[0], [2 / 3, 0, -1 / 3])
+    v, f, _ = S._sphere_template()
+    area, nrm, cen = triangle_geometry(v, f)
+    assert np.all(np.einsum("ij,ij->i", nrm, cen) > 0)
+    assert 0.97 * math.pi < area.sum() < math.pi
+    assert S._template(2)[2] == pytest.approx(area.sum() / 4.0, rel=1e-12)
+
+
 @pytest.mark.parametrize("elevation", [20.0, 45.0, 70.0])
 def test_open_sensors_match_flat_ground_and_cosine_spherical_ratio(elevation):
     """Open sky, directional sun (1 W m-2 nm-1 normal): cosine = flat-ground irradiance =

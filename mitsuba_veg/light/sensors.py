@@ -67,6 +67,7 @@ import mitsuba as mi
 
 from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
+from mitsuba_veg.meshes import triangle_geometry
 from mitsuba_veg.units import umol_per_joule
 
 from .photon import BANDS, photon_irradiance
@@ -101,10 +102,8 @@ SPHERE_BANDS, SPHERE_SEGMENTS = 10, 20
 def _orient_outwards(v, f, centre):
     """Faces wound so that the geometric normal cross(v1-v0, v2-v0) points away from centre
     (for a flat template: along +y)."""
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    n = np.cross(b - a, c - a)
-    out = (a + b + c) / 3.0 - centre
-    flip = np.einsum("ij,ij->i", n, out) < 0
+    _, n, centroids = triangle_geometry(v, f)
+    flip = np.einsum("ij,ij->i", n, centroids - centre) < 0
     f = f.copy()
     f[flip] = f[flip][:, ::-1]
     return f
@@ -137,14 +136,8 @@ def _sphere_template(bands: int = SPHERE_BANDS, segments: int = SPHERE_SEGMENTS)
     return v, f, upper
 
 
-def _tri_area_normal(v, f):
-    a, b, c = v[..., f[:, 0], :], v[..., f[:, 1], :], v[..., f[:, 2], :]
-    n = np.cross(b - a, c - a)
-    area = 0.5 * np.linalg.norm(n, axis=-1)
-    return area, n / np.maximum(2 * area, 1e-30)[..., None]
-
-
-def projected_area(kind: str, direction, size: float = 1.0, normal=(0.0, 1.0, 0.0)) -> float:
+def projected_area(kind: str, direction, size: float = 1.0,
+                   normal=(0.0, 1.0, 0.0)) -> tuple[float, float]:
     """Area that a sensor's recording faces present to light travelling against ``direction``
     (``direction`` points from the sensor towards the light) [m2], and the area its reading
     divides by: ``(projected, normalising)``. Their ratio is the sensor's angular response
@@ -156,7 +149,7 @@ def projected_area(kind: str, direction, size: float = 1.0, normal=(0.0, 1.0, 0.
     n = np.asarray(normal, float)
     frame = _frames(n[None] / np.linalg.norm(n))[0]          # rows t, n, b
     vw = v @ frame * size
-    area, nrm = _tri_area_normal(vw, f)
+    area, nrm, _ = triangle_geometry(vw, f)
     proj = float(np.sum(area * np.maximum(nrm @ s, 0.0)))
     return proj, nrm_area * size * size
 
@@ -169,11 +162,11 @@ def _template(k: int):
     if k not in _TEMPLATES:
         if k == 0:
             v, f = _square_template()
-            a, _ = _tri_area_normal(v, f)
+            a = triangle_geometry(v, f)[0]
             _TEMPLATES[k] = (v, f, float(a.sum()))
         else:
             v, f, upper = _sphere_template()
-            a, n = _tri_area_normal(v, f)
+            a, n, _ = triangle_geometry(v, f)
             if k == 1:   # dome: the upper half; normalised by its projected area along +y
                 f = f[upper]
                 _TEMPLATES[k] = (v, f, float(np.sum(a[upper] * np.maximum(n[upper, 1], 0))))
