@@ -30,6 +30,7 @@ def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
     Returns
     -------
     mitsuba.Mesh
+        The mesh, with the given id, BSDF, texture coordinates, normals and attributes.
     """
     v = np.ascontiguousarray(np.asarray(vertices, np.float32).reshape(-1, 3))
     f = np.ascontiguousarray(np.asarray(faces, np.uint32).reshape(-1, 3))

@@ -73,7 +73,19 @@ class Atmosphere:
     aerosol_asymmetry: float = 0.65
 
     def validate(self) -> "Atmosphere":
-        """Check every field's range; raise :class:`ParameterError` naming the field."""
+        """Check every field's range.
+
+        Returns
+        -------
+        Atmosphere
+            This atmosphere, unchanged.
+
+        Raises
+        ------
+        ParameterError
+            For the first field out of its range, naming the field, its value, the range and
+            a fix.
+        """
         check_range("aerosol_turbidity", self.aerosol_turbidity, 0.0, 5.0,
                     fix="give the aerosol optical depth at 500 nm, e.g. 0.05 (very clean) to "
                         "0.5 (hazy); 0.1 is a clear rural day")
@@ -186,19 +198,43 @@ def clear_sky_spectra(elevation_deg: float, *, day_of_year: int = 172,
                       ) -> DaylightSpectra:
     """Clear-sky beam (DNI) and diffuse-horizontal (DHI) spectral irradiance [W m-2 nm-1].
 
+    SPCTRAL2 (Bird & Riordan 1984, :func:`pvlib.spectrum.spectrl2`) on its 122 wavelengths,
+    optionally scaled (clouds) and resampled linearly onto a regular grid.
+
     Parameters
     ----------
-    elevation_deg: apparent sun elevation above the horizon, 0 < el <= 90 [deg].
-    day_of_year: 1-366 (Sun-Earth distance).
-    atmosphere: an :class:`Atmosphere` (default :data:`DEFAULT_ATMOSPHERE`); the keyword
-        arguments ``aerosol_turbidity`` (AOD at 500 nm), ``precipitable_water`` [cm], ``ozone``
-        [atm-cm], ``pressure`` [Pa] and ``ground_albedo`` override its fields.
-    beam_scale, diffuse_scale: factors applied to the spectra (clouds); or
-    dni_target, dhi_target: broadband (300-4000 nm) DNI/DHI [W m-2] to scale to (e.g. measured
-        values); give a scale or a target per component, not both.
-    step_nm: resampling step of the returned regular grid (linear interpolation of SPCTRAL2's
+    elevation_deg : float
+        Apparent sun elevation above the horizon, 0 < el <= 90 [deg].
+    day_of_year : int
+        Day of the year, 1-366 (Sun-Earth distance).
+    atmosphere : Atmosphere, optional
+        The atmosphere (default :data:`DEFAULT_ATMOSPHERE`); the keyword arguments below
+        override its fields.
+    aerosol_turbidity : float, optional
+        Aerosol optical depth at 500 nm [-].
+    precipitable_water : float, optional
+        Precipitable water [cm].
+    ozone : float, optional
+        Total column ozone [atm-cm].
+    pressure : float, optional
+        Surface pressure [Pa].
+    ground_albedo : float, optional
+        Broadband ground albedo [-].
+    beam_scale, diffuse_scale : float, optional
+        Factors applied to the beam / diffuse spectra [-] (clouds); or
+    dni_target, dhi_target : float, optional
+        Broadband (300-4000 nm) DNI / DHI [W m-2] to scale to (e.g. measured values); give a
+        scale or a target per component, not both.
+    step_nm : float or None
+        Resampling step of the returned regular grid [nm] (linear interpolation of SPCTRAL2's
         122 wavelengths); ``None`` returns the native irregular grid.
-    wavelength_range: (min, max) of the returned grid, within 300-4000 nm.
+    wavelength_range : tuple of float
+        (min, max) of the returned grid [nm], within 300-4000 nm.
+
+    Returns
+    -------
+    DaylightSpectra
+        ``(wavelengths [nm], dni [W m-2 nm-1], dhi [W m-2 nm-1])``.
     """
     _check_elevation(elevation_deg)
     _check_day(day_of_year)
@@ -244,25 +280,88 @@ def _band_integral(wavelengths, values, lo, hi, weight_by_lambda):
 
 
 def band_irradiance(wavelengths, values, lo: float, hi: float) -> float:
-    """Energy irradiance [W m-2] of a spectrum [W m-2 nm-1] in the band lo-hi [nm]."""
+    """Energy irradiance of a spectrum in a band.
+
+    The spectrum is taken as piecewise linear between its samples and integrated exactly.
+
+    Parameters
+    ----------
+    wavelengths : array_like
+        Increasing wavelengths [nm].
+    values : array_like
+        Spectral irradiance at them [W m-2 nm-1].
+    lo, hi : float
+        The band [nm], within the spectrum's range.
+
+    Returns
+    -------
+    float
+        Irradiance in the band [W m-2].
+    """
     return _band_integral(wavelengths, values, lo, hi, False)
 
 
 def photon_flux(wavelengths, values, lo: float, hi: float) -> float:
-    """Photon flux density [umol m-2 s-1] of a spectrum [W m-2 nm-1] in the band lo-hi [nm]."""
+    """Photon flux density of a spectrum in a band.
+
+    ∫ E(λ) λ / (h c N_A) dλ, exact for a spectrum piecewise linear between its samples.
+
+    Parameters
+    ----------
+    wavelengths : array_like
+        Increasing wavelengths [nm].
+    values : array_like
+        Spectral irradiance at them [W m-2 nm-1].
+    lo, hi : float
+        The band [nm], within the spectrum's range.
+
+    Returns
+    -------
+    float
+        Photon flux density in the band [umol m-2 s-1].
+    """
     e_lambda = _band_integral(wavelengths, values, lo, hi, True)   # W m-2 nm-1 * nm * nm
     return e_lambda * 1e-9 / (_H * _C) / _NA * 1e6
 
 
 def red_far_red_ratio(wavelengths, values) -> float:
-    """Red:far-red photon ratio, 655-665 nm over 725-735 nm (Smith 1982)."""
+    """Red:far-red photon ratio, 655-665 nm over 725-735 nm (Smith 1982).
+
+    Parameters
+    ----------
+    wavelengths : array_like
+        Increasing wavelengths [nm], covering 655-735 nm.
+    values : array_like
+        Spectral irradiance at them [W m-2 nm-1].
+
+    Returns
+    -------
+    float
+        Photon flux ratio R:FR [-].
+    """
     return (photon_flux(wavelengths, values, 655.0, 665.0)
             / photon_flux(wavelengths, values, 725.0, 735.0))
 
 
 # --------------------------------------------------------------------------- Mitsuba dicts
 def regular_spectrum(wavelengths, values, *, fmt: str = "%.7g") -> dict:
-    """A Mitsuba ``regular`` spectrum dict from values on an evenly spaced grid [nm]."""
+    """A Mitsuba ``regular`` spectrum dict from values on an evenly spaced grid.
+
+    Parameters
+    ----------
+    wavelengths : array_like
+        Evenly spaced, increasing wavelengths [nm] (at least two).
+    values : array_like
+        Finite values >= 0 at them (e.g. [W m-2 nm-1] or [W m-2 sr-1 nm-1]).
+    fmt : str
+        printf format of each value in the dict's ``values`` string.
+
+    Returns
+    -------
+    dict
+        ``{"type": "regular", "wavelength_min", "wavelength_max", "values"}`` for
+        :func:`mitsuba.load_dict`.
+    """
     wl = np.asarray(wavelengths, dtype=float)
     v = np.asarray(values, dtype=float)
     if wl.ndim != 1 or wl.shape != v.shape or wl.size < 2:
@@ -284,10 +383,27 @@ _PEREZ_EPS_EDGES = (1.065, 1.23, 1.5, 1.95, 2.8, 4.5, 6.2)
 
 def perez_sky_parameters(dni: float, dhi: float, elevation_deg: float,
                          day_of_year: int = 172) -> tuple[float, float]:
-    """Perez sky clearness epsilon and brightness delta from broadband DNI/DHI [W m-2].
+    """Perez sky clearness epsilon and brightness delta from broadband DNI and DHI.
 
     epsilon = ((DHI + DNI)/DHI + 1.041 Z^3) / (1 + 1.041 Z^3), delta = DHI m / E0
-    (Z zenith [rad], m relative air mass, E0 extraterrestrial normal irradiance).
+    (Z zenith [rad], m relative air mass (Kasten & Young 1989), E0 extraterrestrial normal
+    irradiance) (Perez et al. 1993).
+
+    Parameters
+    ----------
+    dni : float
+        Broadband direct-normal irradiance [W m-2].
+    dhi : float
+        Broadband diffuse-horizontal irradiance [W m-2], > 0.
+    elevation_deg : float
+        Sun elevation [deg].
+    day_of_year : int
+        Day of the year, 1-366 (E0).
+
+    Returns
+    -------
+    epsilon, delta : float
+        Sky clearness [-] and sky brightness [-].
     """
     from pvlib.atmosphere import get_relative_airmass
     from pvlib.irradiance import get_extra_radiation
@@ -320,19 +436,52 @@ def daylight_from_angles(azimuth: float, elevation: float, *, sun: bool = True,
                          sky_model: str = "perez", sky_resolution: int = 128,
                          step_nm: float = 1.0,
                          wavelength_range: tuple[float, float] = SPCTRL2_RANGE_NM) -> dict:
-    """Mitsuba emitter dicts for the sun at (azimuth, elevation) [deg].
+    """Mitsuba emitter dicts for the sun at (azimuth, elevation).
 
-    Returns ``{"sun": {...directional...}, "sky": {...veg_sky...}}`` (either can be switched
-    off), ready to be merged into a scene dict for :func:`mitsuba.load_dict`. When the sun is
-    at or below the horizon (``elevation <= 0``) the clear-sky model does not apply and an
-    **empty dict** is returned (night: no emitters). The spectra are explicit ``regular``
-    spectra over ``wavelength_range`` (300-4000 nm by default, 1 nm steps): the directional
-    ``irradiance`` is the beam irradiance on a plane normal to the beam [W m-2 nm-1]; the sky's
-    ``radiance`` is DHI/pi [W m-2 sr-1 nm-1] (the radiance of a uniform sky with the same
-    horizontal irradiance), distributed over the upper hemisphere by ``sky_model``
-    (``"perez"``: Perez all-weather model driven by SPCTRAL2's broadband DNI/DHI; ``"cie_clear"``:
-    CIE standard clear sky (type 12); ``"cie_turbid"`` (type 13); ``"uniform"``).
-    Other arguments: see :func:`clear_sky_spectra`.
+    The emitters are ready to be merged into a scene dict for :func:`mitsuba.load_dict`. When
+    the sun is at or below the horizon (``elevation <= 0``) the clear-sky model does not apply
+    and an **empty dict** is returned (night: no emitters). The spectra are explicit
+    ``regular`` spectra over ``wavelength_range`` (300-4000 nm by default, 1 nm steps): the
+    directional ``irradiance`` is the beam irradiance on a plane normal to the beam
+    [W m-2 nm-1]; the sky's ``radiance`` is DHI/pi [W m-2 sr-1 nm-1] (the radiance of a
+    uniform sky with the same horizontal irradiance), distributed over the upper hemisphere by
+    ``sky_model``.
+
+    Parameters
+    ----------
+    azimuth : float
+        Sun azimuth [deg], clockwise from north.
+    elevation : float
+        Sun elevation [deg].
+    sun, sky : bool
+        Whether to return the sun's / the sky's emitter.
+    day_of_year : int
+        Day of the year, 1-366 (Sun-Earth distance).
+    atmosphere : Atmosphere, optional
+        As :func:`clear_sky_spectra`.
+    aerosol_turbidity, precipitable_water, ozone, pressure, ground_albedo : float, optional
+        Overrides of the atmosphere's fields, as :func:`clear_sky_spectra` (AOD at 500 nm [-],
+        [cm], [atm-cm], [Pa], [-]).
+    beam_scale, diffuse_scale : float, optional
+        Factors applied to the spectra [-], as :func:`clear_sky_spectra`.
+    dni_target, dhi_target : float, optional
+        Broadband DNI / DHI to scale to [W m-2], as :func:`clear_sky_spectra`.
+    sky_model : str
+        ``"perez"`` (Perez all-weather model driven by SPCTRAL2's broadband DNI/DHI),
+        ``"cie_clear"`` (CIE standard clear sky, type 12), ``"cie_turbid"`` (type 13) or
+        ``"uniform"``.
+    sky_resolution : int
+        Resolution of the sky's angular table (``veg_sky``'s ``resolution``).
+    step_nm : float
+        Wavelength step of the spectra [nm].
+    wavelength_range : tuple of float
+        (min, max) of the spectra [nm], within 300-4000 nm.
+
+    Returns
+    -------
+    dict
+        ``{"sun": {...directional...}, "sky": {...veg_sky...}}`` (either can be switched off),
+        or ``{}`` at night.
     """
     check_range("azimuth", azimuth, -360.0, 720.0, fix="give the azimuth in degrees, clockwise "
                 "from north")
@@ -398,11 +547,29 @@ def _day_of_year(when) -> int:
 
 def daylight(latitude: float, longitude: float, when, *, sun: bool = True, sky: bool = True,
              **kwargs) -> dict:
-    """Emitter dicts for the sun and sky at a place [deg, deg] and time.
+    """Emitter dicts for the sun and sky at a place and time.
 
-    The sun's azimuth/elevation come from :func:`mitsuba_veg.light.solar_position.sun_position`
-    (``when`` as it accepts, e.g. a timezone-aware ``datetime``); the day of year from ``when``.
-    Keyword arguments are those of :func:`daylight_from_angles`. Returns ``{}`` at night.
+    The sun's azimuth/elevation come from :func:`mitsuba_veg.light.solar_position.sun_position`;
+    the day of year from ``when``.
+
+    Parameters
+    ----------
+    latitude : float
+        Latitude [deg], north positive.
+    longitude : float
+        Longitude [deg], east positive.
+    when : datetime.datetime or numpy.datetime64 or str
+        One time, as :func:`~mitsuba_veg.light.solar_position.sun_position` accepts it (e.g. a
+        timezone-aware ``datetime``).
+    sun, sky : bool
+        Whether to return the sun's / the sky's emitter.
+    **kwargs : dict, optional
+        Those of :func:`daylight_from_angles`.
+
+    Returns
+    -------
+    dict
+        ``{"sun": ..., "sky": ...}`` as :func:`daylight_from_angles`; ``{}`` at night.
     """
     check_range("latitude", latitude, -90.0, 90.0, fix="give the latitude in degrees north")
     check_range("longitude", longitude, -180.0, 180.0, fix="give the longitude in degrees east")

@@ -71,8 +71,16 @@ class VegSunSteps(DeltaSun):
         self.set_directions(np.array([[0.0, 1.0, 0.0]]), np.array([1.0]))
 
     def set_directions(self, directions, weights, seed: int = 0) -> None:
-        """Directions towards the sun (K, 3) and weights (K,) >= 0, K <= :data:`SLOTS`;
-        ``seed`` sets the random shift of the direction sequence (see :meth:`sample_direction`).
+        """Set the step's sun directions and weights (no rebuild, no recompile).
+
+        Parameters
+        ----------
+        directions : array_like
+            (K, 3) unit vectors towards the sun, K <= :data:`SLOTS`.
+        weights : array_like
+            (K,) weights w_k >= 0 [-] (Δt/T DNI_PAR(k) / DNI_PAR,ref in :func:`run_series`).
+        seed : int
+            Sets the random shift of the direction sequence (see :meth:`sample_direction`).
         """
         d = np.asarray(directions, float).reshape(-1, 3)
         w = np.asarray(weights, float).reshape(-1)
@@ -92,6 +100,24 @@ class VegSunSteps(DeltaSun):
         self.total = total
 
     def sample_direction(self, it, sample, active=True):
+        """One of the step's sun directions, with probability w_k / Σw over the random shift.
+
+        Parameters
+        ----------
+        it : mitsuba.Interaction3f
+            The reference point (its wavelengths evaluate the spectrum).
+        sample : mitsuba.Point2f
+            Uniform sample (only its width is used: see the comment in the body).
+        active : mitsuba.Bool
+            Active lanes.
+
+        Returns
+        -------
+        ds : mitsuba.DirectionSample3f
+            The delta direction towards the sun.
+        weight : mitsuba.Spectrum
+            Σw × the ``irradiance`` spectrum [W m-2 nm-1].
+        """
         # The direction of photon i is not drawn independently but from a randomly shifted
         # Weyl sequence over the photon index, frac(i (sqrt(2) - 1) + shift), so that each
         # direction's photons are spread evenly over the pass's jittered-grid origin strata.
@@ -111,6 +137,13 @@ class VegSunSteps(DeltaSun):
         return ds, dr.select(active, value, 0.0)
 
     def to_string(self):
+        """Mitsuba's description of the emitter.
+
+        Returns
+        -------
+        str
+            The total weight of the step.
+        """
         return f"VegSunSteps[total weight={self.total:g}]"
 
 
@@ -126,8 +159,19 @@ def _bands_of(wl, spec):
 
 @lru_cache(maxsize=1)
 def band_table():
-    """(elevations [deg], DNI bands (E, 4), DHI bands (E, 4)) [W m-2] of SPCTRAL2 at day
-    :data:`REF_DOY`, bands :data:`sensors.PASS_BANDS` (0.25° steps below 3°, 1° above)."""
+    """SPCTRAL2 band irradiances tabulated over the sun elevation, at day :data:`REF_DOY`.
+
+    Elevations in 0.25° steps below 3°, 1° above; bands :data:`sensors.PASS_BANDS`.
+
+    Returns
+    -------
+    elevations : numpy.ndarray
+        (E,) sun elevations [deg].
+    dni : numpy.ndarray
+        (E, 4) direct-normal band irradiances [W m-2].
+    dhi : numpy.ndarray
+        (E, 4) diffuse-horizontal band irradiances [W m-2].
+    """
     els = np.concatenate([np.arange(0.05, 3.0, 0.25), np.arange(3.0, 90.01, 1.0)])
     dni, dhi = [], []
     for el in els:
@@ -152,8 +196,23 @@ def _doy_table():
 
 
 def daylight_bands(elevation, day_of_year):
-    """SPCTRAL2 DNI and DHI band irradiances [W m-2] (..., 4) for elevations [deg] and days;
-    0 where the sun is at or below the horizon."""
+    """SPCTRAL2 DNI and DHI band irradiances for sun elevations and days.
+
+    Interpolated in :func:`band_table` and scaled by the Sun-Earth distance of the day.
+
+    Parameters
+    ----------
+    elevation : array_like
+        Sun elevations [deg].
+    day_of_year : array_like
+        Days of the year (1-366), broadcast against the elevations.
+
+    Returns
+    -------
+    dni, dhi : numpy.ndarray
+        (..., 4) direct-normal and diffuse-horizontal band irradiances [W m-2]
+        (:data:`sensors.PASS_BANDS`); 0 where the sun is at or below the horizon.
+    """
     els, dni, dhi = band_table()
     days, fac = _doy_table()
     e = np.asarray(elevation, float)
@@ -168,8 +227,17 @@ def daylight_bands(elevation, day_of_year):
 
 @lru_cache(maxsize=1)
 def reference():
-    """Emitter dicts' spectra and their band values: (sun dict, sky dict, DNI_ref (4,),
-    DHI_ref (4,))."""
+    """The emitters of the reference sun (elevation :data:`REF_ELEVATION`, day :data:`REF_DOY`).
+
+    Returns
+    -------
+    sun : dict
+        ``veg_sun_steps`` emitter dict, its spectrum the SPCTRAL2 DNI [W m-2 nm-1].
+    sky : dict
+        Uniform ``veg_sky`` emitter dict, radiance DHI/π [W m-2 sr-1 nm-1].
+    dni_ref, dhi_ref : numpy.ndarray
+        (4,) their band irradiances [W m-2] (:data:`sensors.PASS_BANDS`).
+    """
     wl, dni, dhi = clear_sky_spectra(REF_ELEVATION, day_of_year=REF_DOY)
     sun = {"type": "veg_sun_steps", "id": "sun", "irradiance": regular_spectrum(wl, dni)}
     sky = {"type": "veg_sky", "id": "sky", "distribution": "uniform",
@@ -188,8 +256,20 @@ def _tz(latitude, longitude, timezone):
 
 
 def step_starts(start: _dt.date, end: _dt.date, step: str) -> np.ndarray:
-    """Local start times (naive numpy datetime64[m]) of the steps covering the days
-    start..end (inclusive)."""
+    """Local start times of the steps covering the days start..end (inclusive).
+
+    Parameters
+    ----------
+    start, end : datetime.date
+        First and last local day (at most 5 years apart).
+    step : str
+        ``"daily"`` or ``"hourly"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Step starts, naive local ``datetime64[m]``.
+    """
     if step not in ("daily", "hourly"):
         raise ParameterError("step", step, "daily or hourly")
     if end < start:
@@ -228,14 +308,30 @@ class SensorSeries:
     settings: dict = field(default_factory=dict)
 
     def iso_times(self) -> list[str]:
-        """Step starts as ISO 8601 strings with the UTC offset."""
+        """Step starts as ISO 8601 strings with the UTC offset.
+
+        Returns
+        -------
+        list of str
+            One per step.
+        """
         tz = _dt.timezone(_dt.timedelta(hours=self.timezone))
         return [_dt.datetime.fromisoformat(str(t)).replace(tzinfo=tz).isoformat()
                 for t in self.times.astype("datetime64[s]")]
 
     def table(self, sensors=None):
-        """Tidy ``pandas.DataFrame``: time (tz-aware), sensor, band, component, value, unit;
-        ``sensors``: a boolean mask or rows to keep (default all)."""
+        """The series as a tidy table.
+
+        Parameters
+        ----------
+        sensors : array_like, optional
+            A boolean mask or rows of the sensors to keep (default all).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns time (tz-aware), sensor, band, component, value, unit.
+        """
         import pandas as pd
         tz = _dt.timezone(_dt.timedelta(hours=self.timezone))
         times = pd.DatetimeIndex(self.times.astype("datetime64[ns]")).tz_localize(tz)
@@ -271,19 +367,26 @@ def run_series(scene, sensors: S.SensorSet, *, latitude: float, longitude: float
     sky_photons : int, optional
         Photons of the one sky pass (default 10 x photons: its noise is not averaged over the
         steps).
-    seed, max_depth, indirect
-        As :func:`mitsuba_veg.light.photon_irradiance`.
+    seed : int
+        Random seed, as :func:`mitsuba_veg.light.photon_irradiance`.
+    max_depth : int
+        Bounces per photon.
+    indirect : bool
+        Trace scattered light (False: direct light only).
     sub_minutes : float
         Sun positions every this many minutes inside a step [min] (divides 60).
     progress : bool
         Progress bar over the steps.
-    sky_readings, light_scene
-        Reuse the sky readings (n, 2, 4) [W m-2 per unit reference] and the light scene of an
-        earlier call with the same scene and sensors (the ``settings`` of its result).
+    sky_readings : numpy.ndarray, optional
+        Reuse the sky readings (n, 2, 4) [W m-2 per unit reference] of an earlier call with
+        the same scene and sensors (the ``settings`` of its result).
+    light_scene : tuple, optional
+        Reuse the (light scene, face owner) of such a call (its ``settings``).
 
     Returns
     -------
     SensorSeries
+        Step means per sensor, quantity and component, and those of the open horizontal.
     """
 
     check_range("latitude", latitude, -90.0, 90.0)
@@ -369,8 +472,22 @@ def run_series(scene, sensors: S.SensorSet, *, latitude: float, longitude: float
 
 
 def daily_light_integral(series: SensorSeries):
-    """Daily light integrals [mol m-2 d-1] of PAR per local day: (days (datetime64[D]),
-    dli[day, sensor, component], open[day, component]) from the step means."""
+    """Daily light integrals of PAR per local day, from the step means.
+
+    Parameters
+    ----------
+    series : SensorSeries
+        A daily or hourly series.
+
+    Returns
+    -------
+    days : numpy.ndarray
+        The local days (``datetime64[D]``).
+    dli : numpy.ndarray
+        ``dli[day, sensor, component]`` [mol m-2 d-1].
+    open : numpy.ndarray
+        ``open[day, component]`` of the open horizontal [mol m-2 d-1].
+    """
     day = series.times.astype("datetime64[D]")
     days, inv = np.unique(day, return_inverse=True)
     par = series.values[:, :, S.QUANTITIES.index("par"), :] * series.step_hours * 3600e-6
@@ -383,8 +500,22 @@ def daily_light_integral(series: SensorSeries):
 
 
 def hours_above(series: SensorSeries, threshold: float):
-    """Hours per local day with total PPFD above ``threshold`` [µmol m-2 s-1] (hourly series):
-    (days, hours[day, sensor])."""
+    """Hours per local day with total PPFD above a threshold.
+
+    Parameters
+    ----------
+    series : SensorSeries
+        An hourly series.
+    threshold : float
+        PPFD threshold [µmol m-2 s-1].
+
+    Returns
+    -------
+    days : numpy.ndarray
+        The local days (``datetime64[D]``).
+    hours : numpy.ndarray
+        ``hours[day, sensor]`` [h].
+    """
     if series.step_hours != 1.0:
         raise ParameterError("step", "daily", "an hourly series", "hours above a threshold "
                              "need hourly steps")

@@ -138,10 +138,29 @@ def _sphere_template(bands: int = SPHERE_BANDS, segments: int = SPHERE_SEGMENTS)
 
 def projected_area(kind: str, direction, size: float = 1.0,
                    normal=(0.0, 1.0, 0.0)) -> tuple[float, float]:
-    """Area that a sensor's recording faces present to light travelling against ``direction``
-    (``direction`` points from the sensor towards the light) [m2], and the area its reading
-    divides by: ``(projected, normalising)``. Their ratio is the sensor's angular response
-    (ideal: cos θ, (1 + cos θ)/2, 1 for cosine, hemispherical, spherical)."""
+    """Area a sensor presents to a beam, and the area its reading divides by.
+
+    The projected area of the sensor's recording faces seen by light travelling against
+    ``direction``, and the normalising area of its reading. Their ratio is the sensor's angular
+    response (ideal: cos θ, (1 + cos θ)/2, 1 for cosine, hemispherical, spherical; the sphere's
+    faceting makes the real one differ slightly).
+
+    Parameters
+    ----------
+    kind : str
+        ``"cosine"``, ``"hemispherical"`` or ``"spherical"``.
+    direction : sequence of 3 float
+        From the sensor towards the light [-] (normalised here).
+    size : float
+        Side of the square / diameter of the sphere [m].
+    normal : sequence of 3 float
+        The sensor's axis [-] (normalised here).
+
+    Returns
+    -------
+    projected, normalising : float
+        Projected area of the recording faces [m2] and the area the reading divides by [m2].
+    """
     k = _kind_code(kind)
     v, f, nrm_area = _template(k)
     s = np.asarray(direction, float)
@@ -239,7 +258,18 @@ class SensorSet:
         return out
 
     def check(self) -> "SensorSet":
-        """Refuse duplicate names and more than :data:`MAX_SENSORS` sensors."""
+        """Refuse duplicate names and more than :data:`MAX_SENSORS` sensors.
+
+        Returns
+        -------
+        SensorSet
+            This set, unchanged.
+
+        Raises
+        ------
+        ParameterError
+            For a duplicate name or too many sensors.
+        """
         u, c = np.unique(self.names, return_counts=True)
         if (c > 1).any():
             raise ParameterError("sensor name", str(u[c > 1][0]), "names unique among the "
@@ -250,7 +280,18 @@ class SensorSet:
         return self
 
     def index(self, name) -> int:
-        """Row of a sensor name (or an int row)."""
+        """Row of a sensor.
+
+        Parameters
+        ----------
+        name : str or int
+            A sensor name, or a row (checked against the number of sensors).
+
+        Returns
+        -------
+        int
+            The sensor's row.
+        """
         if isinstance(name, (int, np.integer)):
             if not 0 <= int(name) < len(self):
                 raise ParameterError("sensor", name, f"0..{len(self) - 1}")
@@ -268,12 +309,28 @@ class SensorSet:
         return [str(self.group[i]) for i in sorted(first)]
 
     def normalising_area(self) -> np.ndarray:
-        """Area each reading divides the recorded power by [m2] (module docstring)."""
+        """Area each reading divides the recorded power by (module docstring).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) areas [m2]: the square's area, π r² for a dome, S/4 for a sphere.
+        """
         a = np.array([_template(k)[2] for k in range(len(KINDS))])
         return a[self.kind] * self.size ** 2
 
     def mesh(self):
-        """All sensors as one mesh: (vertices (V, 3), faces (F, 3), sensor of each face (F,))."""
+        """All sensors as one mesh.
+
+        Returns
+        -------
+        vertices : numpy.ndarray
+            (V, 3) positions [m].
+        faces : numpy.ndarray
+            (F, 3) vertex indices.
+        owner : numpy.ndarray
+            (F,) the sensor (row) of each face.
+        """
         vs, fs, owner, nv = [], [], [], 0
         for k in range(len(KINDS)):
             idx = np.flatnonzero(self.kind == k)
@@ -339,6 +396,7 @@ def point(name: str, position, normal=(0.0, 1.0, 0.0), kind: str = "cosine",
     Returns
     -------
     SensorSet
+        The one sensor.
     """
     if not isinstance(name, str) or not name.strip():
         raise ParameterError("name", name, "a non-empty string")
@@ -375,12 +433,15 @@ def grid(name: str, origin, u, v, spacing: float, normal=None, kind: str = "cosi
         centred in the rectangle.
     normal : sequence of 3 float, optional
         Sensor axis (default u x v normalised).
-    kind, size
+    kind : str
         As :func:`point`.
+    size : float
+        As :func:`point` [m].
 
     Returns
     -------
     SensorSet
+        One sensor per grid cell.
     """
     o = _vec3("origin", origin, unit=False)
     uu, vv = _vec3("u", u, unit=False), _vec3("v", v, unit=False)
@@ -424,12 +485,17 @@ def ground_grid(scene, name: str, spacing: float, height: float = 0.5, x=None, z
         Extent [m] (default: the ground's bounding box).
     ground : str
         Shape id of the terrain.
-    kind, size, normal
+    kind : str
+        As :func:`point`.
+    size : float
+        As :func:`point` [m].
+    normal : sequence of 3 float
         As :func:`point`.
 
     Returns
     -------
     SensorSet
+        One sensor per grid point with ground below it.
     """
 
     check_range("spacing", spacing, 1e-3, 1e4, fix="grid spacing in metres, e.g. 0.25")
@@ -486,11 +552,23 @@ _REQUIRED = {"point": ("position",), "ground_grid": ("spacing",),
 
 
 def from_scenario(scn, scene=None) -> SensorSet | None:
-    """The sensors of a scenario's ``[[sensors]]`` entries (None when it has none).
+    """The sensors of a scenario's ``[[sensors]]`` entries.
 
-    ``scene`` (the loaded scene) is needed for ``ground_grid`` entries. Checks the fields each
-    layout needs and refuses ones it would ignore (``ParameterError`` naming
-    ``sensors[k].FIELD``)."""
+    Checks the fields each layout needs and refuses ones it would ignore
+    (``ParameterError`` naming ``sensors[k].FIELD``).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The loaded scenario.
+    scene : mitsuba.Scene, optional
+        The loaded scene, needed for ``ground_grid`` entries.
+
+    Returns
+    -------
+    SensorSet or None
+        All entries' sensors; None when the scenario has none.
+    """
     entries = scn.get("sensors")
     if not entries:
         return None
@@ -538,9 +616,27 @@ def from_scenario(scn, scene=None) -> SensorSet | None:
 # Reading the sensors with the photon pass
 # --------------------------------------------------------------------------------------------
 def scene_with_sensors(scene, sensors: SensorSet, emitters: dict | None = None):
-    """A new scene: the shapes of ``scene``, its emitters (or ``emitters``: a dict of emitter
-    dicts/objects replacing them) and the sensors as one mesh :data:`SENSOR_SHAPE` (trace it
-    with ``modes={SENSOR_SHAPE: "sensor"}``). Returns ``(scene, face_owner)``."""
+    """A new scene with the sensors as one mesh.
+
+    The shapes of ``scene``, its emitters (or ``emitters`` instead) and the sensors as one mesh
+    :data:`SENSOR_SHAPE` (trace it with ``modes={SENSOR_SHAPE: "sensor"}``).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        Shapes and emitters (not changed).
+    sensors : SensorSet
+        The sensors (at least one).
+    emitters : dict, optional
+        Emitter dicts/objects by id replacing the scene's emitters.
+
+    Returns
+    -------
+    scene : mitsuba.Scene
+        The new scene.
+    face_owner : numpy.ndarray
+        (F,) the sensor (row) of each face of the sensor mesh.
+    """
 
 
     if sensors is None or not len(sensors):
@@ -568,9 +664,22 @@ def _umol():
 
 
 def quantities_from_watts(w: np.ndarray) -> np.ndarray:
-    """Readings from band irradiances: ``w[..., b]`` [W m-2] in :data:`PASS_BANDS` order ->
-    ``[..., q]`` in :data:`QUANTITIES` order (photon flux densities [µmol m-2 s-1], R:FR [-],
-    shortwave [W m-2])."""
+    """Readings from band irradiances.
+
+    Photon units from band energies at the band's centre wavelength
+    (:func:`mitsuba_veg.units.umol_per_joule`).
+
+    Parameters
+    ----------
+    w : numpy.ndarray
+        ``w[..., b]`` band irradiances [W m-2] in :data:`PASS_BANDS` order.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[..., q]`` in :data:`QUANTITIES` order: photon flux densities [µmol m-2 s-1], R:FR [-]
+        (NaN without far-red), shortwave [W m-2].
+    """
     u = _umol()
     par, red, fr = w[..., 0] * u["par"], w[..., 1] * u["red"], w[..., 2] * u["far_red"]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -579,11 +688,27 @@ def quantities_from_watts(w: np.ndarray) -> np.ndarray:
 
 
 def sensor_watts(result, sensors: SensorSet, owner, beam=None) -> np.ndarray:
-    """Band irradiances of every sensor from a photon pass over a scene from
-    :func:`scene_with_sensors` (bands including :data:`PASS_BANDS`): (n, 2, 4) [W m-2], axis 1
-    = (direct, diffuse), axis 2 = :data:`PASS_BANDS`. ``beam``: the result's emitters (ids)
-    whose first-hit light is "direct" (default: none; :func:`beam_emitters` lists a scene's
-    delta-direction emitters)."""
+    """Band irradiances of every sensor from a photon pass.
+
+    Parameters
+    ----------
+    result : PhotonIrradianceResult
+        A pass over a scene from :func:`scene_with_sensors`, with bands including
+        :data:`PASS_BANDS`.
+    sensors : SensorSet
+        The sensors of that scene.
+    owner : numpy.ndarray
+        (F,) the sensor of each face of the sensor mesh (from :func:`scene_with_sensors`).
+    beam : iterable of str, optional
+        The result's emitters (ids) whose first-hit light is "direct" (default: none;
+        :func:`beam_emitters` lists a scene's delta-direction emitters).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 2, 4) band irradiances [W m-2]; axis 1 = (direct, diffuse), axis 2 =
+        :data:`PASS_BANDS`.
+    """
     sl = result.index.shape_slice(SENSOR_SHAPE)
     missing = [b for b in PASS_BANDS if b not in result.bands]
     if missing:
@@ -603,6 +728,18 @@ def sensor_watts(result, sensors: SensorSet, owner, beam=None) -> np.ndarray:
 
 
 def beam_emitters(scene) -> list[str]:
+    """The scene's delta-direction emitters (the sun's beam: "direct" light).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        The scene.
+
+    Returns
+    -------
+    list of str
+        Their ids (``emitter<i>`` for an emitter without one).
+    """
     return [em.id() or f"emitter{i}" for i, em in enumerate(scene.emitters())
             if mi.has_flag(em.flags(), mi.EmitterFlags.DeltaDirection)]
 
@@ -624,13 +761,45 @@ class SensorReadings:
 
     @classmethod
     def from_watts(cls, sensors, watts, result=None, settings=None) -> "SensorReadings":
-        """Readings from (n, 2, bands) direct/diffuse band irradiances [W m-2]."""
+        """Readings from direct/diffuse band irradiances.
+
+        Parameters
+        ----------
+        sensors : SensorSet
+            The sensors.
+        watts : numpy.ndarray
+            (n, 2, bands) direct/diffuse band irradiances [W m-2] (:data:`PASS_BANDS`).
+        result : PhotonIrradianceResult, optional
+            The pass they come from.
+        settings : dict, optional
+            The pass's settings (photons, seed, ...).
+
+        Returns
+        -------
+        SensorReadings
+            With the total component added.
+        """
         w3 = np.concatenate([watts, watts.sum(axis=1, keepdims=True)], axis=1)  # + total
         q = quantities_from_watts(w3)                                          # (n, 3, Q)
         return cls(sensors, np.moveaxis(q, 1, 2), watts, result, dict(settings or {}))
 
     def value(self, sensor, quantity: str = "par", component: str = "total"):
-        """One reading (units :data:`UNITS`); ``sensor``: name or row."""
+        """One reading.
+
+        Parameters
+        ----------
+        sensor : str or int
+            Sensor name or row.
+        quantity : str
+            One of :data:`QUANTITIES`.
+        component : str
+            One of :data:`COMPONENTS`.
+
+        Returns
+        -------
+        float
+            The reading, units :data:`UNITS` (e.g. PAR [µmol m-2 s-1]).
+        """
         if quantity not in QUANTITIES:
             raise ParameterError("quantity", quantity, ", ".join(QUANTITIES))
         if component not in COMPONENTS:
@@ -639,21 +808,60 @@ class SensorReadings:
                                  COMPONENTS.index(component)])
 
     def array(self, quantity: str = "par", component: str = "total") -> np.ndarray:
-        """One reading of every sensor (:attr:`sensors` order)."""
+        """One reading of every sensor.
+
+        Parameters
+        ----------
+        quantity : str
+            One of :data:`QUANTITIES`.
+        component : str
+            One of :data:`COMPONENTS`.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) readings in :attr:`sensors` order, units :data:`UNITS`.
+        """
         if quantity not in QUANTITIES or component not in COMPONENTS:
             raise ParameterError("quantity/component", (quantity, component),
                                  f"{QUANTITIES} / {COMPONENTS}")
         return self.values[:, QUANTITIES.index(quantity), COMPONENTS.index(component)]
 
     def table(self, time=None):
-        """Tidy ``pandas.DataFrame``: (time,) sensor, band, component, value, unit."""
+        """The readings as a tidy table.
+
+        Parameters
+        ----------
+        time : str, optional
+            Value of a ``time`` column (left out when None).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns (time,) sensor, band, component, value, unit.
+        """
         return tidy_table(self.values[None], self.sensors.names,
                           None if time is None else [time])
 
 
 def tidy_table(values, names, times=None):
-    """Tidy table of ``values[t, s, q, c]``: columns (time,) sensor, band, component, value,
-    unit; one row per (time, sensor, quantity, component), vectorised."""
+    """Tidy table of readings, one row per (time, sensor, quantity, component), vectorised.
+
+    Parameters
+    ----------
+    values : array_like
+        ``values[t, s, q, c]``: time, sensor, quantity (:data:`QUANTITIES`), component
+        (:data:`COMPONENTS`), units :data:`UNITS`.
+    names : sequence of str
+        Sensor names.
+    times : sequence, optional
+        One time per t (the ``time`` column is left out when None).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns (time,) sensor, band, component, value, unit.
+    """
     import pandas as pd
 
     v = np.asarray(values)
@@ -682,11 +890,28 @@ def _csv_field(text: str) -> str:
 
 
 def write_tidy_csv(path, values, names, times=None) -> str:
-    """The tidy table of ``values[t, s, q, c]`` (see :func:`tidy_table`) as CSV, written
-    atomically; ``times``: one ISO 8601 string per t (column left out when None). Writes the
-    repeated (sensor, band, component, unit) text once per row pattern: 1.73 million rows in
-    0.9 s against 16.2 s for ``DataFrame.to_csv`` (measured on the 2-core machine). Values
-    with 6 significant digits, NaN empty."""
+    """The tidy table of readings (see :func:`tidy_table`) as CSV, written atomically.
+
+    Writes the repeated (sensor, band, component, unit) text once per row pattern: 1.73
+    million rows in 0.9 s against 16.2 s for ``DataFrame.to_csv`` (measured on the 2-core
+    machine). Values with 6 significant digits, NaN empty.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+    values : array_like
+        ``values[t, s, q, c]`` as :func:`tidy_table`.
+    names : sequence of str
+        Sensor names.
+    times : sequence of str, optional
+        One ISO 8601 string per t (column left out when None).
+
+    Returns
+    -------
+    str
+        The path written.
+    """
     v = np.asarray(values, dtype=float)
     nt, ns, nq, nc = v.shape
     pre = [f"{_csv_field(n)},{q},{c}," for n in names for q in QUANTITIES for c in COMPONENTS]
@@ -713,8 +938,14 @@ def read(scene, sensors: SensorSet, photons: int = 1_000_000, seed: int = 0,
         changed (a copy with the sensors is traced).
     sensors : SensorSet
         From :func:`point`, :func:`grid`, :func:`ground_grid` (``+`` to combine).
-    photons, seed, max_depth, indirect
-        As :func:`mitsuba_veg.light.photon_irradiance`.
+    photons : int
+        Photons of the pass, as :func:`mitsuba_veg.light.photon_irradiance`.
+    seed : int
+        Random seed.
+    max_depth : int
+        Bounces per photon.
+    indirect : bool
+        Trace scattered light (False: direct light only).
     emitters : sequence of str, optional
         Emitter ids to trace (default all).
     progress : bool
@@ -738,5 +969,22 @@ def read(scene, sensors: SensorSet, photons: int = 1_000_000, seed: int = 0,
 
 
 def readings_from_result(result, sensors: SensorSet, owner, beam=()) -> SensorReadings:
-    """:class:`SensorReadings` of a pass over a scene from :func:`scene_with_sensors`."""
+    """:class:`SensorReadings` of a pass over a scene from :func:`scene_with_sensors`.
+
+    Parameters
+    ----------
+    result : PhotonIrradianceResult
+        The pass.
+    sensors : SensorSet
+        The sensors of that scene.
+    owner : numpy.ndarray
+        (F,) the sensor of each face of the sensor mesh.
+    beam : iterable of str
+        Emitter ids whose first-hit light is "direct" (see :func:`sensor_watts`).
+
+    Returns
+    -------
+    SensorReadings
+        The readings (direct, diffuse, total).
+    """
     return SensorReadings.from_watts(sensors, sensor_watts(result, sensors, owner, beam), result)

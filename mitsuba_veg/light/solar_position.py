@@ -324,11 +324,21 @@ def _check_years(us: np.ndarray):
 # Time scales
 # --------------------------------------------------------------------------------------------
 def julian_day(when) -> np.ndarray | float:
-    """Julian day JD [d] of ``when`` (report eq. 4; UT, proleptic Gregorian calendar).
+    """Julian day JD of ``when`` (report eq. 4; UT, proleptic Gregorian calendar).
 
-    ``when`` is anything :func:`sun_position` accepts. Computed as 2440587.5 + days since the
-    Unix epoch, which equals eq. 4 for Gregorian dates (eq. 4 switches to the Julian calendar
-    before 1582-10-15; numpy and Python dates are proleptic Gregorian).
+    Computed as 2440587.5 + days since the Unix epoch, which equals eq. 4 for Gregorian dates
+    (eq. 4 switches to the Julian calendar before 1582-10-15; numpy and Python dates are
+    proleptic Gregorian).
+
+    Parameters
+    ----------
+    when : datetime.datetime or numpy.datetime64 or str or array_like
+        Time(s), anything :func:`sun_position` accepts.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Julian day(s) JD [d]; a float for one time.
     """
     jd = _JD_UNIX_EPOCH + _times_us(when) / _US_PER_DAY
     return float(jd) if np.ndim(jd) == 0 else jd
@@ -373,7 +383,7 @@ def _delta_t_from_us(us: np.ndarray) -> np.ndarray:
 
 
 def default_delta_t(when) -> np.ndarray | float:
-    """Model of delta_t = TT - UT1 [s] used when :func:`sun_position` gets ``delta_t=None``.
+    """Model of delta_t = TT - UT1 used when :func:`sun_position` gets ``delta_t=None``.
 
     The polynomial expressions of Espenak & Meeus (NASA *Five Millennium Canon of Solar
     Eclipses*, 2006; https://eclipse.gsfc.nasa.gov/SEhelp/deltatpoly2004.html), evaluated at
@@ -383,6 +393,16 @@ def default_delta_t(when) -> np.ndarray | float:
     of dT [s] only shifts the ephemeris time, i.e. the Sun by about 4e-5 deg per 1 s of dT
     along the ecliptic, so the model is far more accurate than needed for 1950-2100; pass
     ``delta_t`` explicitly (e.g. from IERS Bulletin A) to reproduce SPA to 1e-4 deg.
+
+    Parameters
+    ----------
+    when : datetime.datetime or numpy.datetime64 or str or array_like
+        Time(s), anything :func:`sun_position` accepts.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        delta_t = TT - UT1 [s] (eq. 5); a float for one time.
     """
     dt = _delta_t_from_us(_times_us(when))
     return float(dt) if dt.ndim == 0 else dt
@@ -483,11 +503,32 @@ class SunEphemeris(NamedTuple):
 
 def sun_ephemeris(latitude, longitude, when, *, elevation=0.0, pressure=1013.25,
                   temperature=12.0, delta_t=None, refraction=True) -> SunEphemeris:
-    """Full SPA output for an observer; see :func:`sun_position` for the arguments.
+    """Full SPA output for an observer (NREL SPA, Reda & Andreas 2004, eqs. 4-46).
 
-    Returns a :class:`SunEphemeris` with the topocentric azimuth [deg], elevation [deg],
-    zenith [deg], geometric elevation (no refraction) [deg], declination [deg], hour angle [deg]
-    and the Earth-Sun distance [AU] (e.g. to scale the extraterrestrial irradiance by 1/R^2).
+    Parameters
+    ----------
+    latitude, longitude : float or array_like
+        Observer position [deg], north / east positive, as :func:`sun_position`.
+    when : datetime.datetime or numpy.datetime64 or str or array_like
+        Time(s), as :func:`sun_position`.
+    elevation : float or array_like, keyword-only
+        Observer height above sea level [m] (parallax, eqs. 35-36).
+    pressure : float or array_like, keyword-only
+        Local air pressure [hPa] (refraction, eq. 42).
+    temperature : float or array_like, keyword-only
+        Local air temperature [degC] (refraction, eq. 42).
+    delta_t : float or array_like or None, keyword-only
+        TT - UT1 [s] (eq. 5); ``None`` uses :func:`default_delta_t`.
+    refraction : bool, keyword-only
+        Add the refraction correction (eq. 42) to the elevation, as :func:`sun_position`.
+
+    Returns
+    -------
+    SunEphemeris
+        Topocentric azimuth [deg], elevation [deg], zenith [deg], geometric elevation (no
+        refraction) [deg], declination [deg], hour angle [deg] and the Earth-Sun distance [AU]
+        (e.g. to scale the extraterrestrial irradiance by 1/R^2); floats for scalar inputs,
+        else arrays of the broadcast shape.
     """
     lat = _check_array("latitude", latitude, -90.0, 90.0,
                        fix="latitude is in degrees, north positive, within [-90, 90]")
@@ -620,7 +661,7 @@ def sun_position(latitude, longitude, when, *, elevation=0.0, pressure=1013.25,
 # Scene-frame directions
 # --------------------------------------------------------------------------------------------
 def sun_direction(azimuth_deg, elevation_deg) -> np.ndarray:
-    """Unit vector(s) pointing from the scene TOWARDS the Sun, shape ``(..., 3)``.
+    """Unit vector(s) pointing from the scene TOWARDS the Sun.
 
     Scene frame of the project (``docs/conventions.md``): +x east, +y up, +z south
     (right-handed, x cross y = z). With azimuth ``az`` [deg] clockwise from north and
@@ -629,8 +670,20 @@ def sun_direction(azimuth_deg, elevation_deg) -> np.ndarray:
         d = (sin(az) cos(el), sin(el), -cos(az) cos(el))
 
     so az = 0 (north) -> -z, az = 90 (east) -> +x, az = 180 (south) -> +z, el = 90 -> +y.
-    ``azimuth_deg`` and ``elevation_deg`` broadcast (numpy rules). A Mitsuba ``directional``
-    emitter takes the direction the light travels, i.e. ``-sun_direction(az, el)``.
+    A Mitsuba ``directional`` emitter takes the direction the light travels, i.e.
+    ``-sun_direction(az, el)``.
+
+    Parameters
+    ----------
+    azimuth_deg : float or array_like
+        Azimuth [deg], clockwise from north.
+    elevation_deg : float or array_like
+        Elevation [deg] in [-90, 90]; broadcasts with ``azimuth_deg`` (numpy rules).
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit vectors [-], shape ``(..., 3)`` (the broadcast shape plus 3).
     """
     az = _check_array("azimuth_deg", azimuth_deg,
                       fix="azimuth is in degrees, clockwise from north")
@@ -646,11 +699,20 @@ def sun_direction(azimuth_deg, elevation_deg) -> np.ndarray:
 
 
 def direction_to_angles(d):
-    """Inverse of :func:`sun_direction`: direction(s) ``(..., 3)`` -> (azimuth, elevation) [deg].
+    """Inverse of :func:`sun_direction`: direction(s) -> (azimuth, elevation).
 
-    ``d`` need not be normalised but must be non-zero and finite. The azimuth is in [0, 360)
-    clockwise from north; it is 0 for (anti-)vertical directions, where it is undefined.
-    Returns floats for a single vector, else arrays of shape ``d.shape[:-1]``.
+    Parameters
+    ----------
+    d : array_like
+        Direction(s), shape ``(..., 3)`` (x east, y up, z south); need not be normalised but
+        must be non-zero and finite.
+
+    Returns
+    -------
+    azimuth, elevation : float or numpy.ndarray
+        Azimuth [deg] in [0, 360) clockwise from north (0 for (anti-)vertical directions,
+        where it is undefined) and elevation [deg]; floats for a single vector, else arrays
+        of shape ``d.shape[:-1]``.
     """
     v = _check_array("d", d, fix="give direction vectors (x east, y up, z south)")
     if v.ndim == 0 or v.shape[-1] != 3:

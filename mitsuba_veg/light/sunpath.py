@@ -107,9 +107,35 @@ def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 
              intensity="clear_sky", min_elevation: float = 0.0) -> SunPath:
     """The sun every ``step_hours`` from local midnight of ``start`` for ``days`` days.
 
-    utc_offset_hours: local standard time offset (default: round(longitude / 15)).
-    intensity: "clear_sky" (SPCTRAL2 broadband DNI/DHI) or a number: constant beam I [W m-2]
-    (the paper's I), with DHI 0. Steps with the sun at or below ``min_elevation`` are dropped.
+    Sun positions by the NREL SPA (:func:`~mitsuba_veg.light.solar_position.sun_position`) at
+    the middle of each step; the sampler of the hourly sun paths of paper 003 and of the daily
+    ``veg_sun_path`` (:func:`day_sun_path`).
+
+    Parameters
+    ----------
+    latitude : float
+        Latitude [deg], north positive.
+    longitude : float
+        Longitude [deg], east positive.
+    start : str or datetime.date
+        First local day, 'YYYY-MM-DD'.
+    days : int
+        Number of days (1-3660).
+    step_hours : float
+        Time step [h], a divisor of 24 h.
+    utc_offset_hours : float, optional
+        Local standard time offset [h] (default: round(longitude / 15)).
+    intensity : str or float
+        ``"clear_sky"`` (SPCTRAL2 broadband DNI/DHI, :func:`clear_sky_broadband`) or a number:
+        constant beam I [W m-2] (the paper's I), with DHI 0.
+    min_elevation : float
+        Steps with the sun at or below this elevation [deg] are dropped.
+
+    Returns
+    -------
+    SunPath
+        The daytime steps: times (UTC), day index, azimuth [deg], elevation [deg], direction
+        towards the sun, DNI [W m-2] and DHI [W m-2].
     """
     check_range("latitude", latitude, -90.0, 90.0)
     check_range("longitude", longitude, -180.0, 180.0)
@@ -212,23 +238,107 @@ class DeltaSun(mi.Emitter):
         return ds
 
     def pdf_direction(self, it, ds, active=True):
+        """Density of a direction sample: 0 (delta directions cannot be hit by chance).
+
+        Parameters
+        ----------
+        it : mitsuba.Interaction3f
+            The reference point.
+        ds : mitsuba.DirectionSample3f
+            The direction sample.
+        active : mitsuba.Bool
+            Active lanes.
+
+        Returns
+        -------
+        mitsuba.Float
+            0 [sr-1].
+        """
         return mi.Float(0.0)
 
     def eval(self, si, active=True):
+        """Radiance seen along a ray that hits the emitter: 0 (a delta emitter is never hit).
+
+        Parameters
+        ----------
+        si : mitsuba.SurfaceInteraction3f
+            The escaped ray's interaction.
+        active : mitsuba.Bool
+            Active lanes.
+
+        Returns
+        -------
+        mitsuba.Spectrum
+            0 [W m-2 sr-1 nm-1].
+        """
         return mi.Spectrum(0.0)
 
     def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
+        """A zero-weight emission ray (see the class docstring: no scene bounds here).
+
+        Parameters
+        ----------
+        time : mitsuba.Float
+            Ray time [s].
+        wavelength_sample : mitsuba.Float
+            Uniform sample for the wavelength.
+        sample2 : mitsuba.Point2f
+            Unused (position sample).
+        sample3 : mitsuba.Point2f
+            Direction sample.
+        active : mitsuba.Bool
+            Active lanes.
+
+        Returns
+        -------
+        ray : mitsuba.Ray3f
+            A ray against one of the sun directions, wavelength in 360-830 nm [nm].
+        weight : mitsuba.Spectrum
+            0.
+        """
         ds, _ = self.sample_direction(dr.zeros(mi.Interaction3f), sample3, active)
         ray = mi.Ray3f(ds.p, -ds.d, time, mi.Spectrum(wavelength_sample * 470.0 + 360.0))
         return ray, mi.Spectrum(0.0)
 
     def sample_wavelengths(self, si, sample, active=True):
+        """Wavelengths uniform in 360-830 nm.
+
+        Parameters
+        ----------
+        si : mitsuba.SurfaceInteraction3f
+            Unused.
+        sample : mitsuba.Float
+            Uniform sample.
+        active : mitsuba.Bool
+            Active lanes.
+
+        Returns
+        -------
+        wavelengths : mitsuba.Spectrum
+            Wavelengths [nm].
+        weight : mitsuba.Spectrum
+            1 / pdf = 470 [nm].
+        """
         return mi.Spectrum(mi.sample_shifted(sample) * 470.0 + 360.0), mi.Spectrum(470.0)
 
     def traverse(self, callback):
+        """No differentiable parameters (the directions change with :meth:`set_day`).
+
+        Parameters
+        ----------
+        callback : mitsuba.TraversalCallback
+            Mitsuba's traversal callback (not called).
+        """
         pass
 
     def parameters_changed(self, keys):
+        """Nothing to update.
+
+        Parameters
+        ----------
+        keys : list of str
+            The changed parameters (none exist).
+        """
         pass
 
 
@@ -247,7 +357,16 @@ class VegSunPath(DeltaSun):
         self.set_day(np.array([[0.0, 1.0, 0.0]]), np.array([1.0]))
 
     def set_day(self, directions, weights) -> None:
-        """Use these sun directions (towards the sun, (K, 3)) and weights (K,) from now on."""
+        """Use these sun directions and weights from now on.
+
+        Parameters
+        ----------
+        directions : array_like
+            (K, 3) unit vectors towards the sun (scene frame); none (K = 0) in polar night.
+        weights : array_like
+            (K,) weights w_k [-] (as :func:`day_sun_path`'s); photons sample direction k with
+            probability w_k / Σ w.
+        """
         d = np.asarray(directions, float).reshape(-1, 3)
         w = np.asarray(weights, float).reshape(-1)
         if len(d) == 0:  # polar night: no sun, keep a harmless direction with zero weight
@@ -259,6 +378,24 @@ class VegSunPath(DeltaSun):
         self.count = len(w)
 
     def sample_direction(self, it, sample, active=True):
+        """One of the day's sun directions, chosen with probability ∝ w_k.
+
+        Parameters
+        ----------
+        it : mitsuba.Interaction3f
+            The reference point.
+        sample : mitsuba.Point2f
+            Uniform sample (``x`` picks the direction).
+        active : mitsuba.Bool
+            Active lanes.
+
+        Returns
+        -------
+        ds : mitsuba.DirectionSample3f
+            The delta direction towards the sun.
+        weight : mitsuba.Spectrum
+            Σ_k w_k × ``scale`` [W m-2 nm-1] (weight / pmf: unbiased for the weighted sum).
+        """
         k = self.dist.sample(sample.x, active)
         ds = self._direction_sample(it, dr.gather(mi.Vector3f, self.dirs, k, active))
         ds.emitter = mi.EmitterPtr(self)
@@ -267,6 +404,13 @@ class VegSunPath(DeltaSun):
         return ds, mi.Spectrum(value)
 
     def to_string(self):
+        """Mitsuba's description of the emitter.
+
+        Returns
+        -------
+        str
+            The number of directions and the scale.
+        """
         return f"VegSunPath[directions={self.count}, scale={self.scale}]"
 
 
