@@ -189,8 +189,9 @@ class SpeciesTable:
     def fitness_table(self, Ts, rhs, S) -> mi.Float:
         """G of eq 3.17 for every (element, species) pair.
 
-        Element-major (index ``elem * n_species + species``). G depends only on the spot's environment
-        and the species, so it is evaluated once per triangle and species, not once per moss.
+        Element-major (index ``elem * n_species + species``). G depends only on the spot's
+        environment and the species, so it is evaluated once per triangle and species, not once per
+        moss.
 
         Parameters
         ----------
@@ -395,9 +396,9 @@ class MossPopulation:
     def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None):
         """Steps 1-2 of the day (germination, growth and death) and the parents of step 3-4.
 
-        Propagules age by one day and germinate by eq 3.24 (or are freed past their window); moss grow
-        by eqs 3.20-3.21 and die when G_moss < tau_d while declining; the gemma parents (one gemma per
-        +0.5 of G_moss) and spore parents (G_moss >= 2.0 and growing) are returned.
+        Propagules age by one day and germinate by eq 3.24 (or are freed past their window); moss
+        grow by eqs 3.20-3.21 and die when G_moss < tau_d while declining; the gemma parents (one
+        gemma per +0.5 of G_moss) and spore parents (G_moss >= 2.0 and growing) are returned.
 
         Parameters
         ----------

@@ -282,8 +282,8 @@ class SpotGrid:
     def insert(self, p: mi.Point3f, slots: mi.UInt32, state: mi.UInt32) -> None:
         """Newcomers in ``slots`` occupy the cells of points ``p``.
 
-        One per cell: the caller has resolved conflicts, see ``propagules.settle``. Call :meth:`sync`
-        before the population frees or reuses slots.
+        One per cell: the caller has resolved conflicts, see ``propagules.settle``. Call
+        :meth:`sync` before the population frees or reuses slots.
 
         Parameters
         ----------
@@ -434,8 +434,8 @@ class SpotGrid:
     def moss_neighbours(self, slots: mi.UInt32) -> mi.UInt32:
         """Moss among the 26 neighbour cells of the moss in ``slots``.
 
-        Kept up to date by :meth:`sync` and :meth:`insert`; equal to :meth:`neighbour_count` at their
-        positions.
+        Kept up to date by :meth:`sync` and :meth:`insert`; equal to :meth:`neighbour_count` at
+        their positions.
 
         Parameters
         ----------
@@ -520,10 +520,10 @@ class SpotGrid:
     def first_per_cell(keys: mi.UInt64, rank: mi.UInt64, active=True) -> mi.Bool:
         """Among the active items, the one of lowest (distinct) ``rank`` in each cell.
 
-        Rounds of bucketing by a hash of the key (4 buckets per item): an item with the lowest rank of
-        its bucket is the best of its cell (all items of a cell share a bucket); an item whose bucket
-        went to its own cell lost; the rest (their bucket went to another cell) try again with another
-        hash.
+        Rounds of bucketing by a hash of the key (4 buckets per item): an item with the lowest rank
+        of its bucket is the best of its cell (all items of a cell share a bucket); an item whose
+        bucket went to its own cell lost; the rest (their bucket went to another cell) try again
+        with another hash.
 
         Parameters
         ----------
