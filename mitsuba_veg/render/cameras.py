@@ -48,8 +48,28 @@ def _scene_camera(terrain):
 
 
 def presets(scn, terrain) -> dict:
-    """All camera presets of a scenario: the built-ins, overridden/extended by
-    ``[render.cameras]``."""
+    """All camera presets of a scenario: the built-ins, overridden/extended by ``[render.cameras]``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (its ``render.cameras`` tables).
+    terrain : Terrain
+        The scene's meshes (:class:`~mitsuba_veg.render.scene.Terrain`): its bounding boxes
+        place the built-in views, its base scene gives the ``scene`` preset.
+
+    Returns
+    -------
+    dict
+        ``{name: {"origin": [x, y, z] [m], "target": [x, y, z] [m], "up": [x, y, z] [-],
+        "fov": float [degrees], "fov_axis": str}}``.
+
+    Raises
+    ------
+    ParameterError
+        If a ``[render.cameras.NAME]`` entry has a malformed origin, target or up, a fov outside
+        [1, 170] degrees, an unknown fov_axis, or lacks origin or target.
+    """
     lo, hi = terrain.ground_bbox()
     c = 0.5 * (lo + hi)
     ext = hi - lo
@@ -98,6 +118,32 @@ def presets(scn, terrain) -> dict:
 
 
 def sensor_dict(scn, terrain, options, film: dict) -> dict:
+    """The Mitsuba ``perspective`` sensor dict of the preset ``options.camera``.
+
+    Near and far clip 0.005 m and 1e5 m; the sampler is ``options.sampler`` with
+    ``options.samples`` samples per pixel and ``options.seed``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (its own camera presets).
+    terrain : Terrain
+        The scene's meshes (see :func:`presets`).
+    options : RenderOptions
+        Camera name, sampler, samples per pixel and seed.
+    film : dict
+        The film dict (:func:`mitsuba_veg.render.film.film_dict`).
+
+    Returns
+    -------
+    dict
+        The sensor dict (id ``"camera"``) for ``mi.load_dict``.
+
+    Raises
+    ------
+    ParameterError
+        If ``options.camera`` is not a preset of the scenario.
+    """
     cams = presets(scn, terrain)
     if options.camera not in cams:
         raise ParameterError("camera", options.camera, "one of " + ", ".join(cams),

@@ -94,7 +94,24 @@ MOSS_MATERIAL = {"bryum_argenteum": "bryum_argenteum",
 
 
 def spectrum(name_or_values) -> np.ndarray:
-    """Reflectance on :data:`WAVELENGTHS`: a material name or an array of that length."""
+    """Reflectance on :data:`WAVELENGTHS`: a material name or an array of that length.
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        A key of :data:`SPECTRA`, a constant reflectance [-], or 95 reflectances [-] on
+        360-830 nm in 5 nm steps.
+
+    Returns
+    -------
+    numpy.ndarray
+        Reflectance (95,) [-] on :data:`WAVELENGTHS` [nm].
+
+    Raises
+    ------
+    ParameterError
+        If the name is unknown or the array has another length.
+    """
     if isinstance(name_or_values, str):
         if name_or_values not in SPECTRA:
             raise ParameterError("material", name_or_values, "one of " + ", ".join(sorted(SPECTRA)),
@@ -110,7 +127,19 @@ def spectrum(name_or_values) -> np.ndarray:
 
 
 def regular(values) -> dict:
-    """A Mitsuba ``regular`` spectrum dict on :data:`WAVELENGTHS`."""
+    """A Mitsuba ``regular`` spectrum dict on :data:`WAVELENGTHS`.
+
+    Parameters
+    ----------
+    values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+
+    Returns
+    -------
+    dict
+        ``{"type": "regular", "wavelength_min": 360, "wavelength_max": 830, "values": ...}``
+        (wavelengths [nm]).
+    """
     v = spectrum(values)
     return {"type": "regular", "wavelength_min": float(WAVELENGTHS[0]),
             "wavelength_max": float(WAVELENGTHS[-1]),
@@ -118,24 +147,74 @@ def regular(values) -> dict:
 
 
 def diffuse(name_or_values) -> dict:
-    """A ``diffuse`` BSDF dict with an explicit spectral reflectance."""
+    """A ``diffuse`` BSDF dict with an explicit spectral reflectance.
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+
+    Returns
+    -------
+    dict
+        The BSDF dict.
+    """
     return {"type": "diffuse", "reflectance": regular(name_or_values)}
 
 
 def blend(bsdf0: dict, bsdf1: dict, weight) -> dict:
-    """``blendbsdf``: weight 0 -> ``bsdf0``, 1 -> ``bsdf1``; weight a float or texture dict."""
+    """``blendbsdf``: weight 0 -> ``bsdf0``, 1 -> ``bsdf1``.
+
+    Parameters
+    ----------
+    bsdf0, bsdf1 : dict
+        The two BSDF dicts.
+    weight : float or dict
+        Blend weight in [0, 1] [-]: a number (a ``uniform`` texture) or a texture dict.
+
+    Returns
+    -------
+    dict
+        The ``blendbsdf`` dict.
+    """
     w = {"type": "uniform", "value": float(weight)} if np.isscalar(weight) else weight
     return {"type": "blendbsdf", "weight": w, "bsdf_0": bsdf0, "bsdf_1": bsdf1}
 
 
 def band_mean(name_or_values, lo: float, hi: float) -> float:
-    """Mean reflectance over [lo, hi] nm (linear interpolation of the 5-nm grid)."""
+    """Mean reflectance over [lo, hi] nm (linear interpolation of the 5-nm grid).
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+    lo, hi : float
+        Band edges [nm].
+
+    Returns
+    -------
+    float
+        Band-mean reflectance [-] (64 evenly spaced wavelengths).
+    """
     x = np.linspace(lo, hi, 64)
     return float(np.interp(x, WAVELENGTHS, spectrum(name_or_values)).mean())
 
 
 def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
-    """sRGB (0-1, gamma-encoded) of a reflectance under D65, for legends and checks."""
+    """sRGB (0-1, gamma-encoded) of a reflectance under D65, for legends and checks.
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+    exposure : float, optional
+        Factor on XYZ before encoding [-] (default 1: a perfect white reflector has Y = 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        sRGB (3,) in [0, 1] [-].
+    """
     import colour
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     d65 = colour.SDS_ILLUMINANTS["D65"]
@@ -150,8 +229,20 @@ def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
 
 # ---- leaves ----------------------------------------------------------------------------------
 def leaf_bsdf(tau: float = 0.0) -> dict:
-    """BSDF dict of a leaf at autumn logical time ``tau`` (0 green .. 1 red, paper 003):
-    PROSPECT-D reflectance and transmittance in the two-sided ``veg_leaf`` BSDF."""
+    """BSDF dict of a leaf at autumn logical time ``tau``.
+
+    PROSPECT-D reflectance and transmittance (paper 003) in the two-sided ``veg_leaf`` BSDF.
+
+    Parameters
+    ----------
+    tau : float, optional
+        Autumn logical time [-], clipped to 0 (green) .. 1 (red) (default 0).
+
+    Returns
+    -------
+    dict
+        The ``veg_leaf`` BSDF dict.
+    """
     return leaf_bsdf_dict(leaf_spectra(tau=float(np.clip(tau, 0.0, 1.0))))
 
 

@@ -33,7 +33,29 @@ AUTUMN_ONSET_DOY = 258
 
 
 def daily_extraterrestrial_mj(latitude: float, doy) -> np.ndarray:
-    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2] (Duffie & Beckman)."""
+    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2] (Duffie & Beckman).
+
+    ::
+
+        H0 = 86400 * 1367 / pi * (1 + 0.033 cos(2 pi doy / 365))
+             * (cos(phi) cos(dec) sin(ws) + ws sin(phi) sin(dec))
+
+    with the declination ``dec = 23.45° sin(2 pi (284 + doy) / 365)`` (Cooper) and the sunset hour
+    angle ``ws = arccos(-tan(phi) tan(dec))`` (clipped: polar day and night); negative values are
+    set to 0.
+
+    Parameters
+    ----------
+    latitude : float
+        Site latitude phi [degrees] (north positive).
+    doy : int or array_like
+        Day of the year [days] (1 = 1 January).
+
+    Returns
+    -------
+    numpy.ndarray
+        H0 [MJ m-2] (per day), of the shape of ``doy``.
+    """
     doy = np.asarray(doy, float)
     phi = math.radians(latitude)
     dec = np.radians(23.45) * np.sin(2 * np.pi * (284 + doy) / 365.0)
@@ -45,7 +67,22 @@ def daily_extraterrestrial_mj(latitude: float, doy) -> np.ndarray:
 
 
 def leaf_exposure(tree) -> np.ndarray:
-    """Exposure factor per leaf in [0.35, 1]: higher and outer leaves get more light."""
+    """Exposure factor per leaf in [0.35, 1]: higher and outer leaves get more light.
+
+    ``0.35 + 0.65 (0.6 h + 0.4 r)`` with h the leaf's height in the crown and r its horizontal
+    distance from the crown's mean position, both scaled to [0, 1] [-]: a proxy for the crown's
+    self-shading.
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree (its ``leaves.position`` (n, 3) [m]).
+
+    Returns
+    -------
+    numpy.ndarray
+        Exposure factor (n,) in [0.35, 1] [-] (empty for a tree without leaves).
+    """
     p = tree.leaves.position
     if len(p) == 0:
         return np.zeros(0)
@@ -87,7 +124,17 @@ class TreeSeasons:
             self.fall_thr = np.full(n, np.inf)
 
     def apply(self, date: _dt.date) -> None:
-        """Write the tree's leaf attributes for ``date``."""
+        """Write the tree's leaf attributes for ``date``.
+
+        Sets ``leaf_scale`` (the leaf-out smoothstep, 0..1 [-]; 1 after day-of-year 200),
+        ``autumn_tau`` (logical autumn time clipped to [0, 1] [-]) and ``fallen`` (raw tau past the
+        leaf's fall threshold) in ``tree.leaves.attrs``.
+
+        Parameters
+        ----------
+        date : datetime.date
+            The date; dates outside the precomputed range use its first or last day's autumn state.
+        """
         i = int(np.clip((date - self.start).days, 0, self.days - 1))
         doy = date.timetuple().tm_yday
         lv = self.tree.leaves
