@@ -1,8 +1,8 @@
 """Animations of a run: :func:`run_animate` renders the run's days (the snapshot days, thinned
 to ``frames``) at lower settings, each in its day's daylight moved into one scene (or one fixed
-light), so that the rendering kernel is compiled once, and writes ``frames/frame_NNNN.png``, ``animation.mp4`` (H.264, ffmpeg),
-``animation.gif`` and ``animate.json``. The same frames as Dask tasks:
-:mod:`mitsuba_veg.sweeps.frames`.
+light), so that the rendering kernel is compiled once, and writes ``frames/frame_NNNN.png``,
+``animation.mp4`` (H.264, ffmpeg), ``animation.gif`` and ``animate.json``. The same frames as
+Dask tasks: :mod:`mitsuba_veg.sweeps.frames`.
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ A scenario can name its own views::
     origin = [2.6, 1.9, 2.9]      # [m]
     target = [-0.05, 0.25, -0.25]
     up = [0.0, 1.0, 0.0]          # optional
-    fov = 50.0                    # [deg] along the image's smaller side... see fov_axis
+    fov = 50.0                    # [deg] field of view along the axis fov_axis names
     fov_axis = "x"                # optional: "x" (default, as Mitsuba), "y", "smaller"
 
 Built-in presets, computed from the scene (the ground's bounding box when there is a
@@ -31,7 +31,6 @@ BUILTIN = ("overview", "shelter", "top", "scene")
 
 def _scene_camera(terrain):
     try:
-        import mitsuba as mi
         for s in terrain.base_scene.sensors():
             if s.id() == "camera" or len(terrain.base_scene.sensors()) == 1:
                 m = np.array(s.world_transform().matrix, dtype=np.float64).reshape(4, 4)

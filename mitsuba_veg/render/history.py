@@ -2,9 +2,11 @@
 
 A run directory (``mitsuba-veg run ... --out DIR``) holds ``summary.json`` (settings, species,
 one record per day), ``checkpoint.npz`` (the whole population at the last checkpoint) and, when
-the run was made with snapshots (:class:`SnapshotWriter`), ``snapshots/day_NNNN.npz``: the living
-moss (positions, normals, species, growth) on the frame days. :func:`load_run` reads them;
-:meth:`Run.frames` gives the moss of each frame day for the animation:
+the run was made with snapshots (:class:`~mitsuba_veg.outputs.SnapshotWriter`),
+``snapshots/day_NNNN.npz``: the living moss (positions, normals, species, growth) on the frame
+days. :func:`load_run` reads them;
+:meth:`Run.frame_days` picks the frame days and :meth:`Run.frame` gives the moss of one day
+for the animation:
 
 - from the snapshots when they exist (exact);
 - otherwise reconstructed from the last checkpoint and the per-day counts of ``summary.json``
@@ -26,7 +28,7 @@ import numpy as np
 from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
 from ..daily.run import run
 from ..errors import ParameterError
-from ..outputs import SNAPSHOT_DIR, SnapshotWriter, write_snapshot  # noqa: F401 (re-exported)
+from ..outputs import SNAPSHOT_DIR
 from ..scenario import Scenario, load_scenario
 from .moss import MossSet, live_moss
 

@@ -9,8 +9,7 @@ a little green, absorb red near 670 nm and reflect strongly beyond the red edge 
 Their band means agree with the moss model's albedo per band (``[moss] albedo`` of the moss
 garden: red 0.05, far-red 0.45) within a few hundredths; ``band_mean`` reports them.
 
-Leaves use PROSPECT-D spectra and the ``veg_leaf`` BSDF (:mod:`mitsuba_veg.foliage`) when that
-package is importable; otherwise :func:`leaf_bsdf` falls back to a one-sided diffuse green.
+Leaves use PROSPECT-D spectra and the two-sided ``veg_leaf`` BSDF (:mod:`mitsuba_veg.foliage`).
 """
 from __future__ import annotations
 
@@ -78,8 +77,6 @@ def _spectra() -> dict:
         # the carpet of old stems and rhizoids under living moss
         "moss_base": _vegetation(0.03, 0.06, 0.045, 0.28, yellow=0.015, edge=712,
                                  edge_width=16.0),
-        # fallback leaf (no PROSPECT-D available): a mature green leaf, R only
-        "leaf_green": _vegetation(0.04, 0.13, 0.04, 0.48, edge=710, green_width=28.0),
     }
     return {k: np.clip(v, 0.0, 0.95) for k, v in s.items()}
 

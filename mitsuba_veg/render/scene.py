@@ -15,7 +15,7 @@
 - **moss**: one tuft model per living moss (:mod:`.moss`), merged into one mesh per species,
   two-sided, blending the species' dark and light spectra by a per-vertex ``tone`` attribute.
 - **trees**: bark tubes and leaves (:mod:`.trees`): leaves binned by autumn logical time, one
-  ``veg_leaf`` (PROSPECT-D) BSDF per bin when :mod:`mitsuba_veg.foliage` is available.
+  ``veg_leaf`` (PROSPECT-D) BSDF per bin (:mod:`mitsuba_veg.foliage`).
 - **light**: the physical sun (``directional``) and sky (``veg_sky``) of
   :func:`mitsuba_veg.light.daylight` for the scenario's site and the render time, with explicit
   spectra over 360-830 nm (all of Mitsuba's range; the far-red band is inside it).
@@ -47,6 +47,12 @@ from .trees import leaf_bin_arrays, tree_shapes
 
 __all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_time",
            "Terrain"]
+
+
+#: allowed ranges of the image settings (inclusive), shared by :meth:`RenderOptions.validate`
+#: and the command line's early check (:func:`mitsuba_veg.render.still.check_image`)
+IMAGE_LIMITS = {"width": (8, 16384), "height": (8, 16384), "spp": (1, 1 << 20),
+                "max_depth": (1, 100)}
 
 
 @dataclass
@@ -96,10 +102,10 @@ class RenderOptions:
         ParameterError
             If a setting is out of range.
         """
-        check_range("width", self.width, 8, 16384, fix="image width in pixels")
-        check_range("height", self.height, 8, 16384, fix="image height in pixels")
-        check_range("spp", self.spp, 1, 1 << 20, fix="samples per pixel, e.g. 64")
-        check_range("max_depth", self.max_depth, 1, 100)
+        check_range("width", self.width, *IMAGE_LIMITS["width"], fix="image width in pixels")
+        check_range("height", self.height, *IMAGE_LIMITS["height"], fix="image height in pixels")
+        check_range("spp", self.spp, *IMAGE_LIMITS["spp"], fix="samples per pixel, e.g. 64")
+        check_range("max_depth", self.max_depth, *IMAGE_LIMITS["max_depth"])
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
@@ -620,10 +626,9 @@ def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
         if w:
             return str(w)
         date = _dt.date(2026, 6, 21)
-    h = int(options.hour)
-    m = int(round((options.hour - h) * 60))
-    t = _dt.datetime(date.year, date.month, date.day, min(h, 23), min(m, 59),
-                     tzinfo=_timezone(scn))
+    # rounded to the minute once (10.999 h is 11:00, not 10:60); hour 24 is the next midnight
+    t = _dt.datetime(date.year, date.month, date.day, tzinfo=_timezone(scn)) \
+        + _dt.timedelta(minutes=round(options.hour * 60.0))
     return t.isoformat()
 
 

@@ -6,7 +6,7 @@ simple phenology driven by the calendar and by light (documented in docs/render.
 - **leaf-out**: leaves grow from nothing to full size between ``leaf_out`` (default day-of-year
   95, early April) and ``leaf_out + 30``: per-leaf ``leaf_scale`` (a smoothstep, 5 days earlier
   for the sunniest leaves);
-- **autumn** (paper 003 through :func:`mitsuba_veg.foliage.autumn_time` when available): each
+- **autumn** (paper 003 through :func:`mitsuba_veg.foliage.autumn_time`): each
   leaf's logical time tau grows with its cumulative insolation from the onset day
   (``autumn_onset``, default day-of-year 258, mid-September). The daily insolation of a leaf is
   the clear-sky daily irradiation of the site (extraterrestrial irradiation x 0.55) times an

@@ -15,7 +15,7 @@ from ..outputs import OutputFolder, write_json
 from ..backend import versions
 from . import film as _film
 from .history import load_run
-from .scene import RenderOptions, Terrain, build_scene
+from .scene import IMAGE_LIMITS, RenderOptions, Terrain, build_scene
 from .world import trees_for_run
 
 
@@ -193,11 +193,11 @@ def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps
     Parameters
     ----------
     width, height : int or None
-        Image size [pixels], 16-16384.
+        Image size [pixels], 8-16384 (:data:`~mitsuba_veg.render.scene.IMAGE_LIMITS`).
     spp : int or None
-        Samples per pixel, 1-65536.
+        Samples per pixel, 1-2^20.
     max_depth : int or None, optional
-        Path length, 1-1000.
+        Path length, 1-100.
     frames : int or None, optional
         Animation frames, 2-10000.
     every : int or None, optional
@@ -210,8 +210,9 @@ def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps
     ParameterError
         If a value is out of its range (named by its command-line option, e.g. ``--width``).
     """
-    for name, v, lo, hi in (("--width", width, 16, 16384), ("--height", height, 16, 16384),
-                            ("--spp", spp, 1, 65536), ("--max-depth", max_depth, 1, 1000),
+    L = IMAGE_LIMITS
+    for name, v, lo, hi in (("--width", width, *L["width"]), ("--height", height, *L["height"]),
+                            ("--spp", spp, *L["spp"]), ("--max-depth", max_depth, *L["max_depth"]),
                             ("--frames", frames, 2, 10000), ("--every", every, 1, 100_000),
                             ("--fps", fps, 1, 120)):
         if v is not None:

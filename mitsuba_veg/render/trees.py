@@ -1,14 +1,14 @@
 """Trees and leaves for the render.
 
-- **bark**: the smooth Weber-Penn mesh with junctions (:func:`mitsuba_veg.trees.junction.
-  tree_mesh`, paper 004) when available, else the tube mesh of
+- **bark**: for Weber-Penn trees the smooth mesh with junctions (:func:`mitsuba_veg.trees.junction.
+  tree_mesh`, paper 004), for the other trees (growth model) the tube mesh of
   :meth:`mitsuba_veg.trees.Tree.to_mesh`; all trees merged into one two-sided spectral ``bark``
   mesh.
-- **leaves**: one blade per leaf (oval when the junction module is there, else a quad), binned
+- **leaves**: one blade per leaf (an oval for Weber-Penn trees, else a quad), binned
   by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
   ``leaf_bins`` meshes, each with the leaf BSDF of its bin's tau
   (:func:`mitsuba_veg.render.materials.leaf_bsdf`: PROSPECT-D spectra in the two-sided
-  ``veg_leaf`` BSDF when :mod:`mitsuba_veg.foliage` is present). Leaves with ``fallen`` set are
+  ``veg_leaf`` BSDF). Leaves with ``fallen`` set are
   not drawn; an optional ``leaf_scale`` attr (0..1) shrinks leaves (spring leaf-out).
 
 :func:`scenario_trees` builds the trees a scenario asks for in ``[[render.trees]]``::
@@ -67,7 +67,7 @@ def tree_geometry(trees, cache=None):
     trees : list of Tree
         The trees; leaves may carry ``autumn_tau``, ``fallen`` and ``leaf_scale`` attrs.
     cache : dict, optional
-        ``{id(tree): (bark, leaves)}``, filled on first use and reused (the geometry of a tree
+        ``{id(tree): (tree, bark, leaves)}``, filled on first use and reused (the geometry of a tree
         object is assumed not to change).
 
     Returns
@@ -83,12 +83,14 @@ def tree_geometry(trees, cache=None):
     nb = nl = nleaf = 0
     for t in trees:
         key = id(t)
-        if cache is not None and key in cache:
-            bark, leaves = cache[key]
+        if cache is not None and key in cache and cache[key][0] is t:
+            _, bark, leaves = cache[key]
         else:
             bark, leaves = _bark_and_leaf_geometry(t)
             if cache is not None:
-                cache[key] = (bark, leaves)
+                # the tree itself is kept in the entry: while the cache lives, its id cannot be
+                # reused by another object
+                cache[key] = (t, bark, leaves)
         bv.append(bark[0])
         bf.append(bark[1] + nb)
         nb += len(bark[0])
