@@ -205,9 +205,9 @@ class MapleLeaf:
     def fronts(self, table: StageTable | None = None):
         """Stages S1(q), S2(q) at which each point turns dark green-red / red.
 
-        q = 1 − aging; S1 follows the stage table's ``coloured`` area fraction (stages 1..5), S2 its
-        ``red`` fraction (stages 5..7), each inverted at its first crossing (linear), starting half a
-        stage before the first stage with coverage.
+        q = 1 − aging; S1 follows the stage table's ``coloured`` area fraction (stages 1..5), S2
+        its ``red`` fraction (stages 5..7), each inverted at its first crossing (linear), starting
+        half a stage before the first stage with coverage.
 
         Parameters
         ----------
@@ -227,10 +227,10 @@ class MapleLeaf:
         return s1, s2
 
     def state_weights(self, stage, width: float = 0.5, table: StageTable | None = None):
-        """Per-point weights (n, 3) of the tissue states green / dark green-red / red at a leaf stage.
+        """Per-point weights (n, 3) of the tissue states green / dark green-red / red.
 
-        A point's change takes ``width`` stages (soft fronts ending at S1 and S2 of
-        :meth:`fronts`).
+        Weights at a leaf stage in [1, 7]; a point's change takes ``width`` stages (soft fronts
+        ending at S1 and S2 of :meth:`fronts`).
 
         Parameters
         ----------
