@@ -110,7 +110,7 @@ def red_far_red_attenuation(spectra: LeafSpectra | None = None, *, tau=None, alp
         Leaf reflectance and transmittance; default: the spectra at ``tau``.
     tau : float or array_like, optional
         Autumn logical time [-] in [0, 1] of the leaves, used when ``spectra`` is None (default
-        0: green).
+        0: green); refused together with ``spectra``.
     alpha_l : float
         PAR pass factor of a green leaf sphere [-] (default 0.3, paper 001), used when neither
         ``gap_fraction`` nor ``lai_path`` is given.
@@ -133,8 +133,12 @@ def red_far_red_attenuation(spectra: LeafSpectra | None = None, *, tau=None, alp
     Raises
     ------
     ParameterError
-        When both ``gap_fraction`` and ``lai_path`` are given, or a value is out of range.
+        When both ``gap_fraction`` and ``lai_path`` are given, or both ``spectra`` and
+        ``tau``, or a value is out of range.
     """
+    if spectra is not None and tau is not None:
+        raise ParameterError("spectra/tau", "both given", "one of them",
+                             "pass the leaf spectra or the autumn time tau, not both")
     if spectra is None:
         spectra = leaf_spectra(tau=0.0 if tau is None else tau)
     given = sum(x is not None for x in (gap_fraction, lai_path))
@@ -185,7 +189,7 @@ def absorbed_fraction(spectra: LeafSpectra) -> dict:
     return out
 
 
-def growth_alphas(tau=0.0, alpha_l: float = 0.3, spectra: LeafSpectra | None = None) -> dict:
+def growth_alphas(tau=None, alpha_l: float = 0.3, spectra: LeafSpectra | None = None) -> dict:
     """The growth model's (paper 001) attenuation parameters from leaf spectra.
 
     The gap fraction of a leaf sphere is calibrated on the green leaf so that green leaves keep
@@ -193,13 +197,13 @@ def growth_alphas(tau=0.0, alpha_l: float = 0.3, spectra: LeafSpectra | None = N
 
     Parameters
     ----------
-    tau : float
-        Autumn logical time [-] in [0, 1] of the leaves (default 0: green), used when ``spectra``
-        is None.
+    tau : float, optional
+        Autumn logical time [-] in [0, 1] of the leaves (default: 0, green); not with
+        ``spectra``.
     alpha_l : float
         PAR pass factor of a green leaf sphere [-] (default 0.3, paper 001).
     spectra : LeafSpectra, optional
-        Leaf spectra to use instead of those at ``tau``.
+        Leaf spectra to use instead of those at ``tau`` (refused together with ``tau``).
 
     Returns
     -------
@@ -212,7 +216,7 @@ def growth_alphas(tau=0.0, alpha_l: float = 0.3, spectra: LeafSpectra | None = N
             "alpha_far_red": float(a["alpha_fr"])}
 
 
-def with_leaf_optics(params, tau=0.0, spectra: LeafSpectra | None = None):
+def with_leaf_optics(params, tau=None, spectra: LeafSpectra | None = None):
     """A copy of a growth-parameter dataclass with α_l, α_r, α_fr from the leaves' spectra.
 
     The α values come from the leaves' spectra (autumn time ``tau`` or given ``spectra``,
@@ -224,10 +228,10 @@ def with_leaf_optics(params, tau=0.0, spectra: LeafSpectra | None = None):
     params : GrowthParams
         A dataclass with fields ``alpha``, ``alpha_red``, ``alpha_far_red``
         (``mitsuba_veg.trees.growth.GrowthParams``).
-    tau : float
-        Autumn logical time [-] in [0, 1] (default 0: green).
+    tau : float, optional
+        Autumn logical time [-] in [0, 1] (default: 0, green); not with ``spectra``.
     spectra : LeafSpectra, optional
-        Leaf spectra to use instead of those at ``tau``.
+        Leaf spectra to use instead of those at ``tau`` (refused together with ``tau``).
 
     Returns
     -------

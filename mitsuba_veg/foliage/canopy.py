@@ -1,6 +1,6 @@
 """Leaf geometry for Mitsuba: trees' leaves and branches as meshes, random leaf clouds, test trees.
 
-- :func:`leaves_mesh_arrays` / :func:`tree_mesh_arrays`: vertices and faces of leaf quads and
+- :func:`leaves_mesh_arrays` / :func:`bark_mesh_arrays`: vertices and faces of leaf quads and
   bark tubes (via :mod:`mitsuba_veg.trees.structure`), two triangles per leaf, leaf ``i`` owning
   triangles ``2i`` and ``2i + 1``.
 - :func:`random_leaf_cloud`: leaves scattered uniformly in a box with isotropic ("spherical")

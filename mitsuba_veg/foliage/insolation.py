@@ -211,7 +211,7 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
         ``"rays"`` (view factor of the sky by shadow rays: direct skylight only) or ``"photons"``
         (a photon pass from a uniform sky through the tree with green ``veg_leaf`` leaves:
         skylight including its scattering by leaves and bark, :func:`sky_view_factor_photons`;
-        needs a Tree or Leaves).
+        needs a Tree or Leaves, refused with ``obstacles`` or ``bark=False``).
     sky_photons : int
         Photons of the ``"photons"`` sky pass (default 1 000 000).
     bark : bool
@@ -304,6 +304,12 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
             if isinstance(tree_or_scene, tuple):
                 raise ParameterError("sky_method", sky_method, "'rays' for a prebuilt scene",
                                      "pass the Tree or Leaves for sky_method='photons'")
+            if obstacles or not bark:
+                # the photon pass's scene is the tree with its bark: it would not see them
+                raise ParameterError("sky_method", sky_method,
+                                     "'rays' with obstacles or bark=False",
+                                     "use sky_method='rays' (its shadow rays see the obstacles "
+                                     "and honour bark=False)")
             sky_view = sky_view_factor_photons(tree_or_scene, photons=sky_photons, seed=seed)
         else:
             raise ParameterError("sky_method", sky_method, "'rays' or 'photons'")

@@ -178,7 +178,7 @@ PARAMETERS = ("N", "Cab", "Car", "Anth", "Cbrown", "Cw", "Cm")
 
 #: allowed ranges (the ones :func:`mitsuba_veg.foliage.prospect.prospect_d` checks) and fixes
 BOUNDS = {
-    "N": (1.0, 4.0, "the leaf structure parameter N is 1-3 (1.5 for thin leaves)"),
+    "N": (1.0, 4.0, "the leaf structure parameter N is 1-4 (1.5 for thin leaves)"),
     "Cab": (0.0, 200.0, "chlorophyll a+b in µg/cm2 (0-100 typical)"),
     "Car": (0.0, 60.0, "carotenoids in µg/cm2 (0-25 typical)"),
     "Anth": (0.0, 100.0, "anthocyanins in µg/cm2 (0-40 typical)"),

@@ -19,7 +19,7 @@ triangles), so stage, fall and leaf-out are exact day by day in the light. Verti
 - during leaf-out: blades grow from their centre in steps of 0.1 of their size, and the mesh
   follows when 2 % of the shown leaves have a new blade size or 7 days after the first change
   (:attr:`Canopy.min_change`, :attr:`Canopy.max_lag_days`);
-- when 10 % of the leaves are hidden with their blades still in the mesh
+- when 25 % of the leaves are hidden with their blades still in the mesh
   (:attr:`Canopy.max_hidden_blades`): a photon crossing a hidden blade costs one more ray cast,
   so in autumn, every few days of leaf fall, and for the bare winter the hidden blades are
   collapsed to points.
@@ -39,7 +39,7 @@ from ..foliage.pigments import stage_from_tau
 from ..integrators.photon_irradiance import HIDDEN, SURFACE
 from ..meshes import make_mesh
 
-#: bark reflectance: 0.08 at 400 nm rising to 0.30 at 830 nm (a grey-brown bark)
+#: bark reflectance: 0.07 at 360 nm rising to 0.30 at 830 nm (7 values 78 nm apart; grey-brown)
 _BARK = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
          "values": "0.07, 0.08, 0.11, 0.15, 0.20, 0.26, 0.30"}
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import functools
 import time
+from types import MappingProxyType
 
 import mitsuba as mi
 import numpy as np
@@ -66,8 +67,8 @@ def band_shapes(latitude: float, day_of_year: int) -> dict:
 
     Returns
     -------
-    dict
-        ``{"beam": {band: s}, "diffuse": {...}}`` for the bands of
+    mapping
+        Read-only ``{"beam": {band: s}, "diffuse": {...}}`` for the bands of
         :data:`mitsuba_veg.daily.BANDS`, s [nm-1] (0 when the component is 0).
     """
     dec = 23.45 * np.sin(np.radians(360.0 * (284 + day_of_year) / 365.0))
@@ -81,7 +82,8 @@ def band_shapes(latitude: float, day_of_year: int) -> dict:
             lo, hi = band_range(b)
             m = (s.wavelengths >= lo) & (s.wavelengths <= hi)
             out[comp][b] = float(arr[m].mean()) / total if total > 0 else 0.0
-    return out
+    # read-only views: the cache hands the same object to every caller
+    return MappingProxyType({k: MappingProxyType(v) for k, v in out.items()})
 
 
 class WorldSimulation(MossSimulation):
