@@ -51,7 +51,21 @@ RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.
 
 
 def folder_kind(path) -> str | None:
-    """The kind of result a folder holds (its marker, else recognised by its files)."""
+    """The kind of result a folder holds (its marker, else recognised by its files).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output folder.
+
+    Returns
+    -------
+    str or None
+        The kind (``"run"``, ``"irradiance"``, ``"render"``, ``"animate"``, ``"light-study"``,
+        ``"grow"``, ``"tune"``, ``"sweep"``, the ``command`` of an older ``summary.json``, or
+        ``"unknown"`` for an unreadable one); None for an empty or unrecognised folder or an
+        unreadable marker.
+    """
     path = Path(path)
     m = path / MARKER
     if m.exists():
@@ -123,10 +137,18 @@ class OutputFolder:
                                  f"{e.strerror}: choose a writable location") from None
 
     def clear(self, names) -> None:
-        """Remove stale outputs (files or folders named in ``names``) of an earlier result."""
+        """Remove stale outputs (files or folders named in ``names``) of an earlier result.
+
+        Parameters
+        ----------
+        names : iterable of str
+            File or folder names inside the output folder (e.g. :data:`RUN_OUTPUTS`); missing ones
+            are skipped.
+        """
         clear_outputs(self.path, names)
 
     def release(self) -> None:
+        """Release the folder's lock (closing the lock file drops the ``flock``); safe to call twice."""
         if self._fh is not None:
             self._fh.close()  # closing drops the flock
             self._fh = None
@@ -142,7 +164,15 @@ class OutputFolder:
 
 
 def clear_outputs(folder, names) -> None:
-    """Remove the files or folders ``names`` from ``folder`` (those that exist)."""
+    """Remove the files or folders ``names`` from ``folder`` (those that exist).
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder.
+    names : iterable of str
+        File or folder names inside ``folder``; folders are removed with their contents.
+    """
     for n in names:
         q = Path(folder) / n
         if q.is_dir():
@@ -181,8 +211,31 @@ class SnapshotWriter:
 
 def write_snapshot(directory, day: int, population: dict, date: str | None = None,
                    extra: dict | None = None) -> Path:
-    """Write the living moss of a population dict (``MossPopulation.to_numpy()``) and the
-    arrays of ``extra`` (a world's leaf state)."""
+    """Write the living moss of a population and a world's leaf state to ``day_NNNN.npz``.
+
+    The file (written atomically, compressed) holds ``day``, ``date``, ``pos`` [m] (n, 3) float32,
+    ``nrm`` [-] (n, 3) float16, ``species`` uint8, ``growth`` G_moss [-] float16 of the n living
+    moss (state 2), and the arrays of ``extra``.
+
+    Parameters
+    ----------
+    directory : str or pathlib.Path
+        Snapshot folder (created if needed), usually ``OUT/snapshots``.
+    day : int
+        Simulated day number (file name ``day_NNNN.npz``).
+    population : dict
+        ``MossPopulation.to_numpy()``: ``state``, ``pos`` [m] (capacity, 3), ``nrm`` (capacity,
+        3), ``species``, ``growth`` [-].
+    date : str, optional
+        Calendar date of the day (ISO); default None (stored as ``""``).
+    extra : dict of str to numpy.ndarray, optional
+        More arrays to store (a world's ``leaf_tau``, ``leaf_grown``, ``leaf_on``); default None.
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+    """
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     m = np.asarray(population["state"]) == 2
@@ -199,11 +252,31 @@ def write_snapshot(directory, day: int, population: dict, date: str | None = Non
 
 
 def write_summary(path, summary: dict) -> None:
+    """Write a run's ``summary.json`` atomically (indent 1, NumPy values converted).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The JSON file.
+    summary : dict
+        The summary (JSON-able, NumPy values allowed).
+    """
     write_json(path, summary, indent=1)
 
 
 def jsonable(x):
-    """JSON fallback for NumPy arrays and scalars (anything else becomes its str)."""
+    """JSON fallback for NumPy arrays and scalars (anything else becomes its str).
+
+    Parameters
+    ----------
+    x : object
+        A value ``json`` cannot serialise.
+
+    Returns
+    -------
+    list, float, int, bool or str
+        ``x.tolist()`` for arrays, ``x.item()`` for NumPy scalars, else ``str(x)``.
+    """
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, (np.floating, np.integer, np.bool_)):
@@ -226,6 +299,25 @@ class DayFrames:
             self.frames.append(self.write_day(sim, rec))
 
     def write_day(self, sim, rec) -> Path:
+        """Write the map of one day: ``maps/day_NNNN.png`` (four panels over the ground, seen from above).
+
+        Panels: moss cover [-] (fraction of each triangle, with the living moss as points), daily-mean
+        insolation S [W m-2], soil surface temperature Ts [K] and soil water content theta [-]; a
+        world's tree crowns (dashed) and trunks are drawn on every panel.
+
+        Parameters
+        ----------
+        sim : MossSimulation
+            The running simulation (its index, population, ``last`` day's fields and trees).
+        rec : dict
+            The day's record (``day``, ``date``, ``moss_alive``, ``propagules``,
+            ``covered_area_m2`` [m2], optional ``trees``).
+
+        Returns
+        -------
+        pathlib.Path
+            The written PNG.
+        """
         plt = _mpl()
 
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -272,6 +364,14 @@ class DayFrames:
         return path
 
     def finish(self) -> dict:
+        """Assemble the day maps into ``days.gif`` (400 ms per frame) when there are at least two.
+
+        Returns
+        -------
+        dict
+            ``{"maps": [PNG paths written by this run], "animation": GIF path}`` (``animation`` only
+            when the GIF was written); paths as str.
+        """
         files = {"maps": [str(p) for p in sorted(set(self.frames))]}
         frames = sorted(p for p in set(self.dir.glob("day_*.png"))
                         if p.stem[4:].isdigit() and int(p.stem[4:]) <= self.sim.days)
