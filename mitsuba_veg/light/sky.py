@@ -598,7 +598,8 @@ class VegSky(mi.Emitter):
         wavelengths : mi.Spectrum
             Sampled wavelengths [nm].
         weight : mi.Spectrum
-            The spectrum's sampling weight times f(-si.wi) [-].
+            The spectrum's sampling weight S(lambda)/p(lambda) times f(-si.wi)
+            [W m-2 sr-1].
         """
         wav, w = self.m_radiance.sample_spectrum(si, mi.sample_shifted(sample), active)
         return wav, w * self._f(-si.wi, active)
@@ -647,8 +648,9 @@ class VegSky(mi.Emitter):
         ray : mi.Ray3f
             The ray (origin [m], direction into the scene, wavelengths [nm]).
         weight : mi.Spectrum
-            Spectral weight ``wavelength weight * f * pi r^2 / pdf``: power per unit wavelength
-            [W nm-1] (r: bounding-sphere radius [m]); 0 for inactive lanes.
+            ``S(lambda)/p(lambda) * f * pi r^2 / pdf``: the power the ray carries [W]
+            (r: bounding-sphere radius [m], pdf: direction density [sr-1]); 0 for inactive
+            lanes.
         """
         offset = mi.warp.square_to_uniform_disk_concentric(sample2)
         d, pdf, _ = self._sample(sample3, active)
