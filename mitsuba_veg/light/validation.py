@@ -379,10 +379,10 @@ def as_meshes(scene_dict: dict) -> dict:
 
 
 def plant_mesh(kind: int = 0):
-    """Vertices [m] and faces of a small plant: 4 + ``kind`` leaf quads spiralling up a stem.
+    """Vertices [m] and faces of a small plant: 4 + ``kind`` leaf quads (8-14 triangles).
 
-    Leaf quads (two triangles each; 8-14 triangles for kind 0-3) start at 5 cm, one leaf every
-    3 cm, each about 6 cm long; the stem itself is not part of the mesh (see :func:`plant_scene`).
+    The leaves spiral up a 5-20 cm stem, one leaf every 3 cm from 5 cm up, each about 6 cm
+    long; the stem itself is not part of the mesh (see :func:`plant_scene`).
 
     Parameters
     ----------
