@@ -38,7 +38,32 @@ SECONDS_PER_DAY = 86400.0
 
 @dataclass
 class ClimateTable:
-    """Yearly climate of paper 000 table 4.3 (defaults) with validation."""
+    """Yearly climate of paper 000 table 4.3 (defaults) with validation.
+
+    Every value is range-checked on construction (:class:`~mitsuba_veg.errors.ParameterError`
+    naming ``source``).
+
+    Attributes
+    ----------
+    temperature : float
+        Air temperature T [K]; default 288.15, allowed [200, 340].
+    humidity : float
+        Relative humidity rh [-]; default 0.73, allowed [0, 1].
+    precipitation : float
+        Yearly precipitation [mm yr-1]; default 1861.2.
+    rain_days : int
+        Rain days per year [days yr-1]; default 180, allowed [0, 365].
+    wind : float
+        Wind speed U [m s-1]; default 0.2, allowed (0, 60].
+    possible_sunshine : float
+        Possible sunshine hours N0 [h]; default 8, allowed (0, 24].
+    sunshine : float
+        Sunshine hours N [h]; default 6, at most ``possible_sunshine``.
+    angstrom_a, angstrom_b : float
+        Angstrom-Prescott coefficients a_s, b_s [-]; defaults 0.25, 0.50.
+    source : str
+        Where the values come from, for error messages; default ``"climate"``.
+    """
 
     temperature: float = 288.15      # T [K]
     humidity: float = 0.73           # rh [-]
@@ -69,7 +94,31 @@ class ClimateTable:
 
 @dataclass
 class DailyWeather:
-    """Weather of every simulated day (arrays of length n_days)."""
+    """Weather of every simulated day (arrays of length n_days).
+
+    Attributes
+    ----------
+    day_of_year : numpy.ndarray
+        Day of the year [1..365].
+    T : numpy.ndarray
+        Daily-mean air temperature [K].
+    rh : numpy.ndarray
+        Relative humidity [-].
+    P : numpy.ndarray
+        Precipitation [mm day-1].
+    U : numpy.ndarray
+        Wind speed [m s-1].
+    A : numpy.ndarray
+        Sunshine ratio N/N0 [-].
+    ghi : numpy.ndarray
+        Daily-mean global horizontal irradiance [W m-2].
+    beam : numpy.ndarray
+        Daily-mean beam irradiance on the horizontal [W m-2].
+    diffuse : numpy.ndarray
+        Daily-mean diffuse horizontal irradiance [W m-2].
+    extra : dict
+        ``H0_J_m2`` (extraterrestrial irradiation [J m-2 day-1]) and ``clearness`` (K_T [-]).
+    """
 
     day_of_year: np.ndarray   # [1..365]
     T: np.ndarray             # [K]
@@ -97,8 +146,8 @@ class DailyWeather:
         -------
         dict
             ``day_of_year`` [1..365], ``T`` [K], ``rh`` [-], ``P`` [mm day-1], ``U`` [m s-1],
-            ``A`` = N/N0 [-], ``ghi``, ``beam``, ``diffuse`` (daily means on the horizontal [W m-2]),
-            all as float.
+            ``A`` = N/N0 [-], ``ghi``, ``beam``, ``diffuse`` (daily means on the horizontal
+            [W m-2]), all as float.
         """
         return {k: float(getattr(self, k)[i]) for k in
                 ("day_of_year", "T", "rh", "P", "U", "A", "ghi", "beam", "diffuse")}

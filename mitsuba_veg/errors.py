@@ -18,7 +18,24 @@ class VariantError(MitsubaVegError, RuntimeError):
 
 
 class ParameterError(MitsubaVegError, ValueError):
-    """A parameter or scenario field has a value outside its allowed range."""
+    """A parameter or scenario field has a value outside its allowed range.
+
+    The message reads
+    ``"<source>: <field> = <value> is invalid (allowed: <allowed>). Fix: <fix>"``.
+
+    Parameters
+    ----------
+    field : str
+        The field or argument (dotted scenario name, CLI option ...).
+    value : object
+        The offending value.
+    allowed : str
+        What is allowed (a range with units, a list of choices ...).
+    fix : str, optional
+        How to fix it; default None.
+    source : str, optional
+        The file the value comes from; default None.
+    """
 
     def __init__(self, field: str, value, allowed: str, fix: str | None = None,
                  source: str | None = None):

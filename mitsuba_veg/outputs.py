@@ -85,11 +85,31 @@ def folder_kind(path) -> str | None:
 
 
 class OutputFolder:
-    """An output folder claimed by one command: created if needed, checked to be writable,
-    marked with its kind (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an
-    advisory ``flock`` the kernel drops when the process ends, also on SIGKILL) so that a second
-    process writing into it is refused instead of interleaving. Use as a context manager or
-    call :meth:`release`."""
+    """An output folder claimed by one command.
+
+    The folder is created if needed, checked to be writable, marked with its kind
+    (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an advisory ``flock`` the kernel
+    drops when the process ends, also on SIGKILL) so that a second process writing into it is
+    refused instead of interleaving. Use as a context manager or call :meth:`release`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The folder.
+    kind : str
+        The kind of result it will hold (``"run"``, ``"render"``, ...); a folder holding another
+        kind is refused.
+    option : str, optional
+        The command-line option that named the folder, for messages; default ``"--out"``.
+    info : dict, optional
+        More fields for the marker file (e.g. the scenario); default None.
+
+    Raises
+    ------
+    ParameterError
+        If the path is a file, cannot be created or written, holds another kind of result, or
+        another process holds the lock.
+    """
 
     def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None):
         self.path = Path(path)
@@ -148,7 +168,7 @@ class OutputFolder:
         clear_outputs(self.path, names)
 
     def release(self) -> None:
-        """Release the folder's lock (closing the lock file drops the ``flock``); safe to call twice."""
+        """Release the folder's lock (closing the lock file drops the ``flock``); idempotent."""
         if self._fh is not None:
             self._fh.close()  # closing drops the flock
             self._fh = None
@@ -189,9 +209,17 @@ SNAPSHOT_DIR = "snapshots"
 
 # ---- writing snapshots during a run -------------------------------------------------------------
 class SnapshotWriter:
-    """``on_day`` hook for :meth:`mitsuba_veg.daily.MossSimulation.run`: writes the living
-    moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days (default: the run's
-    ``frame_every``) and on the last day. About 0.3 MB per 16,000 moss (compressed)."""
+    """``on_day`` hook for :meth:`mitsuba_veg.daily.MossSimulation.run` that writes moss snapshots.
+
+    Writes the living moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days
+    (default: the run's ``frame_every``) and on the last day (a world adds every leaf's state).
+    About 0.3 MB per 16,000 moss (compressed).
+
+    Parameters
+    ----------
+    every : int, optional
+        Days between snapshots [d]; default None: the run's ``frame_every`` (10 if unset).
+    """
 
     def __init__(self, every: int | None = None):
         self.every = every
@@ -285,8 +313,16 @@ def jsonable(x):
 
 
 class DayFrames:
-    """Called after every simulated day; writes maps every ``frame_every`` days and on the last
-    day, and assembles them into ``days.gif`` at the end."""
+    """``on_day`` hook that writes the day maps and assembles them into ``days.gif``.
+
+    Called after every simulated day; writes maps every ``frame_every`` days, on day 1 and on the
+    last day; :meth:`finish` assembles them into ``days.gif`` at the end.
+
+    Parameters
+    ----------
+    sim : MossSimulation
+        The simulation (its ``out`` folder holds ``maps/``).
+    """
 
     def __init__(self, sim):
         self.sim = sim
@@ -299,11 +335,11 @@ class DayFrames:
             self.frames.append(self.write_day(sim, rec))
 
     def write_day(self, sim, rec) -> Path:
-        """Write the map of one day: ``maps/day_NNNN.png`` (four panels over the ground, seen from above).
+        """Write the map of one day, ``maps/day_NNNN.png``: four panels, ground seen from above.
 
-        Panels: moss cover [-] (fraction of each triangle, with the living moss as points), daily-mean
-        insolation S [W m-2], soil surface temperature Ts [K] and soil water content theta [-]; a
-        world's tree crowns (dashed) and trunks are drawn on every panel.
+        Panels: moss cover [-] (fraction of each triangle, with the living moss as points),
+        daily-mean insolation S [W m-2], soil surface temperature Ts [K] and soil water content
+        theta [-]; a world's tree crowns (dashed) and trunks are drawn on every panel.
 
         Parameters
         ----------

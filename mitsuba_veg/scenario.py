@@ -394,7 +394,15 @@ def field_spec(dotted: str) -> Field:
 
 @dataclass
 class Scenario:
-    """A validated scenario: ``data`` is the TOML content with defaults, ``path`` its file."""
+    """A validated scenario.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The scenario file; relative paths in it resolve against its folder.
+    data : dict
+        The TOML content, validated, with defaults.
+    """
 
     path: Path
     data: dict
@@ -457,8 +465,8 @@ class Scenario:
     def load_scene(self, daylight: bool | None = None):
         """The Mitsuba scene of the scenario, loaded with ``optimize=False`` (shape ids kept).
 
-        With ``light.when`` set (or ``daylight=True``) its emitters are replaced by daylight (sun and
-        sky of :func:`mitsuba_veg.light.clear_sky.daylight`) for the site and time.
+        With ``light.when`` set (or ``daylight=True``) its emitters are replaced by daylight
+        (sun and sky of :func:`mitsuba_veg.light.clear_sky.daylight`) for the site and time.
 
         Parameters
         ----------

@@ -754,8 +754,9 @@ def evaporation_rate(lE):
 
 
 def surface_humidity(T, rh, beta, dT):
-    """Surface relative humidity, eq (3.16): ``rhs = beta + rh q_SAT (1 - beta)/(q_SAT + Delta dT)``.
+    """Surface relative humidity, eq (3.16).
 
+    ``rhs = beta + rh q_SAT (1 - beta)/(q_SAT + Delta dT)``.
     ``q_SAT + Delta dT`` is the linearised q_SAT(Ts). As printed, the value can exceed 1 (surface
     colder than the air's dew point) and the linearisation breaks down for very cold surfaces
     (dT -> -q_SAT/Delta, about -15 K at 288 K, makes the denominator 0).

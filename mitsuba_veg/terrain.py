@@ -285,7 +285,9 @@ class Terrain:
 
     @classmethod
     def from_trimesh(cls, mesh, name: str | None = None) -> "Terrain":
-        """A terrain from a ``trimesh.Trimesh`` (per-vertex UVs taken from ``mesh.visual.uv`` if any).
+        """A terrain from a ``trimesh.Trimesh``.
+
+        Per-vertex UVs are taken from ``mesh.visual.uv`` if any.
 
         Parameters
         ----------
@@ -307,7 +309,7 @@ class Terrain:
 
     @classmethod
     def from_mitsuba(cls, shape) -> "Terrain":
-        """A terrain from a loaded Mitsuba mesh (``mi.Mesh``, e.g. an element of ``scene.shapes()``).
+        """A terrain from a loaded Mitsuba mesh (``mi.Mesh``, e.g. of ``scene.shapes()``).
 
         Positions are in world space (Mitsuba applies ``to_world`` at load time); texture
         coordinates are read if the mesh has them. Load scenes with ``optimize=False`` or
@@ -412,9 +414,9 @@ class Terrain:
     def geology_from_texture(self, texture, tolerance: float = GEOLOGY_TOLERANCE) -> np.ndarray:
         """Geology code per triangle (int8, F): 0 humus, 1 sand, 2 asphalt (:data:`GEOLOGY`).
 
-        Each triangle takes the class of the texel under its centroid's UV (nearest texel, Mitsuba's
-        convention, see :func:`texel_index`), so the classes follow exactly what Mitsuba shows when it
-        textures the mesh.
+        Each triangle takes the class of the texel under its centroid's UV (nearest texel,
+        Mitsuba's convention, see :func:`texel_index`), so the classes follow exactly what
+        Mitsuba shows when it textures the mesh.
 
         Parameters
         ----------
@@ -434,8 +436,8 @@ class Terrain:
         SceneError
             If the terrain has no texture coordinates.
         ParameterError
-            If a texel matches no reference colour within ``tolerance`` (the message names the pixel,
-            its colour and the triangle).
+            If a texel matches no reference colour within ``tolerance`` (the message names the
+            pixel, its colour and the triangle).
         """
         if self.uv is None:
             raise SceneError(

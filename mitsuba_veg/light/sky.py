@@ -397,8 +397,8 @@ class VegSky(mi.Emitter):
         Raises
         ------
         ParameterError
-            If ``sun_direction`` is not a finite non-zero 3-vector, or is at or below the horizon for
-            a Perez sky.
+            If ``sun_direction`` is not a finite non-zero 3-vector, or is at or below the
+            horizon for a Perez sky.
         """
         sun = np.asarray(sun_direction, dtype=float).reshape(-1)
         if sun.shape != (3,) or not np.all(np.isfinite(sun)) or np.linalg.norm(sun) == 0:
@@ -539,8 +539,8 @@ class VegSky(mi.Emitter):
         Returns
         -------
         ds : mi.DirectionSample3f
-            The sample: ``d`` towards the sky, ``pdf`` in solid angle [sr-1], ``uv`` = (azimuth / 2pi,
-            zenith / (pi/2)), ``dist`` [m], ``delta`` False.
+            The sample: ``d`` towards the sky, ``pdf`` in solid angle [sr-1],
+            ``uv`` = (azimuth / 2pi, zenith / (pi/2)), ``dist`` [m], ``delta`` False.
         weight : mi.Spectrum
             Radiance / pdf [W m-2 nm-1]; 0 for inactive lanes.
         """
@@ -742,7 +742,8 @@ class VegSky(mi.Emitter):
         Returns
         -------
         str
-            Distribution, coefficients, sun direction, table resolution (rows x columns) and spectrum.
+            Distribution, coefficients, sun direction, table resolution (rows x columns) and
+            spectrum.
         """
         return (f"VegSky[distribution={self.distribution}, coefficients="
                 f"{tuple(round(c, 4) for c in self.coefficients)}, sun_direction="
