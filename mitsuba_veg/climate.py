@@ -323,14 +323,16 @@ _CSV_FIELDS = {"T": (200.0, 340.0), "rh": (0.0, 1.0), "P": (0.0, 2000.0), "U": (
                "A": (0.0, 1.0), "ghi": (0.0, 600.0), "day_of_year": (1, 366)}
 
 
-def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyWeather:
+def load_csv(path, latitude: float, table: ClimateTable | None = None,
+             start_day: int = 1) -> DailyWeather:
     """Per-day weather from a CSV with a header.
 
-    Columns (any order): ``T`` [K], ``rh`` [-], ``P`` [mm], ``U`` [m/s], and either ``A``
-    (= N/N0) or ``N`` and ``N0`` [h]; optional ``ghi`` [W m-2, daily mean] (else
-    Angstrom-Prescott) and ``day_of_year`` (else 1, 2, ...). Missing columns take the table's
-    values (a missing ``P`` column gives 0 mm: no rain). Every value is checked; a bad cell names
-    the file, row and column.
+    Columns (any order): ``P`` [mm] (required: rain drives the soil water, and a table's monthly
+    total cannot be placed on the CSV's days), ``T`` [K], ``rh`` [-], ``U`` [m/s], and either
+    ``A`` (= N/N0) or ``N`` and ``N0`` [h]; optional ``ghi`` [W m-2, daily mean] (else
+    Angstrom-Prescott) and ``day_of_year`` (else ``start_day``, ``start_day`` + 1, ...). Missing
+    T, rh, U, A take the table's values. Every value is checked; a bad cell names the file, row
+    and column.
 
     Parameters
     ----------
@@ -340,6 +342,9 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
         Site latitude [degrees] (for H0 and the beam/diffuse split).
     table : ClimateTable, optional
         Values for missing columns; default ``ClimateTable()`` (paper 000 table 4.3).
+    start_day : int
+        Day of the year (1-365) of the first row when there is no ``day_of_year`` column
+        (default 1; the daily loop passes its ``simulation.start_date``).
 
     Returns
     -------
@@ -350,8 +355,8 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
     Raises
     ------
     ParameterError
-        If the file is missing, unreadable or empty, a column is unknown, a cell is not a number
-        in its range, or N > N0 / N0 <= 0.
+        If the file is missing, unreadable or empty, a column is unknown, the ``P`` column is
+        missing, a cell is not a number in its range, or N > N0 / N0 <= 0.
     """
     table = table or ClimateTable()
     path = Path(path)
@@ -375,6 +380,11 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
                              ", ".join(sorted(known)), ("did you mean " + " or ".join(
                                  f"`{c}`" for c in close) + "?") if close else
                              "rename or remove the column", str(path))
+    if "P" not in cols:
+        raise ParameterError(f"{path.name} columns", ", ".join(cols), "a P column",
+                             "add a column P with the day's precipitation [mm] (0 on dry days)",
+                             str(path))
+    check_range("start_day", start_day, 1, 365)
     n = len(rows)
 
     def column(name, default):
@@ -405,7 +415,8 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
         A = N / N0
     else:
         A = np.full(n, table.sunshine / table.possible_sunshine)
-    doy = column("day_of_year", 0).astype(int) if "day_of_year" in cols else np.arange(n) % 365 + 1
+    doy = (column("day_of_year", 0).astype(int) if "day_of_year" in cols
+           else (np.arange(n) + int(start_day) - 1) % 365 + 1)
     ghi = column("ghi", 0.0) if "ghi" in cols else None
     return _radiation(doy, column("T", table.temperature), column("rh", table.humidity),
                       column("P", 0.0), column("U", table.wind), A, latitude, table.angstrom_a,

@@ -115,3 +115,15 @@ def test_plugins_load_from_xml_after_import():
     sky = mi.load_dict({"type": "veg_sky", "distribution": "uniform",
                         "radiance": {"type": "uniform", "value": 1.0}})
     assert sky is not None
+
+
+def test_veg_sky_traverse_names_its_spectrum():
+    """A value set through mi.traverse means what its name says: radiance or irradiance."""
+    import mitsuba as mi
+    for key in ("radiance", "irradiance"):
+        sky = mi.load_dict({"type": "veg_sky", key: {"type": "uniform", "value": 1.0},
+                            "sun_direction": [0.0, 1.0, 0.0]})
+        names = list(mi.traverse(sky).keys())
+        assert any(n.startswith(key + ".") for n in names), names
+        other = "irradiance" if key == "radiance" else "radiance"
+        assert not any(n.startswith(other + ".") for n in names), names

@@ -146,7 +146,8 @@ class MossConfig:
         table = ClimateTable(**{k: v for k, v in c.items() if k != "csv"}, source=src)
         lat = float(self.scn.get("site.latitude"))
         if c.get("csv"):
-            w = load_csv(self.scn.file("climate.csv"), lat, table)
+            w = load_csv(self.scn.file("climate.csv"), lat, table,
+                         start_day=min(self.start.timetuple().tm_yday, 365))
             if len(w) < self.days:
                 raise ParameterError("climate.csv", f"{len(w)} rows", f">= {self.days} rows "
                                      "(one per simulated day)", "add rows or run fewer days", src)

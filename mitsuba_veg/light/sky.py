@@ -332,6 +332,8 @@ class VegSky(mi.Emitter):
             raise ParameterError(f"veg_sky {key}", spec, "a spectrum (e.g. {'type': 'regular', "
                                  "...}) or a number")
         self.m_radiance = spec
+        #: the property the spectrum came from, and its name in ``mi.traverse``
+        self.spectrum_key = key
         self.m_scale = 1.0 if has_r else 1.0 / math.pi
 
         sun = np.array(props.get("sun_direction", [0.0, 1.0, 0.0]), dtype=float).reshape(-1)
@@ -713,17 +715,18 @@ class VegSky(mi.Emitter):
         return mi.ScalarBoundingBox3f()
 
     def traverse(self, callback):
-        """Expose the spectrum S as the differentiable parameter ``radiance``.
+        """Expose the spectrum as a differentiable parameter named after its property.
 
-        With the ``irradiance`` property the exposed texture is the irradiance spectrum E
-        [W m-2 nm-1] (the 1/pi is applied in the normalisation).
+        ``radiance`` (S [W m-2 sr-1 nm-1]) when the emitter was built with ``radiance``,
+        ``irradiance`` (E [W m-2 nm-1], the 1/pi applied in the normalisation) when it was built
+        with ``irradiance``: a value set through ``mi.traverse`` means what its name says.
 
         Parameters
         ----------
         callback : mi.TraversalCallback
             Mitsuba's traversal callback.
         """
-        callback.put("radiance", self.m_radiance, mi.ParamFlags.Differentiable)
+        callback.put(self.spectrum_key, self.m_radiance, mi.ParamFlags.Differentiable)
 
     def parameters_changed(self, keys=None):
         """Nothing to update: the spectrum is evaluated on the fly (sun and coefficients change

@@ -227,6 +227,9 @@ class RenderScene:
             elif kind == "veg_sky":
                 if name not in sky_objs:
                     raise SceneError(f"set_light(): the scene has no veg_sky '{name}'")
+                if sky_objs[name].spectrum_key != "radiance":
+                    raise SceneError(f"set_light(): veg_sky '{name}' was built with "
+                                     "'irradiance'; build it with daylight emitters ('radiance')")
                 params[f"{name}.radiance.values"] = _spectrum_values(
                     d["radiance"], params[f"{name}.radiance.values"], name)
                 sky_objs[name].set_sky(d["sun_direction"], d.get("perez_epsilon"),
