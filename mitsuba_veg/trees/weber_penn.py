@@ -200,7 +200,7 @@ class WeberPennParams:
         return copy.deepcopy(self)
 
     def updated(self, values: dict | None = None, source=None, **kw) -> "WeberPennParams":
-        """A validated copy with ``values`` applied (flat or sectioned keys, see :func:`load_params`).
+        """A validated copy with ``values`` applied (flat or sectioned keys, :func:`load_params`).
 
         Parameters
         ----------
