@@ -474,8 +474,8 @@ class Environment:
             The H x V sky of paper 001 (same as the leaf spheres').
         passes : int, optional
             Light passes (default 2): the first gives 0 to rays that hit another obstacle, each
-            later pass gives them C2 x the previous pass's env of the hit triangle (one bounce per
-            extra pass).
+            later pass gives them C2 x the previous pass's env x light_factor of the hit triangle
+            (one bounce per extra pass).
 
         Returns
         -------

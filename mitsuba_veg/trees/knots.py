@@ -269,8 +269,8 @@ def dormancy_after(value, step=1.0):
 
     Returns
     -------
-    numpy.ndarray
-        ``value - step`` [-] (0-d for a scalar).
+    numpy.ndarray or numpy.float64
+        ``value - step`` [-] (a NumPy scalar for a scalar ``value``).
     """
     return np.asarray(value, float) - step
 
@@ -287,7 +287,7 @@ def sprouts(value, step=1.0):
 
     Returns
     -------
-    numpy.ndarray
-        bool, True where ``value - step <= 0`` (0-d for a scalar).
+    numpy.ndarray or numpy.bool_
+        True where ``value - step <= 0`` (a NumPy scalar for a scalar ``value``).
     """
     return dormancy_after(value, step) <= 0.0
