@@ -219,9 +219,20 @@ def _weber_penn(data, seed, src):
         raise ParameterError("model", "weber_penn", "a model available in this installation",
                              f"mitsuba_veg.trees.weber_penn is not available ({e}); use "
                              "model = 'growth'", src) from None
-    wp = data.get("weber_penn", {})
-    what = data.get("preset", wp.get("preset", wp.get("params", "quaking_aspen")))
-    return weber_penn.generate(what, seed=seed)
+    wp = dict(data.get("weber_penn", {}))
+    given = [k for k in ("preset", "weber_penn.preset", "weber_penn.params")
+             if (data if k == "preset" else wp).get(k.split(".")[-1]) is not None]
+    if len(given) > 1:
+        raise ParameterError(" and ".join(given), "all given", "one of them",
+                             "name a preset or give the parameters, once", src)
+    what = data.get("preset") or wp.pop("preset", None) or wp.pop("params", None) \
+        or "quaking_aspen"
+    # every other key of [weber_penn] (flat parameter names or sections such as [weber_penn.knots])
+    # overrides the preset's value; generate() refuses unknown names
+    try:
+        return weber_penn.generate(what, seed=seed, overrides=wp or None)
+    except ParameterError as e:
+        raise ParameterError(f"weber_penn.{e.field}", e.value, e.allowed, e.fix, src) from None
 
 
 def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> dict:

@@ -436,9 +436,12 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
     n_rays = n * m
     kin = inside_counts(centers, radius)
     amax = max(float(a) for a in alphas.values())
-    kcap = 64 if amax >= 1 else int(min(64, max(1, math.ceil(math.log(cutoff) / math.log(amax)))))
-    if amax <= 0:
+    if amax <= 0:          # opaque spheres: the first one stops the ray (and log(0) is undefined)
         kcap = 1
+    elif amax >= 1:
+        kcap = 64
+    else:
+        kcap = int(min(64, max(1, math.ceil(math.log(cutoff) / math.log(amax)))))
     dirs_dr = _vec3(N, mi.Vector3f)
     centers_dr = _vec3(centers)
     eps = float(radius) * 1e-4
