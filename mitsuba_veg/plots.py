@@ -235,6 +235,7 @@ def loss_curve_figure(history: list[dict], path, loss_name: str = "") -> str:
         ax.set_title(n)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_write(path, f"{path}.tmp.png") as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return str(path)

@@ -503,10 +503,13 @@ class Scenario:
             raise ParameterError("light.when", when, "a time when the sun is above the horizon",
                                  "choose a daytime", str(self.path))
         d = {"type": "scene"}
-        for sh in scene.shapes():
-            d[sh.id()] = sh
-        for sensor in scene.sensors():
-            d[sensor.id() or "camera"] = sensor
+        # every shape and sensor under its own key: objects without an id (or sharing one) get
+        # a numbered key instead of overwriting each other
+        for i, obj in enumerate(list(scene.shapes()) + list(scene.sensors())):
+            key = obj.id() or ("camera" if isinstance(obj, mi.Sensor) else f"shape_{i}")
+            if key in d:
+                key = f"{key}_{i}"
+            d[key] = obj
         d.update(emitters)
         return mi.load_dict(d, optimize=False)
 

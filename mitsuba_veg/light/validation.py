@@ -207,7 +207,7 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     Each triangle in ``triangles`` is cut out of its mesh (an in-memory ``mi.Mesh`` of the dict,
     see :func:`as_meshes`) into its own mesh carrying an ``irradiancemeter`` whose ``specfilm``
     integrates the band ``band`` [nm]; the scene is otherwise identical. The direct irradiance
-    of delta emitters is added with shadow rays (4096 points per triangle, fixed seed). Each
+    of delta emitters is added with shadow rays (4096 points per triangle, from ``seed``). Each
     triangle is rendered in 4 batches of ``spp / 4`` samples.
 
     Parameters
@@ -225,15 +225,15 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     band : tuple of float, optional
         Band ``(lo, hi)`` [nm] the irradiance is integrated over; default (360, 830).
     seed : int, optional
-        Seed of the renders; default 0.
+        Seed of the renders and of the shadow-ray points; default 0.
 
     Returns
     -------
     irradiance : numpy.ndarray
         (len(triangles),) band-integrated front irradiance [W m-2].
     std_error : numpy.ndarray
-        (len(triangles),) standard error [W m-2] of the path-traced part (from the 4 batches;
-        the shadow-ray part of delta emitters is not included).
+        (len(triangles),) standard error [W m-2]: the path-traced part's (from the 4 batches)
+        and the shadow-ray part's (from its 4096 points) in quadrature.
 
     Raises
     ------
@@ -291,22 +291,25 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
             vals.append(float(np.asarray(img).ravel()[0]))
         out[j] = np.mean(vals)
         err[j] = np.std(vals, ddof=1) / math.sqrt(batches)
-    # direct light of delta-direction emitters, which the irradiancemeter never samples
-    out += _delta_direct(scene, F[tris], V, (lo, hi))
-    return out, err
+    # direct light of delta-direction emitters, which the irradiancemeter never samples; its
+    # Monte-Carlo error adds to the path-traced batches' in quadrature
+    direct, direct_err = _delta_direct(scene, F[tris], V, (lo, hi), seed=seed)
+    return out + direct, np.sqrt(err**2 + direct_err**2)
 
 
-def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
+def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096, seed: int = 0):
     """Direct irradiance [W m-2] of directional emitters on triangles, integrated over ``band``
-    [nm] (wavelengths drawn uniformly in the band), with shadow rays."""
+    [nm] (wavelengths drawn uniformly in the band), with shadow rays; and its standard error
+    [W m-2] (points and wavelengths from ``seed``)."""
     faces = np.asarray(faces)
     res = np.zeros(len(faces))
+    se = np.zeros(len(faces))
     emitters = [e for e in scene.emitters()
                 if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)]
     if not emitters:
-        return res
+        return res, se
     lo, hi = band
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng([int(seed), 1])
     for i, f in enumerate(faces):
         p0, p1, p2 = V[f[0]], V[f[1]], V[f[2]]
         n = np.cross(p1 - p0, p2 - p0)
@@ -316,6 +319,7 @@ def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
         u[flip] = 1 - u[flip]
         pts = p0 + u[:, :1] * (p1 - p0) + u[:, 1:] * (p2 - p0)
         lam = lo + (hi - lo) * rng.random((4, samples_per_tri))
+        per_sample = np.zeros(samples_per_tri)
         for e in emitters:
             it = dr.zeros(mi.Interaction3f, samples_per_tri)
             it.p = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
@@ -326,8 +330,10 @@ def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
             vis = ~scene.ray_test(ray)
             val = (w[0] + w[1] + w[2] + w[3]) * 0.25
             val = dr.select(vis & (cos > 0), val * cos, 0.0)
-            res[i] += float(np.asarray(val).mean()) * (hi - lo)
-    return res
+            per_sample += np.asarray(val, dtype=np.float64) * (hi - lo)
+        res[i] = per_sample.mean()
+        se[i] = per_sample.std(ddof=1) / math.sqrt(samples_per_tri)
+    return res, se
 
 
 def as_meshes(scene_dict: dict) -> dict:
