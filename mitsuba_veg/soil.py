@@ -799,11 +799,12 @@ def linearisation_error(T, Ts):
     Returns
     -------
     numpy.ndarray or drjit array
-        Relative error of the linearised q_SAT(Ts) [-] (a 0-d array for scalar input).
+        Relative error of the linearised q_SAT(Ts) [-] (a float for scalar input, as every
+        function of this module).
     """
     T, Ts = _prep(T, Ts)
     lin = q_sat(T) + dq_sat_dT(T) * (Ts - T)
-    return lin / q_sat(Ts) - 1.0
+    return _finish(lin / q_sat(Ts) - 1.0)
 
 
 class SurfaceState(NamedTuple):

@@ -142,6 +142,10 @@ class SpeciesTable:
             setattr(self, n, mi.Float([float(getattr(s, n)) for s in self.species]))
         pr = priority if priority is not None else [0.0] * len(self.species)
         self.priority = mi.Float([float(p) for p in pr])
+        # dense rank of each species' priority, 0 for the highest: an exact integer key for
+        # ordering newcomers of one cell, whatever the priorities' magnitude
+        levels = sorted({float(p) for p in pr}, reverse=True)
+        self.priority_rank = mi.UInt32([levels.index(float(p)) for p in pr])
 
     def get(self, name: str, idx: mi.UInt32) -> mi.Float:
         """Parameter ``name`` of the species ``idx`` (one gather).

@@ -155,7 +155,7 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
     keys = grid.key(new_pos)
     # among the newcomers of one cell: highest species priority, then lowest order
     pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
-    rank = mi.UInt64(mi.UInt32(dr.clip(1000.0 - pri_new * 10.0, 0.0, 2000.0)))  # high first
+    rank = mi.UInt64(dr.gather(mi.UInt32, pop.table.priority_rank, new_species))  # high first
     dr.eval(keys, rank)
     first = grid.first_per_cell(keys, (rank << 32) | mi.UInt64(new_order), landed)
     # against the individual already there
