@@ -563,8 +563,10 @@ def branching(params: GrowthParams | None = None, generations: int = 10,
 
     Parameters
     ----------
-    params : GrowthParams, optional
-        Model parameters (only the branching ones matter); default None: paper 001 table 3.1.
+    params : GrowthParams or dict, optional
+        Model parameters (only the branching ones matter; a dict is read with
+        :meth:`GrowthParams.from_dict`, as :func:`grow_forest` does); default None: paper 001
+        table 3.1.
     generations : int, optional
         Number of branching generations (default 10).
     position : array_like, optional
@@ -577,7 +579,11 @@ def branching(params: GrowthParams | None = None, generations: int = 10,
     Tree
         The tree, in metres, with uniform received light (1) in ``attrs``.
     """
-    p = (GrowthParams() if params is None else params).replace(phototropism=0.0)
+    p = GrowthParams() if params is None else params
+    if not isinstance(p, GrowthParams):
+        p = GrowthParams.from_dict(dict(p), prefix="params.")
+    p.validate()
+    p = p.replace(phototropism=0.0)
     forest = _Forest(p, np.asarray(position, float)[None], seed)
     for g in range(int(generations)):
         n = len(forest.tip)
