@@ -153,6 +153,26 @@ class DailyWeather:
                 ("day_of_year", "T", "rh", "P", "U", "A", "ghi", "beam", "diffuse")}
 
 
+def solar_declination(day_of_year):
+    """Solar declination delta [rad] of a day (FAO-56 eq 24): ``0.409 sin(2 pi J / 365 - 1.39)``.
+
+    The daily declination of every day-of-year formula in the package (H0, the sunset hour
+    angle, the world's noon sun); the hourly sun positions come from NREL SPA
+    (:mod:`mitsuba_veg.light.solar_position`).
+
+    Parameters
+    ----------
+    day_of_year : int or array_like
+        Day of the year J [1..366].
+
+    Returns
+    -------
+    numpy.ndarray
+        Declination delta [rad], in [-0.409, 0.409].
+    """
+    return 0.409 * np.sin(2 * np.pi / 365 * np.asarray(day_of_year, float) - 1.39)
+
+
 def extraterrestrial_irradiation(latitude_deg, day_of_year):
     """Daily extraterrestrial irradiation on a horizontal plane H0 [J m-2 day-1] (FAO-56 eqs 21-25).
 
@@ -174,7 +194,7 @@ def extraterrestrial_irradiation(latitude_deg, day_of_year):
     phi = np.radians(np.asarray(latitude_deg, float))
     J = np.asarray(day_of_year, float)
     dr = 1 + 0.033 * np.cos(2 * np.pi / 365 * J)
-    delta = 0.409 * np.sin(2 * np.pi / 365 * J - 1.39)
+    delta = solar_declination(J)
     ws = np.arccos(np.clip(-np.tan(phi) * np.tan(delta), -1.0, 1.0))
     return SECONDS_PER_DAY / np.pi * GSC * dr * (
         ws * np.sin(phi) * np.sin(delta) + np.cos(phi) * np.cos(delta) * np.sin(ws))
@@ -196,7 +216,7 @@ def sunset_hour_angle(latitude_deg, day_of_year):
         Sunset hour angle ws [rad], in [0, pi] (0: polar night, pi: midnight sun).
     """
     phi = np.radians(np.asarray(latitude_deg, float))
-    delta = 0.409 * np.sin(2 * np.pi / 365 * np.asarray(day_of_year, float) - 1.39)
+    delta = solar_declination(day_of_year)
     return np.arccos(np.clip(-np.tan(phi) * np.tan(delta), -1.0, 1.0))
 
 

@@ -21,10 +21,10 @@ simple phenology driven by the calendar and by light (documented in docs/render.
 from __future__ import annotations
 
 import datetime as _dt
-import math
 
 import numpy as np
 
+from ..climate import extraterrestrial_irradiation
 from ..foliage import AutumnParams, autumn_time
 
 LEAF_OUT_DOY = 95
@@ -33,16 +33,10 @@ AUTUMN_ONSET_DOY = 258
 
 
 def daily_extraterrestrial_mj(latitude: float, doy) -> np.ndarray:
-    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2] (Duffie & Beckman).
+    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2].
 
-    ::
-
-        H0 = 86400 * 1367 / pi * (1 + 0.033 cos(2 pi doy / 365))
-             * (cos(phi) cos(dec) sin(ws) + ws sin(phi) sin(dec))
-
-    with the declination ``dec = 23.45° sin(2 pi (284 + doy) / 365)`` (Cooper) and the sunset hour
-    angle ``ws = arccos(-tan(phi) tan(dec))`` (clipped: polar day and night); negative values are
-    set to 0.
+    The climate's H0 (:func:`mitsuba_veg.climate.extraterrestrial_irradiation`, FAO-56 eqs
+    21-25: the moss loop's model) in MJ m-2; negative values (none in practice) set to 0.
 
     Parameters
     ----------
@@ -56,13 +50,7 @@ def daily_extraterrestrial_mj(latitude: float, doy) -> np.ndarray:
     numpy.ndarray
         H0 [MJ m-2] (per day), of the shape of ``doy``.
     """
-    doy = np.asarray(doy, float)
-    phi = math.radians(latitude)
-    dec = np.radians(23.45) * np.sin(2 * np.pi * (284 + doy) / 365.0)
-    ws = np.arccos(np.clip(-np.tan(phi) * np.tan(dec), -1.0, 1.0))
-    e0 = 1 + 0.033 * np.cos(2 * np.pi * doy / 365.0)
-    h0 = 24 * 3600 * 1367 / np.pi * e0 * (np.cos(phi) * np.cos(dec) * np.sin(ws)
-                                           + ws * np.sin(phi) * np.sin(dec))
+    h0 = extraterrestrial_irradiation(latitude, np.asarray(doy, float))
     return np.maximum(h0, 0.0) / 1e6
 
 

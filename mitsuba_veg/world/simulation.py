@@ -35,6 +35,7 @@ from types import MappingProxyType
 import mitsuba as mi
 import numpy as np
 
+from ..climate import solar_declination
 from ..errors import ParameterError
 from ..foliage import leaf_spectra
 from ..light.photon import band_range
@@ -55,8 +56,8 @@ def band_shapes(latitude: float, day_of_year: int) -> dict:
 
     Clear-sky beam and diffuse light (broadband: 300-4000 nm) at the day's noon sun (SPCTRAL2).
     Multiplied by a broadband daily mean [W m-2] they give the band-mean spectral irradiance
-    [W m-2 nm-1]. The noon elevation is 90° − |latitude − declination| (declination
-    23.45° sin(360° (284 + day) / 365)), at least 1°. Cached.
+    [W m-2 nm-1]. The noon elevation is 90° − |latitude − declination| (declination of
+    :func:`mitsuba_veg.climate.solar_declination`, FAO-56), at least 1°. Cached.
 
     Parameters
     ----------
@@ -71,7 +72,7 @@ def band_shapes(latitude: float, day_of_year: int) -> dict:
         Read-only ``{"beam": {band: s}, "diffuse": {...}}`` for the bands of
         :data:`mitsuba_veg.daily.BANDS`, s [nm-1] (0 when the component is 0).
     """
-    dec = 23.45 * np.sin(np.radians(360.0 * (284 + day_of_year) / 365.0))
+    dec = float(np.degrees(solar_declination(day_of_year)))
     el = float(np.clip(90.0 - abs(latitude - dec), 1.0, 90.0))
     s = clear_sky_spectra(el, day_of_year=day_of_year)
     out = {}
