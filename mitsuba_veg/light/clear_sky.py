@@ -34,6 +34,7 @@ __all__ = [
     "Atmosphere", "DEFAULT_ATMOSPHERE", "DaylightSpectra", "clear_sky_spectra",
     "daylight", "daylight_from_angles", "regular_spectrum", "perez_sky_parameters",
     "photon_flux", "band_irradiance", "red_far_red_ratio", "SPCTRL2_RANGE_NM",
+    "clear_sky_broadband",
 ]
 
 #: wavelength range covered by SPCTRAL2 [nm]
@@ -136,27 +137,71 @@ def _atmosphere(atmosphere: Atmosphere | None, overrides: dict) -> Atmosphere:
     return replace(atmosphere, **given).validate()
 
 
-def _spectrl2_native(elevation_deg: float, day_of_year: int, atm: Atmosphere):
-    """SPCTRAL2 on its native 122 wavelengths: (wl, dni, dhi, dni_extra)."""
+def _spectrl2(elevation_deg, day_of_year, atm: Atmosphere):
+    """SPCTRAL2 (pvlib's spectrl2) for arrays of sun elevations > 0 [deg] and days of the year:
+    (wl (122,), dni (122, n), dhi (122, n), dni_extra (122, n), airmass (n,)), with negative
+    and NaN spectral values set to 0. The one call of the clear-sky model in the package."""
     from pvlib.atmosphere import get_relative_airmass
     from pvlib.spectrum import spectrl2
 
-    zenith = 90.0 - float(elevation_deg)
-    airmass = float(get_relative_airmass(zenith, model="kastenyoung1989"))
-    z = np.array([zenith])
+    zenith = 90.0 - np.asarray(elevation_deg, dtype=float).reshape(-1)
+    doy = np.broadcast_to(np.asarray(day_of_year, dtype=float), zenith.shape)
+    airmass = np.asarray(get_relative_airmass(zenith, model="kastenyoung1989"), dtype=float)
     res = spectrl2(
-        apparent_zenith=z, aoi=z, surface_tilt=np.array([0.0]),
+        apparent_zenith=zenith, aoi=zenith, surface_tilt=np.zeros_like(zenith),
         ground_albedo=atm.ground_albedo, surface_pressure=atm.pressure,
-        relative_airmass=np.array([airmass]), precipitable_water=atm.precipitable_water,
+        relative_airmass=airmass, precipitable_water=atm.precipitable_water,
         ozone=atm.ozone, aerosol_turbidity_500nm=atm.aerosol_turbidity,
-        dayofyear=np.array([int(day_of_year)]),
+        dayofyear=doy,
         scattering_albedo_400nm=atm.aerosol_single_scattering_albedo,
         alpha=atm.angstrom_alpha, aerosol_asymmetry_factor=atm.aerosol_asymmetry)
     wl = np.asarray(res["wavelength"], dtype=float)
-    dni = np.clip(np.nan_to_num(np.asarray(res["dni"], dtype=float)[:, 0]), 0.0, None)
-    dhi = np.clip(np.nan_to_num(np.asarray(res["dhi"], dtype=float)[:, 0]), 0.0, None)
-    etr = np.asarray(res["dni_extra"], dtype=float)[:, 0]
+    dni = np.clip(np.nan_to_num(np.asarray(res["dni"], dtype=float)), 0.0, None)
+    dhi = np.clip(np.nan_to_num(np.asarray(res["dhi"], dtype=float)), 0.0, None)
+    etr = np.asarray(res["dni_extra"], dtype=float)
     return wl, dni, dhi, etr, airmass
+
+
+def _spectrl2_native(elevation_deg: float, day_of_year: int, atm: Atmosphere):
+    """SPCTRAL2 on its native 122 wavelengths for one sun: (wl, dni, dhi, dni_extra,
+    airmass)."""
+    wl, dni, dhi, etr, airmass = _spectrl2([float(elevation_deg)], [int(day_of_year)], atm)
+    return wl, dni[:, 0], dhi[:, 0], etr[:, 0], float(airmass[0])
+
+
+def clear_sky_broadband(elevation_deg, day_of_year, atmosphere: Atmosphere | None = None):
+    """Broadband (300-4000 nm) clear-sky DNI and DHI for arrays of sun elevations.
+
+    SPCTRAL2 (Bird & Riordan 1986) with the package's default atmosphere, one vectorised call
+    of pvlib's spectrl2 (the same call as :func:`clear_sky_spectra`), integrated over its 122
+    wavelengths (trapezoids); the clear-sky model of every sun path in the package
+    (:func:`mitsuba_veg.light.sunpath.sun_path`, :func:`~mitsuba_veg.light.sunpath.day_sun_path`).
+
+    Parameters
+    ----------
+    elevation_deg : array_like
+        Sun elevations [deg]; at or below 0.5° both irradiances are 0.
+    day_of_year : int or array_like
+        Day of the year (Earth-Sun distance), broadcast against the elevations.
+    atmosphere : Atmosphere, optional
+        Default :data:`DEFAULT_ATMOSPHERE`.
+
+    Returns
+    -------
+    dni, dhi : numpy.ndarray
+        Direct normal and diffuse horizontal irradiance [W m-2], one per elevation.
+    """
+    atm = atmosphere or DEFAULT_ATMOSPHERE
+    el = np.atleast_1d(np.asarray(elevation_deg, float))
+    doy = np.broadcast_to(np.asarray(day_of_year, int), el.shape)
+    dni = np.zeros(el.shape)
+    dhi = np.zeros(el.shape)
+    up = el > 0.5
+    if up.any():
+        wl, a, b, _etr, _am = _spectrl2(el[up], doy[up], atm)
+        dni[up] = np.trapezoid(a, wl, axis=0)
+        dhi[up] = np.trapezoid(b, wl, axis=0)
+    return dni, dhi
 
 
 def _check_elevation(elevation_deg, *, field="elevation_deg"):

@@ -23,7 +23,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, check_range
-from .clear_sky import DEFAULT_ATMOSPHERE
+from .clear_sky import clear_sky_broadband
 from .solar_position import sun_direction, sun_position
 
 
@@ -44,50 +44,6 @@ class SunPath:
 
     def __len__(self) -> int:
         return len(self.dni)
-
-
-def clear_sky_broadband(elevation_deg, day_of_year, atmosphere=None):
-    """Broadband (300-4000 nm) clear-sky DNI and DHI for arrays of sun elevations: SPCTRAL2
-    (Bird & Riordan 1986) with the package's default atmosphere, a vectorised call of pvlib's
-    spectrl2 (the clear-sky model of every sun path in the package).
-
-    Parameters
-    ----------
-    elevation_deg : array_like
-        Sun elevations [deg]; at or below 0.5° both irradiances are 0.
-    day_of_year : int or array_like
-        Day of the year (Earth-Sun distance), broadcast against the elevations.
-    atmosphere : daylight.Atmosphere, optional
-        Default :data:`mitsuba_veg.light.clear_sky.DEFAULT_ATMOSPHERE`.
-
-    Returns
-    -------
-    dni, dhi : numpy.ndarray
-        Direct normal and diffuse horizontal irradiance [W m-2].
-    """
-    from pvlib.atmosphere import get_relative_airmass
-    from pvlib.spectrum import spectrl2
-
-    atm = atmosphere or DEFAULT_ATMOSPHERE
-    el = np.atleast_1d(np.asarray(elevation_deg, float))
-    doy = np.broadcast_to(np.asarray(day_of_year, int), el.shape)
-    dni = np.zeros(el.shape)
-    dhi = np.zeros(el.shape)
-    up = el > 0.5
-    if up.any():
-        z = 90.0 - el[up]
-        am = get_relative_airmass(z, model="kastenyoung1989")
-        res = spectrl2(apparent_zenith=z, aoi=z, surface_tilt=np.zeros_like(z),
-                       ground_albedo=atm.ground_albedo, surface_pressure=atm.pressure,
-                       relative_airmass=am, precipitable_water=atm.precipitable_water,
-                       ozone=atm.ozone, aerosol_turbidity_500nm=atm.aerosol_turbidity,
-                       dayofyear=np.asarray(doy[up], float),
-                       scattering_albedo_400nm=atm.aerosol_single_scattering_albedo,
-                       alpha=atm.angstrom_alpha, aerosol_asymmetry_factor=atm.aerosol_asymmetry)
-        wl = np.asarray(res["wavelength"], float)
-        dni[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dni"])), 0, None), wl, axis=0)
-        dhi[up] = np.trapezoid(np.clip(np.nan_to_num(np.asarray(res["dhi"])), 0, None), wl, axis=0)
-    return dni, dhi
 
 
 def _start_date(start) -> _dt.date:
