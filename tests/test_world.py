@@ -207,10 +207,10 @@ leaves_file = "{d / 'leaves.ply'}"
         return (bands["red"][m].sum() * 660) / (bands["far_red"][m].sum() * 730)
     print("R:FR mid", rfr(g, mid), "sky", rfr(sim.ground_sky_bands, mid), "open", open_rfr,
           "PAR mid / open", g["par"][mid].mean() / open_["par"])
-    assert rfr(g, mid) < 0.5                   # measured 0.35 (sunflecks included)
+    assert rfr(g, mid) < 0.5                   # measured 0.34 (sunflecks included)
     assert rfr(g, mid) < 0.35 * open_rfr       # measured 0.29 of daylight's 1.18
     assert 1.05 < open_rfr < 1.25
-    assert g["par"][mid].mean() < 0.15 * open_["par"]    # measured 3.3 %
+    assert g["par"][mid].mean() < 0.15 * open_["par"]    # measured 3.2 %
 
 
 def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
