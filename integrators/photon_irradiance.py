@@ -107,6 +107,8 @@ _MODE_NAMES = {"surface": SURFACE, "sensor": SENSOR, "hidden": HIDDEN}
 _DIRECT_BSDFS = 16
 #: accumulator row of an element that is not recorded (``trace(..., record=...)``)
 _NO_ROW = 0xFFFFFFFF
+#: kernel modes (``trace(..., mode=...)``): Russian roulette (paper 000 §3.4) or weights
+KERNEL_MODES = ("roulette", "weights")
 
 
 def _scalar(x) -> float:
@@ -720,6 +722,29 @@ class PhotonIrradianceResult:
             np.savez_compressed(tmp, **data)
 
 
+@dataclass
+class PhotonPathRecord:
+    """The paths of one emitter's photons traced in the "weights" mode (no AD).
+
+    ``elem[k]`` (UInt32, one value per photon) is the element of the photon's k-th hit
+    (``0xFFFFFFFF``: none), ``front[k]`` (Bool) whether it hit the element's front side (against
+    its geometric normal). ``w0`` is each photon's initial power [W] (the emitter's power in the
+    band over the photon count, its 4 band wavelengths averaged). Made by
+    :meth:`PhotonIrradianceIntegrator.trace_paths`; replayed by
+    :mod:`mitsuba_veg.tune.photon_ad`.
+    """
+
+    emitter: str
+    photons: int
+    max_depth: int
+    band: tuple
+    w0: object                   # mi.Float (photons) [W]
+    elem: list
+    front: list
+    rays: int = 0                # ray casts made
+    seconds: float = 0.0
+
+
 # --------------------------------------------------------------------------------------------
 # The integrator
 # --------------------------------------------------------------------------------------------
@@ -775,6 +800,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
          - integer
          - 4194304
          - Photons per kernel launch (bounds memory; any size is exact).
+       * - mode
+         - string
+         - "roulette"
+         - "roulette": a photon goes on after a hit with probability max_k a_k (paper 000
+           §3.4). "weights": every photon goes on (cosine-weighted) up to ``max_depth`` hits,
+           its power multiplied by the albedo (same expectation; what the differentiable pass
+           replays).
        * - output
          - string
          - "elements"
@@ -804,6 +836,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         self.emitters = tuple(s.strip() for s in em.split(",") if s.strip()) or None
         self.batch = int(props.get("batch", DEFAULT_BATCH))
         self.output = str(props.get("output", "elements"))
+        self.mode = str(props.get("mode", "roulette"))
+        if self.mode not in KERNEL_MODES:
+            raise ParameterError("mode", self.mode, "'roulette' or 'weights'",
+                                 "<string name=\"mode\" value=\"roulette\"/>")
         if self.output not in ("elements", "image"):
             raise ParameterError("output", self.output, "'elements' or 'image'",
                                  "<string name=\"output\" value=\"elements\"/>")
@@ -880,14 +916,15 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         """Plugin name and properties (what ``print(integrator)`` shows)."""
         return (f"PhotonIrradianceIntegrator[photons={self.photons}, max_depth={self.max_depth},"
                 f" indirect={self.indirect}, seed={self.seed}, bands={list(self.bands)}, "
-                f"output={self.output}]")
+                f"mode={self.mode}, output={self.output}]")
 
     # ---- the photon pass --------------------------------------------------------------------
     def trace(self, scene: mi.Scene, photons: int | None = None, seed: int | None = None,
               max_depth: int | None = None, bands=None, indirect: bool | None = None,
               reflectance: dict | None = None, emitters=None, batch: int | None = None,
               progress: bool = False, modes: dict | None = None,
-              bsdf_override: dict | None = None, record=None) -> PhotonIrradianceResult:
+              bsdf_override: dict | None = None, record=None,
+              mode: str | None = None) -> PhotonIrradianceResult:
         """Trace a photon pass over ``scene`` and return per-element fluxes.
 
         Arguments left at None take the plugin's properties.
@@ -937,6 +974,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             pass's accumulator, read-back and result cover the recorded elements only (a world
             records its terrain and leaves, not the bark's half a million triangles).
             :attr:`PhotonIrradianceResult.rows` maps elements to rows of its ``flux``.
+        mode : str, optional
+            The kernel's mode: ``"roulette"`` (paper 000 §3.4: after a hit the photon goes on
+            in a BSDF-sampled direction with probability q = max_k a_k and power P_k a_k / q)
+            or ``"weights"`` (every photon goes on up to ``max_depth`` hits in a cosine-weighted
+            direction on the side it hit, power P_k a_k with a_k = pi f_k(wi, wo) or the
+            ``reflectance`` override; the same expectation for reflecting surfaces, no
+            transmission: a leaf's transmitted light is left out).
 
         Arguments left at None also fall back to the plugin's attributes :attr:`modes`,
         :attr:`bsdf_override` and :attr:`record` (a simulation sets them before its passes).
@@ -956,6 +1000,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         modes = self.modes if modes is None else modes
         record = self.record if record is None else record
         bsdf_override = self.bsdf_override if bsdf_override is None else bsdf_override
+        mode = self.mode if mode is None else mode
+        if mode not in KERNEL_MODES:
+            raise ParameterError("mode", mode, "'roulette' or 'weights'",
+                                 "trace(..., mode='roulette')")
         check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
         check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
         check_range("seed", seed, 0, 2**31 - 1)
@@ -1028,7 +1076,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
                                             slot_ranges, refl_g, max_depth, indirect,
-                                            mode_arr, bsdf_arr, bsdfs, row_arr, n_rec)
+                                            mode_arr, bsdf_arr, bsdfs, row_arr, n_rec, mode)
                     # fixed point -> watts on the device (both threads), summed over batches
                     # in a fixed order (deterministic)
                     q, unit = acc
@@ -1053,9 +1101,94 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             photons=counts, rays_traced=int(rays), emitted=book[0], escaped=book[1],
             absorbed=book[2], truncated=book[3], seconds=_time.perf_counter() - t0,
             settings=dict(photons=photons, seed=seed, max_depth=max_depth, indirect=indirect,
-                          bands=list(names)), rows=rows)
+                          bands=list(names), mode=mode), rows=rows)
         self.result = res
         return res
+
+    def trace_paths(self, scene: mi.Scene, emitter, photons: int, seed: int = 0,
+                    max_depth: int = 8, band=(360.0, 830.0),
+                    index: SceneIndex | None = None) -> PhotonPathRecord:
+        """Trace one emitter's photons in the "weights" mode and record every hit (no flux).
+
+        The same kernel as :meth:`trace` (:meth:`_loop`): the same emission (aim, jittered
+        origins, Weyl-sequence band wavelengths), ``ray_intersect_preliminary`` and element
+        tables (instances included), two-sided cosine-weighted continuation up to
+        ``max_depth`` hits, no Russian roulette, and the element and side of each hit stored
+        per depth. Because no direction depends on an albedo, the flux of the recorded paths
+        is a polynomial in the albedos (paper 000 §3.4 with weights instead of roulette):
+
+            P_0 = w_0,   P_{k+1} = P_k a(e_k),   flux(e) = sum over hits k on e of P_k  [W]
+
+        which :func:`mitsuba_veg.tune.photon_ad.replay` evaluates (and differentiates).
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene (loaded with ``optimize=False``).
+        emitter : mi.Emitter or str or int
+            One emitter of ``scene``: the object, its id or its index.
+        photons : int
+            Photons to trace, 16 .. 2^26 (one kernel launch; memory ~ 4 bytes x photons x
+            ``max_depth`` for the records).
+        seed : int
+            Random seed (its low 31 bits; same seed, same paths).
+        max_depth : int
+            Hits per photon, 1 .. 64.
+        band : tuple of float
+            (min_nm, max_nm) [nm]: each photon carries 4 stratified wavelengths in the band and
+            the emitter's power integrated over it.
+        index : SceneIndex, optional
+            The scene's element index (default: built and cached for the scene).
+
+        Returns
+        -------
+        PhotonPathRecord
+            ``w0`` [W] per photon, ``elem`` and ``front`` per depth (the recorded depths: up
+            to the deepest cast), ``rays`` (ray casts made).
+        """
+        check_range("photons", photons, 16, 2**26, fix="a photon count such as 200000")
+        check_range("max_depth", max_depth, 1, 64)
+        lo, hi = band_range(band)
+        t0 = _time.perf_counter()
+        index = scene_index(scene) if index is None else index
+        if isinstance(emitter, mi.Emitter):
+            em = emitter
+            name = em.id() or "emitter"
+        else:
+            all_em = scene.emitters()
+            i = self._select_emitters(all_em, [emitter])[0]
+            em, name = all_em[i], all_em[i].id() or f"emitter{i}"
+        n, depth_max = int(photons), int(max_depth)
+        stream = int(seed) & 0x7FFFFFFF
+        sampler, ray, _, w = self._photons(scene, em, index, n, n, stream, [(lo, hi)] * _SLOTS)
+        # initial power [W]: the 4 band wavelengths' estimates averaged
+        w0 = (w[0] + w[1] + w[2] + w[3]) * dr.opaque(mi.Float, 0.25 * (hi - lo) / n)
+        w0 = dr.select(dr.isfinite(w0), w0, 0.0) * dr.full(mi.Float, 1.0, n)
+        active = w0 > 0
+        dr.eval(w0, ray, active)
+        paths = dr.full(mi.UInt32, _NO_ROW, n * depth_max)
+        lane = dr.arange(mi.UInt32, n)
+        _, rays_lane, _, _ = self._loop(
+            scene, sampler, ray, mi.Spectrum(w0), active, mi.UInt32(0),
+            dr.opaque(mi.UInt32, depth_max), None, dr.zeros(mi.Spectrum, n),
+            dr.zeros(mi.Spectrum, n), index, self._tables(index), None, False,
+            mi.Float(1.0), mi.Float(1.0), None, None, index.bsdf_objects, None, weights=True,
+            paths=paths, lane=lane, n_lanes=dr.opaque(mi.UInt32, n))
+        dr.eval(paths, rays_lane)
+        rays = int(_scalar(dr.sum(_UInt64(rays_lane))))
+        cast = int(_scalar(dr.max(rays_lane))) if n else 0   # deepest cast: depths recorded
+        elems, fronts = [], []
+        for k in range(cast):
+            v = dr.gather(mi.UInt32, paths, lane + dr.opaque(mi.UInt32, k * n))
+            valid = v != _NO_ROW
+            e = dr.select(valid, v >> 1, _NO_ROW)
+            front = valid & ((v & 1) == 0)
+            dr.eval(e, front)
+            elems.append(e)
+            fronts.append(front)
+        return PhotonPathRecord(emitter=name, photons=n, max_depth=depth_max, band=(lo, hi),
+                                w0=w0, elem=elems, front=fronts, rays=rays,
+                                seconds=_time.perf_counter() - t0)
 
     # ---- helpers ----------------------------------------------------------------------------
     @staticmethod
@@ -1309,8 +1442,12 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         return p, d, I / pdf, time
 
     # the kernel -----------------------------------------------------------------------------
-    def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
-              indirect, modes=None, bsdf_table=None, bsdfs=None, rows=None, n_rec=None):
+    def _photons(self, scene, emitter, index, n, n_total, stream, slot_ranges):
+        """The photons of one kernel launch, unevaluated: (sampler, ray, power, weight).
+
+        ``power`` [W] per photon and band slot (emitter weight x band width / ``n_total``),
+        ``weight`` the emitter's raw sample weight (:meth:`_emit`) [W nm-1 x photons].
+        """
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(stream, n)
         idx = dr.arange(mi.UInt32, n)
@@ -1337,7 +1474,14 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         throughput = mi.Spectrum(dr.select(dr.isfinite(throughput), throughput, 0.0)) \
             * dr.full(mi.Float, 1.0, n)
         ray = mi.Ray3f(o, d, time, wav)
+        return sampler, ray, throughput, w
 
+    def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
+              indirect, modes=None, bsdf_table=None, bsdfs=None, rows=None, n_rec=None,
+              mode="roulette"):
+        """One kernel launch of ``n`` photons of one emitter (see :meth:`_loop`)."""
+        sampler, ray, throughput, _ = self._photons(scene, emitter, index, n, n_total, stream,
+                                                    slot_ranges)
         n_el = index.n_elements
         # Fixed-point accumulation: integer atomics are associative, so the result does not
         # depend on the order in which threads add (float atomics would differ in the last bits
@@ -1363,7 +1507,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
             tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
             dr.opaque(mi.Float, cap), modes, bsdf_table,
-            index.bsdf_objects if bsdfs is None else bsdfs, rows)
+            index.bsdf_objects if bsdfs is None else bsdfs, rows, weights=mode == "weights")
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
         # one would re-run the loop for each); the bookkeeping sums are read back in one go
         dr.eval(acc, throughput_left, rays_lane, esc, absd)
@@ -1387,8 +1531,20 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
               index, normals, refl_arr, one_hit, scale, cap, modes=None, bsdf_table=None,
-              bsdfs=(), rows=None):
-        """The random walk: one symbolic loop (a single kernel).
+              bsdfs=(), rows=None, weights=False, paths=None, lane=None, n_lanes=None):
+        """The random walk: one symbolic loop (a single kernel), in one of two modes.
+
+        ``weights=False`` ("roulette", paper 000 §3.4): at a hit the BSDF is sampled and the
+        photon goes on with probability q = max_k a_k, its band powers becoming P_k a_k / q.
+        ``weights=True`` ("weights"): every photon goes on up to ``max_d`` hits in a
+        cosine-weighted direction about the side it hit (two-sided), its band powers becoming
+        P_k a_k with a_k = pi f_k(wi, wo) (the BSDF's value for that direction over the cosine
+        pdf, or the per-element override albedo): the same expectation, and the directions do
+        not depend on the albedo. With ``acc=None`` nothing is recorded in ``acc`` and the
+        power stays the initial one (only the paths are wanted); with ``paths`` (UInt32 of
+        ``n_lanes x max_d``, filled with ``_NO_ROW``) the k-th hit of photon ``lane`` stores
+        ``2 element + side`` (side 1 = back) at ``k n_lanes + lane``: what the differentiable
+        pass (:mod:`mitsuba_veg.tune.photon_ad`) replays.
 
         Hits are found with ``ray_intersect_preliminary`` (the BVH traversal only). The element
         comes from the lookup table, the side from the element's geometric normal (a table,
@@ -1414,6 +1570,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         has_modes = modes is not None
         has_override = bsdf_table is not None
         has_rows = rows is not None
+        has_acc = acc is not None
+        has_paths = paths is not None
         while dr.hint(active, label="veg_photon_irradiance",
                       exclude=[scene, index, bsdfs, lookup, blookup, normals, modes,
                                bsdf_table, rows]):
@@ -1476,13 +1634,17 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             if dr.hint(has_rows, mode='scalar'):
                 row = dr.gather(mi.UInt32, rows, elem, rec)
                 rec = rec & (row != _NO_ROW)
-            base = ((row * 2 + comp) * 2 + side) * _SLOTS
-            for k in range(_SLOTS):
-                # capped: no record can make a 64-bit sum wrap (see fixed_point_scale)
-                q_k = _UInt64(dr.round(dr.minimum(throughput[k] * scale, cap)))
-                # plain atomics: hits rarely share an element within a packet, so the
-                # packet-local pre-reduction of the default mode costs more than it saves
-                dr.scatter_add(acc, q_k, base + k, rec, mode=dr.ReduceMode.Direct)
+            if dr.hint(has_acc, mode='scalar'):
+                base = ((row * 2 + comp) * 2 + side) * _SLOTS
+                for k in range(_SLOTS):
+                    # capped: no record can make a 64-bit sum wrap (see fixed_point_scale)
+                    q_k = _UInt64(dr.round(dr.minimum(throughput[k] * scale, cap)))
+                    # plain atomics: hits rarely share an element within a packet, so the
+                    # packet-local pre-reduction of the default mode costs more than it saves
+                    dr.scatter_add(acc, q_k, base + k, rec, mode=dr.ReduceMode.Direct)
+            if dr.hint(has_paths, mode='scalar'):
+                # the path's k-th hit: element and side, at [k][lane]
+                dr.scatter(paths, elem * 2 + side, depth * n_lanes + lane, hit)
 
             if dr.hint(one_hit, mode='scalar'):
                 active = mi.Bool(passing)
@@ -1510,35 +1672,55 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     si.wi = si.sh_frame.to_local(-ray.d)
                     flip = si.wi.z < 0
                     si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
-                s1, s2 = sampler.next_1d(hit), sampler.next_2d(hit)
-                if dr.hint(len(bsdfs) <= _DIRECT_BSDFS, mode='scalar'):
-                    # dispatch by hand over the scene's few distinct BSDFs: a virtual call
-                    # would trace every BSDF Mitsuba holds (each instance has a default one)
-                    bs, bw = dr.zeros(mi.BSDFSample3f), dr.zeros(mi.Spectrum)
-                    for reg, b in bsdfs:
-                        on = hit & (bsdf_id == reg)
-                        bs_b, bw_b = b.sample(bsdf_ctx, si, s1, s2, on)
-                        bs = dr.select(on, bs_b, bs)
-                        bw = dr.select(on, bw_b, bw)
+                if dr.hint(weights, mode='scalar'):
+                    # weights: a cosine-weighted direction on the side that was hit, whatever
+                    # the albedo; the power is multiplied by it (no roulette)
+                    wo_local = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
+                    albedo = mi.Spectrum(1.0)
+                    if dr.hint(has_acc, mode='scalar'):
+                        albedo = self._cosine_albedo(si, wo_local, bsdf_id, bsdfs, bsdf_ctx, hit)
+                        if dr.hint(refl_arr is not None, mode='scalar'):
+                            ov = [dr.gather(mi.Float, refl_arr, elem * _SLOTS + k, hit)
+                                  for k in range(_SLOTS)]
+                            use_ov = hit & ~dr.isnan(ov[0])
+                            albedo = mi.Spectrum(dr.select(use_ov, mi.Spectrum(*ov), albedo))
+                        albedo = mi.Spectrum(dr.select(dr.isfinite(albedo), albedo, 0.0))
+                    wo_local = dr.select(flip, mi.Vector3f(wo_local.x, wo_local.y, -wo_local.z),
+                                         wo_local)
+                    go = mi.Bool(hit)
+                    new_thr = throughput * albedo
                 else:
-                    bsdf = dr.reinterpret_array(mi.BSDFPtr, bsdf_id)
-                    bs, bw = bsdf.sample(bsdf_ctx, si, s1, s2, hit)
-                wo_local = bs.wo
-                albedo = mi.Spectrum(bw)
-                if dr.hint(refl_arr is not None, mode='scalar'):
-                    ov = [dr.gather(mi.Float, refl_arr, elem * _SLOTS + k, hit) for k in range(_SLOTS)]
-                    use_ov = hit & ~dr.isnan(ov[0])
-                    wo_cos = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
-                    wo_local = dr.select(use_ov, wo_cos, wo_local)
-                    albedo = mi.Spectrum(dr.select(use_ov, mi.Spectrum(*ov), albedo))
-                    bs.pdf = dr.select(use_ov, 1.0, bs.pdf)
-                albedo = mi.Spectrum(dr.select(dr.isfinite(albedo) & (bs.pdf > 0), albedo, 0.0))
-                # mirror the outgoing direction back for flipped hits
-                wo_local = dr.select(flip, mi.Vector3f(wo_local.x, wo_local.y, -wo_local.z),
-                                     wo_local)
-                q = dr.minimum(dr.max(albedo), 1.0)
-                go = hit & (sampler.next_1d(hit) < q)
-                new_thr = throughput * albedo / dr.maximum(q, 1e-12)
+                    s1, s2 = sampler.next_1d(hit), sampler.next_2d(hit)
+                    if dr.hint(len(bsdfs) <= _DIRECT_BSDFS, mode='scalar'):
+                        # dispatch by hand over the scene's few distinct BSDFs: a virtual call
+                        # would trace every BSDF Mitsuba holds (each instance has a default one)
+                        bs, bw = dr.zeros(mi.BSDFSample3f), dr.zeros(mi.Spectrum)
+                        for reg, b in bsdfs:
+                            on = hit & (bsdf_id == reg)
+                            bs_b, bw_b = b.sample(bsdf_ctx, si, s1, s2, on)
+                            bs = dr.select(on, bs_b, bs)
+                            bw = dr.select(on, bw_b, bw)
+                    else:
+                        bsdf = dr.reinterpret_array(mi.BSDFPtr, bsdf_id)
+                        bs, bw = bsdf.sample(bsdf_ctx, si, s1, s2, hit)
+                    wo_local = bs.wo
+                    albedo = mi.Spectrum(bw)
+                    if dr.hint(refl_arr is not None, mode='scalar'):
+                        ov = [dr.gather(mi.Float, refl_arr, elem * _SLOTS + k, hit)
+                              for k in range(_SLOTS)]
+                        use_ov = hit & ~dr.isnan(ov[0])
+                        wo_cos = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
+                        wo_local = dr.select(use_ov, wo_cos, wo_local)
+                        albedo = mi.Spectrum(dr.select(use_ov, mi.Spectrum(*ov), albedo))
+                        bs.pdf = dr.select(use_ov, 1.0, bs.pdf)
+                    albedo = mi.Spectrum(dr.select(dr.isfinite(albedo) & (bs.pdf > 0), albedo,
+                                                   0.0))
+                    # mirror the outgoing direction back for flipped hits
+                    wo_local = dr.select(flip, mi.Vector3f(wo_local.x, wo_local.y, -wo_local.z),
+                                         wo_local)
+                    q = dr.minimum(dr.max(albedo), 1.0)
+                    go = hit & (sampler.next_1d(hit) < q)
+                    new_thr = throughput * albedo / dr.maximum(q, 1e-12)
                 absd = mi.Spectrum(absd + dr.select(go, throughput - new_thr,
                                                     dr.select(hit, throughput, 0.0)))
                 throughput = mi.Spectrum(dr.select(go, new_thr, dr.select(hit, 0.0, throughput)))
@@ -1551,3 +1733,17 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     depth = dr.select(passing, depth - 1, depth)
                     active = active | passing
         return throughput, nrays, esc, absd
+
+    @staticmethod
+    def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active):
+        """Per-band albedo pi f(wi, wo) of each hit's BSDF for a cosine-sampled ``wo_local``
+        (the BSDF value times cos / cosine pdf): the weight of the "weights" mode."""
+        if len(bsdfs) <= _DIRECT_BSDFS:
+            f = dr.zeros(mi.Spectrum)
+            for reg, b in bsdfs:
+                on = active & (bsdf_id == reg)
+                f = dr.select(on, b.eval(ctx, si, wo_local, on), f)
+        else:
+            bsdf = dr.reinterpret_array(mi.BSDFPtr, bsdf_id)
+            f = bsdf.eval(ctx, si, wo_local, active)
+        return mi.Spectrum(f * (dr.pi / dr.maximum(wo_local.z, 1e-12)))
