@@ -103,8 +103,9 @@ DEFAULT_BATCH = 1 << 22
 #: pass unrecorded (e.g. a fallen leaf whose triangles stay in the scene).
 SURFACE, SENSOR, HIDDEN = 0, 1, 2
 _MODE_NAMES = {"surface": SURFACE, "sensor": SENSOR, "hidden": HIDDEN}
-#: up to this many distinct BSDFs are called directly in the kernel, more by a virtual call
-_DIRECT_BSDFS = 16
+#: fewer distinct BSDFs than this are called directly in the kernel (each for every hit,
+#: masked), more through ``dr.switch`` (an indirect call per BSDF present in a packet)
+_SWITCH_BSDFS = 3
 #: accumulator row of an element that is not recorded (``trace(..., record=...)``)
 _NO_ROW = 0xFFFFFFFF
 #: kernel modes (``trace(..., mode=...)``): Russian roulette (paper 000 §3.4) or weights
@@ -1261,9 +1262,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         Why a table of BSDF objects rather than a table of spectra: the element's optics stay
         those of its Mitsuba BSDF (``veg_leaf``'s PROSPECT-D R(λ) and T(λ), the same object the
         renderer uses), any BSDF type works, and a day's change is one integer per triangle.
-        The kernel calls each listed BSDF directly (up to :data:`_DIRECT_BSDFS`, more by a
-        virtual call), so the list, sorted by registry id, is part of the kernel: it must stay
-        the same from day to day (a few stage BSDFs built once), while the table is data.
+        The kernel calls the listed BSDFs (directly for fewer than :data:`_SWITCH_BSDFS`, else
+        through ``dr.switch``), so the list, sorted by registry id, is part of the kernel: it
+        must stay the same from day to day (a few stage BSDFs built once), while the table is
+        data.
         """
         if not bsdf_override:
             return None, index.bsdf_objects
@@ -1571,9 +1573,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         has_rows = rows is not None
         has_acc = acc is not None
         has_paths = paths is not None
+        # registry id of a BSDF -> its position in ``bsdfs`` (len(bsdfs): none of them)
+        use_switch = len(bsdfs) >= _SWITCH_BSDFS
+        slot_of, samplers, evals = self._switch_targets(bsdfs, bsdf_ctx) if use_switch \
+            else (None, None, None)
         while dr.hint(active, label="veg_photon_irradiance",
                       exclude=[scene, index, bsdfs, lookup, blookup, normals, modes,
-                               bsdf_table, rows]):
+                               bsdf_table, rows, slot_of, samplers, evals]):
             pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             nrays += dr.select(active, mi.UInt32(1), mi.UInt32(0))
             hit = active & pi.is_valid()
@@ -1677,7 +1683,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     wo_local = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
                     albedo = mi.Spectrum(1.0)
                     if dr.hint(has_acc, mode='scalar'):
-                        albedo = self._cosine_albedo(si, wo_local, bsdf_id, bsdfs, bsdf_ctx, hit)
+                        albedo = self._cosine_albedo(si, wo_local, bsdf_id, bsdfs, bsdf_ctx, hit,
+                                                     slot_of, evals)
                         if dr.hint(refl_arr is not None, mode='scalar'):
                             ov = [dr.gather(mi.Float, refl_arr, elem * _SLOTS + k, hit)
                                   for k in range(_SLOTS)]
@@ -1690,18 +1697,21 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     new_thr = throughput * albedo
                 else:
                     s1, s2 = sampler.next_1d(hit), sampler.next_2d(hit)
-                    if dr.hint(len(bsdfs) <= _DIRECT_BSDFS, mode='scalar'):
-                        # dispatch by hand over the scene's few distinct BSDFs: a virtual call
-                        # would trace every BSDF Mitsuba holds (each instance has a default one)
+                    # dispatch over the scene's distinct BSDFs only (a virtual call on a
+                    # BSDFPtr would trace every BSDF Mitsuba holds: each instance has one)
+                    if dr.hint(use_switch, mode='scalar'):
+                        # each packet calls the BSDFs its lanes hit (~14 % faster on the
+                        # world's 8 BSDFs than calling all of them masked)
+                        k = dr.gather(mi.UInt32, slot_of, bsdf_id, hit)
+                        bs, bw = dr.switch(k, samplers, si, s1, s2, hit & (k < len(bsdfs)))
+                    else:
+                        # two cheap BSDFs: each called for every hit, masked
                         bs, bw = dr.zeros(mi.BSDFSample3f), dr.zeros(mi.Spectrum)
                         for reg, b in bsdfs:
                             on = hit & (bsdf_id == reg)
                             bs_b, bw_b = b.sample(bsdf_ctx, si, s1, s2, on)
                             bs = dr.select(on, bs_b, bs)
                             bw = dr.select(on, bw_b, bw)
-                    else:
-                        bsdf = dr.reinterpret_array(mi.BSDFPtr, bsdf_id)
-                        bs, bw = bsdf.sample(bsdf_ctx, si, s1, s2, hit)
                     wo_local = bs.wo
                     albedo = mi.Spectrum(bw)
                     if dr.hint(refl_arr is not None, mode='scalar'):
@@ -1733,16 +1743,42 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     active = active | passing
         return throughput, nrays, esc, absd
 
+    @classmethod
+    def _switch_targets(cls, bsdfs, ctx):
+        """What the kernel's ``dr.switch`` over ``bsdfs`` needs: a device table from a BSDF's
+        registry id to its position in ``bsdfs`` (len(bsdfs) for any other id), and the
+        ``sample`` and ``eval`` functions of each BSDF."""
+        regs = [int(r) for r, _ in bsdfs]
+        table = np.full(max(regs + [0]) + 1, len(bsdfs), dtype=np.uint32)
+        table[regs] = np.arange(len(regs), dtype=np.uint32)
+        return (mi.UInt32(table), [cls._bsdf_sample(b, ctx) for _, b in bsdfs],
+                [cls._bsdf_eval(b, ctx) for _, b in bsdfs])
+
     @staticmethod
-    def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active):
+    def _bsdf_sample(bsdf, ctx):
+        """``bsdf.sample`` as a function of the arrays only (a ``dr.switch`` target)."""
+        def sample(si, s1, s2, active):
+            bs, bw = bsdf.sample(ctx, si, s1, s2, active)
+            return bs, mi.Spectrum(bw)
+        return sample
+
+    @staticmethod
+    def _bsdf_eval(bsdf, ctx):
+        """``bsdf.eval`` as a function of the arrays only (a ``dr.switch`` target)."""
+        def evaluate(si, wo, active):
+            return mi.Spectrum(bsdf.eval(ctx, si, wo, active))
+        return evaluate
+
+    @staticmethod
+    def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active, slot_of=None, evals=None):
         """Per-band albedo pi f(wi, wo) of each hit's BSDF for a cosine-sampled ``wo_local``
         (the BSDF value times cos / cosine pdf): the weight of the "weights" mode."""
-        if len(bsdfs) <= _DIRECT_BSDFS:
+        if slot_of is not None:
+            k = dr.gather(mi.UInt32, slot_of, bsdf_id, active)
+            f = dr.switch(k, evals, si, wo_local, active & (k < len(bsdfs)))
+        else:
             f = dr.zeros(mi.Spectrum)
             for reg, b in bsdfs:
                 on = active & (bsdf_id == reg)
                 f = dr.select(on, b.eval(ctx, si, wo_local, on), f)
-        else:
-            bsdf = dr.reinterpret_array(mi.BSDFPtr, bsdf_id)
-            f = bsdf.eval(ctx, si, wo_local, active)
         return mi.Spectrum(f * (dr.pi / dr.maximum(wo_local.z, 1e-12)))
