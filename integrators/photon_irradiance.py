@@ -152,7 +152,18 @@ def fixed_point_scale(photons: int, hits: int, pmax: float) -> tuple[float, floa
 
 
 def band_range(band) -> tuple[float, float]:
-    """Wavelength range [nm] of a band given by name (see :data:`BANDS`) or as (min, max)."""
+    """Wavelength range [nm] of a band given by name (see :data:`BANDS`) or as (min, max).
+
+    Parameters
+    ----------
+    band : str or tuple of float
+        A name of :data:`BANDS` or a (min_nm, max_nm) pair [nm], 0 < min_nm < max_nm.
+
+    Returns
+    -------
+    tuple of float
+        (min_nm, max_nm) [nm].
+    """
     if isinstance(band, str):
         if band not in BANDS:
             raise ParameterError("band", band, f"one of {sorted(BANDS)} or a (min_nm, max_nm) pair",
@@ -217,6 +228,16 @@ def scene_index(scene: mi.Scene) -> "SceneIndex":
 
     The cache holds the scene itself: keyed by ``id()`` alone, a new scene allocated where a
     freed one was would get the old scene's index.
+
+    Parameters
+    ----------
+    scene : mi.Scene
+        The scene.
+
+    Returns
+    -------
+    SceneIndex
+        The scene's element index.
     """
     if _INDEX_CACHE.get("scene") is not scene:
         _INDEX_CACHE.clear()
@@ -334,7 +355,18 @@ class SceneIndex:
 
     @staticmethod
     def build(scene: mi.Scene) -> "SceneIndex":
-        """Index the shapes of ``scene``; refuses (``SceneError``) what it cannot resolve."""
+        """Index the shapes of ``scene``; refuses (``SceneError``) what it cannot resolve.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene (load with ``optimize=False`` to keep every shape and its id).
+
+        Returns
+        -------
+        SceneIndex
+            Element layout, areas [m2], normals, centroids [m] and the kernel's lookup tables.
+        """
         shapes = scene.shapes()
         if len(shapes) == 0:
             raise SceneError("the scene has no shapes: photons would have nothing to hit")
@@ -490,7 +522,18 @@ class SceneIndex:
         return found[0]
 
     def shape_slice(self, shape_id: str) -> slice:
-        """Elements of a shape id, an instance id or an ``"instance_id/shape_id"`` key."""
+        """Elements of a shape id, an instance id or an ``"instance_id/shape_id"`` key.
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape id, an instance id or an ``"instance_id/shape_id"`` key.
+
+        Returns
+        -------
+        slice
+            The shape's elements in the index (``scene.shapes()`` order).
+        """
         if shape_id in self.sub_slices:
             return self.sub_slices[shape_id]
         if shape_id not in self.shape_ids:
@@ -546,8 +589,18 @@ class PhotonIrradianceResult:
         return slice(int(r[0]), int(r[-1]) + 1) if r.size else slice(0, 0)
 
     def shape_flux(self, shape_id: str) -> np.ndarray:
-        """Flux of a shape's elements [W], shape (emitters, n, 2 components, 2 sides,
-        bands): a view of :attr:`flux`."""
+        """Flux of a shape's elements [W]: a view of :attr:`flux`.
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape or instance id recorded by the pass.
+
+        Returns
+        -------
+        np.ndarray
+            Flux [W], shape (emitters, n, 2 components, 2 sides, bands).
+        """
         return self.flux[:, self._rows(self.index.shape_slice(shape_id), shape_id)]
 
     # ---- layout -------------------------------------------------------------------------
@@ -570,6 +623,16 @@ class PhotonIrradianceResult:
         Axes: element (``scene.shapes()`` order, see :meth:`shape_slice`), band (:attr:`bands`),
         component (0 direct, 1 indirect), side (0 front, 1 back); summed over the emitters (or
         those given). This is what ``mi.render`` returns for the integrator.
+
+        Parameters
+        ----------
+        emitter : str or int or sequence, optional
+            Emitter id, index or a list of them (default: the sum over all traced emitters).
+
+        Returns
+        -------
+        np.ndarray
+            Irradiance [W m-2], shape (elements, bands, 2, 2); 0 for unrecorded elements.
         """
         f = self.flux[self._emitters(emitter)].sum(axis=0)          # (n, comp, side, band)
         if self.rows is not None:                                    # unrecorded: 0
@@ -579,7 +642,18 @@ class PhotonIrradianceResult:
         return np.moveaxis(f, -1, 1) / np.maximum(self.index.areas, 1e-30)[:, None, None, None]
 
     def shape_slice(self, shape_id: str) -> slice:
-        """Elements of a shape id, instance id or ``"instance_id/shape_id"`` in :meth:`tensor`."""
+        """Elements of a shape id, instance id or ``"instance_id/shape_id"`` in :meth:`tensor`.
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape id, an instance id or an ``"instance_id/shape_id"`` key.
+
+        Returns
+        -------
+        slice
+            The shape's rows of :meth:`tensor`.
+        """
         return self.index.shape_slice(shape_id)
 
     # ---- queries --------------------------------------------------------------------------
@@ -608,7 +682,26 @@ class PhotonIrradianceResult:
 
     def flux_of(self, shape_id: str, band="total", component="total", side="front",
                 emitter=None) -> np.ndarray:
-        """Incident power per element of a shape [W]."""
+        """Incident power per element of a shape [W].
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape id, an instance id or an ``"instance_id/shape_id"`` key.
+        band : str or tuple
+            A traced band: its name (e.g. ``"par"``) or its (min_nm, max_nm) range [nm].
+        component : str
+            ``"direct"`` (first hit), ``"indirect"`` (after >= 1 bounce) or ``"total"``.
+        side : str
+            ``"front"`` (the side the geometric normal faces), ``"back"`` or ``"both"``.
+        emitter : str or int or sequence, optional
+            Emitter id, index or a list of them (default: the sum over all traced emitters).
+
+        Returns
+        -------
+        np.ndarray
+            Flux [W], one value per element of the shape.
+        """
         if component not in COMPONENTS:
             raise ParameterError("component", component, f"one of {COMPONENTS}")
         if side not in SIDES + ("both",):
@@ -627,6 +720,24 @@ class PhotonIrradianceResult:
         "total"; side: "front" (the side the normal faces), "back" or "both"; emitter: None (all),
         an emitter id/index or a list of them. A triangle of zero area (e.g. a collapsed leaf
         slot of a world's canopy) gets NaN.
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape id, an instance id or an ``"instance_id/shape_id"`` key.
+        band : str or tuple
+            A traced band: its name (e.g. ``"par"``) or its (min_nm, max_nm) range [nm].
+        component : str
+            ``"direct"`` (first hit), ``"indirect"`` (after >= 1 bounce) or ``"total"``.
+        side : str
+            ``"front"`` (the side the geometric normal faces), ``"back"`` or ``"both"``.
+        emitter : str or int or sequence, optional
+            Emitter id, index or a list of them (default: the sum over all traced emitters).
+
+        Returns
+        -------
+        np.ndarray
+            Irradiance [W m-2], one value per triangle (NaN for zero area).
         """
         sl = self.index.shape_slice(shape_id)
         a = self.index.areas[sl]
@@ -636,7 +747,24 @@ class PhotonIrradianceResult:
     def element_irradiance(self, band="total", component="total", side="front",
                            emitter=None) -> np.ndarray:
         """Irradiance of every element of the scene (all shapes, in index order) [W m-2];
-        0 for elements the pass did not record."""
+        0 for elements the pass did not record.
+
+        Parameters
+        ----------
+        band : str or tuple
+            A traced band: its name (e.g. ``"par"``) or its (min_nm, max_nm) range [nm].
+        component : str
+            ``"direct"`` (first hit), ``"indirect"`` (after >= 1 bounce) or ``"total"``.
+        side : str
+            ``"front"`` (the side the geometric normal faces), ``"back"`` or ``"both"``.
+        emitter : str or int or sequence, optional
+            Emitter id, index or a list of them (default: the sum over all traced emitters).
+
+        Returns
+        -------
+        np.ndarray
+            Irradiance [W m-2], one value per element.
+        """
         if component not in COMPONENTS:
             raise ParameterError("component", component, f"one of {COMPONENTS}")
         if side not in SIDES + ("both",):
@@ -656,21 +784,70 @@ class PhotonIrradianceResult:
                             emitter=None) -> np.ndarray:
         """Photon flux density [umol m-2 s-1] per triangle, converting each band's energy at its
         centre wavelength (exact to < 0.1 % for narrow bands; for PAR it assumes the band's
-        spectrum is flat in energy, which for daylight is within ~2 %)."""
+        spectrum is flat in energy, which for daylight is within ~2 %).
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape id, an instance id or an ``"instance_id/shape_id"`` key.
+        band : str or tuple
+            A traced band: its name (e.g. ``"par"``) or its (min_nm, max_nm) range [nm].
+        component : str
+            ``"direct"`` (first hit), ``"indirect"`` (after >= 1 bounce) or ``"total"``.
+        side : str
+            ``"front"`` (the side the geometric normal faces), ``"back"`` or ``"both"``.
+        emitter : str or int or sequence, optional
+            Emitter id, index or a list of them (default: the sum over all traced emitters).
+
+        Returns
+        -------
+        np.ndarray
+            Photon flux density [umol m-2 s-1], one value per triangle.
+        """
         return self.irradiance(shape_id, band, component, side, emitter) \
             * umol_per_joule(*self.band_ranges[self._band(band)])
 
     def red_far_red(self, shape_id: str, component="total", side="front", emitter=None,
                     red="red", far_red="far_red") -> np.ndarray:
         """Red:far-red ratio per triangle as plants sense it: a ratio of photon fluxes
-        (655-665 nm over 725-735 nm by default); NaN where no far-red arrives."""
+        (655-665 nm over 725-735 nm by default); NaN where no far-red arrives.
+
+        Parameters
+        ----------
+        shape_id : str
+            A shape id, an instance id or an ``"instance_id/shape_id"`` key.
+        component : str
+            ``"direct"`` (first hit), ``"indirect"`` (after >= 1 bounce) or ``"total"``.
+        side : str
+            ``"front"`` (the side the geometric normal faces), ``"back"`` or ``"both"``.
+        emitter : str or int or sequence, optional
+            Emitter id, index or a list of them (default: the sum over all traced emitters).
+        red, far_red : str or tuple
+            The traced bands used as red and far-red (names or (min_nm, max_nm) [nm]).
+
+        Returns
+        -------
+        np.ndarray
+            R:FR [-] (photon flux ratio), one value per triangle.
+        """
         r = self.photon_flux_density(shape_id, red, component, side, emitter)
         fr = self.photon_flux_density(shape_id, far_red, component, side, emitter)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(fr > 0, r / np.where(fr > 0, fr, 1.0), np.nan)
 
     def total_flux(self, band="total") -> float:
-        """Power that hit any element, both sides, all components [W]."""
+        """Power that hit any element, both sides, all components [W].
+
+        Parameters
+        ----------
+        band : str or tuple
+            A traced band: its name (e.g. ``"par"``) or its (min_nm, max_nm) range [nm].
+
+        Returns
+        -------
+        float
+            Total recorded flux [W], summed over emitters.
+        """
         return float(self.flux[..., self._band(band)].sum())
 
     def to_npz(self, path) -> None:
@@ -897,7 +1074,27 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                                             develop=develop, evaluate=evaluate)
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
-        """Camera rays of the image output: the front irradiance of the hit element [W m-2]."""
+        """Camera rays of the image output: the front irradiance of the hit element [W m-2].
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene.
+        sampler : mi.Sampler
+            Mitsuba's sampler (unused: the value is a lookup).
+        ray : mi.RayDifferential3f
+            Camera rays.
+        medium : mi.Medium, optional
+            Unused.
+        active : mi.Bool
+            Active lanes.
+
+        Returns
+        -------
+        tuple
+            (``mi.Spectrum`` front irradiance of the first band [W m-2], ``mi.Bool`` hit,
+            empty list of AOVs).
+        """
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal, coherent=True, active=active)
         value = mi.Float(0.0)
         if self._vis is not None:
@@ -910,11 +1107,23 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         return mi.Spectrum(value), si.is_valid(), []
 
     def aov_names(self):
-        """No AOVs."""
+        """No AOVs.
+
+        Returns
+        -------
+        list
+            An empty list.
+        """
         return []
 
     def to_string(self):
-        """Plugin name and properties (what ``print(integrator)`` shows)."""
+        """Plugin name and properties (what ``print(integrator)`` shows).
+
+        Returns
+        -------
+        str
+            ``PhotonIrradianceIntegrator[...]`` with the properties.
+        """
         return (f"PhotonIrradianceIntegrator[photons={self.photons}, max_depth={self.max_depth},"
                 f" indirect={self.indirect}, seed={self.seed}, bands={list(self.bands)}, "
                 f"mode={self.mode}, output={self.output}]")
@@ -1683,8 +1892,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     wo_local = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
                     albedo = mi.Spectrum(1.0)
                     if dr.hint(has_acc, mode='scalar'):
-                        albedo = self._cosine_albedo(si, wo_local, bsdf_id, bsdfs, bsdf_ctx, hit,
-                                                     slot_of, evals)
+                        # (a module function: a reference to ``self`` in the loop body would
+                        # make Dr.Jit traverse the integrator for the loop state, ~90 ms a pass)
+                        albedo = _cosine_albedo(si, wo_local, bsdf_id, bsdfs, bsdf_ctx, hit,
+                                                slot_of, evals)
                         if dr.hint(refl_arr is not None, mode='scalar'):
                             ov = [dr.gather(mi.Float, refl_arr, elem * _SLOTS + k, hit)
                                   for k in range(_SLOTS)]
@@ -1769,16 +1980,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             return mi.Spectrum(bsdf.eval(ctx, si, wo, active))
         return evaluate
 
-    @staticmethod
-    def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active, slot_of=None, evals=None):
-        """Per-band albedo pi f(wi, wo) of each hit's BSDF for a cosine-sampled ``wo_local``
-        (the BSDF value times cos / cosine pdf): the weight of the "weights" mode."""
-        if slot_of is not None:
-            k = dr.gather(mi.UInt32, slot_of, bsdf_id, active)
-            f = dr.switch(k, evals, si, wo_local, active & (k < len(bsdfs)))
-        else:
-            f = dr.zeros(mi.Spectrum)
-            for reg, b in bsdfs:
-                on = active & (bsdf_id == reg)
-                f = dr.select(on, b.eval(ctx, si, wo_local, on), f)
-        return mi.Spectrum(f * (dr.pi / dr.maximum(wo_local.z, 1e-12)))
+
+def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active, slot_of=None, evals=None):
+    """Per-band albedo pi f(wi, wo) of each hit's BSDF for a cosine-sampled ``wo_local``
+    (the BSDF value times cos / cosine pdf): the weight of the "weights" mode."""
+    if slot_of is not None:
+        k = dr.gather(mi.UInt32, slot_of, bsdf_id, active)
+        f = dr.switch(k, evals, si, wo_local, active & (k < len(bsdfs)))
+    else:
+        f = dr.zeros(mi.Spectrum)
+        for reg, b in bsdfs:
+            on = active & (bsdf_id == reg)
+            f = dr.select(on, b.eval(ctx, si, wo_local, on), f)
+    return mi.Spectrum(f * (dr.pi / dr.maximum(wo_local.z, 1e-12)))

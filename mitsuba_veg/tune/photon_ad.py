@@ -69,6 +69,13 @@ class PhotonPaths:
 
     @property
     def nbytes(self) -> int:
+        """Memory of the recorded paths [bytes] (w0 and, per depth, element and side).
+
+        Returns
+        -------
+        int
+            Bytes.
+        """
         return self.photons * (8 + len(self.elem) * 5)
 
 
@@ -143,10 +150,26 @@ def trace_paths(scene: mi.Scene, emitter, photons: int, index=None, max_depth: i
 
 
 def replay(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
-    """Flux per element [W] of the recorded paths for per-element ``albedo`` (Float64 of width
-    n_elements, may carry gradients) and emitter ``strength`` (a number or width-1 Float64).
+    """Flux per element [W] of the recorded paths for per-element albedos.
 
-    Differentiable with Dr.Jit AD in both modes. ``side``: "front", "back" or "both".
+    P_0 = s_e w_0, flux(e_k) += P_k, P_{k+1} = P_k a(e_k) (module docstring), evaluated with
+    Dr.Jit gathers and scatter-adds: differentiable with Dr.Jit AD in both modes.
+
+    Parameters
+    ----------
+    paths : PhotonPaths
+        Paths from :func:`trace_paths`.
+    albedo : Float64
+        Albedo of every element [-], width ``paths.n_elements`` (may carry gradients).
+    strength : float or Float64
+        Emitter strength factor s_e [-] (a number or a width-1 array, may carry gradients).
+    side : str
+        ``"front"``, ``"back"`` or ``"both"``: the hits recorded.
+
+    Returns
+    -------
+    Float64
+        Flux per element [W] (band power, see :func:`trace_paths`).
     """
     F64 = type(albedo) if dr.is_array_v(albedo) else _f64()
     if side not in ("front", "back", "both"):
@@ -165,7 +188,24 @@ def replay(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
 
 
 def irradiance(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
-    """Irradiance per element [W m-2] = :func:`replay` / element area."""
+    """Irradiance per element [W m-2] = :func:`replay` / element area.
+
+    Parameters
+    ----------
+    paths : PhotonPaths
+        Paths from :func:`trace_paths`.
+    albedo : Float64
+        Albedo of every element [-], width ``paths.n_elements`` (may carry gradients).
+    strength : float or Float64
+        Emitter strength factor [-].
+    side : str
+        ``"front"``, ``"back"`` or ``"both"``.
+
+    Returns
+    -------
+    Float64
+        Irradiance per element [W m-2].
+    """
     F64 = type(albedo) if dr.is_array_v(albedo) else _f64()
     inv_area = F64(1.0 / np.maximum(paths.areas, 1e-30))
     return replay(paths, albedo, strength, side) * inv_area
@@ -173,9 +213,28 @@ def irradiance(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
 
 def albedo_array(n_elements: int, base, overrides: dict | None = None, slices: dict | None = None,
                  dtype=None):
-    """Per-element albedo: ``base`` (array or number) with ``{shape_id: value}`` overrides on
-    the elements ``slices[shape_id]`` (values may be Dr.Jit scalars with gradients); ``dtype``
-    the Dr.Jit float type (default Float64)."""
+    """Per-element albedo: ``base`` with ``{shape_id: value}`` overrides.
+
+    Parameters
+    ----------
+    n_elements : int
+        Elements of the scene index.
+    base : float or array_like
+        Albedo of every element [-] (a number or one value per element).
+    overrides : dict, optional
+        ``{shape_id: value}`` albedo [-] of a shape's elements (values may be Dr.Jit scalars
+        with gradients).
+    slices : dict, optional
+        ``{shape_id: slice}`` of the elements of each overridden shape (required with
+        ``overrides``).
+    dtype : type, optional
+        The Dr.Jit float type (default Float64).
+
+    Returns
+    -------
+    Float64
+        Albedo per element [-].
+    """
     F64 = dtype or _f64()
     a = F64(np.broadcast_to(np.asarray(base, float), (n_elements,)).copy())
     if overrides:
