@@ -1284,7 +1284,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
                     acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
                                             slot_ranges, refl_g, max_depth, indirect,
-                                            mode_arr, bsdf_arr, bsdfs, row_arr, n_rec, mode)
+                                            mode_arr, bsdf_arr, bsdfs, row_arr, n_rec, mode,
+                                            len(group))
                     # fixed point -> watts on the device (both threads), summed over batches
                     # in a fixed order (deterministic). A plain add: a scatter_add into one
                     # buffer for all emitters and groups cost 20-30 ms per pass of 1.3 M
@@ -1688,8 +1689,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
               indirect, modes=None, bsdf_table=None, bsdfs=None, rows=None, n_rec=None,
-              mode="roulette"):
-        """One kernel launch of ``n`` photons of one emitter (see :meth:`_loop`)."""
+              mode="roulette", slots=_SLOTS):
+        """One kernel launch of ``n`` photons of one emitter (see :meth:`_loop`); ``slots``:
+        the band slots that are read back (the first ``slots`` of 4)."""
         sampler, ray, throughput, _ = self._photons(scene, emitter, index, n, n_total, stream,
                                                     slot_ranges)
         n_el = index.n_elements
@@ -1717,7 +1719,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
             tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
             dr.opaque(mi.Float, cap), modes, bsdf_table,
-            index.bsdf_objects if bsdfs is None else bsdfs, rows, weights=mode == "weights")
+            index.bsdf_objects if bsdfs is None else bsdfs, rows, weights=mode == "weights",
+            slots=slots)
         # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
         # one would re-run the loop for each); the bookkeeping sums are read back in one go
         dr.eval(acc, throughput_left, rays_lane, esc, absd)
@@ -1741,7 +1744,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
               index, normals, refl_arr, one_hit, scale, cap, modes=None, bsdf_table=None,
-              bsdfs=(), rows=None, weights=False, paths=None, lane=None, n_lanes=None):
+              bsdfs=(), rows=None, weights=False, paths=None, lane=None, n_lanes=None,
+              slots=_SLOTS):
         """The random walk: one symbolic loop (a single kernel), in one of two modes.
 
         ``weights=False`` ("roulette", paper 000 §3.4): at a hit the BSDF is sampled and the
@@ -1768,7 +1772,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         BSDF is gathered from the table; ``bsdfs`` lists every BSDF the kernel dispatches to.
         With ``rows`` (per-element accumulator row, ``0xFFFFFFFF`` = not recorded) only the
         recorded elements have a place in ``acc``. All tables are device arrays outside the
-        loop state: new contents, same kernel.
+        loop state: new contents, same kernel. Only the first ``slots`` band slots are added
+        to ``acc`` (a pass of fewer than 4 bands makes fewer atomic adds per hit).
         """
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
@@ -1850,7 +1855,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 rec = rec & (row != _NO_ROW)
             if dr.hint(has_acc, mode='scalar'):
                 base = ((row * 2 + comp) * 2 + side) * _SLOTS
-                for k in range(_SLOTS):
+                for k in range(slots):   # band slots beyond the pass's bands: not read back
                     # capped: no record can make a 64-bit sum wrap (see fixed_point_scale)
                     q_k = _UInt64(dr.round(dr.minimum(throughput[k] * scale, cap)))
                     # plain atomics: hits rarely share an element within a packet, so the
