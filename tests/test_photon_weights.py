@@ -38,11 +38,12 @@ def test_weights_mode_has_the_expectation_of_roulette(scene):
     rr = integ.trace(s, photons=1_000_000, seed=2, bands=("total", "par"))
     wt = integ.trace(s, photons=1_000_000, seed=2, bands=("total", "par"), mode="weights")
     assert wt.settings["mode"] == "weights" and rr.settings["mode"] == "roulette"
+    # indirect light per shape: measured -1.9 % .. +0.6 % here; two roulette passes with
+    # other seeds differ by up to 2.8 % (Monte-Carlo noise at 1M photons)
     for sid in ALBEDO:
-        for comp in ("direct", "indirect"):
-            a = rr.flux_of(sid, "par", comp).sum()
-            b = wt.flux_of(sid, "par", comp).sum()
-            assert b == pytest.approx(a, rel=0.02), (sid, comp)
+        a = rr.flux_of(sid, "par", "indirect").sum()
+        b = wt.flux_of(sid, "par", "indirect").sum()
+        assert b == pytest.approx(a, rel=0.04), sid
     # direct light: the same photons, the same first hits
     assert np.array_equal(wt.flux[:, :, 0], rr.flux[:, :, 0])
     # energy: emitted = escaped + absorbed + truncated (photons go on to max_depth here)
