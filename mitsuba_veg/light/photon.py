@@ -13,6 +13,9 @@ from mitsuba_veg.integrators.photon_irradiance import (  # noqa: F401
     BANDS, DEFAULT_BANDS, DEFAULT_BATCH, PhotonIrradianceIntegrator, PhotonIrradianceResult,
     band_range)
 
+__all__ = ["BANDS", "DEFAULT_BANDS", "DEFAULT_BATCH", "PhotonIrradianceIntegrator",
+           "PhotonIrradianceResult", "band_range", "integrator", "photon_irradiance"]
+
 
 def _band_property(bands) -> str:
     """Bands as the plugin's ``bands`` string: names, and ranges as ``"min-max"`` [nm]."""
