@@ -21,6 +21,12 @@ Russian roulette (paper §3.4): at a hit with per-band albedo a_k (from the BSDF
 a per-triangle override) the photon continues with probability q = max_k a_k and its band
 powers become P_k a_k / q. For a grey surface q = a and the power is unchanged, exactly the
 paper's "reflected with probability = reflectance" (1000 photons on a 0.5 surface: 500 go on).
+This is the kernel's default mode ("roulette"). Its other mode, "weights", continues every photon
+up to ``max_depth`` hits in a cosine-weighted direction on the side it hit and multiplies its
+band powers by a_k = pi f_k(wi, wo) (or the override albedo): the same expectation, directions
+independent of the albedo. In that mode :meth:`PhotonIrradianceIntegrator.trace_paths` records
+the element and side of every hit, which the differentiable pass
+(:mod:`mitsuba_veg.tune.photon_ad`) replays: one kernel serves both passes.
 
 Emitter sampling ("bounding-sphere aim", done tighter):
 - directional and infinite emitters (sun, sky): the direction comes from the emitter
