@@ -6,8 +6,10 @@ import subprocess
 import sys
 import threading
 import time
+import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("distributed", reason="the 'distributed' extra is not installed")
@@ -99,6 +101,15 @@ def test_sweep_equals_the_same_runs_made_one_by_one(tmp_path, client):
     pd.testing.assert_frame_equal(comparable(again), comparable(df))
 
 
+def _checkpoint_day(run: Path) -> int:
+    """The day of a run folder's checkpoint; -1 without a readable one."""
+    try:
+        with np.load(run / "checkpoint.npz") as d:
+            return int(d["day"])
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
+        return -1
+
+
 def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
     days = 24
     axes = '"climate.temperature" = [288.15, 293.15]'
@@ -115,8 +126,10 @@ def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
         while time.monotonic() - t0 < 150:
             runs = list((out / "runs").glob("run-*")) if (out / "runs").is_dir() else []
             done = [r for r in runs if (r / "summary.json").exists()]
-            partial = [r for r in runs if (r / "checkpoint.npz").exists()
-                       and not (r / "summary.json").exists()]
+            # a run with at least 9 of its days still to go when it is killed (a run near its
+            # end could finish between this check and the kill: then nothing would resume)
+            partial = [r for r in runs if not (r / "summary.json").exists()
+                       and 0 <= _checkpoint_day(r) <= days - 9]
             if done and partial:
                 break
             assert p.poll() is None, "the sweep ended before it could be killed"
@@ -127,6 +140,8 @@ def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
         os.killpg(p.pid, signal.SIGKILL)   # the sweep, its scheduler and its workers
         p.wait()
     assert not (out / "sweep.parquet").exists()
+    assert any(not (r / "summary.json").exists() and _checkpoint_day(r) >= 0
+               for r in (out / "runs").glob("run-*")), "no run was left part-way"
     df = mv.sweep(f, out, client=client, progress=False, plots=False)
     m = json.loads((out / "sweep.json").read_text())
     statuses = {r["status"] for r in m["runs"]}
@@ -168,7 +183,8 @@ def test_worker_lost_midrun_is_retried_and_resumes(tmp_path, client):
     t0 = time.monotonic()
     while killed is None and time.monotonic() - t0 < 120 and th.is_alive():
         for r in (out / "runs").glob("run-*") if (out / "runs").is_dir() else []:
-            if (r / "checkpoint.npz").exists() and not (r / "summary.json").exists():
+            # at least 9 days to go: the run cannot finish before the kill lands
+            if not (r / "summary.json").exists() and 0 <= _checkpoint_day(r) <= days - 9:
                 for addr, keys in client.processing().items():
                     if any(r.name in str(k) for k in keys):
                         pid = client.run(os.getpid, workers=[addr])[addr]
