@@ -9,8 +9,9 @@ import pytest
 
 from mitsuba_veg import tune
 from mitsuba_veg.errors import ParameterError
-from mitsuba_veg.tune.discrete import (DiscreteMossModel, fit_discrete, patch_cover,
-                                       patch_labels, patch_loss_value)
+from mitsuba_veg.tune.discrete import (DiscreteExperiment, DiscreteMossModel, fit_discrete,
+                                       fit_discrete_experiments, patch_cover, patch_labels,
+                                       patch_loss_value)
 
 ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
@@ -100,3 +101,49 @@ def test_fit_discrete_arguments(dm, surrogate):
         fit_discrete(dm, surrogate, t, ["S1"], loss="l1")
     with pytest.raises(ParameterError):
         fit_discrete(dm, surrogate, np.zeros(3), ["S1"])
+
+
+def test_fit_discrete_experiments_plumbing(surrogate):
+    """Several experiments: their losses add with their weights, in the discrete loss and in the
+    inner fit's gradient. Two copies of one experiment at weight 1/2 each are that experiment
+    (the same steps and values); an experiment whose target is bare ground pulls alpha_g down
+    only when its weight dominates."""
+    dm1 = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[0], photons=PHOTONS)
+    tm = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[100], photons=PHOTONS)
+    target = tm.to_layout(tm.run({}).mean(), surrogate.data.shape_slices)
+    bare = np.zeros_like(target)
+    kw = dict(init={"alpha_g": 0.21}, iterations=1, steps=2)
+    one = fit_discrete(dm1, surrogate, target, ["alpha_g"], **kw)
+    assert one.values["alpha_g"] > 0.21                      # below the truth: up
+    two = fit_discrete_experiments([DiscreteExperiment(dm1, surrogate, target, "a", 0.5),
+                                    DiscreteExperiment(dm1, surrogate, target, "b", 0.5)],
+                                   ["alpha_g"], **kw)
+    assert two.values["alpha_g"] == pytest.approx(one.values["alpha_g"], rel=1e-6)
+    assert two.discrete_loss == pytest.approx(one.discrete_loss, rel=1e-9)
+    rec = two.iterations[0]["experiments"]
+    assert set(rec) == {"a", "b"}
+    assert rec["a"]["discrete_loss"] == pytest.approx(one.iterations[0]["discrete_loss"])
+    for w, up in ((1e-3, True), (1e3, False)):
+        mixed = fit_discrete_experiments([(dm1, surrogate, target),
+                                          DiscreteExperiment(dm1, surrogate, bare, "bare", w)],
+                                         ["alpha_g"], **kw)
+        assert (mixed.values["alpha_g"] > 0.21) == up, (w, mixed.values)
+        it = mixed.iterations[0]
+        e = it["experiments"]
+        assert it["discrete_loss"] == pytest.approx(e["experiment 0"]["discrete_loss"]
+                                                    + w * e["bare"]["discrete_loss"])
+        assert e["experiment 0"]["discrete_loss"] == pytest.approx(
+            one.iterations[0]["discrete_loss"])
+
+
+def test_fit_discrete_experiments_arguments(dm, surrogate):
+    t = np.zeros(dm.n)
+    with pytest.raises(ParameterError, match="at least one"):
+        fit_discrete_experiments([], ["S1"])
+    with pytest.raises(ParameterError, match="distinct"):
+        fit_discrete_experiments([DiscreteExperiment(dm, surrogate, t, "a"),
+                                  DiscreteExperiment(dm, surrogate, t, "a")], ["S1"])
+    with pytest.raises(ParameterError, match="weight"):
+        fit_discrete_experiments([DiscreteExperiment(dm, surrogate, t, "a", 0.0)], ["S1"])
+    with pytest.raises(ParameterError, match="experiments"):
+        fit_discrete_experiments([(dm, surrogate)], ["S1"])
