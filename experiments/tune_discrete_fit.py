@@ -16,6 +16,13 @@ is the maps of those days (a time series).
         --params S1 --starts -0.3 --joint 0 --days 25 --target-seeds 100-103 --seeds 0-3
     python experiments/tune_discrete_fit.py --params S1,T1,alpha_g --starts "" --joint 1 \
         --iterations 6 --steps 20 --report 10,20,30
+
+``--window NAME:START_DATE:T_AIR`` (repeatable) makes the target of several experiments: the
+garden from START_DATE with the daily air temperature T_AIR [K], each with its own target maps,
+discrete model and relaxed surrogate; the fit (``fit_discrete_experiments``) adds their losses.
+
+    python experiments/tune_discrete_fit.py --params S1,T1,alpha_g --starts "" --corners 0 \
+        --window spring:2026-04-01:283.15 --window summer:2026-07-01:295.15 --report 10,20,30
 """
 from __future__ import annotations
 
@@ -32,12 +39,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from mitsuba_veg import tune  # noqa: E402
-from mitsuba_veg.tune.discrete import DiscreteMossModel, fit_discrete  # noqa: E402
+from mitsuba_veg.tune.discrete import (DiscreteExperiment, DiscreteMossModel,  # noqa: E402
+                                       fit_discrete_experiments, patch_cover, patch_labels,
+                                       patch_loss_value)
 from mitsuba_veg.tune.fitting import parameter_scale  # noqa: E402
 from mitsuba_veg.scenario import Scenario, load_scenario  # noqa: E402
 
 
 def seeds_arg(s: str) -> list[int]:
+    """Seeds from ``"A-B"`` (inclusive) or ``"a,b,c"``."""
     if "-" in s:
         a, b = s.split("-")
         return list(range(int(a), int(b) + 1))
@@ -72,6 +82,11 @@ def main():
                     "box corners; e.g. to continue a fit)")
     ap.add_argument("--eval", action="append", default=[],
                     help="only print the discrete loss (fit seeds) at NAME=V,NAME=V points")
+    ap.add_argument("--window", action="append", default=[],
+                    help="NAME:START_DATE:T_AIR of one experiment (repeatable; START_DATE or "
+                    "T_AIR may be empty: the scenario's); default: one, the scenario")
+    ap.add_argument("--tol", type=float, default=0.01)
+    ap.add_argument("--lr", type=float, default=0.08)
     ap.add_argument("--out", default="out/tune_discrete_fit")
     a = ap.parse_args()
     out = Path(a.out)
@@ -79,69 +94,86 @@ def main():
     names = a.params.split(",")
     species = a.species.split(",")
     t0 = time.perf_counter()
-    scn = load_scenario(a.scenario)
     world = a.tree is not None
-    if world or a.start_date:
+    windows = a.window or [f"main:{a.start_date or ''}:"]
+    light = any(p.startswith(("albedo.", "strength.")) for p in names)
+    report = [int(d) for d in a.report.split(",")] if a.report else [a.days]
+    exps, truth = [], None
+    for spec in windows:
+        wname, start, T_air = spec.split(":")
+        scn = load_scenario(a.scenario)
         d = copy.deepcopy(scn.data)
-        if a.start_date:
-            d.setdefault("simulation", {})["start_date"] = a.start_date
+        if start:
+            d.setdefault("simulation", {})["start_date"] = start
+        if T_air:
+            d.setdefault("climate", {})["temperature"] = float(T_air)
         if world:
             x, z = (float(v) for v in a.tree.split(","))
             d["trees"] = [{"name": "aspen", "model": "weber_penn", "preset": "quaking_aspen",
                            "position": [x, 0.0, z], "height": 3.0, "seed": 3}]
         scn = Scenario(scn.path, d)
-    light = any(p.startswith(("albedo.", "strength.")) for p in names)
-    data = tune.prepare(scn, days=a.days, species=species, photons=a.photons,
-                        light_every=15, differentiable_light=light)
-    sm = tune.SmoothMossModel(data, temperature=a.temperature, closure=a.closure)
-    dm = DiscreteMossModel(scn, a.days, species=species, seeds=seeds_arg(a.seeds),
-                           photons=a.photons, world=world)
-    truth = {p: dm.default_value(p) for p in names}
-    for item in a.truth:
-        k, v = item.split("=")
-        truth[k] = float(v)
-    tm = DiscreteMossModel(scn, a.days, species=species, seeds=seeds_arg(a.target_seeds),
-                           photons=a.photons, world=world)
-    report = [int(d) for d in a.report.split(",")] if a.report else [a.days]
-    tr = tm.run(truth, report=report)
-    target = {d: tm.to_layout(tr.mean(d), data.shape_slices) for d in report}
-    kind = "world: garden + aspen" if world else "garden"
-    print(f"target: mean of {len(tm.seeds)} discrete runs ({kind}, "
-          f"{a.days} days, {a.photons} photons), truth {truth}: covered "
-          f"{np.mean(tr.total[:, -1]):.4f} m2 (sd {np.std(tr.total[:, -1]):.4f}); maps of days "
-          f"{report}; "
-          f"set-up {time.perf_counter() - t0:.0f} s", flush=True)
+        data = tune.prepare(scn, days=a.days, species=species, photons=a.photons,
+                            light_every=15, differentiable_light=light)
+        sm = tune.SmoothMossModel(data, temperature=a.temperature, closure=a.closure)
+        dm = DiscreteMossModel(scn, a.days, species=species, seeds=seeds_arg(a.seeds),
+                               photons=a.photons, world=world)
+        if truth is None:
+            truth = {p: dm.default_value(p) for p in names}
+            for item in a.truth:
+                k, v = item.split("=")
+                truth[k] = float(v)
+        tm = DiscreteMossModel(scn, a.days, species=species, seeds=seeds_arg(a.target_seeds),
+                               photons=a.photons, world=world)
+        if set(tm.seeds) & set(dm.seeds):
+            raise SystemExit("--seeds and --target-seeds must be disjoint")
+        tr = tm.run(truth, report=report)
+        target = {day: tm.to_layout(tr.mean(day), data.shape_slices) for day in report}
+        exps.append(DiscreteExperiment(dm, sm, target, name=wname))
+        kind = "world: garden + aspen" if world else "garden"
+        print(f"target {spec}: mean of {len(tm.seeds)} discrete runs ({kind}, "
+              f"{a.days} days, {a.photons} photons), truth {truth}: covered "
+              f"{np.mean(tr.total[:, -1]):.4f} m2 (sd {np.std(tr.total[:, -1]):.4f}); maps of "
+              f"days {report}; set-up {time.perf_counter() - t0:.0f} s", flush=True)
+    sm = exps[0].surrogate
     if a.eval:
-        from mitsuba_veg.tune.discrete import patch_cover, patch_labels, patch_loss_value
         for point in a.eval:
             th = {k: float(v) for k, v in (x.split("=") for x in point.split(","))}
-            r = dm.run(th, report=report)
-            ls = []
-            for d in report:
-                lab = patch_labels(data.index.centroids, data.shape_slices,
-                                   data.living & np.isfinite(target[d]), a.patch)
-                tp = patch_cover(np.nan_to_num(target[d]), data.areas, lab)
-                D = dm.to_layout(r.mean(d), data.shape_slices)
-                ls.append(patch_loss_value(D, data.areas, lab, tp))
-            per_day = ", ".join(f"{x:.3e}" for x in ls)
-            print(f"discrete loss at {th}: {np.mean(ls):.4e} (per day {per_day}); covered on "
-                  f"day {report[-1]} {np.mean(r.total[:, -1]):.4f} m2", flush=True)
+            tot, parts = 0.0, []
+            for e in exps:
+                data, dm = e.surrogate.data, e.discrete
+                r = dm.run(th, report=report)
+                ls = []
+                for day in report:
+                    lab = patch_labels(data.index.centroids, data.shape_slices,
+                                       data.living & np.isfinite(e.target[day]), a.patch)
+                    tp = patch_cover(np.nan_to_num(e.target[day]), data.areas, lab)
+                    D = dm.to_layout(r.mean(day), data.shape_slices)
+                    ls.append(patch_loss_value(D, data.areas, lab, tp))
+                tot += float(np.mean(ls))
+                parts.append(f"{e.name}: {np.mean(ls):.4e} (per day "
+                             + ", ".join(f"{x:.3e}" for x in ls)
+                             + f"; covered on day {report[-1]} {np.mean(r.total[:, -1]):.4f} m2)")
+            print(f"discrete loss at {th}: {tot:.4e} = " + "; ".join(parts), flush=True)
         return
     scale = {p: parameter_scale(sm, p) for p in names}
     box = {p: 0.3 * (scale[p] if p in ("T1", "T0") else truth[p]) for p in names}
     rows = []
 
     def one(params, init):
-        r = fit_discrete(dm, sm, target, params, init=init, iterations=a.iterations,
-                         steps=a.steps, patch=a.patch, verbose=True)
+        r = fit_discrete_experiments(exps, params, init=init, iterations=a.iterations,
+                                     steps=a.steps, patch=a.patch, tol=a.tol,
+                                     lr=a.lr, verbose=True)
         err = {k: (r.values[k] - truth[k]) / truth[k] for k in params}
         err_s = {k: (r.values[k] - truth[k]) / scale[k] for k in params}
         rows.append({"params": params, "init": init, "fitted": r.values, "err_rel": err,
+                     "discrete_loss": r.discrete_loss,
                      "err_scale": err_s, "iterations": r.iterations, "seconds": r.seconds})
         print("  => " + ", ".join(f"{k}: {init[k]:.4g} -> {r.values[k]:.4g} (true "
                                   f"{truth[k]:.4g}; {err[k]:+.2%} of the value, "
                                   f"{err_s[k]:+.2%} of the scale {scale[k]:g})" for k in params)
               + f"; {len(r.iterations) - 1} iterations, {r.seconds:.0f} s", flush=True)
+        (out / "inverse.json").write_text(json.dumps({"settings": vars(a), "truth": truth,
+                                                      "fits": rows}, indent=1))
 
     starts = [float(x) for x in a.starts.split(",")] if a.starts else []
     if starts:

@@ -9,8 +9,9 @@ import pytest
 
 from mitsuba_veg import tune
 from mitsuba_veg.errors import ParameterError
-from mitsuba_veg.tune.discrete import (DiscreteMossModel, fit_discrete, patch_cover,
-                                       patch_labels, patch_loss_value)
+from mitsuba_veg.tune.discrete import (DiscreteExperiment, DiscreteMossModel, fit_discrete,
+                                       fit_discrete_experiments, patch_cover, patch_labels,
+                                       patch_loss_value)
 
 ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
@@ -100,3 +101,61 @@ def test_fit_discrete_arguments(dm, surrogate):
         fit_discrete(dm, surrogate, t, ["S1"], loss="l1")
     with pytest.raises(ParameterError):
         fit_discrete(dm, surrogate, np.zeros(3), ["S1"])
+
+
+def test_fit_discrete_experiments_plumbing(surrogate):
+    """Several experiments: the summed discrete loss is the weighted sum of the experiments'
+    losses, each the single experiment's; the record names every experiment."""
+    dm1 = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[0], photons=PHOTONS)
+    tm = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[100], photons=PHOTONS)
+    target = tm.to_layout(tm.run({}).mean(), surrogate.data.shape_slices)
+    bare = np.zeros_like(target)
+    kw = dict(init={"alpha_g": 0.21}, iterations=1, steps=1)
+    one = fit_discrete(dm1, surrogate, target, ["alpha_g"], **kw)
+    l0 = one.iterations[0]["discrete_loss"]
+    two = fit_discrete_experiments([DiscreteExperiment(dm1, surrogate, target, "a", 0.5),
+                                    DiscreteExperiment(dm1, surrogate, bare, "bare", 3.0)],
+                                   ["alpha_g"], **kw)
+    it = two.iterations[0]
+    e = it["experiments"]
+    assert set(e) == {"a", "bare"}
+    assert e["a"]["discrete_loss"] == pytest.approx(l0, rel=1e-9)   # same start, same runs
+    assert e["bare"]["discrete_loss"] > l0                           # moss vs bare ground
+    assert it["discrete_loss"] == pytest.approx(0.5 * l0 + 3.0 * e["bare"]["discrete_loss"],
+                                                rel=1e-9)
+    assert it["covered_m2_discrete"] == pytest.approx(2 * e["a"]["covered_m2_discrete"])
+
+
+def test_inner_fit_sums_weighted_terms(monkeypatch):
+    """The inner Adam fit minimises the weighted sum of its terms: with two quadratic terms
+    (a fake gradient for value_and_grad) it ends at their weighted mean."""
+    from mitsuba_veg.tune import discrete as disc
+    from mitsuba_veg.tune.grad import GradResult
+    import mitsuba as mi
+
+    class Model:
+        T = mi.Float64
+
+    def fake(model, vals, loss_fn, days=None):
+        c = loss_fn                                  # the term's centre
+        x = vals["x"]
+        return GradResult((x - c) ** 2, {"x": 2 * (x - c)})
+    monkeypatch.setattr(disc, "value_and_grad", fake)
+    terms = [(Model(), 1, 1.0, 1.0), (Model(), 1, 3.0, 3.0)]   # centres 1 and 3, weights 1, 3
+    vals, L = disc._inner_adam(terms, ["x"], {"x": 0.0}, {"x": 1.0}, {"x": (-10.0, 10.0)},
+                               steps=400, lr=0.05, lr_final=0.02)
+    assert vals["x"] == pytest.approx(2.5, abs=0.02)              # (1 * 1 + 3 * 3) / 4
+    assert L == pytest.approx(1 * 1.5 ** 2 + 3 * 0.5 ** 2, abs=0.05)
+
+
+def test_fit_discrete_experiments_arguments(dm, surrogate):
+    t = np.zeros(dm.n)
+    with pytest.raises(ParameterError, match="at least one"):
+        fit_discrete_experiments([], ["S1"])
+    with pytest.raises(ParameterError, match="distinct"):
+        fit_discrete_experiments([DiscreteExperiment(dm, surrogate, t, "a"),
+                                  DiscreteExperiment(dm, surrogate, t, "a")], ["S1"])
+    with pytest.raises(ParameterError, match="weight"):
+        fit_discrete_experiments([DiscreteExperiment(dm, surrogate, t, "a", 0.0)], ["S1"])
+    with pytest.raises(ParameterError, match="experiments"):
+        fit_discrete_experiments([(dm, surrogate)], ["S1"])

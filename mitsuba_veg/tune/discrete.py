@@ -44,7 +44,8 @@ from ..world.simulation import WorldSimulation
 from .fitting import param_names, parameter_bounds, parameter_scale, target_array
 from .grad import value_and_grad
 
-__all__ = ["DiscreteMossModel", "DiscreteResult", "DiscreteFitResult", "fit_discrete",
+__all__ = ["DiscreteMossModel", "DiscreteResult", "DiscreteFitResult", "DiscreteExperiment",
+           "fit_discrete", "fit_discrete_experiments",
            "patch_labels", "patch_cover", "patch_loss_value"]
 
 _CLIMATE = ("T", "rh")
@@ -85,8 +86,18 @@ class DiscreteResult:
     seconds: float = 0.0
 
     def mean(self, day: int | None = None) -> np.ndarray:
-        """Mean over the seeds of the covered fraction per triangle on ``day`` (default: the
-        last reported day)."""
+        """Mean over the seeds of the covered fraction per triangle on ``day``.
+
+        Parameters
+        ----------
+        day : int, optional
+            A reported day (1-based) [d]; default: the last reported day.
+
+        Returns
+        -------
+        ndarray
+            (n,) mean covered fraction per terrain triangle [-].
+        """
         k = len(self.report) - 1 if day is None else self.report.index(int(day))
         return self.cover[:, k].mean(0)
 
@@ -162,6 +173,8 @@ class DiscreteMossModel:
             k += sl.stop - sl.start
         self.n = len(self.elements)
         self.areas = np.asarray(sim.index.areas, float)[self.elements]
+        self.centroids = np.asarray(sim.index.centroids, float)[self.elements]
+        self.living = np.asarray(sim.living, bool)[self.elements]
         self.cell = float(sim.moss_cfg["size"])
         self.species_keys = list(sim.moss_cfg["species"])
         self.species = list(sim.species)
@@ -173,7 +186,20 @@ class DiscreteMossModel:
 
     def to_layout(self, cover, shape_slices: dict) -> np.ndarray:
         """A per-element array of this model (``self.shape_slices``' layout) in another model's
-        layout (``{shape_id: slice}``, e.g. ``ModelData.shape_slices``): shape by shape."""
+        layout, shape by shape.
+
+        Parameters
+        ----------
+        cover : array_like
+            (n,) values per terrain triangle of this model (e.g. covered fraction [-]).
+        shape_slices : dict
+            ``{shape_id: slice}`` of the other layout (e.g. ``ModelData.shape_slices``).
+
+        Returns
+        -------
+        ndarray
+            The values in the other layout (NaN where it has elements of no terrain shape).
+        """
         n = max(sl.stop for sl in shape_slices.values())
         out = np.full(n, np.nan)
         for sid, sl in shape_slices.items():
@@ -215,7 +241,19 @@ class DiscreteMossModel:
                              + "), T, rh, albedo.<shape>, strength.sun or strength.sky")
 
     def default_value(self, name: str) -> float:
-        """The scenario's value of a parameter."""
+        """The scenario's value of a parameter.
+
+        Parameters
+        ----------
+        name : str
+            Parameter name (class docstring).
+
+        Returns
+        -------
+        float
+            The value (species field in its unit, mean air temperature [K], humidity [-],
+            shape albedo [-], emitter strength 1).
+        """
         c = self._canonical(name)
         if c[0] == "climate":
             return self.climate_mean[c[1]]
@@ -264,7 +302,19 @@ class DiscreteMossModel:
     def run(self, params: dict | None = None, report=None, seeds=None) -> DiscreteResult:
         """Run every seed with ``params`` (other parameters: the scenario's).
 
-        report: days (1-based) whose per-triangle cover is kept (default: the last day).
+        Parameters
+        ----------
+        params : dict, optional
+            ``{name: value}`` (names as in the class docstring).
+        report : list of int, optional
+            Days (1-based) whose per-triangle cover is kept [d] (default: the last day).
+        seeds : list of int, optional
+            Seeds to run (default: the model's).
+
+        Returns
+        -------
+        DiscreteResult
+            Per-seed covers on the report days, daily covered areas, timing.
         """
         t0 = time.perf_counter()
         params = dict(params or {})
@@ -311,7 +361,24 @@ class DiscreteFitResult:
 
 def patch_labels(centroids, shape_slices: dict, usable, size: float) -> np.ndarray:
     """Patch number of every triangle: triangles of one shape whose centroids fall into the same
-    cube of side ``size`` [m] form a patch; triangles not ``usable`` get -1."""
+    cube of side ``size`` form a patch; triangles not ``usable`` get -1.
+
+    Parameters
+    ----------
+    centroids : array_like
+        (n, 3) triangle centroids [m].
+    shape_slices : dict
+        ``{shape_id: slice}`` of the triangles of each shape.
+    usable : array_like
+        (n,) bool: triangles that take part.
+    size : float
+        Cube side [m].
+
+    Returns
+    -------
+    ndarray
+        (n,) int64 patch number (0 ... patches - 1), -1 for unused triangles.
+    """
     if not size > 0:
         raise ParameterError("patch", size, "> 0 [m]")
     n = len(centroids)
@@ -327,7 +394,22 @@ def patch_labels(centroids, shape_slices: dict, usable, size: float) -> np.ndarr
 
 
 def patch_cover(cover, areas, labels) -> np.ndarray:
-    """Area-weighted covered fraction of every patch (NumPy)."""
+    """Area-weighted covered fraction of every patch (NumPy).
+
+    Parameters
+    ----------
+    cover : array_like
+        (n,) covered fraction per triangle [-].
+    areas : array_like
+        (n,) triangle areas [m2].
+    labels : ndarray
+        (n,) patch numbers (:func:`patch_labels`; -1 = not used).
+
+    Returns
+    -------
+    ndarray
+        (patches,) covered fraction per patch [-].
+    """
     n_p = int(labels.max()) + 1
     ok = labels >= 0
     a = np.bincount(labels[ok], weights=areas[ok], minlength=n_p)
@@ -360,7 +442,26 @@ def _patch_loss(shift, areas, labels, target_patch, kind: str, T):
 
 
 def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> float:
-    """The loss of :func:`fit_discrete` (patch cover) with NumPy."""
+    """The loss of :func:`fit_discrete` (patch cover) with NumPy.
+
+    Parameters
+    ----------
+    cover : array_like
+        (n,) covered fraction per triangle [-].
+    areas : array_like
+        (n,) triangle areas [m2].
+    labels : ndarray
+        (n,) patch numbers (:func:`patch_labels`).
+    target_patch : ndarray
+        (patches,) target covered fraction per patch [-].
+    kind : {"sqrt", "mse"}
+        Squared difference of the square roots or of the fractions.
+
+    Returns
+    -------
+    float
+        Sum over the patches of the squared difference weighted by the patch's area fraction.
+    """
     c = patch_cover(cover, areas, labels)
     ok = labels >= 0
     pa = np.bincount(labels[ok], weights=areas[ok], minlength=len(c))
@@ -372,10 +473,32 @@ def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> 
     return float(np.sum(w * d * d))
 
 
-def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_final):
-    """Adam on the shifted relaxed losses (mean over the target days) from ``theta``, on the
-    normalised parameters (p - theta) / scale as :func:`mitsuba_veg.tune.fit`."""
-    T = model.T
+def _inner_adam(terms, params, theta, scale, bnd, steps, lr, lr_final):
+    """Adam on a weighted sum of shifted relaxed losses from ``theta``, on the normalised
+    parameters (p - theta) / scale as :func:`mitsuba_veg.tune.fit`.
+
+    Parameters
+    ----------
+    terms : list of tuple
+        ``(model, day, loss_fn, weight)``: the relaxed model run for ``day`` days, its loss and
+        the loss's weight in the sum.
+    params : list of str
+        Parameter names.
+    theta : dict
+        Start values (physical units).
+    scale, bnd : dict
+        Scale and (lower, upper) bounds per parameter.
+    steps : int
+        Adam steps.
+    lr, lr_final : float
+        Learning rate and its final fraction (geometric decay).
+
+    Returns
+    -------
+    tuple
+        ``(values, loss)``: the last iterate (physical units) and its summed loss.
+    """
+    T = terms[0][0].T
     opt = mi.ad.Adam(lr=lr, beta_1=0.9, beta_2=0.9)
     for p in params:
         opt[p] = T(0.0)
@@ -388,11 +511,11 @@ def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_fi
     for k in range(steps):
         vals = physical()
         L, G = 0.0, {p: 0.0 for p in params}
-        for d, lf in zip(days, losses):
+        for model, d, lf, wt in terms:
             r = value_and_grad(model, vals, lf, days=d)
-            L += r.loss / len(days)
+            L += wt * r.loss
             for p in params:
-                G[p] += r.grad[p] / len(days)
+                G[p] += wt * r.grad[p]
         if not math.isfinite(L) or not all(math.isfinite(g) for g in G.values()):
             raise FloatingPointError(f"fit_discrete: non-finite loss or gradient {L}, {G} at "
                                      f"{vals}")
@@ -404,6 +527,37 @@ def _inner_adam(model, days, losses, params, theta, scale, bnd, steps, lr, lr_fi
             lo, hi = (bnd[p][0] - theta[p]) / scale[p], (bnd[p][1] - theta[p]) / scale[p]
             opt[p] = dr.clip(dr.detach(opt[p]), lo, hi)
     return physical(), L
+
+
+@dataclass
+class DiscreteExperiment:
+    """One experiment of a fit of the discrete model: a scenario's discrete model, its relaxed
+    surrogate and the target map(s) of that scenario.
+
+    Several experiments (e.g. the same garden in two seasons, or two plots) share the fitted
+    parameters; :func:`fit_discrete_experiments` adds their losses. Each experiment's target
+    comes from other seeds than its discrete model's (the fit's common random numbers).
+
+    Parameters
+    ----------
+    discrete : DiscreteMossModel
+        The discrete model of the experiment's scenario and days.
+    surrogate : SmoothMossModel
+        The relaxed model of the same scenario, days and species (the gradient).
+    target : ndarray or dict
+        Covered fraction per triangle [-] (the surrogate's element order, NaN = ignore) on the
+        last day, or ``{day: map}``.
+    name : str
+        A label for the records.
+    weight : float
+        The weight of the experiment's loss in the sum [-].
+    """
+
+    discrete: DiscreteMossModel
+    surrogate: object
+    target: object
+    name: str = ""
+    weight: float = 1.0
 
 
 def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: dict | None = None,
@@ -430,9 +584,13 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         Starting values (default: the scenario's).
     iterations : int
         Outer iterations (one discrete ensemble each) at most.
-    steps, lr, lr_final : int, float, float
-        The inner Adam fit of the shifted relaxed model (as :func:`mitsuba_veg.tune.fit`:
-        normalised parameters, geometric decay to ``lr * lr_final``, bounds).
+    steps : int
+        Adam steps of the inner fit of the shifted relaxed model per iteration (as
+        :func:`mitsuba_veg.tune.fit`: normalised parameters, bounds).
+    lr : float
+        The inner Adam's learning rate [-] (normalised parameters).
+    lr_final : float
+        Its geometric decay over the steps, down to ``lr * lr_final`` [-].
     loss : {"sqrt", "mse"}
         Squared difference of the square roots (default) or of the covered fractions, of
         *patches*: the area-weighted cover of the triangles of one shape within a cube of side
@@ -456,6 +614,65 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         ``values`` (the last iterate), the per-iteration record (parameters, discrete loss,
         inner-fit loss) and the discrete loss at ``values``.
     """
+    return fit_discrete_experiments([DiscreteExperiment(discrete, surrogate, target)], params,
+                                    init=init, iterations=iterations, steps=steps, lr=lr,
+                                    lr_final=lr_final, loss=loss, patch=patch, tol=tol,
+                                    scales=scales, out=out, verbose=verbose)
+
+
+def fit_discrete_experiments(experiments, params, init: dict | None = None,
+                             iterations: int = 5, steps: int = 25, lr: float = 0.08,
+                             lr_final: float = 0.05, loss: str = "sqrt", patch: float = 0.2,
+                             tol: float = 0.01, scales: dict | None = None, out=None,
+                             verbose: bool = False) -> DiscreteFitResult:
+    """Fit shared parameters of the *discrete* model to several experiments at once (defect
+    correction, module docstring): the loss is the weighted sum over the experiments of each
+    one's mean patch loss over its target days.
+
+    Every outer iteration runs each experiment's discrete model (its seeds) at the iterate and
+    shifts that experiment's relaxed model by its own defect; the inner Adam fit minimises the
+    sum of the shifted relaxed losses. Parameters acting differently in the experiments (T1 in
+    a cool and a warm season: below the temperature optimum a higher T1 lowers the fitness,
+    above it raises it) are separated where one map alone leaves them on a ridge.
+
+    Parameters
+    ----------
+    experiments : list of DiscreteExperiment or tuple
+        The experiments (``(discrete, surrogate, target)`` tuples are accepted).
+    params : list of str
+        Parameter names (valid for every experiment's models); shared by all experiments.
+    init : dict, optional
+        Starting values (default: the first experiment's scenario values).
+    iterations : int
+        Outer iterations (one discrete ensemble per experiment each) at most.
+    steps : int
+        Adam steps of the inner fit per iteration.
+    lr : float
+        The inner Adam's learning rate [-] (normalised parameters).
+    lr_final : float
+        Its geometric decay over the steps, down to ``lr * lr_final`` [-].
+    loss : {"sqrt", "mse"}
+        Patch loss (:func:`fit_discrete`).
+    patch : float
+        Patch size [m].
+    tol : float
+        Stop when no parameter moved by more than ``tol`` times its scale in an iteration.
+    scales : dict, optional
+        Natural scale per parameter (default: :func:`mitsuba_veg.tune.fitting.parameter_scale`
+        of the first experiment's surrogate).
+    out : path, optional
+        Folder for ``fitted_discrete.json``.
+    verbose : bool
+        Print one line per outer iteration.
+
+    Returns
+    -------
+    DiscreteFitResult
+        ``values`` (the last iterate), the per-iteration record (parameters, summed discrete
+        loss, inner loss, per-experiment losses and covered areas under ``"experiments"``;
+        ``covered_m2_discrete`` / ``covered_m2_relaxed`` summed over the experiments on their
+        last target day) and the summed discrete loss at ``values``.
+    """
     t0 = time.perf_counter()
     params = param_names(params)
     if iterations < 1:
@@ -464,72 +681,111 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         raise ParameterError("steps", steps, ">= 1")
     if loss not in ("sqrt", "mse"):
         raise ParameterError("loss", loss, "'sqrt' or 'mse'")
-    discrete.to_layout(np.zeros(discrete.n), surrogate.data.shape_slices)  # same terrain?
-    if surrogate.days != discrete.days:
-        raise ParameterError("surrogate.days", surrogate.days, f"{discrete.days} (the discrete "
-                             "model's days)", "run both models for the same days")
-    for p in params:
-        discrete._canonical(p)
-        surrogate._canonical(p)
-    if not isinstance(target, dict):
-        target = {discrete.days: target}
-    days = sorted(int(d) for d in target)
-    for d in days:
-        if not 1 <= d <= discrete.days:
-            raise ParameterError("target", f"day {d}", f"days in [1, {discrete.days}]",
-                                 "give {day: map} for simulated days")
-    data = surrogate.data
-    T = surrogate.T
-    tgt, labels, tgt_patch = {}, {}, {}
-    for d in days:
-        tgt[d] = target_array(surrogate, target[d])
-        labels[d] = patch_labels(data.index.centroids, data.shape_slices,
-                                 data.living & np.isfinite(tgt[d]), patch)
-        tgt_patch[d] = patch_cover(np.where(np.isfinite(tgt[d]), tgt[d], 0.0), data.areas,
-                                   labels[d])
-    theta = {p: float((init or {}).get(p, discrete.default_value(p))) for p in params}
+    exps = []
+    for i, e in enumerate(list(experiments)):
+        if not isinstance(e, DiscreteExperiment):
+            if not isinstance(e, (tuple, list)) or len(e) != 3:
+                raise ParameterError(f"experiments[{i}]", type(e).__name__, "a "
+                                     "DiscreteExperiment or a (discrete, surrogate, target) "
+                                     "tuple")
+            e = DiscreteExperiment(*e)
+        exps.append(e)
+    if not exps:
+        raise ParameterError("experiments", [], "at least one experiment")
+    names = [e.name or f"experiment {i}" for i, e in enumerate(exps)]
+    if len(set(names)) != len(names):
+        raise ParameterError("experiments", names, "distinct names")
+    setups = []
+    for e, nm in zip(exps, names):
+        dm, sm = e.discrete, e.surrogate
+        if not (math.isfinite(float(e.weight)) and float(e.weight) > 0):
+            raise ParameterError(f"{nm}: weight", e.weight, "> 0")
+        dm.to_layout(np.zeros(dm.n), sm.data.shape_slices)  # same terrain?
+        if sm.days != dm.days:
+            raise ParameterError(f"{nm}: surrogate.days", sm.days, f"{dm.days} (the discrete "
+                                 "model's days)", "run both models for the same days")
+        for p in params:
+            dm._canonical(p)
+            sm._canonical(p)
+        target = e.target if isinstance(e.target, dict) else {dm.days: e.target}
+        days = sorted(int(d) for d in target)
+        for d in days:
+            if not 1 <= d <= dm.days:
+                raise ParameterError(f"{nm}: target", f"day {d}", f"days in [1, {dm.days}]",
+                                     "give {day: map} for simulated days")
+        data = sm.data
+        tgt, labels, tgt_patch = {}, {}, {}
+        for d in days:
+            tgt[d] = target_array(sm, target[d])
+            labels[d] = patch_labels(data.index.centroids, data.shape_slices,
+                                     data.living & np.isfinite(tgt[d]), patch)
+            tgt_patch[d] = patch_cover(np.where(np.isfinite(tgt[d]), tgt[d], 0.0), data.areas,
+                                       labels[d])
+        setups.append({"name": nm, "dm": dm, "sm": sm, "days": days, "labels": labels,
+                       "tgt_patch": tgt_patch, "weight": float(e.weight)})
+    first = setups[0]
+    theta = {p: float((init or {}).get(p, first["dm"].default_value(p))) for p in params}
     start = dict(theta)
-    scale = {p: float((scales or {}).get(p, parameter_scale(surrogate, p))) for p in params}
-    bnd = {p: parameter_bounds(surrogate, p) for p in params}
+    scale = {p: float((scales or {}).get(p, parameter_scale(first["sm"], p))) for p in params}
+    bnd = {p: parameter_bounds(first["sm"], p) for p in params}
     rows = []
 
     def discrete_eval(th):
-        r = discrete.run(th, report=days)
-        D = {d: discrete.to_layout(r.mean(d), data.shape_slices) for d in days}
-        ld = float(np.mean([patch_loss_value(D[d], data.areas, labels[d], tgt_patch[d], loss)
-                            for d in days]))
-        return D, ld
+        """Discrete means per experiment and day at ``th``, the summed loss, per-experiment
+        records."""
+        Ds, total, rec = [], 0.0, {}
+        for s in setups:
+            data = s["sm"].data
+            r = s["dm"].run(th, report=s["days"])
+            D = {d: s["dm"].to_layout(r.mean(d), data.shape_slices) for d in s["days"]}
+            ld = float(np.mean([patch_loss_value(D[d], data.areas, s["labels"][d],
+                                                 s["tgt_patch"][d], loss) for d in s["days"]]))
+            total += s["weight"] * ld
+            Ds.append(D)
+            rec[s["name"]] = {"discrete_loss": ld, "covered_m2_discrete":
+                              float(np.sum(D[s["days"][-1]] * data.areas))}
+        return Ds, total, rec
 
     for k in range(iterations):
-        D, ld = discrete_eval(theta)
-        losses = []
-        with dr.suspend_grad():
-            R = {d: np.asarray(surrogate.run(theta, days=d).cover, float) for d in days}
-        for d in days:
-            lf = _patch_loss(T(D[d] - R[d]), data.areas, labels[d], tgt_patch[d], loss, T)
-            losses.append(lambda res, m, lf=lf: lf(res.cover, None, None, m))
-        new, inner = _inner_adam(surrogate, days, losses, params, theta, scale, bnd, steps, lr,
-                                 lr_final)
+        Ds, ld, rec = discrete_eval(theta)
+        terms, cov_r = [], 0.0
+        for s, D in zip(setups, Ds):
+            data, sm = s["sm"].data, s["sm"]
+            with dr.suspend_grad():
+                R = {d: np.asarray(sm.run(theta, days=d).cover, float) for d in s["days"]}
+            for d in s["days"]:
+                lf = _patch_loss(sm.T(D[d] - R[d]), data.areas, s["labels"][d],
+                                 s["tgt_patch"][d], loss, sm.T)
+                terms.append((sm, d, lambda res, m, lf=lf: lf(res.cover, None, None, m),
+                              s["weight"] / len(s["days"])))
+            c = float(np.sum(R[s["days"][-1]] * data.areas))
+            rec[s["name"]]["covered_m2_relaxed"] = c
+            cov_r += c
+        new, inner = _inner_adam(terms, params, theta, scale, bnd, steps, lr, lr_final)
         move = max(abs(new[p] - theta[p]) / scale[p] for p in params)
-        last = days[-1]
         rows.append({"iteration": k, "params": dict(theta), "discrete_loss": ld,
-                     "covered_m2_discrete": float(np.sum(D[last] * data.areas)),
-                     "covered_m2_relaxed": float(np.sum(R[last] * data.areas)),
+                     "covered_m2_discrete": sum(v["covered_m2_discrete"] for v in rec.values()),
+                     "covered_m2_relaxed": cov_r, "experiments": rec,
                      "inner_loss": inner, "next": dict(new), "move": move,
                      "seconds": time.perf_counter() - t0})
         if verbose:
+            cov = "; ".join(f"{nm}: discrete {v['covered_m2_discrete']:.4f} / relaxed "
+                            f"{v['covered_m2_relaxed']:.4f} m2 (loss {v['discrete_loss']:.3e})"
+                            for nm, v in rec.items())
             print(f"  iteration {k}: " + ", ".join(f"{p} {theta[p]:.5g} -> {new[p]:.5g}"
                                                     for p in params)
-                  + f"; discrete loss {ld:.3e}, covered on day {last}: discrete "
-                  f"{rows[-1]['covered_m2_discrete']:.4f} / relaxed "
-                  f"{rows[-1]['covered_m2_relaxed']:.4f} m2", flush=True)
+                  + f"; discrete loss {ld:.3e}; covered on the last target day: {cov}; "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
         theta = new
         if move < tol:
             break
-    D, ld = discrete_eval(theta)
+    Ds, ld, rec = discrete_eval(theta)
     rows.append({"iteration": len(rows), "params": dict(theta), "discrete_loss": ld,
-                 "covered_m2_discrete": float(np.sum(D[days[-1]] * data.areas)),
-                 "seconds": time.perf_counter() - t0})
+                 "covered_m2_discrete": sum(v["covered_m2_discrete"] for v in rec.values()),
+                 "experiments": rec, "seconds": time.perf_counter() - t0})
+    if verbose:
+        print("  final: " + ", ".join(f"{p} {theta[p]:.5g}" for p in params)
+              + f"; discrete loss {ld:.3e}", flush=True)
     res = DiscreteFitResult(theta, start, rows, ld, time.perf_counter() - t0)
     if out is not None:
         import json
@@ -537,7 +793,12 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         o.mkdir(parents=True, exist_ok=True)
         p = o / "fitted_discrete.json"
         p.write_text(json.dumps({"fitted": theta, "initial": start, "iterations": rows,
-                                 "discrete_loss": ld, "seeds": discrete.seeds,
-                                 "days": discrete.days, "seconds": res.seconds}, indent=1))
+                                 "discrete_loss": ld,
+                                 "experiments": [{"name": s["name"], "seeds": s["dm"].seeds,
+                                                  "days": s["dm"].days,
+                                                  "target_days": s["days"],
+                                                  "weight": s["weight"]} for s in setups],
+                                 "seeds": first["dm"].seeds, "days": first["dm"].days,
+                                 "seconds": res.seconds}, indent=1))
         res.files["fitted"] = str(p)
     return res

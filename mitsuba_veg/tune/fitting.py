@@ -61,6 +61,16 @@ class FitResult:
 def param_names(params) -> list[str]:
     """The names of the parameters to fit as a list (one name may be given as a string).
 
+    Parameters
+    ----------
+    params : str or iterable of str
+        One name or several.
+
+    Returns
+    -------
+    list of str
+        The names.
+
     Raises
     ------
     ParameterError
@@ -73,8 +83,22 @@ def param_names(params) -> list[str]:
 
 
 def parameter_scale(model: SmoothMossModel, name: str) -> float:
-    """Natural scale of a parameter (the step that matters): the width of its range for range
-    bounds, 0.1 for fractions, 5 K for air temperature ..."""
+    """Natural scale of a parameter (the step that matters).
+
+    Parameters
+    ----------
+    model : SmoothMossModel
+        The relaxed model (its species give the ranges).
+    name : str
+        Parameter name.
+
+    Returns
+    -------
+    float
+        The width of its range for range bounds (T1 - T0 [K], S1 - S0 [W m-2], rh1 - rh0 [-]),
+        0.1 for fractions, albedos and humidity, 0.2 for emitter strengths, 5 K for the air
+        temperature.
+    """
     c = model._canonical(name)
     if c[0] == "climate":
         return 5.0 if c[1] == "T" else 0.1
@@ -91,7 +115,20 @@ def parameter_scale(model: SmoothMossModel, name: str) -> float:
 
 
 def parameter_bounds(model: SmoothMossModel, name: str) -> tuple[float, float]:
-    """Allowed interval of a parameter (validated ranges of table 3.7, physical limits)."""
+    """Allowed interval of a parameter (validated ranges of table 3.7, physical limits).
+
+    Parameters
+    ----------
+    model : SmoothMossModel
+        The relaxed model.
+    name : str
+        Parameter name.
+
+    Returns
+    -------
+    tuple of float
+        (lower, upper) in the parameter's unit.
+    """
     c = model._canonical(name)
     if c[0] == "climate":
         return (200.0, 340.0) if c[1] == "T" else (0.01, 1.0)
@@ -115,7 +152,21 @@ def parameter_bounds(model: SmoothMossModel, name: str) -> tuple[float, float]:
 # targets and losses
 # ------------------------------------------------------------------------------------------
 def target_array(model: SmoothMossModel, target) -> np.ndarray:
-    """A per-element target covered fraction (NaN = not part of the loss)."""
+    """A per-element target covered fraction (NaN = not part of the loss).
+
+    Parameters
+    ----------
+    model : SmoothMossModel
+        The relaxed model (its elements give the layout).
+    target : RunResult, dict or array_like
+        A relaxed run, ``{shape_id: per-triangle array}`` or an (n,) array of covered
+        fractions [-].
+
+    Returns
+    -------
+    ndarray
+        (n,) covered fraction per element [-], NaN where the target has none.
+    """
     d = model.data
     if isinstance(target, RunResult):
         return np.asarray(target.cover, float)
@@ -145,7 +196,20 @@ def target_array(model: SmoothMossModel, target) -> np.ndarray:
 
 
 def coverage_loss(kind="mse"):
-    """The loss function used by :func:`fit` for ``loss=kind``."""
+    """The loss function used by :func:`fit` for ``loss=kind``.
+
+    Parameters
+    ----------
+    kind : {"mse", "sqrt", "l1"} or callable
+        Squared difference, squared difference of square roots, a Huber-like L1 (0.01 wide
+        quadratic core), or a callable ``(cover, target, weights, model) -> loss`` returned as
+        it is.
+
+    Returns
+    -------
+    callable
+        ``loss(cover, target, weights, model)``: the weighted sum over the elements (Dr.Jit).
+    """
     if callable(kind):
         return kind
     if kind not in ("sqrt", "mse", "l1"):
@@ -188,19 +252,62 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
         closure: str = "mean-field", **prepare_kw) -> FitResult:
     """Fit ``params`` so that the relaxed run's covered fraction per triangle matches ``target``.
 
-    scenario: a scenario TOML path, a :class:`~mitsuba_veg.scenario.Scenario`, prepared
-    :class:`ModelData` or a :class:`SmoothMossModel` (then ``days``, ``species``,
-    ``temperature``, ``precision``, ``closure`` come from it); closure: the relaxed model's
-    spatial closure (``"mean-field"`` or ``"near-field"``, docs/tuning.md: the near field is
-    closer to discrete runs while moss spreads). params: names (see
-    :meth:`SmoothMossModel.parameter_names`: ``"S1"``, ``"bryum_argenteum.T1"``, ``"T"``,
-    ``"rh"``, ``"albedo.roof"``, ``"strength.sun"`` ...). init: starting values (default: the
-    scenario's). steps, lr, lr_final: Adam steps and learning rate on the normalised
-    parameters (decaying to lr * lr_final); beta_1, beta_2: Adam's moment decay rates.
-    out: folder for ``fitted.json``, ``loss_curve.png``
-    and ``coverage.png`` (None: write nothing). Further keywords go to :func:`prepare`
-    (``photons``, ``light_every``, ``differentiable_light`` ...; it is switched on when an
-    albedo or strength is fitted).
+    Parameters
+    ----------
+    scenario : path, Scenario, ModelData or SmoothMossModel
+        A scenario TOML path, a :class:`~mitsuba_veg.scenario.Scenario`, prepared
+        :class:`ModelData` or a :class:`SmoothMossModel` (then ``days``, ``species``,
+        ``temperature``, ``precision``, ``closure`` come from it).
+    target : array_like, dict or RunResult
+        Covered fraction per element [-] (:func:`target_array`; NaN = not in the loss).
+    params : list of str
+        Names (see :meth:`SmoothMossModel.parameter_names`: ``"S1"``,
+        ``"bryum_argenteum.T1"``, ``"T"``, ``"rh"``, ``"albedo.roof"``, ``"strength.sun"`` ...).
+    loss : {"sqrt", "mse", "l1"} or callable
+        The loss (:func:`coverage_loss`), weighted by element area.
+    steps : int
+        Adam steps.
+    lr : float
+        Learning rate on the normalised parameters (p - init) / scale [-].
+    lr_final : float
+        Its geometric decay, down to ``lr * lr_final`` [-].
+    days : int, optional
+        Days to run [d] (default: the model's).
+    init : dict, optional
+        Starting values (default: the scenario's).
+    temperature : float
+        Relaxation temperature t of the thresholds [-].
+    species : list of str, optional
+        Species keys replacing ``moss.species``.
+    out : path or None
+        Folder for ``fitted.json``, ``loss_curve.png`` and ``coverage.png`` (None: write
+        nothing).
+    progress : bool
+        Show a progress bar.
+    precision : {"float32", "float64"}
+        Floating-point precision of the relaxed model.
+    checkpoint_every : int, optional
+        Days between checkpoints of the day-by-day adjoint (:func:`value_and_grad`).
+    scales : dict, optional
+        Natural scale per parameter (default: :func:`parameter_scale`).
+    bounds : dict, optional
+        (lower, upper) per parameter (default: :func:`parameter_bounds`).
+    plots : bool
+        Write the figures.
+    beta_1, beta_2 : float
+        Adam's moment decay rates [-].
+    closure : {"mean-field", "near-field"}
+        The relaxed model's spatial closure (docs/tuning.md: the near field is closer to
+        discrete runs while moss spreads).
+    **prepare_kw : dict
+        Further keywords for :func:`prepare` (``photons``, ``light_every``,
+        ``differentiable_light`` ...; it is switched on when an albedo or strength is fitted).
+
+    Returns
+    -------
+    FitResult
+        Fitted values, starting values, the history of the steps, the final loss, written
+        files, time and settings.
     """
     t0 = time.perf_counter()
     params = param_names(params)
@@ -287,7 +394,24 @@ def fit(scenario, target, params=("S1", "T1"), loss="sqrt", steps: int = 80, lr:
 
 
 def write_outputs(res: FitResult, out: Path, target: np.ndarray, plots: bool = True) -> dict:
-    """fitted.json, loss_curve.png and coverage.png (target vs fitted cover on the ground)."""
+    """fitted.json, loss_curve.png and coverage.png (target vs fitted cover on the ground).
+
+    Parameters
+    ----------
+    res : FitResult
+        The fit.
+    out : Path
+        Output folder.
+    target : ndarray
+        (n,) target covered fraction per element [-].
+    plots : bool
+        Write the figures (else only ``fitted.json``).
+
+    Returns
+    -------
+    dict
+        ``{kind: path}`` of the written files.
+    """
     out.mkdir(parents=True, exist_ok=True)
     files = {}
     summary = {"fitted": res.values, "initial": res.initial, "final_loss": res.loss,
@@ -312,7 +436,24 @@ def write_outputs(res: FitResult, out: Path, target: np.ndarray, plots: bool = T
 
 
 def coverage_figure(data: ModelData, maps: dict, path, shape: str | None = None) -> str:
-    """Plan view of covered fractions on the ground (one panel per entry of ``maps``)."""
+    """Plan view of covered fractions on the ground (one panel per entry of ``maps``).
+
+    Parameters
+    ----------
+    data : ModelData
+        The prepared scene.
+    maps : dict
+        ``{title: (n,) covered fraction [-]}``; with two maps a difference panel is added.
+    path : path
+        PNG to write.
+    shape : str, optional
+        Shape to draw (default: the scenario's ground).
+
+    Returns
+    -------
+    str
+        The written path.
+    """
     plt = _mpl()
     gid = shape or data.scenario.get("terrain.ground", "ground")
     sl = data.shape_slices[gid]
@@ -341,7 +482,20 @@ def coverage_figure(data: ModelData, maps: dict, path, shape: str | None = None)
 
 def coverage_from_checkpoint(path, data: ModelData) -> np.ndarray:
     """Per-element covered fraction of a *discrete* run (its ``checkpoint.npz``), as the run
-    computes it: min(moss on the triangle x size², area) / area. Use it as a fit target."""
+    computes it: min(moss on the triangle x size², area) / area. Use it as a fit target.
+
+    Parameters
+    ----------
+    path : path
+        The run's ``checkpoint.npz``.
+    data : ModelData
+        The prepared scene of the same scenario.
+
+    Returns
+    -------
+    ndarray
+        (n,) covered fraction per element [-].
+    """
     d = np.load(path, allow_pickle=False)
     moss = np.asarray(d["state"]) == MOSS
     counts = np.bincount(np.asarray(d["elem"])[moss].astype(np.int64), minlength=data.n)

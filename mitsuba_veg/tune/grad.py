@@ -78,7 +78,24 @@ def _opaque_adjoint(arrays) -> list:
 
 
 def loss_value(model: SmoothMossModel, params: dict, loss_fn, days: int | None = None) -> float:
-    """The loss without gradients (for finite differences and line searches)."""
+    """The loss without gradients (for finite differences and line searches).
+
+    Parameters
+    ----------
+    model : SmoothMossModel
+        The relaxed model.
+    params : dict
+        ``{name: value}``.
+    loss_fn : callable
+        ``loss_fn(result: RunResult, model)`` -> width-1 Dr.Jit float.
+    days : int, optional
+        Days to run [d] (default: the model's).
+
+    Returns
+    -------
+    float
+        The loss.
+    """
     with dr.suspend_grad():
         out = model.run({k: float(v) for k, v in params.items()}, days=days)
         return _scalar(loss_fn(out, model))
@@ -86,11 +103,31 @@ def loss_value(model: SmoothMossModel, params: dict, loss_fn, days: int | None =
 
 def value_and_grad(model: SmoothMossModel, params: dict, loss_fn, days: int | None = None,
                    checkpoint_every: int | None = None, mode: str = "adjoint") -> GradResult:
-    """Loss and its gradient w.r.t. every entry of ``params`` (``{name: value}``).
+    """Loss and its gradient w.r.t. every entry of ``params``.
 
-    loss_fn(result: RunResult, model) -> width-1 Float64, differentiable in ``result.cover``,
-    ``result.moss_density`` and ``result.state`` (the final state; ``result.history`` is empty).
-    checkpoint_every: days between stored states in the adjoint mode (default sqrt(days)).
+    Parameters
+    ----------
+    model : SmoothMossModel
+        The relaxed model.
+    params : dict
+        ``{name: value}`` of the parameters to differentiate.
+    loss_fn : callable
+        ``loss_fn(result: RunResult, model)`` -> width-1 Float64, differentiable in
+        ``result.cover``, ``result.moss_density`` and ``result.state`` (the final state;
+        ``result.history`` is empty).
+    days : int, optional
+        Days to run [d] (default: the model's).
+    checkpoint_every : int, optional
+        Days between stored states in the adjoint mode (default sqrt(days)).
+    mode : {"adjoint", "graph"}
+        Day-by-day reverse pass with checkpoints, or one AD graph over all days (module
+        docstring).
+
+    Returns
+    -------
+    GradResult
+        The loss, ``{name: d loss / d value}``, time, memory statistics and the forward
+        result.
     """
     t0 = time.perf_counter()
     leaves = _leaves(params, model.T)
@@ -188,7 +225,28 @@ def value_and_grad(model: SmoothMossModel, params: dict, loss_fn, days: int | No
 
 def finite_difference(model: SmoothMossModel, params: dict, loss_fn, name: str, h: float,
                       days: int | None = None) -> float:
-    """Central difference ``(L(p + h) - L(p - h)) / 2h`` of the loss in parameter ``name``."""
+    """Central difference ``(L(p + h) - L(p - h)) / 2h`` of the loss in parameter ``name``.
+
+    Parameters
+    ----------
+    model : SmoothMossModel
+        The relaxed model.
+    params : dict
+        ``{name: value}`` at which to differentiate.
+    loss_fn : callable
+        ``loss_fn(result: RunResult, model)`` -> width-1 Dr.Jit float.
+    name : str
+        The parameter.
+    h : float
+        Half step, in the parameter's unit.
+    days : int, optional
+        Days to run [d] (default: the model's).
+
+    Returns
+    -------
+    float
+        The difference quotient (loss per unit of the parameter).
+    """
     up = dict(params)
     dn = dict(params)
     up[name] = float(params[name]) + h

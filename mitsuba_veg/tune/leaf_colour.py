@@ -126,8 +126,27 @@ def _as_spectrum(values, wavelength, side):
 
 def parse_target(target, side: str = "reflectance", exposure: float = 1.0,
                  illuminant="D65") -> LeafColourTarget:
-    """Turn a target (sRGB triple, ``{"srgb"|"lab"|"reflectance"|"transmittance": ...}``, or a
-    spectrum array) into a :class:`LeafColourTarget`."""
+    """Turn a target into a :class:`LeafColourTarget`.
+
+    Parameters
+    ----------
+    target : array_like or dict
+        An sRGB triple, ``{"srgb"|"lab"|"reflectance"|"transmittance": ...}`` (with
+        ``"wavelength"`` [nm] for spectra), or a spectrum array (module docstring).
+    side : {{"reflectance", "transmittance"}}
+        Colour of the reflectance (the leaf seen from the lit side) or of the transmittance
+        (seen against the light).
+    exposure : float
+        The factor the colour is made with (``spectrum_to_srgb(..., exposure)``) [-].
+    illuminant : str or array_like
+        'D65' (default), another name of ``colour.SDS_ILLUMINANTS``, or relative power on
+        400-830 nm by 1 nm.
+
+    Returns
+    -------
+    LeafColourTarget
+        Its colour (XYZ, CIELAB, sRGB) and, for spectra, the spectrum on whole nanometres.
+    """
     if side not in _SIDES:
         raise ParameterError("side", side, "'reflectance' or 'transmittance'",
                              "'reflectance': the leaf seen from the lit side")
@@ -219,9 +238,28 @@ def _model(vals: dict, side: str, W: np.ndarray, wavelengths, exposure: float, c
 
 def predict_leaf_colour(values: dict | None = None, side: str = "reflectance",
                         exposure: float = 1.0, illuminant="D65") -> dict:
-    """Colour of a PROSPECT-D leaf: ``{"xyz", "lab", "srgb", "linear_srgb", "wavelength",
-    "spectrum"}`` (NumPy; ``srgb`` clipped and encoded as ``spectrum_to_srgb``). ``values``:
-    any of N, Cab, Car, Anth, Cbrown, Cw, Cm (others from :data:`DEFAULTS`)."""
+    """Colour of a PROSPECT-D leaf.
+
+    Parameters
+    ----------
+    values : dict, optional
+        Any of N [-], Cab, Car, Anth [µg cm-2], Cbrown [-], Cw, Cm [g cm-2] (others
+        from :data:`DEFAULTS`).
+    side : {{"reflectance", "transmittance"}}
+        Colour of the reflectance (the leaf seen from the lit side) or of the transmittance
+        (seen against the light).
+    exposure : float
+        The factor the colour is made with (``spectrum_to_srgb(..., exposure)``) [-].
+    illuminant : str or array_like
+        'D65' (default), another name of ``colour.SDS_ILLUMINANTS``, or relative power on
+        400-830 nm by 1 nm.
+
+    Returns
+    -------
+    dict
+        ``{"xyz", "lab", "srgb", "linear_srgb", "wavelength", "spectrum"}`` (NumPy; ``srgb``
+        clipped and encoded as ``spectrum_to_srgb``; wavelength [nm]).
+    """
     if side not in _SIDES:
         raise ParameterError("side", side, "'reflectance' or 'transmittance'",
                              "'reflectance': the leaf seen from the lit side")
@@ -241,7 +279,30 @@ def colour_sensitivity(values: dict | None = None, params=("Cab", "Car", "Anth")
     unit of each parameter) by reverse-mode AD, its singular values, and, when k <= 3 and J
     has full rank, ``per_delta_e``: the largest change of each parameter that moves the colour
     by ΔE*ab = 1 (the row norms of J⁻¹, pseudo-inverse for k < 3). k > 3 parameters are never
-    identifiable from a colour (J has a null space); ``null_space`` gives its directions."""
+    identifiable from a colour (J has a null space); ``null_space`` gives its directions.
+
+    Parameters
+    ----------
+    values : dict, optional
+        The leaf (as :func:`predict_leaf_colour`).
+    params : tuple of str
+        The parameters to differentiate.
+    side : {{"reflectance", "transmittance"}}
+        Colour of the reflectance (the leaf seen from the lit side) or of the transmittance
+        (seen against the light).
+    exposure : float
+        The factor the colour is made with (``spectrum_to_srgb(..., exposure)``) [-].
+    illuminant : str or array_like
+        'D65' (default), another name of ``colour.SDS_ILLUMINANTS``, or relative power on
+        400-830 nm by 1 nm.
+
+    Returns
+    -------
+    dict
+        ``"params"``, ``"lab"`` (the leaf's CIELAB), ``"jacobian"`` (3 × k, ΔE units per unit
+        of each parameter), ``"singular_values"``, ``"per_delta_e"`` (when defined) and
+        ``"null_space"`` (k > 3).
+    """
     params = [params] if isinstance(params, str) else list(params)
     wlc, W = _colour_weights(illuminant)
     white = cdr.white_point(W)
@@ -375,6 +436,53 @@ def fit_leaf_colour(target, params=("Cab", "Car", "Anth"), init: dict | None = N
     per-parameter overrides of :data:`SCALES` and of the model's ranges
     (:data:`~mitsuba_veg.foliage.prospect_dr.BOUNDS`). out: folder for ``fitted.json``,
     ``loss_curve.png`` and ``leaf_colour.png`` (None: write nothing).
+
+    Parameters
+    ----------
+    target : array_like or dict
+        The colour or spectrum (:func:`parse_target`).
+    params : tuple of str
+        Names among N, Cab, Car, Anth, Cbrown, Cw, Cm.
+    init : dict, optional
+        Starting and fixed values.
+    steps : int
+        Adam steps, or at most that many least-squares evaluations.
+    loss : {"lab", "rgb", "spectrum"}, optional
+        The loss (default: "spectrum" for spectrum targets, else "lab").
+    out : path, optional
+        Output folder.
+    progress : bool
+        Show a progress bar.
+    method : {"adam", "least_squares"}
+        The optimiser.
+    lr : float
+        Adam's learning rate on the normalised parameters [-].
+    lr_final : float
+        Its geometric decay, down to ``lr * lr_final`` [-].
+    side : {"reflectance", "transmittance"}
+        The side whose colour is the target.
+    exposure : float
+        The target's exposure factor [-].
+    illuminant : str or array_like
+        The illuminant.
+    scales : dict, optional
+        Overrides of :data:`SCALES`.
+    bounds : dict, optional
+        Overrides of the parameter ranges.
+    lut : int
+        Random leaves of the look-up-table start (0: none).
+    seed : int
+        Seed of the look-up table.
+    beta_1, beta_2 : float
+        Adam's moment decay rates [-].
+    plots : bool
+        Write the figures.
+
+    Returns
+    -------
+    LeafColourFit
+        Fitted, starting and fixed values, history, final loss, target, colour of the fit,
+        ΔE*ab, files, time and settings.
     """
     t0 = time.perf_counter()
     params = [params] if isinstance(params, str) else list(params)
@@ -581,7 +689,22 @@ def _fit_least_squares(params, start, scale, xlo, xhi, residuals, record, steps)
 # outputs
 # ------------------------------------------------------------------------------------------
 def write_outputs(res: LeafColourFit, out: Path, plots: bool = True) -> dict:
-    """fitted.json, loss_curve.png and leaf_colour.png (swatches and spectra)."""
+    """fitted.json, loss_curve.png and leaf_colour.png (swatches and spectra).
+
+    Parameters
+    ----------
+    res : LeafColourFit
+        The fit.
+    out : Path
+        Output folder.
+    plots : bool
+        Write the figures (else only ``fitted.json``).
+
+    Returns
+    -------
+    dict
+        ``{kind: path}`` of the written files.
+    """
     out.mkdir(parents=True, exist_ok=True)
     t = res.target
     summary = {"fitted": res.values, "initial": res.initial, "fixed": res.fixed,
@@ -603,7 +726,20 @@ def write_outputs(res: LeafColourFit, out: Path, plots: bool = True) -> dict:
 
 
 def leaf_colour_figure(res: LeafColourFit, path) -> str:
-    """Swatches (start, target, fit) and the spectra (start, target if measured, fit)."""
+    """Swatches (start, target, fit) and the spectra (start, target if measured, fit).
+
+    Parameters
+    ----------
+    res : LeafColourFit
+        The fit.
+    path : path
+        PNG to write.
+
+    Returns
+    -------
+    str
+        The written path.
+    """
     plt = _mpl()
     t = res.target
     fig = plt.figure(figsize=(10.5, 3.6))

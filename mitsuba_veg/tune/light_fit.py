@@ -120,7 +120,19 @@ class LightStudy:
                              + ", ".join(self.shape_slices) + ")")
 
     def default_value(self, name: str) -> float:
-        """The study's base value of a parameter."""
+        """The study's base value of a parameter.
+
+        Parameters
+        ----------
+        name : str
+            ``strength.<emitter>``, ``albedo.<shape>`` or ``albedo.<shape>.<band>``.
+
+        Returns
+        -------
+        float
+            1 for a strength; the shape's mean base reflectance [-] in the band (default: the
+            first traced band).
+        """
         c = self._canonical(name)
         if c[0] == "strength":
             return 1.0
@@ -128,8 +140,20 @@ class LightStudy:
         return float(np.mean(self.base[b][self.shape_slices[c[1]]]))
 
     def irradiance(self, params: dict | None = None, band: str | None = None):
-        """Front-side band irradiance per element [W m-2] (Float64, differentiable in the
-        parameter values, which may be Dr.Jit scalars with gradients)."""
+        """Front-side band irradiance per element.
+
+        Parameters
+        ----------
+        params : dict, optional
+            ``{name: value}`` (values may be Dr.Jit scalars with gradients).
+        band : str, optional
+            A traced band (default: the first).
+
+        Returns
+        -------
+        Float64
+            Irradiance per element [W m-2], differentiable in the parameter values.
+        """
         band = band or self.bands[0]
         if band not in self.bands:
             raise ParameterError("band", band, f"one of the traced bands {self.bands}")
@@ -150,7 +174,20 @@ class LightStudy:
         return out
 
     def quantity(self, params: dict | None, quantity: str):
-        """``"r_fr"`` (red : far-red photon ratio) or a band's irradiance [W m-2]."""
+        """A light quantity per element.
+
+        Parameters
+        ----------
+        params : dict or None
+            ``{name: value}``.
+        quantity : str
+            ``"r_fr"`` or a traced band's name.
+
+        Returns
+        -------
+        Float64
+            The red : far-red photon ratio [-] or the band's irradiance [W m-2] per element.
+        """
         if quantity == "r_fr":
             B = _bands()
             for b in ("red", "far_red"):
@@ -195,14 +232,16 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
         Elements that count (e.g. the ground's); combined with the finite targets.
     steps, lr, lr_final : int, float, float
         ``method="adam"``: Adam steps and learning rate on the parameters scaled by their start
-        (decaying to ``lr * lr_final``); ``method="least_squares"`` (default): SciPy's
-        trust-region reflective least squares on the same residuals with the Jacobian from
-        Dr.Jit forward mode (one pass per parameter), at most ``steps`` evaluations. The
-        irradiance is linear in the strengths and polynomial in the reflectances, so
-        Gauss-Newton steps converge in a few evaluations where Adam creeps along the valley of
-        correlated parameters (sun and sky strength).
+        (decaying to ``lr * lr_final``); ``method="least_squares"``: at most ``steps``
+        evaluations.
     bounds : dict, optional
         ``{name: (lo, hi)}``; default strengths [0, 100], reflectances [0, 0.99].
+    method : {"least_squares", "adam"}
+        ``"least_squares"`` (default): SciPy's trust-region reflective least squares on the
+        residuals with the Jacobian from Dr.Jit forward mode (one pass per parameter). The
+        irradiance is linear in the strengths and polynomial in the reflectances, so
+        Gauss-Newton steps converge in a few evaluations where Adam creeps along the valley of
+        correlated parameters (sun and sky strength). ``"adam"``: Adam on the loss.
     patch : float, optional
         Compare area-weighted means over patches (the triangles of one shape within a cube of
         side ``patch`` [m]) instead of single triangles (``method="least_squares"`` only). A
@@ -210,6 +249,12 @@ def fit_light(study: LightStudy, target, params, quantity: str = "par", init: di
         own light as well as in the target, a per-triangle least-squares fit is biased
         (errors in variables: on the moss garden with 300 k photons per map, sun and sky
         strength came out +9 % / -14 %); patches average the noise away.
+
+    Returns
+    -------
+    LightFitResult
+        Fitted and starting values, the history of the evaluations, the final loss, time and
+        statistics.
     """
     t0 = time.perf_counter()
     params = param_names(params)

@@ -41,7 +41,19 @@ _CAMERA_KEYS = {"origin", "target", "up", "fov", "width", "height"}
 
 
 def load_camera(camera) -> dict:
-    """A validated camera dict from a dict or a JSON file path."""
+    """A validated camera dict from a dict or a JSON file path.
+
+    Parameters
+    ----------
+    camera : dict or path
+        Camera dict (``origin``, ``target``, ``up`` [m], ``fov`` [deg], ``width``, ``height``
+        [px]) or a JSON file of it (module docstring).
+
+    Returns
+    -------
+    dict
+        The validated camera.
+    """
     if isinstance(camera, (str, Path)):
         p = Path(camera)
         try:
@@ -89,7 +101,19 @@ def load_camera(camera) -> dict:
 
 
 def camera_sensor(camera) -> mi.Sensor:
-    """The Mitsuba ``perspective`` sensor of a camera dict."""
+    """The Mitsuba ``perspective`` sensor of a camera dict.
+
+    Parameters
+    ----------
+    camera : dict or path
+        Camera dict (``origin``, ``target``, ``up`` [m], ``fov`` [deg], ``width``, ``height``
+        [px]) or a JSON file of it (module docstring).
+
+    Returns
+    -------
+    mitsuba.Sensor
+        A perspective sensor with a box-filtered film of the camera's size.
+    """
     c = load_camera(camera)
     return mi.load_dict({
         "type": "perspective", "fov": c["fov"], "fov_axis": "x",
@@ -100,8 +124,26 @@ def camera_sensor(camera) -> mi.Sensor:
 
 
 def pixel_elements(scene: mi.Scene, index, camera, living=None) -> np.ndarray:
-    """(height, width) element (triangle) index hit through every pixel centre; -1 where the ray
-    hits nothing or an element outside ``living`` (bool per element)."""
+    """The element (triangle) hit through every pixel centre.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        The moss scene.
+    index : SceneIndex
+        Its element index (``ModelData.index``).
+    camera : dict or path
+        Camera dict (``origin``, ``target``, ``up`` [m], ``fov`` [deg], ``width``, ``height``
+        [px]) or a JSON file of it (module docstring).
+    living : array_like, optional
+        Bool per element: elements outside it count as not hit.
+
+    Returns
+    -------
+    ndarray
+        (height, width) element index; -1 where the ray hits nothing or an element outside
+        ``living``.
+    """
     c = load_camera(camera)
     sensor = camera_sensor(c)
     W, H = c["width"], c["height"]
@@ -124,13 +166,35 @@ def pixel_elements(scene: mi.Scene, index, camera, living=None) -> np.ndarray:
 
 
 def srgb_to_linear(v):
-    """The sRGB transfer curve inverted (IEC 61966-2-1), values 0-1."""
+    """The sRGB transfer curve inverted (IEC 61966-2-1).
+
+    Parameters
+    ----------
+    v : array_like
+        sRGB-encoded values [-] in 0-1.
+
+    Returns
+    -------
+    ndarray
+        Linear values [-] in 0-1.
+    """
     v = np.asarray(v, float)
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
 
 
 def linear_to_srgb(v):
-    """The sRGB transfer curve (IEC 61966-2-1), values 0-1."""
+    """The sRGB transfer curve (IEC 61966-2-1).
+
+    Parameters
+    ----------
+    v : array_like
+        Linear values [-] (clipped to 0-1).
+
+    Returns
+    -------
+    ndarray
+        sRGB-encoded values [-] in 0-1.
+    """
     v = np.clip(np.asarray(v, float), 0.0, 1.0)
     return np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
 
@@ -166,13 +230,31 @@ def cover_from_image(image, camera, scene: mi.Scene, index, living=None, mode: s
                      ) -> np.ndarray:
     """Covered fraction per element [-] from an image of the scene seen by ``camera``.
 
-    image: a PNG/JPEG path or an array (height, width[, channels]) with values 0-1; camera: a
-    dict or JSON file (module docstring); scene, index: the moss scene and its
-    :class:`SceneIndex` (``ModelData.scene``, ``ModelData.index``); living: elements that may
-    hold moss (others NaN); mode: "colour" (default: unmixed between the ``bare`` and ``moss``
-    sRGB colours) or "gray" (pixel value = cover); min_pixels: fewer pixels on a triangle ->
-    NaN.
-    Returns one value per element (NaN where not seen).
+    Parameters
+    ----------
+    image : path or ndarray
+        A PNG/JPEG path or an array (height, width[, channels]) with values 0-1.
+    camera : dict or path
+        Camera dict (``origin``, ``target``, ``up`` [m], ``fov`` [deg], ``width``, ``height``
+        [px]) or a JSON file of it (module docstring).
+    scene : mitsuba.Scene
+        The moss scene (``ModelData.scene``).
+    index : SceneIndex
+        Its element index (``ModelData.index``).
+    living : array_like, optional
+        Bool per element: elements that may hold moss (others NaN).
+    mode : {"colour", "gray"}
+        "colour": unmixed in linear light between the ``bare`` and ``moss`` sRGB colours;
+        "gray": pixel value = cover.
+    bare, moss : tuple of float
+        sRGB colours [-] of bare ground and of full moss cover.
+    min_pixels : int
+        Triangles seen by fewer pixels get NaN.
+
+    Returns
+    -------
+    ndarray
+        One covered fraction per element [-] (NaN where not seen).
     """
     c = load_camera(camera)
     if mode not in ("gray", "colour"):
@@ -211,10 +293,37 @@ def cover_from_image(image, camera, scene: mi.Scene, index, living=None, mode: s
 def render_cover_image(cover, camera, scene: mi.Scene, index, path=None, mode: str = "colour",
                        bare=(0.45, 0.36, 0.26), moss=(0.22, 0.42, 0.12), background=(0, 0, 0),
                        bits: int = 8) -> np.ndarray:
-    """The synthetic photograph of a cover map (per element, 0-1) seen by ``camera``: each pixel
-    shows the triangle its centre sees, its colour mixed in linear light between ``bare`` and
-    ``moss`` by the cover (``mode="gray"``: the cover itself). Written as a PNG with ``bits``
-    = 8 or 16 (gray only) bits per channel to ``path`` (if given); returns the image (0-1)."""
+    """The synthetic photograph of a cover map seen by ``camera``: each pixel shows the
+    triangle its centre sees, its colour mixed in linear light between ``bare`` and ``moss`` by
+    the cover (``mode="gray"``: the cover itself).
+
+    Parameters
+    ----------
+    cover : array_like
+        Covered fraction per element [-] (0-1).
+    camera : dict or path
+        Camera dict (``origin``, ``target``, ``up`` [m], ``fov`` [deg], ``width``, ``height``
+        [px]) or a JSON file of it (module docstring).
+    scene : mitsuba.Scene
+        The moss scene.
+    index : SceneIndex
+        Its element index.
+    path : path, optional
+        PNG to write.
+    mode : {"colour", "gray"}
+        Colour mix or gray value = cover.
+    bare, moss : tuple of float
+        sRGB colours [-] of bare ground and of full moss cover.
+    background : tuple of float
+        sRGB colour [-] of pixels that hit nothing.
+    bits : {8, 16}
+        Bits per channel of the PNG (16: gray only).
+
+    Returns
+    -------
+    ndarray
+        The image (height, width[, 3]), values 0-1.
+    """
     if bits not in (8, 16) or (bits == 16 and mode != "gray"):
         raise ParameterError("bits", bits, "8, or 16 with mode='gray'")
     c = load_camera(camera)
