@@ -14,7 +14,9 @@ computed every day (its photon noise and moss albedo included, ``smooth.with_dai
 and the mean of those relaxed runs is compared: what is left is the life cycle and the spatial
 closure (``--light-mean``: all relaxed runs get the mean of the runs' daily light, so the
 photon noise is averaged away but the moss albedo stays). ``--per-seed``: one relaxed run per seed with that run's weather (the rain days follow
-``light.seed``) and the relaxed model's own light passes. ``--save FILE`` keeps the relaxed
+``light.seed``) and the relaxed model's own light passes. ``--light-check``: only compare the
+runs' daily light with the relaxed model's passes (area means per region and shape, the
+photon noise between runs). ``--save FILE`` keeps the relaxed
 series (npz).
 """
 from __future__ import annotations
@@ -96,6 +98,37 @@ def shape_table(ens: dict, rel: dict, data, every: int, label: str) -> None:
                                      for j, k in enumerate(names)))
 
 
+def light_table(ens: dict, data, days=(5, 30, 60, 100, 150, 200, 299)) -> None:
+    """The runs' daily light against the relaxed model's own passes, per region and shape:
+    area means of f_sun and f_sky (mean of the runs / relaxed), the median over triangles of
+    the coefficient of variation of f_sun between the runs, the share of (run, triangle) with
+    no sun photon."""
+    L = data.light
+    a = data.areas
+    groups = dict(data.regions)
+    for k, sl in data.shape_slices.items():
+        m = np.zeros(data.n, bool)
+        m[sl] = True
+        groups[k] = m & data.living
+    print("light: group day: f_sun runs / relaxed (ratio), f_sky runs / relaxed (ratio), "
+          "CV of f_sun between runs, no-sun share")
+    for d in days:
+        if d >= data.days:
+            continue
+        fs = np.array([np.load(f)["f_sun"][d] for f in ens["files"]])
+        fk = np.array([np.load(f)["f_sky"][d] for f in ens["files"]])
+        k0, k1, w = L.weights(d)
+        rs = (1 - w) * L.f_sun[k0] + w * L.f_sun[k1]
+        for g, m in groups.items():
+            am = a[m] / a[m].sum()
+            ds, dk = (fs[:, m] @ am).mean(), (fk[:, m] @ am).mean()
+            r_s, r_k = rs[m] @ am, L.f_sky[m] @ am
+            mu, sd = fs[:, m].mean(0), fs[:, m].std(0)
+            cv = np.median(sd[mu > 0] / mu[mu > 0]) if (mu > 0).any() else float("nan")
+            print(f"  {g:10s} {d:3d}: sun {ds:.4f} / {r_s:.4f} ({r_s / ds:.3f})  sky {dk:.4f} / "
+                  f"{r_k:.4f} ({r_k / dk:.3f})  CV {cv:.2f}  no sun {(fs[:, m] == 0).mean():.2f}")
+
+
 def events_table(ens: dict, rel: dict, every: int, label: str) -> None:
     """Moss alive, waiting propagules and germinations per day: discrete mean and relaxed."""
     ev = ens.get("events")
@@ -161,6 +194,8 @@ def main():
                          "daily light (photon noise averaged over the seeds)")
     ap.add_argument("--by-shape", action="store_true",
                     help="also print the covered area per shape (ground, roof, wall ...)")
+    ap.add_argument("--light-check", action="store_true",
+                    help="only compare the runs' daily light with the relaxed model's passes")
     ap.add_argument("--per-seed", action="store_true",
                     help="run the relaxed model per seed with that run's weather (own light)")
     ap.add_argument("--save", default="", help="write the relaxed series to this npz file")
@@ -172,6 +207,10 @@ def main():
         ens[k] = ens[k][:, :days]
     species = st["species"].split(",")
     over = list(st.get("set", []))
+    if a.light_check:
+        light_table(ens, tune.prepare(SCEN, days=days, species=species, photons=a.photons,
+                                      light_every=a.light_every, overrides=over))
+        return
     if a.discrete_light or a.per_seed:
         # one relaxed run per seed: that seed's weather (rain days), and its recorded daily
         # light (--discrete-light) or the relaxed model's own passes (seeded with it)
