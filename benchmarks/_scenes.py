@@ -1,6 +1,4 @@
 """Scenes shared by the benchmark scripts."""
-import math
-
 import numpy as np
 import mitsuba as mi
 

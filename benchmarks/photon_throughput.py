@@ -23,7 +23,6 @@ import time
 
 import numpy as np
 
-import mitsuba_veg  # noqa: F401
 import mitsuba as mi
 import drjit as dr
 

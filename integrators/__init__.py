@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import mitsuba as mi
 
-from .photon_irradiance import PhotonIrradianceIntegrator, PhotonIrradianceResult, BANDS
+from .photon_irradiance import (BANDS, KERNEL_MODES, PhotonIrradianceIntegrator,
+                                PhotonIrradianceResult, PhotonPathRecord)
 
 mi.register_integrator("veg_photon_irradiance", lambda props: PhotonIrradianceIntegrator(props))
 
-__all__ = ["PhotonIrradianceIntegrator", "PhotonIrradianceResult", "BANDS"]
+__all__ = ["PhotonIrradianceIntegrator", "PhotonIrradianceResult", "PhotonPathRecord", "BANDS",
+           "KERNEL_MODES"]

@@ -35,7 +35,24 @@ def select_variant(preferred: str | None = None) -> str:
 
     ``preferred`` (or the environment variable ``MITSUBA_VEG_VARIANT``) forces a variant when none
     is set yet. An already active variant is kept if supported; a non-spectral one raises
-    :class:`VariantError` with the fix.
+    :class:`VariantError` with the fix. Without a preference: ``cuda_ad_spectral`` when a CUDA
+    device works, else ``llvm_ad_spectral``.
+
+    Parameters
+    ----------
+    preferred : str, optional
+        ``"cuda_ad_spectral"`` or ``"llvm_ad_spectral"``; default None (environment, then
+        automatic).
+
+    Returns
+    -------
+    str
+        The active variant's name.
+
+    Raises
+    ------
+    VariantError
+        If the active or requested variant is not supported, or Dr.Jit has no LLVM backend.
     """
     current = mi.variant()
     if current is not None:
@@ -70,7 +87,13 @@ def select_variant(preferred: str | None = None) -> str:
 
 
 def variant() -> str:
-    """The active Mitsuba variant (after :func:`select_variant`)."""
+    """The active Mitsuba variant (after :func:`select_variant`).
+
+    Returns
+    -------
+    str
+        The variant name, e.g. ``"llvm_ad_spectral"``.
+    """
     return mi.variant()
 
 

@@ -38,7 +38,32 @@ SECONDS_PER_DAY = 86400.0
 
 @dataclass
 class ClimateTable:
-    """Yearly climate of paper 000 table 4.3 (defaults) with validation."""
+    """Yearly climate of paper 000 table 4.3 (defaults) with validation.
+
+    Every value is range-checked on construction (:class:`~mitsuba_veg.errors.ParameterError`
+    naming ``source``).
+
+    Attributes
+    ----------
+    temperature : float
+        Air temperature T [K]; default 288.15, allowed [200, 340].
+    humidity : float
+        Relative humidity rh [-]; default 0.73, allowed [0, 1].
+    precipitation : float
+        Yearly precipitation [mm yr-1]; default 1861.2.
+    rain_days : int
+        Rain days per year [days yr-1]; default 180, allowed [0, 365].
+    wind : float
+        Wind speed U [m s-1]; default 0.2, allowed (0, 60].
+    possible_sunshine : float
+        Possible sunshine hours N0 [h]; default 8, allowed (0, 24].
+    sunshine : float
+        Sunshine hours N [h]; default 6, at most ``possible_sunshine``.
+    angstrom_a, angstrom_b : float
+        Angstrom-Prescott coefficients a_s, b_s [-]; defaults 0.25, 0.50.
+    source : str
+        Where the values come from, for error messages; default ``"climate"``.
+    """
 
     temperature: float = 288.15      # T [K]
     humidity: float = 0.73           # rh [-]
@@ -69,7 +94,31 @@ class ClimateTable:
 
 @dataclass
 class DailyWeather:
-    """Weather of every simulated day (arrays of length n_days)."""
+    """Weather of every simulated day (arrays of length n_days).
+
+    Attributes
+    ----------
+    day_of_year : numpy.ndarray
+        Day of the year [1..365].
+    T : numpy.ndarray
+        Daily-mean air temperature [K].
+    rh : numpy.ndarray
+        Relative humidity [-].
+    P : numpy.ndarray
+        Precipitation [mm day-1].
+    U : numpy.ndarray
+        Wind speed [m s-1].
+    A : numpy.ndarray
+        Sunshine ratio N/N0 [-].
+    ghi : numpy.ndarray
+        Daily-mean global horizontal irradiance [W m-2].
+    beam : numpy.ndarray
+        Daily-mean beam irradiance on the horizontal [W m-2].
+    diffuse : numpy.ndarray
+        Daily-mean diffuse horizontal irradiance [W m-2].
+    extra : dict
+        ``H0_J_m2`` (extraterrestrial irradiation [J m-2 day-1]) and ``clearness`` (K_T [-]).
+    """
 
     day_of_year: np.ndarray   # [1..365]
     T: np.ndarray             # [K]
@@ -86,26 +135,88 @@ class DailyWeather:
         return len(self.T)
 
     def day(self, i: int) -> dict:
+        """The weather of one simulated day as plain floats.
+
+        Parameters
+        ----------
+        i : int
+            Index of the simulated day (0-based, not the day of year).
+
+        Returns
+        -------
+        dict
+            ``day_of_year`` [1..365], ``T`` [K], ``rh`` [-], ``P`` [mm day-1], ``U`` [m s-1],
+            ``A`` = N/N0 [-], ``ghi``, ``beam``, ``diffuse`` (daily means on the horizontal
+            [W m-2]), all as float.
+        """
         return {k: float(getattr(self, k)[i]) for k in
                 ("day_of_year", "T", "rh", "P", "U", "A", "ghi", "beam", "diffuse")}
 
 
+def solar_declination(day_of_year):
+    """Solar declination delta [rad] of a day (FAO-56 eq 24): ``0.409 sin(2 pi J / 365 - 1.39)``.
+
+    The daily declination of every day-of-year formula in the package (H0, the sunset hour
+    angle, the world's noon sun); the hourly sun positions come from NREL SPA
+    (:mod:`mitsuba_veg.light.solar_position`).
+
+    Parameters
+    ----------
+    day_of_year : int or array_like
+        Day of the year J [1..366].
+
+    Returns
+    -------
+    numpy.ndarray
+        Declination delta [rad], in [-0.409, 0.409].
+    """
+    return 0.409 * np.sin(2 * np.pi / 365 * np.asarray(day_of_year, float) - 1.39)
+
+
 def extraterrestrial_irradiation(latitude_deg, day_of_year):
-    """Daily extraterrestrial irradiation on a horizontal plane H0 [J m-2 day-1] (FAO-56 eqs
-    21-25): H0 = 86400/pi Gsc dr (ws sin(phi) sin(delta) + cos(phi) cos(delta) sin(ws))."""
+    """Daily extraterrestrial irradiation on a horizontal plane H0 [J m-2 day-1] (FAO-56 eqs 21-25).
+
+    ``H0 = 86400/pi Gsc dr (ws sin(phi) sin(delta) + cos(phi) cos(delta) sin(ws))`` with
+    Gsc = ``GSC`` = 1361 W m-2 (FAO-56 uses 1367).
+
+    Parameters
+    ----------
+    latitude_deg : float or array_like
+        Latitude phi [degrees], north positive.
+    day_of_year : int or array_like
+        Day of the year J [1..365].
+
+    Returns
+    -------
+    numpy.ndarray
+        H0 [J m-2 day-1] (broadcast shape of the inputs; 0 in polar night).
+    """
     phi = np.radians(np.asarray(latitude_deg, float))
     J = np.asarray(day_of_year, float)
     dr = 1 + 0.033 * np.cos(2 * np.pi / 365 * J)
-    delta = 0.409 * np.sin(2 * np.pi / 365 * J - 1.39)
+    delta = solar_declination(J)
     ws = np.arccos(np.clip(-np.tan(phi) * np.tan(delta), -1.0, 1.0))
     return SECONDS_PER_DAY / np.pi * GSC * dr * (
         ws * np.sin(phi) * np.sin(delta) + np.cos(phi) * np.cos(delta) * np.sin(ws))
 
 
 def sunset_hour_angle(latitude_deg, day_of_year):
-    """Sunset hour angle ws [rad] (FAO-56 eq 25)."""
+    """Sunset hour angle ws [rad] (FAO-56 eq 25).
+
+    Parameters
+    ----------
+    latitude_deg : float or array_like
+        Latitude [degrees], north positive.
+    day_of_year : int or array_like
+        Day of the year [1..365].
+
+    Returns
+    -------
+    numpy.ndarray
+        Sunset hour angle ws [rad], in [0, pi] (0: polar night, pi: midnight sun).
+    """
     phi = np.radians(np.asarray(latitude_deg, float))
-    delta = 0.409 * np.sin(2 * np.pi / 365 * np.asarray(day_of_year, float) - 1.39)
+    delta = solar_declination(day_of_year)
     return np.arccos(np.clip(-np.tan(phi) * np.tan(delta), -1.0, 1.0))
 
 
@@ -114,6 +225,20 @@ def diffuse_fraction_daily(kt, ws=None):
 
     For ws <= 81.4 deg: 1.391 - 3.560 K + 4.189 K^2 - 2.137 K^3 (K < 0.715), else 0.175;
     for ws > 81.4 deg: 1.311 - 3.022 K + 3.427 K^2 - 1.821 K^3 (K < 0.722), else 0.175.
+    The result is clipped to [0, 1].
+
+    Parameters
+    ----------
+    kt : float or array_like
+        Daily clearness index K_T = H/H0 [-].
+    ws : float or array_like, optional
+        Sunset hour angle [rad] (compared with 81.4 degrees); None (default) uses the
+        ws <= 81.4 deg branch everywhere.
+
+    Returns
+    -------
+    numpy.ndarray
+        Diffuse fraction Hd/H [-], in [0, 1].
     """
     k = np.asarray(kt, float)
     low = np.ones_like(k, bool) if ws is None else np.asarray(ws) <= np.radians(81.4)
@@ -123,8 +248,27 @@ def diffuse_fraction_daily(kt, ws=None):
 
 
 def rain_schedule(n_days: int, rain_days_per_year: int, seed: int, start_day: int = 1):
-    """Boolean per simulated day: is it a rain day? Each calendar year gets exactly
-    ``rain_days_per_year`` rain days at positions drawn from ``seed`` (reproducible)."""
+    """Boolean per simulated day: is it a rain day?
+
+    Each calendar year (of 365 days) gets exactly ``rain_days_per_year`` rain days at positions
+    drawn from ``seed`` (reproducible).
+
+    Parameters
+    ----------
+    n_days : int
+        Number of simulated days.
+    rain_days_per_year : int
+        Rain days per calendar year [days yr-1] (at most 365 are used).
+    seed : int
+        Seed of the draw.
+    start_day : int, optional
+        Day of year of the first simulated day [1..365]; default 1.
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        Shape ``(n_days,)``, True on rain days.
+    """
     out = np.zeros(n_days, bool)
     day0 = start_day - 1
     years = (day0 + n_days + 364) // 365
@@ -139,7 +283,37 @@ def rain_schedule(n_days: int, rain_days_per_year: int, seed: int, start_day: in
 
 def daily_weather(table: ClimateTable, latitude: float, n_days: int, seed: int = 0,
                   start_day: int = 1) -> DailyWeather:
-    """Weather for ``n_days`` days starting on day-of-year ``start_day`` from a yearly table."""
+    """Weather for ``n_days`` days starting on day-of-year ``start_day`` from a yearly table.
+
+    Every day has the table's T, rh, U and A = N/N0; the yearly precipitation falls in equal
+    amounts on the rain days of :func:`rain_schedule`; the insolation is Angstrom-Prescott
+    (FAO-56 eq 35) split into beam and diffuse (Erbs et al. 1982).
+
+    Parameters
+    ----------
+    table : ClimateTable
+        Yearly climate (paper 000 table 4.3 by default).
+    latitude : float
+        Site latitude [degrees], in [-90, 90].
+    n_days : int
+        Number of days to simulate, in [1, 100000].
+    seed : int, optional
+        Seed of the rain-day draw; default 0.
+    start_day : int, optional
+        Day of year of the first day [1..365]; default 1.
+
+    Returns
+    -------
+    DailyWeather
+        Arrays of length ``n_days`` (T [K], rh [-], P [mm day-1], U [m s-1], A [-], ghi / beam /
+        diffuse [W m-2] daily means; ``extra`` holds ``H0_J_m2`` [J m-2 day-1] and ``clearness``
+        [-]).
+
+    Raises
+    ------
+    ParameterError
+        If ``latitude`` or ``n_days`` is out of range.
+    """
     check_range("site.latitude", latitude, -90.0, 90.0)
     check_range("days", n_days, 1, 100_000)
     doy = (np.arange(n_days) + start_day - 1) % 365 + 1
@@ -169,12 +343,41 @@ _CSV_FIELDS = {"T": (200.0, 340.0), "rh": (0.0, 1.0), "P": (0.0, 2000.0), "U": (
                "A": (0.0, 1.0), "ghi": (0.0, 600.0), "day_of_year": (1, 366)}
 
 
-def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyWeather:
-    """Per-day weather from a CSV with a header. Columns (any order): ``T`` [K], ``rh`` [-],
-    ``P`` [mm], ``U`` [m/s], and either ``A`` (= N/N0) or ``N`` and ``N0`` [h]; optional
-    ``ghi`` [W m-2, daily mean] (else Angstrom-Prescott) and ``day_of_year`` (else 1, 2, ...).
-    Missing columns take the table's values. Every value is checked; a bad cell names the file,
-    row and column."""
+def load_csv(path, latitude: float, table: ClimateTable | None = None,
+             start_day: int = 1) -> DailyWeather:
+    """Per-day weather from a CSV with a header.
+
+    Columns (any order): ``P`` [mm] (required: rain drives the soil water, and a table's monthly
+    total cannot be placed on the CSV's days), ``T`` [K], ``rh`` [-], ``U`` [m/s], and either
+    ``A`` (= N/N0) or ``N`` and ``N0`` [h]; optional ``ghi`` [W m-2, daily mean] (else
+    Angstrom-Prescott) and ``day_of_year`` (else ``start_day``, ``start_day`` + 1, ...). Missing
+    T, rh, U, A take the table's values. Every value is checked; a bad cell names the file, row
+    and column.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file (UTF-8, one row per day).
+    latitude : float
+        Site latitude [degrees] (for H0 and the beam/diffuse split).
+    table : ClimateTable, optional
+        Values for missing columns; default ``ClimateTable()`` (paper 000 table 4.3).
+    start_day : int
+        Day of the year (1-365) of the first row when there is no ``day_of_year`` column
+        (default 1; the daily loop passes its ``simulation.start_date``).
+
+    Returns
+    -------
+    DailyWeather
+        One entry per CSV row (T [K], rh [-], P [mm day-1], U [m s-1], A [-], ghi / beam /
+        diffuse [W m-2] daily means).
+
+    Raises
+    ------
+    ParameterError
+        If the file is missing, unreadable or empty, a column is unknown, the ``P`` column is
+        missing, a cell is not a number in its range, or N > N0 / N0 <= 0.
+    """
     table = table or ClimateTable()
     path = Path(path)
     if not path.exists():
@@ -197,6 +400,11 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
                              ", ".join(sorted(known)), ("did you mean " + " or ".join(
                                  f"`{c}`" for c in close) + "?") if close else
                              "rename or remove the column", str(path))
+    if "P" not in cols:
+        raise ParameterError(f"{path.name} columns", ", ".join(cols), "a P column",
+                             "add a column P with the day's precipitation [mm] (0 on dry days)",
+                             str(path))
+    check_range("start_day", start_day, 1, 365)
     n = len(rows)
 
     def column(name, default):
@@ -227,7 +435,8 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None) -> DailyW
         A = N / N0
     else:
         A = np.full(n, table.sunshine / table.possible_sunshine)
-    doy = column("day_of_year", 0).astype(int) if "day_of_year" in cols else np.arange(n) % 365 + 1
+    doy = (column("day_of_year", 0).astype(int) if "day_of_year" in cols
+           else (np.arange(n) + int(start_day) - 1) % 365 + 1)
     ghi = column("ghi", 0.0) if "ghi" in cols else None
     return _radiation(doy, column("T", table.temperature), column("rh", table.humidity),
                       column("P", 0.0), column("U", table.wind), A, latitude, table.angstrom_a,

@@ -18,7 +18,24 @@ class VariantError(MitsubaVegError, RuntimeError):
 
 
 class ParameterError(MitsubaVegError, ValueError):
-    """A parameter or scenario field has a value outside its allowed range."""
+    """A parameter or scenario field has a value outside its allowed range.
+
+    The message reads
+    ``"<source>: <field> = <value> is invalid (allowed: <allowed>). Fix: <fix>"``.
+
+    Parameters
+    ----------
+    field : str
+        The field or argument (dotted scenario name, CLI option ...).
+    value : object
+        The offending value.
+    allowed : str
+        What is allowed (a range with units, a list of choices ...).
+    fix : str, optional
+        How to fix it; default None.
+    source : str, optional
+        The file the value comes from; default None.
+    """
 
     def __init__(self, field: str, value, allowed: str, fix: str | None = None,
                  source: str | None = None):
@@ -39,6 +56,31 @@ def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=F
     """Raise :class:`ParameterError` unless ``lo <= value <= hi`` (bounds optional/open).
 
     NaN is always rejected. Returns ``value`` so that it can be used inline.
+
+    Parameters
+    ----------
+    field : str
+        Name of the checked field (dotted scenario name or argument), for the message.
+    value : float or int
+        The value, in the field's own unit; it must convert to float.
+    lo, hi : float, optional
+        Bounds, in the unit of ``value``; default None: unbounded on that side.
+    lo_open, hi_open : bool, optional
+        Exclude the bound itself; default False (closed).
+    fix : str, optional
+        How to fix a bad value, for the message; default None.
+    source : str, optional
+        File the value comes from, for the message; default None.
+
+    Returns
+    -------
+    float or int
+        ``value`` itself, unchanged.
+
+    Raises
+    ------
+    ParameterError
+        If ``value`` is not a number, is NaN or lies outside the bounds.
     """
     try:
         v = float(value)
@@ -64,9 +106,29 @@ class DependencyError(MitsubaVegError, ImportError):
 
 def unknown_field(field: str, value, known, source: str | None = None,
                   doc: str | None = None) -> ParameterError:
-    """The error for a field a file or ``--set`` names but no schema knows: the closest known
-    names as the fix (whole dotted names first, else the last part among its table's fields),
-    the fields of the same table as what is allowed. ``doc``: where the fields are listed."""
+    """The error for a field a file or ``--set`` names but no schema knows.
+
+    The fix names the closest known names (whole dotted names first, else the last part among its
+    table's fields); the fields of the same table are given as what is allowed.
+
+    Parameters
+    ----------
+    field : str
+        The unknown dotted field name.
+    value : object
+        Its value, for the message.
+    known : iterable of str
+        Every known dotted field name.
+    source : str, optional
+        File the field comes from; default None.
+    doc : str, optional
+        Where the fields are listed (e.g. ``"docs/scenario.md"``); default None.
+
+    Returns
+    -------
+    ParameterError
+        The error to raise (not raised here).
+    """
     known = sorted(set(known))
     close = difflib.get_close_matches(field, known, n=3, cutoff=0.6)
     head, _, last = field.rpartition(".")

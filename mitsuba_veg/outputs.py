@@ -51,7 +51,21 @@ RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.
 
 
 def folder_kind(path) -> str | None:
-    """The kind of result a folder holds (its marker, else recognised by its files)."""
+    """The kind of result a folder holds (its marker, else recognised by its files).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output folder.
+
+    Returns
+    -------
+    str or None
+        The kind (``"run"``, ``"irradiance"``, ``"render"``, ``"animate"``, ``"light-study"``,
+        ``"grow"``, ``"tune"``, ``"sweep"``, the ``command`` of an older ``summary.json``, or
+        ``"unknown"`` for an unreadable one); None for an empty or unrecognised folder or an
+        unreadable marker.
+    """
     path = Path(path)
     m = path / MARKER
     if m.exists():
@@ -71,11 +85,31 @@ def folder_kind(path) -> str | None:
 
 
 class OutputFolder:
-    """An output folder claimed by one command: created if needed, checked to be writable,
-    marked with its kind (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an
-    advisory ``flock`` the kernel drops when the process ends, also on SIGKILL) so that a second
-    process writing into it is refused instead of interleaving. Use as a context manager or
-    call :meth:`release`."""
+    """An output folder claimed by one command.
+
+    The folder is created if needed, checked to be writable, marked with its kind
+    (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an advisory ``flock`` the kernel
+    drops when the process ends, also on SIGKILL) so that a second process writing into it is
+    refused instead of interleaving. Use as a context manager or call :meth:`release`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The folder.
+    kind : str
+        The kind of result it will hold (``"run"``, ``"render"``, ...); a folder holding another
+        kind is refused.
+    option : str, optional
+        The command-line option that named the folder, for messages; default ``"--out"``.
+    info : dict, optional
+        More fields for the marker file (e.g. the scenario); default None.
+
+    Raises
+    ------
+    ParameterError
+        If the path is a file, cannot be created or written, holds another kind of result, or
+        another process holds the lock.
+    """
 
     def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None):
         self.path = Path(path)
@@ -123,10 +157,18 @@ class OutputFolder:
                                  f"{e.strerror}: choose a writable location") from None
 
     def clear(self, names) -> None:
-        """Remove stale outputs (files or folders named in ``names``) of an earlier result."""
+        """Remove stale outputs (files or folders named in ``names``) of an earlier result.
+
+        Parameters
+        ----------
+        names : iterable of str
+            File or folder names inside the output folder (e.g. :data:`RUN_OUTPUTS`); missing ones
+            are skipped.
+        """
         clear_outputs(self.path, names)
 
     def release(self) -> None:
+        """Release the folder's lock (closing the lock file drops the ``flock``); idempotent."""
         if self._fh is not None:
             self._fh.close()  # closing drops the flock
             self._fh = None
@@ -142,7 +184,15 @@ class OutputFolder:
 
 
 def clear_outputs(folder, names) -> None:
-    """Remove the files or folders ``names`` from ``folder`` (those that exist)."""
+    """Remove the files or folders ``names`` from ``folder`` (those that exist).
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder.
+    names : iterable of str
+        File or folder names inside ``folder``; folders are removed with their contents.
+    """
     for n in names:
         q = Path(folder) / n
         if q.is_dir():
@@ -159,9 +209,17 @@ SNAPSHOT_DIR = "snapshots"
 
 # ---- writing snapshots during a run -------------------------------------------------------------
 class SnapshotWriter:
-    """``on_day`` hook for :meth:`mitsuba_veg.daily.MossSimulation.run`: writes the living
-    moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days (default: the run's
-    ``frame_every``) and on the last day. About 0.3 MB per 16,000 moss (compressed)."""
+    """``on_day`` hook for :meth:`mitsuba_veg.daily.MossSimulation.run` that writes moss snapshots.
+
+    Writes the living moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days
+    (default: the run's ``frame_every``) and on the last day (a world adds every leaf's state).
+    About 0.3 MB per 16,000 moss (compressed).
+
+    Parameters
+    ----------
+    every : int, optional
+        Days between snapshots [d]; default None: the run's ``frame_every`` (10 if unset).
+    """
 
     def __init__(self, every: int | None = None):
         self.every = every
@@ -181,8 +239,31 @@ class SnapshotWriter:
 
 def write_snapshot(directory, day: int, population: dict, date: str | None = None,
                    extra: dict | None = None) -> Path:
-    """Write the living moss of a population dict (``MossPopulation.to_numpy()``) and the
-    arrays of ``extra`` (a world's leaf state)."""
+    """Write the living moss of a population and a world's leaf state to ``day_NNNN.npz``.
+
+    The file (written atomically, compressed) holds ``day``, ``date``, ``pos`` [m] (n, 3) float32,
+    ``nrm`` [-] (n, 3) float16, ``species`` uint8, ``growth`` G_moss [-] float16 of the n living
+    moss (state 2), and the arrays of ``extra``.
+
+    Parameters
+    ----------
+    directory : str or pathlib.Path
+        Snapshot folder (created if needed), usually ``OUT/snapshots``.
+    day : int
+        Simulated day number (file name ``day_NNNN.npz``).
+    population : dict
+        ``MossPopulation.to_numpy()``: ``state``, ``pos`` [m] (capacity, 3), ``nrm`` (capacity,
+        3), ``species``, ``growth`` [-].
+    date : str, optional
+        Calendar date of the day (ISO); default None (stored as ``""``).
+    extra : dict of str to numpy.ndarray, optional
+        More arrays to store (a world's ``leaf_tau``, ``leaf_grown``, ``leaf_on``); default None.
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+    """
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     m = np.asarray(population["state"]) == 2
@@ -199,11 +280,31 @@ def write_snapshot(directory, day: int, population: dict, date: str | None = Non
 
 
 def write_summary(path, summary: dict) -> None:
+    """Write a run's ``summary.json`` atomically (indent 1, NumPy values converted).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The JSON file.
+    summary : dict
+        The summary (JSON-able, NumPy values allowed).
+    """
     write_json(path, summary, indent=1)
 
 
 def jsonable(x):
-    """JSON fallback for NumPy arrays and scalars (anything else becomes its str)."""
+    """JSON fallback for NumPy arrays and scalars (anything else becomes its str).
+
+    Parameters
+    ----------
+    x : object
+        A value ``json`` cannot serialise.
+
+    Returns
+    -------
+    list, float, int, bool or str
+        ``x.tolist()`` for arrays, ``x.item()`` for NumPy scalars, else ``str(x)``.
+    """
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, (np.floating, np.integer, np.bool_)):
@@ -212,8 +313,16 @@ def jsonable(x):
 
 
 class DayFrames:
-    """Called after every simulated day; writes maps every ``frame_every`` days and on the last
-    day, and assembles them into ``days.gif`` at the end."""
+    """``on_day`` hook that writes the day maps and assembles them into ``days.gif``.
+
+    Called after every simulated day; writes maps every ``frame_every`` days, on day 1 and on the
+    last day; :meth:`finish` assembles them into ``days.gif`` at the end.
+
+    Parameters
+    ----------
+    sim : MossSimulation
+        The simulation (its ``out`` folder holds ``maps/``).
+    """
 
     def __init__(self, sim):
         self.sim = sim
@@ -226,6 +335,25 @@ class DayFrames:
             self.frames.append(self.write_day(sim, rec))
 
     def write_day(self, sim, rec) -> Path:
+        """Write the map of one day, ``maps/day_NNNN.png``: four panels, ground seen from above.
+
+        Panels: moss cover [-] (fraction of each triangle, with the living moss as points),
+        daily-mean insolation S [W m-2], soil surface temperature Ts [K] and soil water content
+        theta [-]; a world's tree crowns (dashed) and trunks are drawn on every panel.
+
+        Parameters
+        ----------
+        sim : MossSimulation
+            The running simulation (its index, population, ``last`` day's fields and trees).
+        rec : dict
+            The day's record (``day``, ``date``, ``moss_alive``, ``propagules``,
+            ``covered_area_m2`` [m2], optional ``trees``).
+
+        Returns
+        -------
+        pathlib.Path
+            The written PNG.
+        """
         plt = _mpl()
 
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -272,6 +400,14 @@ class DayFrames:
         return path
 
     def finish(self) -> dict:
+        """Assemble the day maps into ``days.gif`` (400 ms per frame) when there are at least two.
+
+        Returns
+        -------
+        dict
+            ``{"maps": [PNG paths written by this run], "animation": GIF path}`` (``animation`` only
+            when the GIF was written); paths as str.
+        """
         files = {"maps": [str(p) for p in sorted(set(self.frames))]}
         frames = sorted(p for p in set(self.dir.glob("day_*.png"))
                         if p.stem[4:].isdigit() and int(p.stem[4:]) <= self.sim.days)

@@ -37,8 +37,44 @@ _VIEWS = [
 def plan_map(ax, vertices, faces, values, *, title="", label="", cmap="inferno", vmin=None,
              vmax=None, log=False, axes=(0, 2), signs=(1, -1),
              axis_labels=("x (east) [m]", "-z (north) [m]")):
-    """Draw per-triangle ``values`` on ``ax`` projected on two world axes (default: plan view,
-    x east to the right, north up)."""
+    """Draw per-triangle ``values`` on ``ax`` projected on two world axes.
+
+    The default is the plan view: x east to the right, north (-z) up. NaN values are left out of
+    the colour range; a colour bar with ``label`` is added.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw.
+    vertices : array_like
+        Vertex positions (V, 3) [m], world frame (+y up).
+    faces : array_like of int
+        Triangles (F, 3), vertex indices.
+    values : array_like
+        One value per triangle (F,), in the quantity's unit (given by ``label``).
+    title : str, optional
+        Axes title; default ``""``.
+    label : str, optional
+        Colour-bar label, with the unit (e.g. ``"W m$^{-2}$"``); default ``""``.
+    cmap : str, optional
+        Matplotlib colour map; default ``"inferno"``.
+    vmin, vmax : float, optional
+        Colour range, in the unit of ``values``; default None: the finite data's min / max
+        (positive data's with ``log``).
+    log : bool, optional
+        Logarithmic colour scale (values <= 0 drawn at the lowest colour); default False.
+    axes : tuple of int, optional
+        World axes (0 x, 1 y, 2 z) drawn horizontally and vertically; default ``(0, 2)``.
+    signs : tuple of int, optional
+        Sign (+1 / -1) applied to each drawn axis; default ``(1, -1)`` (north up).
+    axis_labels : tuple of str, optional
+        Axis labels; default ``("x (east) [m]", "-z (north) [m]")``.
+
+    Returns
+    -------
+    matplotlib.collections.PolyCollection
+        The ``tripcolor`` collection.
+    """
     from matplotlib.colors import LogNorm, Normalize
     from matplotlib.tri import Triangulation
 
@@ -68,9 +104,29 @@ def plan_map(ax, vertices, faces, values, *, title="", label="", cmap="inferno",
 
 
 def irradiance_figure(result, shape_id: str, path, title: str | None = None) -> str:
-    """PNG of the front irradiance of ``shape_id``: total, direct, indirect and (if traced) the
-    red:far-red photon ratio, one row per group of faces that share a facing direction (up,
-    down, south ...), each drawn in the projection that shows it. Written atomically."""
+    """PNG of the front irradiance of ``shape_id`` from a photon pass.
+
+    Columns: total, direct and indirect irradiance [W m-2] and (if the red and far-red bands
+    were traced) the red:far-red photon ratio [-]; one row per group of faces that share a facing
+    direction (up, down, south ...) and hold at least 5 % of the shape's area, each drawn in the
+    projection that shows it. Written atomically.
+
+    Parameters
+    ----------
+    result : PhotonIrradianceResult
+        Result of :func:`mitsuba_veg.light.photon_irradiance` (with stored mesh geometry).
+    shape_id : str
+        Id of the mesh shape to draw.
+    path : str or pathlib.Path
+        The PNG to write.
+    title : str, optional
+        Figure title; default None: the shape id and the photon count.
+
+    Returns
+    -------
+    str
+        The written path.
+    """
     plt = _mpl()
     result.index.shape_slice(shape_id)  # clear error for an unknown id
     band = "total" if "total" in result.bands else result.bands[0]
@@ -117,7 +173,27 @@ def irradiance_figure(result, shape_id: str, path, title: str | None = None) -> 
 
 
 def result_geometry(result, shape_id: str):
-    """(vertices, faces) of a shape of the scene a result was traced on."""
+    """(vertices, faces) of a shape of the scene a result was traced on.
+
+    Parameters
+    ----------
+    result : PhotonIrradianceResult
+        A photon-pass result (its ``index.geometry``).
+    shape_id : str
+        Id of a mesh shape.
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        Vertex positions (V, 3) [m], world space.
+    faces : numpy.ndarray
+        Triangles (F, 3), vertex indices.
+
+    Raises
+    ------
+    ValueError
+        If no mesh geometry is stored for ``shape_id``.
+    """
     geo = getattr(result.index, "geometry", {}).get(shape_id)
     if geo is None:
         raise ValueError(f"no mesh geometry stored for '{shape_id}'")
@@ -125,8 +201,23 @@ def result_geometry(result, shape_id: str):
 
 
 def loss_curve_figure(history: list[dict], path, loss_name: str = "") -> str:
-    """Loss (log scale) and every fitted parameter against the optimiser step; ``history``:
-    one dict per step with ``step``, ``loss`` and ``params`` (name -> value)."""
+    """Loss (log scale) and every fitted parameter against the optimiser (Adam) step, as a PNG.
+
+    Parameters
+    ----------
+    history : list of dict
+        One dict per step with ``step`` (int), ``loss`` (float) and ``params`` (name -> value, in
+        each parameter's own unit).
+    path : str or pathlib.Path
+        The PNG to write.
+    loss_name : str, optional
+        Name of the loss for the title; default ``""``.
+
+    Returns
+    -------
+    str
+        The written path.
+    """
     plt = _mpl()
     steps = [h["step"] for h in history]
     names = list(history[0]["params"]) if history else []
@@ -144,6 +235,7 @@ def loss_curve_figure(history: list[dict], path, loss_name: str = "") -> str:
         ax.set_title(n)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_write(path, f"{path}.tmp.png") as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return str(path)

@@ -202,7 +202,21 @@ SCHEMA: dict[str, Field] = {
 
 
 def known_fields(schema: dict | None = None, prefix: str = "") -> list[str]:
-    """Every dotted field name of the schema (user-named map keys shown as ``NAME``)."""
+    """Every dotted field name of the schema (user-named map keys shown as ``NAME``).
+
+    Parameters
+    ----------
+    schema : dict of str to Field, optional
+        The (sub-)schema to list; default None: :data:`SCHEMA`.
+    prefix : str, optional
+        Prefix of the names (``"terrain."`` for a sub-table); default ``""``.
+
+    Returns
+    -------
+    list of str
+        Dotted names such as ``"light.photons"`` or ``"regions.NAME.min"``, tables before their
+        fields.
+    """
     out = []
     for k, f in (SCHEMA if schema is None else schema).items():
         name = f"{prefix}{k}"
@@ -215,7 +229,14 @@ def known_fields(schema: dict | None = None, prefix: str = "") -> list[str]:
 
 
 def schema_markdown() -> str:
-    """The table of every scenario field (docs/scenario.md holds it; a test keeps them equal)."""
+    """The table of every scenario field (docs/scenario.md holds it; a test keeps them equal).
+
+    Returns
+    -------
+    str
+        A Markdown table (field, kind, allowed values, meaning with units), one row per field,
+        ending with a newline.
+    """
     rows = ["| field | kind | allowed | meaning |", "|---|---|---|---|"]
 
     def walk(schema, prefix):
@@ -341,8 +362,23 @@ def _check_value(name: str, f: Field, v, source, known: list[str]):
 
 
 def field_spec(dotted: str) -> Field:
-    """The schema entry of a dotted field name (user-named map keys allowed); raises
-    :class:`ParameterError` (with the closest known names) for an unknown field."""
+    """The schema entry of a dotted field name (user-named map keys allowed).
+
+    Parameters
+    ----------
+    dotted : str
+        Dotted field name, e.g. ``"light.photons"`` or ``"regions.open.min"``.
+
+    Returns
+    -------
+    Field
+        The field's schema entry (kind, bounds, documentation).
+
+    Raises
+    ------
+    ParameterError
+        For an unknown field (with the closest known names).
+    """
     parts = dotted.split(".")
     node = Field("table", fields=SCHEMA)
     known = known_fields()
@@ -358,16 +394,39 @@ def field_spec(dotted: str) -> Field:
 
 @dataclass
 class Scenario:
-    """A validated scenario: ``data`` is the TOML content with defaults, ``path`` its file."""
+    """A validated scenario.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The scenario file; relative paths in it resolve against its folder.
+    data : dict
+        The TOML content, validated, with defaults.
+    """
 
     path: Path
     data: dict
 
     @property
     def root(self) -> Path:
+        """The folder of the scenario file: relative paths in it resolve against this."""
         return self.path.parent
 
     def get(self, dotted: str, default=None):
+        """A value of the scenario by dotted name.
+
+        Parameters
+        ----------
+        dotted : str
+            Dotted field name, e.g. ``"site.latitude"``.
+        default : object, optional
+            What to return when the field is absent; default None.
+
+        Returns
+        -------
+        object
+            The value (a table comes back as a dict), or ``default``.
+        """
         node = self.data
         for part in dotted.split("."):
             if not isinstance(node, dict) or part not in node:
@@ -376,7 +435,23 @@ class Scenario:
         return node
 
     def file(self, dotted: str) -> Path:
-        """A path field resolved against the scenario's folder; it must exist."""
+        """A path field resolved against the scenario's folder; it must exist.
+
+        Parameters
+        ----------
+        dotted : str
+            Dotted name of a ``file`` field, e.g. ``"scene.file"``.
+
+        Returns
+        -------
+        pathlib.Path
+            The absolute, resolved path.
+
+        Raises
+        ------
+        ParameterError
+            If the field is not set or the file does not exist.
+        """
         value = self.get(dotted)
         if value is None:
             raise ParameterError(dotted, None, "a file path", f"set {dotted} in the scenario",
@@ -388,8 +463,28 @@ class Scenario:
         return p
 
     def load_scene(self, daylight: bool | None = None):
-        """The Mitsuba scene; with ``light.when`` set (or ``daylight=True``) its emitters are
-        replaced by daylight for the site and time."""
+        """The Mitsuba scene of the scenario, loaded with ``optimize=False`` (shape ids kept).
+
+        With ``light.when`` set (or ``daylight=True``) its emitters are replaced by daylight
+        (sun and sky of :func:`mitsuba_veg.light.clear_sky.daylight`) for the site and time.
+
+        Parameters
+        ----------
+        daylight : bool, optional
+            True: replace the emitters by daylight (``light.when`` must be set); False: keep the
+            scene's emitters; None (default): daylight exactly when ``light.when`` is set.
+
+        Returns
+        -------
+        mi.Scene
+            The loaded scene.
+
+        Raises
+        ------
+        ParameterError
+            If the XML does not load, ``daylight=True`` without ``light.when``, or the sun is below
+            the horizon at ``light.when``.
+        """
         path = self.file("scene.file")
         try:
             scene = mi.load_file(str(path), optimize=False)
@@ -408,10 +503,13 @@ class Scenario:
             raise ParameterError("light.when", when, "a time when the sun is above the horizon",
                                  "choose a daytime", str(self.path))
         d = {"type": "scene"}
-        for sh in scene.shapes():
-            d[sh.id()] = sh
-        for sensor in scene.sensors():
-            d[sensor.id() or "camera"] = sensor
+        # every shape and sensor under its own key: objects without an id (or sharing one) get
+        # a numbered key instead of overwriting each other
+        for i, obj in enumerate(list(scene.shapes()) + list(scene.sensors())):
+            key = obj.id() or ("camera" if isinstance(obj, mi.Sensor) else f"shape_{i}")
+            if key in d:
+                key = f"{key}_{i}"
+            d[key] = obj
         d.update(emitters)
         return mi.load_dict(d, optimize=False)
 
@@ -425,7 +523,30 @@ def _parse_value(text: str):
 
 
 def apply_overrides(data: dict, overrides, source: str = "--set") -> dict:
-    """Apply ``KEY=VALUE`` overrides with dotted keys (``light.photons=2000000``)."""
+    """Apply ``KEY=VALUE`` overrides with dotted keys (``light.photons=2000000``).
+
+    Values are parsed as TOML (numbers, true/false, strings, arrays); bare words stay strings.
+    Missing tables on the way are created. The result is not validated (see :func:`validate`).
+
+    Parameters
+    ----------
+    data : dict
+        Scenario content (not modified: a deep copy is changed).
+    overrides : iterable of str, optional
+        ``"KEY=VALUE"`` items; None or empty: no change.
+    source : str, optional
+        Where the overrides come from, for error messages; default ``"--set"``.
+
+    Returns
+    -------
+    dict
+        A copy of ``data`` with the overrides applied.
+
+    Raises
+    ------
+    ParameterError
+        If an item has no ``=`` or its key goes through a value or an array of tables.
+    """
     data = copy.deepcopy(data)
     for item in overrides or ():
         if "=" not in item:
@@ -445,8 +566,30 @@ def apply_overrides(data: dict, overrides, source: str = "--set") -> dict:
 
 
 def validate(data: dict, source: str) -> dict:
-    """Check every field of ``data`` against :data:`SCHEMA` (unknown fields refused) and fill
-    in the defaults; returns ``data``."""
+    """Check every field of ``data`` against :data:`SCHEMA` and fill in the defaults.
+
+    Unknown fields are refused (with the closest known names). Defaults: ``light`` photons
+    1e6, max_depth 8, seed 0, indirect true; ``site`` latitude 35, longitude 139 [degrees].
+    Also checks that regions have shapes, min and max, that ``moss.priority`` has one entry per
+    species and that ``moss.initial <= moss.capacity``.
+
+    Parameters
+    ----------
+    data : dict
+        Scenario content (TOML tables); filled in place.
+    source : str
+        The scenario file, for error messages.
+
+    Returns
+    -------
+    dict
+        ``data`` itself, with the defaults filled in.
+
+    Raises
+    ------
+    ParameterError
+        For a missing ``scene.file``, an unknown field or a value out of its range.
+    """
     known = known_fields()
     if "scene" not in data or not isinstance(data.get("scene"), dict) or \
             "file" not in data["scene"]:
@@ -480,7 +623,26 @@ def validate(data: dict, source: str) -> dict:
 
 
 def load_scenario(path, overrides=None) -> Scenario:
-    """Read, override (``["light.photons=2e6", ...]``) and validate a scenario file."""
+    """Read, override (``["light.photons=2e6", ...]``) and validate a scenario file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The scenario TOML file.
+    overrides : iterable of str, optional
+        ``"KEY=VALUE"`` items with dotted keys (the CLI's ``--set``); default None.
+
+    Returns
+    -------
+    Scenario
+        The validated scenario with defaults.
+
+    Raises
+    ------
+    ParameterError
+        If the file is missing, not a file, unreadable or not valid TOML, an override names an
+        unknown field, or a value is invalid.
+    """
     path = Path(path)
     if not path.exists():
         raise ParameterError("scenario", str(path), "an existing TOML file",

@@ -105,7 +105,25 @@ _GEO_COLS = {f: np.array([getattr(GEOLOGY[c], f) for c in sorted(GEOLOGY)], dtyp
 
 
 def geology_code(name: str) -> int:
-    """Geology code of a name (``"humus"`` -> 0, ``"sand"`` -> 1, ``"asphalt"`` -> 2)."""
+    """Geology code of a geology name (table 3.4).
+
+    ``"humus"`` -> 0, ``"sand"`` -> 1, ``"asphalt"`` -> 2; case and surrounding spaces are ignored.
+
+    Parameters
+    ----------
+    name : str
+        Geology name: ``"humus"``, ``"sand"`` or ``"asphalt"``.
+
+    Returns
+    -------
+    int
+        Geology code (0 humus, 1 sand, 2 asphalt).
+
+    Raises
+    ------
+    ParameterError
+        If ``name`` is not one of the geologies of table 3.4.
+    """
     try:
         return _GEO_NAMES[str(name).strip().lower()]
     except KeyError:
@@ -234,6 +252,27 @@ def geology_parameters(geology, *like):
     The arrays are NumPy float64, or of the Dr.Jit type of the first Dr.Jit array among ``like``
     (or of ``geology``), gathered from the 3-entry table. Invalid codes raise ParameterError
     (a Dr.Jit ``geology`` is read back for this check).
+
+    Parameters
+    ----------
+    geology : array_like of int or drjit array
+        Geology codes (0 humus, 1 sand, 2 asphalt); integral floats are accepted.
+    *like : array_like or drjit array
+        Other inputs of the caller; the first Dr.Jit array among them sets the result type.
+
+    Returns
+    -------
+    F1 : numpy.ndarray or drjit array
+        Coefficient F1 of eq 3.9 [m].
+    F2 : numpy.ndarray or drjit array
+        Exponent F2 of eq 3.9 [-].
+    theta_sat : numpy.ndarray or drjit array
+        Saturated volumetric water content theta_SAT [m3 m-3].
+
+    Raises
+    ------
+    ParameterError
+        If a code is not an integer in {0, 1, 2} (or is NaN / infinite).
     """
     codes = _as_codes(geology)
     t = _dr_type(*like, geology)
@@ -250,8 +289,17 @@ def geology_parameters(geology, *like):
 def cloud_factor(A):
     """Cloud-effect coefficient C, eq (3.2): ``C = 0.826A^3 - 1.234A^2 + 1.135A + 0.298``.
 
-    A = N/N0 is the sunshine ratio [-] (sunshine hours / possible sunshine hours).
-    C(0) = 0.298 (overcast), C(1) = 1.025 (clear). Returns C [-].
+    C(0) = 0.298 (overcast), C(1) = 1.025 (clear).
+
+    Parameters
+    ----------
+    A : array_like or drjit array
+        Sunshine ratio A = N/N0 [-] (sunshine hours / possible sunshine hours).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Cloud factor C [-] (of the kind of ``A``).
     """
     (A,) = _prep(A)
     return _finish(((0.826 * A - 1.234) * A + 1.135) * A + 0.298)
@@ -260,7 +308,17 @@ def cloud_factor(A):
 def sky_longwave(T, C):
     """Downward longwave radiation from the sky, eq (3.3): ``L = sigma T^4 (1 - 0.26 C)``.
 
-    T air temperature [K], C cloud factor of eq 3.2 [-]. Returns L [W m-2].
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Air temperature [K].
+    C : array_like or drjit array
+        Cloud factor of eq 3.2 [-].
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Sky longwave radiation L [W m-2].
     """
     T, C = _prep(T, C)
     return _finish(SIGMA * T**4 * (1.0 - 0.26 * C))
@@ -269,7 +327,19 @@ def sky_longwave(T, C):
 def net_radiation(S, L, ref=ALBEDO):
     """Heat energy at the surface, eq (3.4): ``R = (1 - ref) S + L``.
 
-    S daily-mean insolation [W m-2], L sky longwave [W m-2], ref albedo [-]. Returns R [W m-2].
+    Parameters
+    ----------
+    S : array_like or drjit array
+        Daily-mean insolation [W m-2].
+    L : array_like or drjit array
+        Sky longwave radiation [W m-2] (eq 3.3).
+    ref : float, optional
+        Surface albedo [-]; default ``ALBEDO`` = 0.2.
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Heat energy R [W m-2].
     """
     S, L = _prep(S, L)
     return _finish((1.0 - ref) * S + L)
@@ -281,9 +351,23 @@ def net_radiation(S, L, ref=ALBEDO):
 def transfer_coefficient(m, M=1.0, C_H_min=C_H_MIN, C_H_max=C_H_MAX):
     """Bulk transfer coefficient, eq (3.5): ``C_H = C_Hmin + (C_Hmax - C_Hmin) m / M``.
 
-    m moss within a fixed range of the soil element, M the most moss that fit there (or pass a
-    coverage fraction as ``m`` with ``M = 1``) [-]. ``m/M`` is clamped to [0, 1] (NaN kept).
-    Returns C_H [-] in [0.0015, 0.0030].
+    ``m/M`` is clamped to [0, 1] (NaN kept).
+
+    Parameters
+    ----------
+    m : array_like or drjit array
+        Moss within a fixed range of the soil element [-] (or a coverage fraction with ``M = 1``).
+    M : array_like or drjit array, optional
+        The most moss that fit there [-]; default 1.
+    C_H_min : float, optional
+        C_H over bare soil [-]; default ``C_H_MIN`` = 0.0015.
+    C_H_max : float, optional
+        C_H under dense moss [-]; default ``C_H_MAX`` = 0.0030.
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        C_H [-], in [0.0015, 0.0030] with the default bounds.
     """
     m, M = _prep(m, M)
     f = _minimum(_maximum(m / M, 0.0), 1.0)
@@ -296,15 +380,38 @@ def transfer_coefficient(m, M=1.0, C_H_min=C_H_MIN, C_H_max=C_H_MAX):
 def soil_depth(h):
     """Soil depth h used by the bucket model, §3.5.3 [mm].
 
-    ``h`` is the soil thickness along y [mm]; where there is none (``h <= 0``, walls) the paper
-    uses 1 mm, and depths above 1000 mm are capped at 1000 mm. NaN stays NaN.
+    Where there is no soil (``h <= 0``, walls) the paper uses 1 mm, and depths above 1000 mm are
+    capped at 1000 mm. NaN stays NaN.
+
+    Parameters
+    ----------
+    h : array_like or drjit array
+        Soil thickness along y [mm].
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Soil depth for the bucket model [mm], in [1, 1000] (``H_WALL`` where ``h <= 0``).
     """
     (h,) = _prep(h)
     return _finish(_where(h <= 0.0, H_WALL, _minimum(h, H_MAX)))
 
 
 def bucket_capacity(h, geology):
-    """Bucket capacity, eq (3.7): ``O_SAT = h theta_SAT`` [mm] (h [mm], theta_SAT [m3 m-3])."""
+    """Bucket capacity, eq (3.7): ``O_SAT = h theta_SAT`` [mm].
+
+    Parameters
+    ----------
+    h : array_like or drjit array
+        Soil depth [mm] (see :func:`soil_depth`).
+    geology : array_like of int or drjit array
+        Geology codes (0 humus, 1 sand, 2 asphalt); theta_SAT [m3 m-3] from table 3.4.
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Bucket capacity O_SAT [mm].
+    """
     (h,) = _prep(h)
     _, _, ts = geology_parameters(geology, h)
     h, ts = _prep(h, ts)
@@ -312,7 +419,20 @@ def bucket_capacity(h, geology):
 
 
 def water_content(O, h):
-    """Volumetric soil water content, eq (3.8): ``theta = O / h`` [m3 m-3] (O, h in [mm])."""
+    """Volumetric soil water content, eq (3.8): ``theta = O / h`` [m3 m-3].
+
+    Parameters
+    ----------
+    O : array_like or drjit array
+        Water stored in the bucket [mm].
+    h : array_like or drjit array
+        Soil depth [mm].
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Volumetric water content theta [m3 m-3].
+    """
     O, h = _prep(O, h)
     return _finish(O / h)
 
@@ -329,13 +449,29 @@ def bucket_step(O, E, P, h, geology):
     """One day of the bucket model, eqs (3.6)-(3.8).
 
     ``O_i = O_{i-1} - (86400 E_i - P_i)`` with overflow above ``O_SAT = h theta_SAT`` (eq 3.7)
-    running off, and ``theta = O_i / h`` (eq 3.8).
+    running off, and ``theta = O_i / h`` (eq 3.8). Not in the paper: the store cannot go below
+    0 mm; the missing water is returned as ``deficit`` (see docs/deviations.md).
 
-    O water stored at the end of the previous day [mm]; E evaporation rate of the day
-    [kg m-2 s-1 = mm s-1] (``E = iotaE / iota``, :func:`evaporation_rate`; negative = dew);
-    P precipitation of the day [mm]; h soil depth [mm] (see :func:`soil_depth`); geology codes.
-    Not in the paper: the store cannot go below 0 mm; the missing water is returned as
-    ``deficit`` (see docs/deviations.md). Returns :class:`BucketStep`.
+    Parameters
+    ----------
+    O : array_like or drjit array
+        Water stored at the end of the previous day [mm].
+    E : array_like or drjit array
+        Evaporation rate of the day [kg m-2 s-1 = mm s-1] (``E = iotaE / iota``,
+        :func:`evaporation_rate`; negative = dew).
+    P : array_like or drjit array
+        Precipitation of the day [mm].
+    h : array_like or drjit array
+        Soil depth [mm] (see :func:`soil_depth`).
+    geology : array_like of int or drjit array
+        Geology codes (0 humus, 1 sand, 2 asphalt).
+
+    Returns
+    -------
+    BucketStep
+        ``(O, theta, runoff, deficit)``: water stored at the end of the day [mm], volumetric water
+        content [m3 m-3], water above O_SAT that ran off [mm], evaporation demand that found no
+        water [mm].
     """
     O, E, P, h = _prep(O, E, P, h)
     _, _, ts = geology_parameters(geology, O, E, P, h)
@@ -361,7 +497,20 @@ class SoilState:
 
     @classmethod
     def saturated(cls, h, geology) -> "SoilState":
-        """A state with every bucket full (``O = O_SAT``); ``h`` is passed through soil_depth."""
+        """A state with every bucket full (``O = O_SAT``).
+
+        Parameters
+        ----------
+        h : array_like or drjit array
+            Soil thickness along y [mm]; passed through :func:`soil_depth`.
+        geology : array_like of int or drjit array
+            Geology codes (0 humus, 1 sand, 2 asphalt).
+
+        Returns
+        -------
+        SoilState
+            Saturated state: ``O = h theta_SAT`` [mm] with the clamped depth ``h`` [mm].
+        """
         h = soil_depth(h)
         return cls(bucket_capacity(h, geology), h, geology)
 
@@ -376,7 +525,22 @@ class SoilState:
         return bucket_capacity(self.h, self.geology)
 
     def step(self, E, P) -> tuple["SoilState", BucketStep]:
-        """Advance one day with evaporation rate E [mm s-1] and rain P [mm] (eq 3.6)."""
+        """Advance the buckets by one day (eq 3.6).
+
+        Parameters
+        ----------
+        E : array_like or drjit array
+            Evaporation rate of the day [mm s-1] (= [kg m-2 s-1]; negative = dew).
+        P : array_like or drjit array
+            Precipitation of the day [mm].
+
+        Returns
+        -------
+        state : SoilState
+            The state at the end of the day (same ``h`` and ``geology``).
+        step : BucketStep
+            The day's bucket result (stored water [mm], theta [m3 m-3], runoff [mm], deficit [mm]).
+        """
         r = bucket_step(self.O, E, P, self.h, self.geology)
         return SoilState(r.O, self.h, self.geology), r
 
@@ -386,7 +550,19 @@ def evaporation_F(theta, geology):
 
     F is a length (a soil surface resistance times D_ATM): ``F / D_ATM`` [s m-1] is the soil
     resistance to vapour transfer. ``theta_SAT - theta`` is clamped at 0, so a saturated (or
-    over-saturated) soil has F = 0 (the printed power of a negative base is NaN). theta [m3 m-3].
+    over-saturated) soil has F = 0 (the printed power of a negative base is NaN).
+
+    Parameters
+    ----------
+    theta : array_like or drjit array
+        Volumetric water content [m3 m-3].
+    geology : array_like of int or drjit array
+        Geology codes (0 humus, 1 sand, 2 asphalt).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        F(theta) [m].
     """
     (theta,) = _prep(theta)
     F1, F2, ts = geology_parameters(geology, theta)
@@ -398,8 +574,24 @@ def evaporation_F(theta, geology):
 def evaporation_efficiency(theta, C_H, U, geology):
     """Evaporation efficiency, eq (3.10): ``beta = (1 + C_H U F(theta) / D_ATM)^-1`` [-].
 
-    theta [m3 m-3], C_H [-], U wind speed [m s-1]; F [m] from eq 3.9, D_ATM [m2 s-1]:
-    ``C_H U F / D_ATM`` = soil resistance / aerodynamic resistance, dimensionless.
+    F [m] from eq 3.9, D_ATM [m2 s-1]: ``C_H U F / D_ATM`` = soil resistance / aerodynamic
+    resistance, dimensionless.
+
+    Parameters
+    ----------
+    theta : array_like or drjit array
+        Volumetric water content [m3 m-3].
+    C_H : array_like or drjit array
+        Bulk transfer coefficient [-] (eq 3.5).
+    U : array_like or drjit array
+        Wind speed [m s-1].
+    geology : array_like of int or drjit array
+        Geology codes (0 humus, 1 sand, 2 asphalt).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Evaporation efficiency beta [-], in (0, 1].
     """
     F = evaporation_F(theta, geology)
     C_H, U, F = _prep(C_H, U, F)
@@ -412,15 +604,39 @@ def evaporation_efficiency(theta, C_H, U, geology):
 def e_sat(T):
     """Saturation vapour pressure, eq (3.12): ``6.1078 x 10^(7.5 (T-273.15)/(T-35.85))`` [hPa].
 
-    T [K]. e_sat(273.15) = 6.1078 hPa.
+    e_sat(273.15) = 6.1078 hPa.
+
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Temperature [K].
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Saturation vapour pressure e_SAT [hPa].
     """
     (T,) = _prep(T)
     return _finish(_E0 * _exp(_LN10 * _MAGNUS_A * (T - 273.15) / (T - 35.85)))
 
 
 def q_sat(T, p=P_ATM):
-    """Saturation specific humidity, eq (3.13):
-    ``q_SAT = (0.622 e_SAT/p) / (1 - 0.378 e_SAT/p)`` [kg kg-1]; T [K], p [hPa]."""
+    """Saturation specific humidity, eq (3.13).
+
+    ``q_SAT = (0.622 e_SAT/p) / (1 - 0.378 e_SAT/p)`` [kg kg-1].
+
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Temperature [K].
+    p : float, optional
+        Air pressure [hPa]; default ``P_ATM`` = 1013 hPa.
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Saturation specific humidity q_SAT [kg kg-1].
+    """
     (T,) = _prep(T)
     e = e_sat(T)
     return _finish((0.622 * e / p) / (1.0 - 0.378 * e / p))
@@ -435,7 +651,19 @@ def dq_sat_dT(T, p=P_ATM):
 
     The printed eq 3.15 has the constant 6.1078 where e_SAT(T) belongs, and a Clausius-Clapeyron
     factor (2500 - 2.4t)/(0.4615 (273.15 + t)^2) that differs from the derivative of eq 3.12 by
-    about 0.1 %; see docs/deviations.md. T [K], p [hPa].
+    about 0.1 %; see docs/deviations.md.
+
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Temperature [K].
+    p : float, optional
+        Air pressure [hPa]; default ``P_ATM`` = 1013 hPa.
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Delta = dq_SAT/dT [K-1] (q_SAT in [kg kg-1]).
     """
     (T,) = _prep(T)
     e = e_sat(T)
@@ -444,13 +672,35 @@ def dq_sat_dT(T, p=P_ATM):
 
 
 def surface_temperature_offset(R, T, rh, U, beta, C_H):
-    """Surface minus air temperature, eq (3.11) [K]::
+    """Surface minus air temperature, eq (3.11) [K].
+
+    ::
 
         deltaT = Ts - T = [R - sigma T^4 - iota rho beta C_H U q_SAT (1 - rh)]
                           / [4 sigma T^3 + c_P rho C_H U + iota rho beta C_H U Delta]
 
-    R [W m-2], T [K], rh [-], U [m s-1], beta [-], C_H [-]. Numerator [W m-2], denominator
-    [W m-2 K-1] (linearised energy balance R = sigma Ts^4 + H + iotaE).
+    Numerator [W m-2], denominator [W m-2 K-1] (linearised energy balance
+    R = sigma Ts^4 + H + iotaE).
+
+    Parameters
+    ----------
+    R : array_like or drjit array
+        Heat energy at the surface [W m-2] (eq 3.4).
+    T : array_like or drjit array
+        Air temperature [K].
+    rh : array_like or drjit array
+        Relative humidity of the air [-] (0..1).
+    U : array_like or drjit array
+        Wind speed [m s-1].
+    beta : array_like or drjit array
+        Evaporation efficiency [-] (eq 3.10).
+    C_H : array_like or drjit array
+        Bulk transfer coefficient [-] (eq 3.5).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        deltaT = Ts - T [K].
     """
     R, T, rh, U, beta, C_H, q, D = _prep(R, T, rh, U, beta, C_H, q_sat(T), dq_sat_dT(T))
     k = LATENT_HEAT * RHO_AIR * beta * C_H * U
@@ -462,42 +712,99 @@ def surface_temperature_offset(R, T, rh, U, beta, C_H):
 def latent_heat_flux(T, rh, U, beta, C_H, dT):
     """Latent heat flux, eq (3.14): ``iotaE = iota rho beta C_H U {q_SAT (1 - rh) + Delta dT}``.
 
-    T [K], rh [-], U [m s-1], beta [-], C_H [-], dT = Ts - T [K]. Returns iotaE [W m-2]
-    (negative = dew).
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Air temperature [K].
+    rh : array_like or drjit array
+        Relative humidity of the air [-] (0..1).
+    U : array_like or drjit array
+        Wind speed [m s-1].
+    beta : array_like or drjit array
+        Evaporation efficiency [-] (eq 3.10).
+    C_H : array_like or drjit array
+        Bulk transfer coefficient [-] (eq 3.5).
+    dT : array_like or drjit array
+        Surface minus air temperature Ts - T [K] (eq 3.11).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Latent heat flux iotaE [W m-2] (negative = dew).
     """
     rh, U, beta, C_H, dT, q, D = _prep(rh, U, beta, C_H, dT, q_sat(T), dq_sat_dT(T))
     return _finish(LATENT_HEAT * RHO_AIR * beta * C_H * U * (q * (1.0 - rh) + D * dT))
 
 
 def evaporation_rate(lE):
-    """Evaporation rate ``E = iotaE / iota`` [kg m-2 s-1 = mm s-1] for eq 3.6; iotaE [W m-2]."""
+    """Evaporation rate ``E = iotaE / iota`` for eq 3.6 [kg m-2 s-1 = mm s-1].
+
+    Parameters
+    ----------
+    lE : array_like or drjit array
+        Latent heat flux iotaE [W m-2] (eq 3.14).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Evaporation rate E [kg m-2 s-1 = mm s-1] (negative = dew).
+    """
     (lE,) = _prep(lE)
     return _finish(lE / LATENT_HEAT)
 
 
 def surface_humidity(T, rh, beta, dT):
-    """Surface relative humidity, eq (3.16): ``rhs = beta + rh q_SAT (1 - beta)/(q_SAT + Delta dT)``.
+    """Surface relative humidity, eq (3.16).
 
-    T [K], rh [-], beta [-], dT [K]. Returns rhs [-]; ``q_SAT + Delta dT`` is the linearised
-    q_SAT(Ts). As printed, the value can exceed 1 (surface colder than the air's dew point) and
-    the linearisation breaks down for very cold surfaces (dT -> -q_SAT/Delta, about -15 K at
-    288 K, makes the denominator 0).
+    ``rhs = beta + rh q_SAT (1 - beta)/(q_SAT + Delta dT)``.
+    ``q_SAT + Delta dT`` is the linearised q_SAT(Ts). As printed, the value can exceed 1 (surface
+    colder than the air's dew point) and the linearisation breaks down for very cold surfaces
+    (dT -> -q_SAT/Delta, about -15 K at 288 K, makes the denominator 0).
+
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Air temperature [K].
+    rh : array_like or drjit array
+        Relative humidity of the air [-] (0..1).
+    beta : array_like or drjit array
+        Evaporation efficiency [-] (eq 3.10).
+    dT : array_like or drjit array
+        Surface minus air temperature Ts - T [K] (eq 3.11).
+
+    Returns
+    -------
+    numpy.ndarray, numpy scalar or drjit array
+        Surface relative humidity rhs [-].
     """
     rh, beta, dT, q, D = _prep(rh, beta, dT, q_sat(T), dq_sat_dT(T))
     return _finish(beta + rh * q * (1.0 - beta) / (q + D * dT))
 
 
 def linearisation_error(T, Ts):
-    """Relative error of the linearised saturation humidity of eqs 3.11-3.16,
-    ``(q_SAT(T) + Delta (Ts - T)) / q_SAT(Ts) - 1`` [-] (T, Ts [K]).
+    """Relative error of the linearised saturation humidity of eqs 3.11-3.16.
 
-    Within 10 % for Ts - T in [-5.8, +8.3] K at 278 K, [-6.3, +9.0] K at 288 K and
-    [-6.7, +9.7] K at 298 K; the linearised value reaches 0 at Ts - T = -q_SAT/Delta
-    (-14.3 / -15.4 / -16.6 K) and is negative below, where eq 3.16 gives rhs -> +inf and
-    then negative values (docs/deviations.md, "000 eq 3.16")."""
+    ``(q_SAT(T) + Delta (Ts - T)) / q_SAT(Ts) - 1`` [-]. Within 10 % for Ts - T in
+    [-5.8, +8.3] K at 278 K, [-6.3, +9.0] K at 288 K and [-6.7, +9.7] K at 298 K; the linearised
+    value reaches 0 at Ts - T = -q_SAT/Delta (-14.3 / -15.4 / -16.6 K) and is negative below,
+    where eq 3.16 gives rhs -> +inf and then negative values (docs/deviations.md, "000 eq 3.16").
+
+    Parameters
+    ----------
+    T : array_like or drjit array
+        Air temperature [K].
+    Ts : array_like or drjit array
+        Surface temperature [K].
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        Relative error of the linearised q_SAT(Ts) [-] (a float for scalar input, as every
+        function of this module).
+    """
     T, Ts = _prep(T, Ts)
     lin = q_sat(T) + dq_sat_dT(T) * (Ts - T)
-    return lin / q_sat(Ts) - 1.0
+    return _finish(lin / q_sat(Ts) - 1.0)
 
 
 class SurfaceState(NamedTuple):
@@ -511,14 +818,35 @@ class SurfaceState(NamedTuple):
 def surface_state(S, T, rh, U, A, theta, geology, C_H) -> SurfaceState:
     """Soil surface state of one day, §3.5 in the order of §3.7 (eqs 3.2-3.16).
 
-    S insolation [W m-2], T air temperature [K], rh relative humidity [-], U wind speed [m s-1],
-    A = N/N0 sunshine ratio [-], theta volumetric water content [m3 m-3] (from the bucket model),
-    geology codes (0 humus, 1 sand, 2 asphalt), C_H bulk transfer coefficient [-] (eq 3.5).
     All arguments broadcast; NumPy in -> NumPy out, Dr.Jit in -> Dr.Jit out.
-
     Order: R (3.2-3.4) -> C_H (given) -> beta(theta) (3.9-3.10) -> deltaT, Ts (3.11)
-    -> iotaE (3.14) -> rhs (3.16). Returns :class:`SurfaceState` ``(Ts, rhs, lE, beta)``;
-    the evaporation rate for :func:`bucket_step` is ``evaporation_rate(lE)``.
+    -> iotaE (3.14) -> rhs (3.16). The evaporation rate for :func:`bucket_step` is
+    ``evaporation_rate(lE)``.
+
+    Parameters
+    ----------
+    S : array_like or drjit array
+        Daily-mean insolation [W m-2].
+    T : array_like or drjit array
+        Air temperature [K].
+    rh : array_like or drjit array
+        Relative humidity of the air [-] (0..1).
+    U : array_like or drjit array
+        Wind speed [m s-1].
+    A : array_like or drjit array
+        Sunshine ratio A = N/N0 [-].
+    theta : array_like or drjit array
+        Volumetric water content [m3 m-3] (from the bucket model).
+    geology : array_like of int or drjit array
+        Geology codes (0 humus, 1 sand, 2 asphalt).
+    C_H : array_like or drjit array
+        Bulk transfer coefficient [-] (eq 3.5).
+
+    Returns
+    -------
+    SurfaceState
+        ``(Ts, rhs, lE, beta)``: surface temperature [K], surface relative humidity [-],
+        latent heat flux iotaE [W m-2], evaporation efficiency [-].
     """
     S, T, rh, U, A, theta, C_H = _prep(S, T, rh, U, A, theta, C_H)
     R = net_radiation(S, sky_longwave(T, cloud_factor(A)))

@@ -86,11 +86,25 @@ def _reference_text() -> str:
 def classify_geology(rgb, tolerance: float = GEOLOGY_TOLERANCE) -> np.ndarray:
     """Geology code per colour: the nearest reference colour of :data:`GEOLOGY_COLOURS`.
 
-    ``rgb``: array (..., 3) (or RGBA, alpha ignored) of 8-bit values 0-255, or floats in [0, 1].
-    Returns int8 codes of shape ``rgb.shape[:-1]`` (0 humus, 1 sand, 2 asphalt; see
-    :data:`GEOLOGY`). A colour farther than ``tolerance`` [8-bit units, Euclidean in RGB] from
-    every reference raises :class:`~mitsuba_veg.errors.ParameterError` naming the colour and
-    its index.
+    Parameters
+    ----------
+    rgb : array_like
+        Colours (..., 3) (or RGBA (..., 4), alpha ignored): 8-bit integers 0-255, or floats in
+        [0, 1].
+    tolerance : float, optional
+        Largest accepted Euclidean RGB distance to the nearest reference [8-bit units]; default
+        :data:`GEOLOGY_TOLERANCE` = 80.
+
+    Returns
+    -------
+    numpy.ndarray of int8
+        Codes of shape ``rgb.shape[:-1]`` (0 humus, 1 sand, 2 asphalt; see :data:`GEOLOGY`).
+
+    Raises
+    ------
+    ParameterError
+        If ``rgb`` has the wrong shape or float values outside [0, 1], or a colour is farther than
+        ``tolerance`` from every reference (the message names the colour and its index).
     """
     a = _as_rgb255(rgb)
     codes, dist = _nearest_geology(a)
@@ -109,7 +123,23 @@ def classify_geology(rgb, tolerance: float = GEOLOGY_TOLERANCE) -> np.ndarray:
 def load_texture_rgb(texture) -> np.ndarray:
     """A texture as a uint8 array (H, W, 3): from a file path (PNG, JPEG ...) or an array.
 
-    Arrays may be (H, W), (H, W, 3) or (H, W, 4) (alpha dropped), uint8 0-255 or floats 0-1.
+    Parameters
+    ----------
+    texture : str, os.PathLike or array_like
+        Image file path, or an array (H, W), (H, W, 3) or (H, W, 4) (alpha dropped), uint8
+        0-255 or floats 0-1.
+
+    Returns
+    -------
+    numpy.ndarray of uint8
+        The image (H, W, 3), 8-bit sRGB-encoded values as stored.
+
+    Raises
+    ------
+    SceneError
+        If the file does not exist.
+    ParameterError
+        If the array has the wrong shape or float values outside [0, 1].
     """
     if isinstance(texture, (str, PathLike)):
         path = Path(texture)
@@ -130,10 +160,26 @@ def load_texture_rgb(texture) -> np.ndarray:
 
 
 def texel_index(uv: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """(row, column) of the texel that Mitsuba's nearest lookup uses for each ``uv`` (n, 2).
+    """(row, column) of the texel that Mitsuba's nearest lookup uses for each ``uv``.
 
     Mitsuba convention: ``v = 0`` is image row 0 (the top row of the file), ``u = 0`` column 0;
     ``repeat`` wrapping. Texel ``c`` covers ``u`` in [c/W, (c+1)/W).
+
+    Parameters
+    ----------
+    uv : numpy.ndarray
+        Texture coordinates (n, 2) [-].
+    height : int
+        Image height H [pixels].
+    width : int
+        Image width W [pixels].
+
+    Returns
+    -------
+    row : numpy.ndarray of int64
+        Image row per ``uv`` (n,), in [0, H).
+    col : numpy.ndarray of int64
+        Image column per ``uv`` (n,), in [0, W).
     """
     uv = np.asarray(uv, dtype=np.float64)
     col = np.mod(np.floor(uv[:, 0] * width), width).astype(np.int64)
@@ -217,12 +263,44 @@ class Terrain:
     # -- construction ----------------------------------------------------------------------
     @classmethod
     def from_arrays(cls, vertices, faces, uv=None, name: str = "") -> "Terrain":
-        """From vertex positions [m] (V, 3), faces (F, 3) and optional per-vertex UVs (V, 2)."""
+        """A terrain from vertex positions, faces and optional per-vertex UVs.
+
+        Parameters
+        ----------
+        vertices : array_like
+            Vertex positions (V, 3) [m], world frame (+y up).
+        faces : array_like of int
+            Vertex indices (F, 3), counter-clockwise seen from the front side.
+        uv : array_like, optional
+            Per-vertex texture coordinates (V, 2) [-]; default None (no UVs).
+        name : str, optional
+            Shape id for messages and regions; default ``""``.
+
+        Returns
+        -------
+        Terrain
+            The terrain with its per-triangle properties.
+        """
         return cls(vertices, faces, uv, name)
 
     @classmethod
     def from_trimesh(cls, mesh, name: str | None = None) -> "Terrain":
-        """From a ``trimesh.Trimesh`` (per-vertex UVs taken from ``mesh.visual.uv`` if any)."""
+        """A terrain from a ``trimesh.Trimesh``.
+
+        Per-vertex UVs are taken from ``mesh.visual.uv`` if any.
+
+        Parameters
+        ----------
+        mesh : trimesh.Trimesh
+            The mesh; vertices in [m], world frame (+y up).
+        name : str, optional
+            Shape id; default None takes ``mesh.metadata["name"]`` (or ``""``).
+
+        Returns
+        -------
+        Terrain
+            The terrain with its per-triangle properties.
+        """
         uv = getattr(getattr(mesh, "visual", None), "uv", None)
         if name is None:
             name = str(mesh.metadata.get("name", "")) if hasattr(mesh, "metadata") else ""
@@ -231,11 +309,26 @@ class Terrain:
 
     @classmethod
     def from_mitsuba(cls, shape) -> "Terrain":
-        """From a loaded Mitsuba mesh (``mi.Mesh``, e.g. an element of ``scene.shapes()``).
+        """A terrain from a loaded Mitsuba mesh (``mi.Mesh``, e.g. of ``scene.shapes()``).
 
         Positions are in world space (Mitsuba applies ``to_world`` at load time); texture
         coordinates are read if the mesh has them. Load scenes with ``optimize=False`` or
         meshes with equal BSDFs are merged and lose their ids (see ``MITSUBA_NOTES.md``).
+
+        Parameters
+        ----------
+        shape : mi.Mesh
+            The triangle mesh; its id becomes the terrain's name.
+
+        Returns
+        -------
+        Terrain
+            The terrain (vertices [m] in world space).
+
+        Raises
+        ------
+        SceneError
+            If ``shape`` is not a triangle mesh.
         """
         if not (isinstance(shape, mi.Mesh) or (hasattr(shape, "is_mesh") and shape.is_mesh())):
             raise SceneError(f"shape '{shape.id()}' is a {type(shape).__name__}, not a triangle "
@@ -249,7 +342,25 @@ class Terrain:
 
     @classmethod
     def from_scene(cls, scene, shape_id: str) -> "Terrain":
-        """The mesh with id ``shape_id`` of a loaded ``mi.Scene`` (load with optimize=False)."""
+        """The mesh with id ``shape_id`` of a loaded ``mi.Scene`` (load with optimize=False).
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The loaded scene.
+        shape_id : str
+            Id of the terrain shape in the scene file.
+
+        Returns
+        -------
+        Terrain
+            The terrain of that shape.
+
+        Raises
+        ------
+        SceneError
+            If the scene has no shape with that id (or it is not a mesh).
+        """
         shapes = {s.id(): s for s in scene.shapes()}
         if shape_id not in shapes:
             raise SceneError(
@@ -271,8 +382,27 @@ class Terrain:
         return float(self.areas.sum())
 
     def in_box(self, box_min: Sequence[float], box_max: Sequence[float]) -> np.ndarray:
-        """Boolean mask (F,): triangles whose centroid lies in the axis-aligned box [m]
-        ``box_min <= centroid <= box_max`` (inclusive, per axis x, y, z)."""
+        """Triangles whose centroid lies in an axis-aligned box.
+
+        The test is ``box_min <= centroid <= box_max`` (inclusive, per axis x, y, z).
+
+        Parameters
+        ----------
+        box_min : sequence of float
+            Lower corner ``[x, y, z]`` [m].
+        box_max : sequence of float
+            Upper corner ``[x, y, z]`` [m].
+
+        Returns
+        -------
+        numpy.ndarray of bool
+            Mask (F,), True for triangles in the box.
+
+        Raises
+        ------
+        ParameterError
+            If a corner is not three numbers or ``box_min > box_max`` on an axis.
+        """
         lo = np.asarray(box_min, dtype=np.float64)
         hi = np.asarray(box_max, dtype=np.float64)
         if lo.shape != (3,) or hi.shape != (3,) or np.any(lo > hi):
@@ -284,12 +414,30 @@ class Terrain:
     def geology_from_texture(self, texture, tolerance: float = GEOLOGY_TOLERANCE) -> np.ndarray:
         """Geology code per triangle (int8, F): 0 humus, 1 sand, 2 asphalt (:data:`GEOLOGY`).
 
-        ``texture``: path of the terrain's colour texture or an image array (see
-        :func:`load_texture_rgb`). Each triangle takes the class of the texel under its
-        centroid's UV (nearest texel, Mitsuba's convention, see :func:`texel_index`), so the
-        classes follow exactly what Mitsuba shows when it textures the mesh. A texel matching no
-        reference colour within ``tolerance`` raises :class:`ParameterError` naming the pixel,
-        its colour and the triangle.
+        Each triangle takes the class of the texel under its centroid's UV (nearest texel,
+        Mitsuba's convention, see :func:`texel_index`), so the classes follow exactly what
+        Mitsuba shows when it textures the mesh.
+
+        Parameters
+        ----------
+        texture : str, os.PathLike or array_like
+            Path of the terrain's colour texture or an image array (see :func:`load_texture_rgb`).
+        tolerance : float, optional
+            Largest accepted Euclidean RGB distance to a reference colour [8-bit units]; default
+            :data:`GEOLOGY_TOLERANCE` = 80.
+
+        Returns
+        -------
+        numpy.ndarray of int8
+            Geology code per triangle (F,).
+
+        Raises
+        ------
+        SceneError
+            If the terrain has no texture coordinates.
+        ParameterError
+            If a texel matches no reference colour within ``tolerance`` (the message names the
+            pixel, its colour and the triangle).
         """
         if self.uv is None:
             raise SceneError(
@@ -320,7 +468,7 @@ class Terrain:
         """Soil depth h [mm] per triangle (float64, F), paper 000 eq 3.8.
 
         h is the thickness of soil under the triangle, measured straight down (along -y) from
-        the centroid to the soil base, a horizontal level ``y = base_y`` [m]:
+        the centroid to the soil base, a horizontal level ``y = base_y`` [m]::
 
             h = clamp(1000 * (y_centroid - base_y), min_mm, max_mm)   if n_y >= cos(max_slope)
             h = min_mm                                                otherwise
@@ -334,8 +482,32 @@ class Terrain:
           paper's value for walls).
         - Capped at ``max_mm`` (1000 mm, paper); at least ``min_mm`` (also where the centroid
           is at or below the base).
-        - ``override_mm``: one explicit depth for every triangle (e.g. 1 mm for a roof or wall
-          that has no soil at all).
+
+        Parameters
+        ----------
+        base_y : float, optional
+            Height of the soil base [m]; default None: the lowest vertex of this mesh.
+        override_mm : float, optional
+            One explicit depth for every triangle [mm], > 0 (e.g. 1 mm for a roof or wall that has
+            no soil at all); default None (computed depths).
+        max_slope_deg : float, optional
+            Steepest face that holds soil [degrees] (angle between normal and +y), in [0, 90];
+            default :data:`SOIL_MAX_SLOPE_DEG` = 60.
+        min_mm : float, optional
+            Smallest depth, used where there is no soil [mm]; default :data:`SOIL_DEPTH_MIN_MM` = 1.
+        max_mm : float, optional
+            Largest depth [mm]; default :data:`SOIL_DEPTH_MAX_MM` = 1000.
+
+        Returns
+        -------
+        numpy.ndarray
+            Soil depth per triangle (F,) [mm].
+
+        Raises
+        ------
+        ParameterError
+            If ``override_mm`` is not a finite number > 0, ``max_slope_deg`` is outside [0, 90] or
+            not ``0 < min_mm <= max_mm``.
         """
         if override_mm is not None:
             h = float(override_mm)
@@ -363,6 +535,23 @@ def terrains_from_scene(scene, ids: Sequence[str] | None = None) -> dict[str, Te
     """``{shape id: Terrain}`` for the meshes of a loaded ``mi.Scene`` (all, or ``ids``).
 
     Load the scene with ``optimize=False`` so that shapes keep their ids.
+
+    Parameters
+    ----------
+    scene : mi.Scene
+        The loaded scene.
+    ids : sequence of str, optional
+        Shape ids to take; default None: every mesh of the scene.
+
+    Returns
+    -------
+    dict of str to Terrain
+        One terrain per shape id.
+
+    Raises
+    ------
+    SceneError
+        If a requested id is not a mesh of the scene.
     """
     if ids is None:
         return {s.id(): Terrain.from_mitsuba(s) for s in scene.shapes()
@@ -379,6 +568,27 @@ def soil_depths_mm(terrains: Mapping[str, Terrain], soil_shapes: Sequence[str] =
     - Shapes in ``soil_shapes`` (the ground) follow :meth:`Terrain.soil_depth_mm` with a common
       ``base_y`` [m]: given, or the lowest vertex of all soil shapes.
     - Every other shape (roof, walls, rocks ...) has no soil below: 1 mm.
+
+    Parameters
+    ----------
+    terrains : mapping of str to Terrain
+        The scene's shapes, by id.
+    soil_shapes : sequence of str, optional
+        Ids of the shapes that hold soil; default ``("ground",)``.
+    base_y : float, optional
+        Common soil base height [m]; default None: the lowest vertex of the soil shapes.
+    overrides : mapping of str to float, optional
+        Constant depth per shape id [mm]; default None.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Soil depth per triangle [mm], one array (F,) per shape id of ``terrains``.
+
+    Raises
+    ------
+    SceneError
+        If an id of ``soil_shapes`` or ``overrides`` is not in ``terrains``.
     """
     overrides = dict(overrides or {})
     unknown = [k for k in list(overrides) + list(soil_shapes) if k not in terrains]

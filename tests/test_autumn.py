@@ -7,6 +7,7 @@ import mitsuba_veg.foliage as fo
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.foliage.attenuation import (FORWARD_R, FORWARD_T, absorbed_fraction,
                                              red_far_red_attenuation)
+from mitsuba_veg.foliage.spectra import leaf_spectra
 from mitsuba_veg.foliage.autumn import AutumnParams, autumn_time
 from mitsuba_veg.foliage.canopy import sphere_crown_tree
 from mitsuba_veg.foliage.ifs import MAPLE_IFS, chaos_game, fixed_point, leaf_image, maple_leaf
@@ -189,6 +190,8 @@ def test_growth_params_take_alphas_from_leaf_spectra():
     g = growth_alphas(0.0)
     assert g["alpha"] == pytest.approx(0.3) and g["alpha_red"] < g["alpha_far_red"]
     growth = pytest.importorskip("mitsuba_veg.trees.growth")
+    with pytest.raises(ParameterError, match="spectra/tau"):
+        growth_alphas(0.5, spectra=leaf_spectra(tau=0.5))    # one of them, never both
     p = with_leaf_optics(growth.GrowthParams(), tau=1.0)
     assert p.alpha_red == pytest.approx(red_far_red_attenuation(tau=1.0)["alpha_r"])
     assert p.alpha_red > growth.GrowthParams().alpha_red

@@ -60,3 +60,26 @@ def test_csv_series_and_nan_cell(tmp_path):
     bad.write_text("T,rh,P\n288,0.7,0\n290,nan,1\n")
     with pytest.raises(ParameterError, match=r"bad\.csv row 3 column rh.*nan"):
         load_csv(bad, 35.0)
+    # no P column: refused (no silent 'no rain'), naming the fix
+    dry = tmp_path / "dry.csv"
+    dry.write_text("T,rh\n288,0.7\n")
+    with pytest.raises(ParameterError, match=r"dry\.csv columns.*a P column.*precipitation"):
+        load_csv(dry, 35.0)
+    # without a day_of_year column the days count from start_day (the run's start date)
+    w = load_csv(good, 35.0, start_day=172)
+    w1 = load_csv(good, 35.0)
+    assert w.day_of_year.tolist() == [172, 173] and w1.day_of_year.tolist() == [1, 2]
+    assert w.ghi[0] > 2 * w1.ghi[0]        # midsummer against 1 January at 35° N
+    with pytest.raises(ParameterError, match="start_day"):
+        load_csv(good, 35.0, start_day=0)
+
+
+def test_one_declination_for_every_daily_formula():
+    """FAO-56 eq 24 (FAO-56 example 8: 3 September, J = 246, delta = 0.120 rad) serves H0, the
+    sunset angle, the world's noon sun and the render's seasons."""
+    from mitsuba_veg.climate import solar_declination, sunset_hour_angle
+    from mitsuba_veg.render.seasons import daily_extraterrestrial_mj
+    assert float(solar_declination(246)) == pytest.approx(0.120, abs=5e-4)
+    assert float(sunset_hour_angle(-20.0, 246)) == pytest.approx(1.527, abs=1e-3)
+    assert float(daily_extraterrestrial_mj(-20.0, 246)) == pytest.approx(
+        float(extraterrestrial_irradiation(-20.0, 246)) / 1e6, rel=1e-12)

@@ -120,3 +120,8 @@ def test_sky_factor_from_the_photon_pass():
     assert res.sky_view.shape == (3,)
     with pytest.raises(ParameterError):
         leaf_insolation(lv, path, sky=True, sky_method="nope")
+    # the photon sky pass sees the tree only: obstacles and bark=False are refused, not ignored
+    box = (np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1]], float), np.array([[0, 1, 2]]))
+    for kw in ({"obstacles": [box]}, {"bark": False}):
+        with pytest.raises(ParameterError, match="sky_method"):
+            leaf_insolation(lv, path, sky=True, sky_method="photons", **kw)

@@ -115,3 +115,34 @@ def test_plugins_load_from_xml_after_import():
     sky = mi.load_dict({"type": "veg_sky", "distribution": "uniform",
                         "radiance": {"type": "uniform", "value": 1.0}})
     assert sky is not None
+
+
+def test_veg_sky_traverse_names_its_spectrum():
+    """A value set through mi.traverse means what its name says: radiance or irradiance."""
+    import mitsuba as mi
+    for key in ("radiance", "irradiance"):
+        sky = mi.load_dict({"type": "veg_sky", key: {"type": "uniform", "value": 1.0},
+                            "sun_direction": [0.0, 1.0, 0.0]})
+        names = list(mi.traverse(sky).keys())
+        assert any(n.startswith(key + ".") for n in names), names
+        other = "irradiance" if key == "radiance" else "radiance"
+        assert not any(n.startswith(other + ".") for n in names), names
+
+
+def test_daylight_keeps_unnamed_shapes_and_sensors(tmp_path):
+    """Objects without an id all survive the daylight swap (none overwrites another)."""
+    (tmp_path / "scene.xml").write_text(
+        '<scene version="3.0.0">'
+        '<shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/>'
+        '</transform></shape>'
+        '<shape type="rectangle"><transform name="to_world"><translate y="1"/></transform>'
+        '</shape>'
+        + ''.join('<sensor type="perspective"><transform name="to_world"><lookat origin="0,%d,0" '
+                  'target="0,0,0" up="0,0,1"/></transform></sensor>' % h for h in (5, 6))
+        + '</scene>')
+    (tmp_path / "scenario.toml").write_text(
+        '[scene]\nfile = "scene.xml"\n[site]\nlatitude = 35.0\nlongitude = 139.0\n'
+        '[light]\nwhen = "2026-06-21T12:00:00+09:00"\n')
+    sc = mv.scenario.load_scenario(tmp_path / "scenario.toml").load_scene()
+    assert len(sc.shapes()) == 2 and len(sc.sensors()) == 2
+    assert {e.id() for e in sc.emitters()} == {"sun", "sky"}

@@ -200,6 +200,18 @@ def test_occupancy_conflicts_and_priorities():
     assert np.asarray(evicted).tolist() == [1]
 
 
+@pytest.mark.parametrize("priority", [[150.0, 300.0], [0.01, 0.02], [-500.0, -200.0]])
+def test_newcomers_of_one_cell_ranked_by_exact_priority(priority):
+    """Two newcomers in one empty cell: the species of higher priority stays, however large,
+    small or close the priorities are (the second species lands later in the day's order)."""
+    grid = SpotGrid((-1, -1, -1), (1, 1, 1), 0.01, capacity=8)
+    pop = pop_with(n_slots=8, species=(BRYUM, POLY), priority=priority)
+    grid.rebuild(pop.pos, pop.state)
+    pts = mi.Point3f(mi.Float([0.5, 0.5005]), mi.Float([0.0, 0.0]), mi.Float([0.0, 0.0]))
+    keep, _ = settle(pop, grid, pts, mi.UInt32([0, 1]), dr.arange(mi.UInt32, 2), mi.Bool(True))
+    assert np.asarray(keep).tolist() == [False, True]
+
+
 def test_clump_interior_by_neighbour_count():
     grid = SpotGrid((-1, -1, -1), (1, 1, 1), 0.01, capacity=25)
     xs, zs = np.meshgrid(np.arange(-2, 3) * 0.01 + 0.005, np.arange(-2, 3) * 0.01 + 0.005)

@@ -135,7 +135,12 @@ def test_full_population_traces_only_what_can_settle(tmp_path, monkeypatch):
     moss = mi.UInt32(np.flatnonzero(pa["state"] == 2).astype(np.uint32))
     kept = np.asarray(a.grid.moss_neighbours(moss))
     fresh = np.asarray(a.grid.neighbour_count(dr.gather(mi.Point3f, a.pop.pos, moss)))
-    assert kept.tolist() == fresh.tolist() and kept.max() >= 4
+    assert kept.tolist() == fresh.tolist()
+    # ... also at moss in clumps (counts kept through several updates). Which moss clump
+    # depends on the light's Monte Carlo sample: with the SPCTRAL2-weighted sun path 51 of 472
+    # moss have >= 2 moss neighbours, the most 3; with the former Meinel weights 25 of 456, the
+    # most 4 (measured, this 20-day run)
+    assert kept.max() >= 3 and np.count_nonzero(kept >= 2) >= 20
 
 
 def test_docs_list_every_scenario_field():

@@ -207,7 +207,8 @@ def test_tone_map_keeps_highlights_below_white():
 
 # ---- snapshots and runs ------------------------------------------------------------------------
 def test_snapshot_round_trip_and_approximate_frames(tmp_path):
-    from mitsuba_veg.render.history import load_run, write_snapshot
+    from mitsuba_veg.outputs import write_snapshot
+    from mitsuba_veg.render.history import load_run
     rng = np.random.default_rng(1)
     n = 50
     pop = {"state": np.r_[np.full(40, 2), np.full(10, 1)].astype(np.uint32),

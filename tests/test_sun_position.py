@@ -252,3 +252,37 @@ def test_bad_shapes_and_directions():
         sp.direction_to_angles([0.0, 0.0, 0.0])
     with pytest.raises(ParameterError):
         sp.direction_to_angles([1.0, 0.0])
+
+
+# ------------------------------------------------------------------------------------------
+# The daily sun path of the moss and world loops (light/sunpath.py)
+# ------------------------------------------------------------------------------------------
+def test_day_sun_path_is_the_clear_sky_sun_path_normalised():
+    """day_sun_path: the directions of sun_path over the UTC day, weighted by the SPCTRAL2
+    broadband DNI of the same path (one clear-sky model) and normalised to a unit horizontal
+    daily-mean beam."""
+    from mitsuba_veg.light.sunpath import clear_sky_broadband, day_sun_path, sun_path
+    day = dt.date(2026, 9, 14)
+    dirs, w, el = day_sun_path(35.0, 139.0, day, step_minutes=10.0)
+    p = sun_path(35.0, 139.0, start=day, days=1, step_hours=10 / 60, utc_offset_hours=0.0)
+    np.testing.assert_allclose(dirs, p.direction)
+    np.testing.assert_allclose(el, p.elevation)
+    assert np.sum(w * np.sin(np.radians(el))) == pytest.approx(1.0, rel=1e-12)
+    dni, _ = clear_sky_broadband(el, day.timetuple().tm_yday)
+    up = dni > 0
+    np.testing.assert_allclose(w[up] / dni[up], w[up][0] / dni[up][0], rtol=1e-12)
+    assert np.all(w[~up] == 0) and np.all(el[~up] <= 0.5)
+    # the weight per W m-2 of DNI is Δt / 86400 over the horizontal daily-mean beam [W m-2]
+    beam = np.sum(dni * 600.0 / 86400.0 * np.sin(np.radians(el)))
+    assert w[up][0] / dni[up][0] == pytest.approx(600.0 / 86400.0 / beam, rel=1e-12)
+    # low sun keeps SPCTRAL2's share: at 10° elevation 0.54 of the DNI at 45° (day 257)
+    d10, d45 = clear_sky_broadband([10.0, 45.0], 257)[0]
+    assert 0.5 < d10 / d45 < 0.6          # 0.540 (the former Meinel weights: 0.499)
+
+
+def test_day_sun_path_in_polar_night_is_empty():
+    from mitsuba_veg.light.sunpath import day_sun_path
+    dirs, w, el = day_sun_path(80.0, 0.0, dt.date(2026, 12, 21))
+    assert dirs.shape == (0, 3) and w.shape == (0,) and el.shape == (0,)
+    dirs, w, el = day_sun_path(80.0, 0.0, dt.date(2026, 6, 21), step_minutes=30.0)
+    assert len(w) == 48 and np.all(w > 0)     # midnight sun: every step of the day

@@ -106,6 +106,20 @@ def test_weber_penn_model(tmp_path, monkeypatch):
         run_grow(p, tmp_path / "wp2", progress=False)
 
 
+def test_weber_penn_table_overrides_and_conflicts(tmp_path):
+    """Keys of [weber_penn] besides preset/params override the preset; nothing is dropped."""
+    from mitsuba_veg.cli.grow import _weber_penn
+    plain = _weber_penn({"preset": "quaking_aspen"}, 0, "t")
+    short = _weber_penn({"weber_penn": {"preset": "quaking_aspen", "Scale": 5.0}}, 0, "t")
+    ys = lambda t: float(max(t.end[:, 1].max(), t.start[:, 1].max()))     # tree height [m]
+    assert ys(short) < 0.8 * ys(plain)              # quaking aspen's Scale is 13 m
+    with pytest.raises(ParameterError, match=r"weber_penn\.bogus"):
+        _weber_penn({"weber_penn": {"bogus": 1}}, 0, "t")
+    with pytest.raises(ParameterError, match="preset and weber_penn.preset"):
+        _weber_penn({"preset": "quaking_aspen", "weber_penn": {"preset": "quaking_aspen"}}, 0,
+                    "t")
+
+
 def test_add_parser():
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="cmd")

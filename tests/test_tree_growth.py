@@ -170,3 +170,11 @@ def test_mitsuba_scene_as_environment():
     env = Environment.coerce(scene)
     assert len(env) == 2
     assert t.metrics()["crown_centroid"][0] > 1.0
+
+
+def test_branching_reads_a_dict_like_grow_forest():
+    a = branching(GrowthParams(branch_angle=40.0), generations=3)
+    b = branching({"branch_angle": 40.0}, generations=3)
+    assert np.allclose(a.end, b.end)
+    with pytest.raises(ParameterError, match=r"params\.bogus"):
+        branching({"bogus": 1.0}, generations=2)

@@ -55,6 +55,11 @@ def test_one_sphere_above_shades_the_cells_inside_its_cone(engine):
                                                    rel=1e-6)
     # red:far-red drops behind leaves (alpha_r < alpha_fr)
     assert res.ratio()[0] < 1.0
+    # opaque spheres (every pass factor 0): the cone is dark, the rest of the sky unchanged
+    opaque = leaf_sphere_light([[0.0, 0.0, 0.0], [0.0, 3.0, 0.0]], 1.0, sky,
+                               {b: 0.0 for b in ALPHAS}, engine=engine)
+    for b in ALPHAS:
+        assert opaque.received[b][0] == pytest.approx(1 - (B0 * S)[cone].sum() / norm, rel=1e-6)
 
 
 @pytest.mark.parametrize("engine", ENGINES)

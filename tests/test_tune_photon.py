@@ -5,7 +5,6 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-import mitsuba_veg  # noqa: F401
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 from mitsuba_veg.light.validation import roof_wall_scene

@@ -302,7 +302,10 @@ def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
     and resumed gives the same records."""
     ph = "autumn_onset_doy = 250\ninsolation_full = 60.0\ntime_weight = 0.5\ndays_full = 3.0\n"
     scen = _world(tmp_path, ONE_TREE + SENSORS, ph, start="2026-09-07")
-    a = mv.run(scen, out=tmp_path / "a", days=8, overrides=SMALL, progress=False, frames=False)
+    # 1.5M photons: with SMALL's 300,000 the PAR ratios below scatter by +-0.04 between light
+    # seeds (measured, seeds 0-3: frac1 0.869-0.945), more than the effect tested
+    ov = SMALL + ["light.photons=1500000"]
+    a = mv.run(scen, out=tmp_path / "a", days=8, overrides=ov, progress=False, frames=False)
     first, last = a["days_record"][0], a["days_record"][-1]
     o0, o1 = first["trees"]["oak"], last["trees"]["oak"]
     assert o0["leaves_on_tree"] > 0.95 * o0["leaves"]
@@ -312,14 +315,17 @@ def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
     frac0, frac1 = u0["par_W_m2"] / open0["par_W_m2"], u1["par_W_m2"] / open1["par_W_m2"]
     print("PAR under/open", frac0, frac1, "R:FR under", u0["red_far_red"], u1["red_far_red"],
           "open", open0["red_far_red"], open1["red_far_red"])
-    assert frac0 < frac1 and frac1 > 0.93
+    # bare crown (~8 % of the leaves left, branches and trunk): measured at 1.5M photons, light
+    # seeds 0-3, frac1 0.927-0.938 (frac0 0.868-0.897) with the SPCTRAL2-weighted sun path,
+    # 0.924-0.944 with the former Meinel weights: 0.93 was the mean, not a bound
+    assert frac0 < frac1 and frac1 > 0.9
     assert abs(u1["red_far_red"] - open1["red_far_red"]) < \
         abs(u0["red_far_red"] - open0["red_far_red"])
     stages = [r["trees"]["oak"]["mean_stage"] for r in a["days_record"]
               if r["trees"]["oak"]["mean_stage"] is not None]
     assert stages[-1] > stages[0]
-    b = mv.run(scen, out=tmp_path / "b", days=5, overrides=SMALL, progress=False, frames=False)
-    b = mv.run(scen, out=tmp_path / "b", days=8, overrides=SMALL, progress=False, frames=False)
+    b = mv.run(scen, out=tmp_path / "b", days=5, overrides=ov, progress=False, frames=False)
+    b = mv.run(scen, out=tmp_path / "b", days=8, overrides=ov, progress=False, frames=False)
     strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa
     assert b["resumed"] and strip(b["days_record"]) == strip(a["days_record"])
     # the sensors' days come back from the checkpoint: the same table as the unbroken run

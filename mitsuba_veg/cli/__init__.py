@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
-from .command import build_parser, main, run_irradiance, run_parsed, standalone
+from .command import build_parser, main, run_irradiance
+from .entry import run_parsed, standalone
 
 __all__ = ["main", "build_parser", "run_parsed", "standalone", "run_irradiance"]

@@ -33,6 +33,15 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message):  # noqa: D401 - argparse API
+        """Print ``PROG: error: MESSAGE (see `PROG --help`)`` on one line to stderr and exit with 2.
+
+        Overrides :meth:`argparse.ArgumentParser.error` (never returns).
+
+        Parameters
+        ----------
+        message : str
+            The argparse error message (whitespace runs collapsed to one space).
+        """
         msg = " ".join(str(message).split())
         sys.stderr.write(f"{self.prog}: error: {msg} (see `{self.prog} --help`)\n")
         sys.exit(2)
@@ -110,15 +119,36 @@ def iso_datetime(text: str) -> str:
 
 
 def add_out(p, default: str | None, what: str) -> None:
-    """Add ``--out DIR``: the output folder of ``what`` (``default``: its default path)."""
+    """Add ``--out DIR``: the output folder of ``what``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The (sub-command) parser.
+    default : str or None
+        Default output path (None: the command picks one).
+    what : str
+        What the folder receives, for the help text.
+    """
     p.add_argument("--out", default=default, metavar="DIR",
                    help=f"output folder for {what} (created; refused if another process is "
                         "writing it or it holds another kind of result)")
 
 
 def add_set(p, what: str = "scenario", example: str = "light.photons=2000000") -> None:
-    """Add ``--set KEY=VALUE`` (repeatable): override a field of the ``what`` file by its dotted
-    name; ``example`` is shown in the help.
+    """Add ``--set KEY=VALUE`` (repeatable): override a field of the ``what`` file.
+
+    Fields are named by their dotted names, values use TOML syntax; unknown fields are refused
+    by the command.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The (sub-command) parser.
+    what : str, optional
+        The file whose fields are overridden (default ``"scenario"``), for the help text.
+    example : str, optional
+        An example override shown in the help (default ``"light.photons=2000000"``).
     """
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help=f"override a {what} field by its dotted name (TOML value syntax), "
@@ -126,13 +156,29 @@ def add_set(p, what: str = "scenario", example: str = "light.photons=2000000") -
 
 
 def add_quiet(p, what: str = "no progress bar") -> None:
-    """Add ``--quiet`` (``what`` it leaves out, for the help)."""
+    """Add ``--quiet`` (``what`` it leaves out, for the help).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The (sub-command) parser.
+    what : str, optional
+        Help text of the flag (default ``"no progress bar"``).
+    """
     p.add_argument("--quiet", action="store_true", help=what)
 
 
 def add_photons(p, default: int | None, what: str = "per light pass") -> None:
-    """Add ``--photons N``: photons ``what`` (1 to ``scenario.MAX_PHOTONS``; ``default`` None: the
-    scenario's).
+    """Add ``--photons N``: photons ``what`` (1 to ``scenario.MAX_PHOTONS``).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The (sub-command) parser.
+    default : int or None
+        Default photon count [photons]; None: the scenario's.
+    what : str, optional
+        What the count is per, for the help (default ``"per light pass"``).
     """
     p.add_argument("--photons", type=ranged(int, 1, MAX_PHOTONS, "photons"), default=default,
                    metavar="N", help=f"photons {what} (1 .. 1e9)")

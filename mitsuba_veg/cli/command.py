@@ -29,7 +29,7 @@ from ..backend import __version__, versions
 from ..world.trees import scene_with_trees
 from . import grow, light_study, render, sweep, tune
 from .args import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
-from .entry import run_parsed, standalone  # noqa: F401  (re-exported)
+from .entry import run_parsed
 
 
 def _default_scenario(name: str = "courtyard") -> Path:

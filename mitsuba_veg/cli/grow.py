@@ -69,7 +69,30 @@ _FORMATS = ("ply", "obj", "glb", "stl")
 
 
 def load_tree_toml(path, overrides=()) -> dict:
-    """Read and check a TREE.toml; ``overrides`` are ``KEY=VALUE`` strings (dotted keys)."""
+    """Read and check a TREE.toml (module docstring), with ``--set`` overrides applied.
+
+    Checks the top-level and ``[output]`` keys, the positions (an [x, z] point needs an
+    ``[environment]`` ground, slope or meshes), the model, ``generations`` (0..20), ``seed``
+    (>= 0) and the mesh formats.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The TREE.toml file.
+    overrides : sequence of str, optional
+        ``KEY=VALUE`` strings (dotted keys, TOML values); default none.
+
+    Returns
+    -------
+    dict
+        The file's data with the overrides applied.
+
+    Raises
+    ------
+    ParameterError
+        For a missing file, invalid TOML, an unknown key or a value out of range (naming the
+        file).
+    """
     path = Path(path)
     src = str(path)
     if not path.exists():
@@ -126,7 +149,32 @@ def load_tree_toml(path, overrides=()) -> dict:
 
 
 def build_environment(cfg: dict, root: Path, source: str | None = None):
-    """An Environment from an [environment] table (None when it is empty)."""
+    """An Environment from an [environment] table (None when it is empty).
+
+    Keys: ``ground`` (``size`` [m], default 60; ``y`` [m]; ``cells``), ``slope`` (``angle``
+    [degrees], default 20; ``size`` [m]; ``cells``; ``downhill`` (x, z); ``y0`` [m]), ``boxes``
+    (``lo``, ``hi`` [m], ``name``, ``max_edge`` [m], ``light_factor`` [-]) and ``meshes``
+    (``file`` relative to the TOML, ``name``, ``light_factor`` [-], ``max_edge`` [m]).
+
+    Parameters
+    ----------
+    cfg : dict
+        The [environment] table.
+    root : pathlib.Path
+        Folder that mesh ``file`` paths are relative to (the TOML's folder).
+    source : str, optional
+        The TOML path, named in errors (default None).
+
+    Returns
+    -------
+    mitsuba_veg.trees.environment.Environment or None
+        The obstacles, or None for an empty table.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown key, a missing value or mesh file, or a value out of range.
+    """
     if not cfg:
         return None
     allowed = {"ground", "slope", "boxes", "meshes"}
@@ -171,14 +219,51 @@ def _weber_penn(data, seed, src):
         raise ParameterError("model", "weber_penn", "a model available in this installation",
                              f"mitsuba_veg.trees.weber_penn is not available ({e}); use "
                              "model = 'growth'", src) from None
-    wp = data.get("weber_penn", {})
-    what = data.get("preset", wp.get("preset", wp.get("params", "quaking_aspen")))
-    return weber_penn.generate(what, seed=seed)
+    wp = dict(data.get("weber_penn", {}))
+    given = [k for k in ("preset", "weber_penn.preset", "weber_penn.params")
+             if (data if k == "preset" else wp).get(k.split(".")[-1]) is not None]
+    if len(given) > 1:
+        raise ParameterError(" and ".join(given), "all given", "one of them",
+                             "name a preset or give the parameters, once", src)
+    what = data.get("preset") or wp.pop("preset", None) or wp.pop("params", None) \
+        or "quaking_aspen"
+    # every other key of [weber_penn] (flat parameter names or sections such as [weber_penn.knots])
+    # overrides the preset's value; generate() refuses unknown names
+    try:
+        return weber_penn.generate(what, seed=seed, overrides=wp or None)
+    except ParameterError as e:
+        raise ParameterError(f"weber_penn.{e.field}", e.value, e.allowed, e.fix, src) from None
 
 
 def run_grow(tree_toml_path, out_dir, overrides=(), progress: bool = True) -> dict:
-    """Grow what TREE.toml describes; write mesh, metrics JSON, picture and summary.json into
-    ``out_dir``. Returns the summary dict."""
+    """Grow what TREE.toml describes; write mesh, metrics JSON, picture and summary.json.
+
+    Files go into ``out_dir`` (module docstring); the trees are optionally deformed by the
+    ``[nongrowth]`` rules (paper 002).
+
+    Parameters
+    ----------
+    tree_toml_path : str or pathlib.Path
+        The TREE.toml file.
+    out_dir : str or pathlib.Path
+        Output folder (created; refused if another process is writing it).
+    overrides : sequence of str, optional
+        ``KEY=VALUE`` overrides of the file (default none).
+    progress : bool, optional
+        Show a progress bar over generations (default True).
+
+    Returns
+    -------
+    dict
+        The summary written to ``summary.json``: settings, ``history`` per generation,
+        ``timings_s`` [s], ``rays``, ``ray_casts``, stand ``metrics`` (heights [m], counts),
+        ``files`` and ``versions``.
+
+    Raises
+    ------
+    ParameterError
+        For an invalid TREE.toml or option (naming the file).
+    """
 
     t_start = time.perf_counter()
     path = Path(tree_toml_path)
@@ -280,7 +365,13 @@ def _stand_mesh(trees, leaves=True):
 
 
 def report(s: dict) -> None:
-    """Print what run_grow did (one screen)."""
+    """Print what run_grow did (one screen).
+
+    Parameters
+    ----------
+    s : dict
+        The summary returned by :func:`run_grow`.
+    """
     st = s["metrics"]
     what = s["model"] if s["model"] == "weber_penn" else f"{s['model']}, G = {s['generations']}"
     print(f"grew {st['trees']} tree(s) ({what}) in "
@@ -310,7 +401,18 @@ def _cmd_grow(a) -> int:
 
 
 def add_parser(subparsers):
-    """Add the ``grow`` command to an argparse sub-parser set (``mitsuba-veg grow``)."""
+    """Add the ``grow`` command to an argparse sub-parser set (``mitsuba-veg grow``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-command registry of the ``mitsuba-veg`` parser (``add_subparsers()``).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``grow`` parser.
+    """
     p = subparsers.add_parser("grow", help="grow trees from light (paper 001/002) or make a "
                               "Weber-Penn tree: mesh, metrics, picture")
     p.add_argument("tree", help="TREE.toml (see scenes/trees/)")

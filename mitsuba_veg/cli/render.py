@@ -26,7 +26,13 @@ __all__ = ["add_parsers", "run_render", "run_animate"]
 
 
 def add_parsers(subparsers) -> None:
-    """Add ``render`` and ``animate`` to the ``mitsuba-veg`` sub-command parsers."""
+    """Add ``render`` and ``animate`` to the ``mitsuba-veg`` sub-command parsers.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-command registry of the ``mitsuba-veg`` parser (``add_subparsers()``).
+    """
 
     def common(p, what, spp):
         p.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")

@@ -18,7 +18,13 @@ __all__ = ["add_parser"]
 
 
 def add_parser(subparsers) -> None:
-    """Add ``sweep`` to the ``mitsuba-veg`` sub-command parsers."""
+    """Add ``sweep`` to the ``mitsuba-veg`` sub-command parsers.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-command registry of the ``mitsuba-veg`` parser (``add_subparsers()``).
+    """
     s = subparsers.add_parser("sweep", help="many moss runs on Dask (axes x seeds) -> one table")
     s.add_argument("sweep_file", help="sweep TOML, e.g. scenes/moss_garden/sweep.toml")
     s.add_argument("--scheduler", metavar="ADDRESS",

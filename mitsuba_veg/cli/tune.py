@@ -165,7 +165,18 @@ def _cmd_tune(a) -> int:
 
 
 def add_parser(subparsers):
-    """Add the ``tune`` command to an argparse sub-parser set (``mitsuba-veg tune``)."""
+    """Add the ``tune`` command to an argparse sub-parser set (``mitsuba-veg tune``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-command registry of the ``mitsuba-veg`` parser (``add_subparsers()``).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``tune`` parser.
+    """
     p = subparsers.add_parser("tune", help="fit model parameters to a target coverage map "
                               "(differentiable relaxed moss model, Dr.Jit AD)")
     p.add_argument("scenario", help="scenario TOML, e.g. scenes/moss_garden/scenario.toml")
@@ -214,5 +225,16 @@ def add_parser(subparsers):
 
 
 def main(argv=None) -> int:
-    """Stand-alone entry (``python -m mitsuba_veg.tune SCENARIO.toml --target ...``)."""
+    """Stand-alone entry (``python -m mitsuba_veg.tune SCENARIO.toml --target ...``).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``tune`` (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     return standalone("tune", add_parser, argv)

@@ -92,13 +92,30 @@ class MossConfig:
 
 
     def date(self, day: int) -> _dt.date:
-        """The calendar date of simulated day ``day`` (0-based)."""
+        """The calendar date of simulated day ``day`` (0-based).
+
+        Parameters
+        ----------
+        day : int
+            Day number, counted from the start date (day 0) [d].
+
+        Returns
+        -------
+        datetime.date
+            ``start + day`` days.
+        """
         return self.start + _dt.timedelta(days=day)
 
     _date = date  # the name the world's loop (world/simulation.py) uses
 
     def grid_cell(self) -> float:
-        """The cell of the spot grid, one moss [m]."""
+        """The cell of the spot grid, one moss [m].
+
+        Returns
+        -------
+        float
+            Side of a grid cell = the moss size ``moss.size`` [m] (default 0.01 m).
+        """
         return float(self.moss_cfg["size"])
 
     def _species(self, m, src) -> list[Species]:
@@ -129,7 +146,8 @@ class MossConfig:
         table = ClimateTable(**{k: v for k, v in c.items() if k != "csv"}, source=src)
         lat = float(self.scn.get("site.latitude"))
         if c.get("csv"):
-            w = load_csv(self.scn.file("climate.csv"), lat, table)
+            w = load_csv(self.scn.file("climate.csv"), lat, table,
+                         start_day=min(self.start.timetuple().tm_yday, 365))
             if len(w) < self.days:
                 raise ParameterError("climate.csv", f"{len(w)} rows", f">= {self.days} rows "
                                      "(one per simulated day)", "add rows or run fewer days", src)

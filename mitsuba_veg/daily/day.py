@@ -491,7 +491,23 @@ class MossSimulation(Checkpoints, MossSite):
         return self.summary(resumed)
 
     def summary(self, resumed=False) -> dict:
-        """The run's summary (settings, final state, timings, every day's record)."""
+        """The run's summary (settings, final state, timings, every day's record).
+
+        Parameters
+        ----------
+        resumed : bool, optional
+            Whether the run was resumed from a checkpoint (recorded as ``resumed``); default False.
+
+        Returns
+        -------
+        dict
+            JSON-able: ``scenario``, ``days``, ``resumed``, ``settings`` (light, moss, climate,
+            simulation), ``species``, ``spot_grid`` (``cell_m`` [m], cells, blocks), ``final``
+            (``covered_area_m2`` [m2], ``moss_alive``, ``propagules``, ``alive_by_species``,
+            per-region covered and total area [m2] and live moss, ``propagules_crowded_out``),
+            ``timings_s`` (totals and ``per_day`` [s]), ``days_record`` (the daily records) and
+            ``versions``.
+        """
         counts = self.counts()
         cov = self.covered_area(counts)
         regions = {k: {"covered_area_m2": float(cov[m].sum()),

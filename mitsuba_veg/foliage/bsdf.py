@@ -95,6 +95,31 @@ class LeafBSDF(mi.BSDF):
 
     # ---- BSDF interface ---------------------------------------------------------------------
     def sample(self, ctx, si, sample1, sample2, active=True):
+        """Sample reflection or transmission and a cosine-weighted direction on that side.
+
+        Reflection is picked with probability p = <R>/(<R> + <T>) (means over the sample's
+        wavelengths); the weight is R/p or T/(1 − p) (module docstring).
+
+        Parameters
+        ----------
+        ctx : mi.BSDFContext
+            Mitsuba's BSDF context (enabled components: 0 reflection, 1 transmission).
+        si : mi.SurfaceInteraction3f
+            The surface interaction (``wi`` in the local frame, wavelengths).
+        sample1 : mi.Float
+            Uniform sample [-] in [0, 1) that picks the component.
+        sample2 : mi.Point2f
+            Uniform 2-D sample [-] for the cosine-weighted direction.
+        active : bool or mi.Bool
+            Active lanes (default True).
+
+        Returns
+        -------
+        bs : mi.BSDFSample3f
+            Sampled direction ``wo`` (local frame), pdf [sr-1], eta = 1, sampled type and component.
+        weight : mi.Spectrum
+            BSDF value × |cos θ_o| / pdf [-] (R/p or T/(1 − p)); 0 where invalid.
+        """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         R, T = self._rt(si, active)
         p, has_r, has_t = self._p_reflect(ctx, R, T)
@@ -115,6 +140,25 @@ class LeafBSDF(mi.BSDF):
         return bs, dr.select(ok, weight, 0.0)
 
     def eval(self, ctx, si, wo, active=True):
+        """BSDF value times the cosine foreshortening: R/π or T/π times |cos θ_o|.
+
+        Parameters
+        ----------
+        ctx : mi.BSDFContext
+            Mitsuba's BSDF context (enabled components: 0 reflection, 1 transmission).
+        si : mi.SurfaceInteraction3f
+            The surface interaction (``wi`` in the local frame, wavelengths).
+        wo : mi.Vector3f
+            Outgoing direction in the local frame.
+        active : bool or mi.Bool
+            Active lanes (default True).
+
+        Returns
+        -------
+        mi.Spectrum
+            f(wi, wo) |cos θ_o| [sr-1]: R/π on the side of ``wi``, T/π on the other; 0 for grazing
+            ``wi`` or a disabled component.
+        """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         cos_o = mi.Frame3f.cos_theta(wo)
         R, T = self._rt(si, active)
@@ -125,6 +169,24 @@ class LeafBSDF(mi.BSDF):
         return dr.select(active & (cos_i != 0), f * (dr.abs(cos_o) * dr.inv_pi), 0.0)
 
     def pdf(self, ctx, si, wo, active=True):
+        """Density of :meth:`sample` for the direction ``wo``.
+
+        Parameters
+        ----------
+        ctx : mi.BSDFContext
+            Mitsuba's BSDF context.
+        si : mi.SurfaceInteraction3f
+            The surface interaction (``wi`` in the local frame, wavelengths).
+        wo : mi.Vector3f
+            Outgoing direction in the local frame.
+        active : bool or mi.Bool
+            Active lanes (default True).
+
+        Returns
+        -------
+        mi.Float
+            p |cos θ_o| / π (same side as ``wi``) or (1 − p) |cos θ_o| / π (other side) [sr-1].
+        """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         cos_o = mi.Frame3f.cos_theta(wo)
         R, T = self._rt(si, active)
@@ -134,9 +196,36 @@ class LeafBSDF(mi.BSDF):
                          dr.select(same, p, 1.0 - p) * dr.abs(cos_o) * dr.inv_pi, 0.0)
 
     def eval_pdf(self, ctx, si, wo, active=True):
+        """:meth:`eval` and :meth:`pdf` in one call.
+
+        Parameters
+        ----------
+        ctx : mi.BSDFContext
+            Mitsuba's BSDF context.
+        si : mi.SurfaceInteraction3f
+            The surface interaction.
+        wo : mi.Vector3f
+            Outgoing direction in the local frame.
+        active : bool or mi.Bool
+            Active lanes (default True).
+
+        Returns
+        -------
+        value : mi.Spectrum
+            f(wi, wo) |cos θ_o| [sr-1].
+        pdf : mi.Float
+            Sampling density of ``wo`` [sr-1].
+        """
         return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
 
     def traverse(self, callback):
+        """Expose ``reflectance`` and ``transmittance`` as differentiable scene parameters.
+
+        Parameters
+        ----------
+        callback : mi.TraversalCallback
+            Mitsuba's traversal callback (``mi.traverse``).
+        """
         try:
             callback.put("reflectance", self.reflectance, mi.ParamFlags.Differentiable)
             callback.put("transmittance", self.transmittance, mi.ParamFlags.Differentiable)
@@ -144,9 +233,23 @@ class LeafBSDF(mi.BSDF):
             pass
 
     def parameters_changed(self, keys=None):
+        """Nothing to update: the textures are evaluated at every call.
+
+        Parameters
+        ----------
+        keys : list of str, optional
+            Names of the changed parameters (ignored).
+        """
         pass
 
     def to_string(self):
+        """Short description of the BSDF (Mitsuba's ``str()``).
+
+        Returns
+        -------
+        str
+            ``LeafBSDF[reflectance=..., transmittance=...]``.
+        """
         return f"LeafBSDF[reflectance={self.reflectance}, transmittance={self.transmittance}]"
 
 
@@ -163,8 +266,33 @@ def register() -> None:
 
 def leaf_bsdf_dict(spectra=None, reflectance=None, transmittance=None, index: int | None = None,
                    id: str | None = None) -> dict:
-    """A ``veg_leaf`` BSDF dict from a :class:`~mitsuba_veg.foliage.spectra.LeafSpectra`
-    (row ``index`` when it holds several leaves) or from explicit R/T values/spectra."""
+    """A ``veg_leaf`` BSDF dict from leaf spectra or from explicit R/T values or spectra.
+
+    Parameters
+    ----------
+    spectra : LeafSpectra, optional
+        :class:`~mitsuba_veg.foliage.spectra.LeafSpectra`: its reflectance and transmittance
+        become ``regular`` spectra (extended down to 360 nm); row ``index`` when it holds several
+        leaves.
+    reflectance, transmittance : float or dict, optional
+        Used without ``spectra``: a number [-] (a flat ``uniform`` spectrum) or a Mitsuba texture
+        / spectrum dict; left out: the plugin's defaults (0.1 and 0.05).
+    index : int, optional
+        Row of ``spectra`` (required when it holds several leaves).
+    id : str, optional
+        The BSDF's id in the scene.
+
+    Returns
+    -------
+    dict
+        ``{"type": "veg_leaf", "reflectance": ..., "transmittance": ..., ["id": ...]}`` for
+        ``mi.load_dict``.
+
+    Raises
+    ------
+    ParameterError
+        When ``spectra`` holds several leaves and ``index`` is None.
+    """
     d: dict = {"type": PLUGIN_NAME}
     if spectra is not None:
         R, T = spectra.reflectance, spectra.transmittance

@@ -1,6 +1,6 @@
 """Leaf geometry for Mitsuba: trees' leaves and branches as meshes, random leaf clouds, test trees.
 
-- :func:`leaves_mesh_arrays` / :func:`tree_mesh_arrays`: vertices and faces of leaf quads and
+- :func:`leaves_mesh_arrays` / :func:`bark_mesh_arrays`: vertices and faces of leaf quads and
   bark tubes (via :mod:`mitsuba_veg.trees.structure`), two triangles per leaf, leaf ``i`` owning
   triangles ``2i`` and ``2i + 1``.
 - :func:`random_leaf_cloud`: leaves scattered uniformly in a box with isotropic ("spherical")
@@ -23,21 +23,72 @@ LEAF_AREA_FACTOR = 0.6
 
 
 def leaf_area(leaves: Leaves) -> np.ndarray:
-    """One-sided area of each leaf quad [m2]."""
+    """One-sided area of each leaf quad [m2].
+
+    A quad is size x (2 × 0.3 size): area = :data:`LEAF_AREA_FACTOR` size².
+
+    Parameters
+    ----------
+    leaves : Leaves
+        The leaves (``size``: blade length [m]).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) one-sided leaf areas [m2].
+    """
     return LEAF_AREA_FACTOR * np.asarray(leaves.size, float) ** 2
 
 
 def random_unit_vectors(n: int, rng) -> np.ndarray:
+    """Isotropically distributed unit vectors (normalised Gaussian vectors).
+
+    Parameters
+    ----------
+    n : int
+        Number of vectors.
+    rng : numpy.random.Generator
+        Random generator.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) unit vectors [-].
+    """
     v = rng.standard_normal((n, 3))
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
 def random_leaf_cloud(lai: float, box_min, box_max, leaf_size: float = 0.05, seed=0,
                       normals: str = "spherical") -> Leaves:
-    """Leaves with uniformly random centres in a box and random orientations such that the
-    one-sided leaf area per horizontal ground area of the box is ``lai``.
+    """Leaves with uniformly random centres in a box and random orientations.
 
-    normals: "spherical" (isotropic: G = 0.5 for every direction), "horizontal" (G = |cos θ|).
+    As many leaves as make the one-sided leaf area per horizontal ground area (x-z) of the box
+    equal ``lai``.
+
+    Parameters
+    ----------
+    lai : float
+        Leaf area index [m2 m-2] in (0, 50].
+    box_min, box_max : array_like
+        (3,) opposite corners of the box [m] (x, y, z; min < max).
+    leaf_size : float
+        Blade length of every leaf [m] (default 0.05).
+    seed : int
+        Random seed (default 0).
+    normals : str
+        ``"spherical"`` (isotropic: G = 0.5 for every direction, default) or ``"horizontal"``
+        (all normals +y: G = |cos θ|).
+
+    Returns
+    -------
+    Leaves
+        The leaves (segment -1: they hang on no branch).
+
+    Raises
+    ------
+    ParameterError
+        When the box is empty, ``normals`` is unknown, or ``lai`` / ``leaf_size`` is out of range.
     """
     check_range("lai", lai, 0.0, 50.0, lo_open=True)
     check_range("leaf_size", leaf_size, 0.0, 10.0, lo_open=True)
@@ -103,9 +154,34 @@ def leaf_layer_triangles(half: float, y_range=(1.0, 2.5), lai: float = 6.0,
 def sphere_crown_tree(n_leaves: int = 2000, crown_radius: float = 1.5, crown_height: float = 3.0,
                       trunk_radius: float = 0.08, leaf_size: float = 0.08, seed=0,
                       branches: int = 12) -> Tree:
-    """A test tree: a vertical trunk to the crown centre, ``branches`` straight branches out to
-    the crown surface, and ``n_leaves`` leaves uniformly in the crown sphere (random normals
-    tilted upwards: normal·up >= 0), each hanging on its nearest branch."""
+    """A test tree with a spherical crown of leaves.
+
+    A vertical trunk to the crown centre, ``branches`` straight branches out to the crown surface,
+    and ``n_leaves`` leaves uniformly in the crown sphere (random normals tilted upwards:
+    normal·up >= 0), each hanging on its nearest branch.
+
+    Parameters
+    ----------
+    n_leaves : int
+        Number of leaves (default 2000).
+    crown_radius : float
+        Radius of the crown sphere [m] (default 1.5).
+    crown_height : float
+        Height of the crown centre above the trunk base (origin) [m] (default 3.0).
+    trunk_radius : float
+        Trunk radius at its base [m] (default 0.08; branches start at 0.4 of it).
+    leaf_size : float
+        Blade length of every leaf [m] (default 0.08).
+    seed : int
+        Random seed (default 0).
+    branches : int
+        Number of branches (default 12).
+
+    Returns
+    -------
+    Tree
+        The tree (``name="sphere_crown"``) with its leaves.
+    """
     check_range("n_leaves", n_leaves, 0, 10_000_000)
     rng = np.random.default_rng(seed)
     c = np.array([0.0, crown_height, 0.0])
@@ -137,20 +213,67 @@ def sphere_crown_tree(n_leaves: int = 2000, crown_radius: float = 1.5, crown_hei
 
 
 def leaves_mesh_arrays(leaves: Leaves):
-    """(vertices, faces) of the leaf quads: leaf i owns triangles 2i, 2i + 1."""
+    """(vertices, faces) of the leaf quads: leaf i owns triangles 2i, 2i + 1.
+
+    Parameters
+    ----------
+    leaves : Leaves
+        The leaves.
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        (4 n, 3) quad corners [m].
+    faces : numpy.ndarray
+        (2 n, 3) int vertex indices.
+    """
     if len(leaves) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
     return leaf_quads(leaves)
 
 
 def bark_mesh_arrays(tree: Tree, sides: int = 6):
-    """(vertices, faces) of the live branches as tapered tubes."""
+    """(vertices, faces) of the live branches as tapered tubes.
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree (its ``alive`` segments).
+    sides : int
+        Sides of each tube (default 6).
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        (n, 3) tube vertices [m].
+    faces : numpy.ndarray
+        (f, 3) int vertex indices.
+    """
     a = tree.alive
     return tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], sides)
 
 
 def class_meshes(leaves: Leaves, classes) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Split leaves by integer class: ``{class: (vertices, faces, leaf_indices)}``."""
+    """Split leaves by integer class (e.g. autumn stages), one mesh per class.
+
+    Parameters
+    ----------
+    leaves : Leaves
+        The leaves.
+    classes : array_like
+        (n,) integer class of each leaf.
+
+    Returns
+    -------
+    dict
+        ``{class: (vertices [m], faces, leaf_indices)}``; leaf ``leaf_indices[j]`` owns triangles
+        2j, 2j + 1 of its class's mesh.
+
+    Raises
+    ------
+    ParameterError
+        When ``classes`` does not have one value per leaf.
+    """
     classes = np.asarray(classes)
     if classes.shape != (len(leaves),):
         raise ParameterError("classes", classes.shape, f"one class per leaf ({len(leaves)},)")
@@ -163,5 +286,22 @@ def class_meshes(leaves: Leaves, classes) -> dict[int, tuple[np.ndarray, np.ndar
 
 
 def mesh(name: str, vertices, faces, bsdf=None):
-    """A Mitsuba mesh with id ``name`` (``bsdf``: a dict or BSDF object, optional)."""
+    """A Mitsuba mesh with id ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The shape id.
+    vertices : array_like
+        (n, 3) positions [m].
+    faces : array_like
+        (f, 3) vertex indices.
+    bsdf : dict or mi.BSDF, optional
+        Its material (default: Mitsuba's default BSDF).
+
+    Returns
+    -------
+    mitsuba.Mesh
+        The mesh (:func:`mitsuba_veg.light.validation.make_mesh`).
+    """
     return make_mesh(name, vertices, faces, bsdf=bsdf)

@@ -50,8 +50,28 @@ _WEIGHTS: dict = {}
 def colour_weights(wavelength, illuminant="D65") -> np.ndarray:
     """Weights W (n_wl, 3) [-] with XYZ = Σ_λ ρ(λ) W(λ) (CIE 1931 2° observer).
 
-    ``illuminant``: a name of ``colour.SDS_ILLUMINANTS`` (default D65) or one relative power per
-    wavelength."""
+    W(λ) = S(λ) (x̄, ȳ, z̄)(λ) / Σ_λ S(λ) ȳ(λ), the colour matching functions and illuminant
+    interpolated linearly onto ``wavelength`` (zero outside the tables), so that a perfect
+    reflector has Y = 1 (module docstring). Weights of named illuminants are cached.
+
+    Parameters
+    ----------
+    wavelength : array_like
+        (n_wl,) 1-D wavelength grid [nm] (at least 2 values, overlapping 360-830 nm).
+    illuminant : str or array_like
+        A name of ``colour.SDS_ILLUMINANTS`` (default ``"D65"``) or one relative power per
+        wavelength [-] (non-negative, not all zero).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_wl, 3) weights [-].
+
+    Raises
+    ------
+    ParameterError
+        When the grid is not 1-D, misses the visible, or the illuminant is unknown or invalid.
+    """
     wl = np.asarray(wavelength, dtype=np.float64)
     if wl.ndim != 1 or wl.size < 2:
         raise ParameterError("wavelength", np.shape(wavelength), "a 1-D grid of wavelengths [nm]",
@@ -89,13 +109,44 @@ def colour_weights(wavelength, illuminant="D65") -> np.ndarray:
 
 
 def white_point(weights) -> np.ndarray:
-    """XYZ of a perfect reflector under the weights' illuminant (Y = 1)."""
+    """XYZ of a perfect reflector under the weights' illuminant (Y = 1).
+
+    Parameters
+    ----------
+    weights : array_like
+        (n_wl, 3) weights from :func:`colour_weights`.
+
+    Returns
+    -------
+    numpy.ndarray
+        (3,) X_n, Y_n, Z_n [-].
+    """
     return np.asarray(weights, dtype=np.float64).sum(0)
 
 
 def spectrum_to_xyz(spectrum, weights, n_leaves: int = 1):
-    """(X, Y, Z) of Dr.Jit spectra (flat, ``n_leaves`` × n_wl values, leaf after leaf) with
-    ``weights`` from :func:`colour_weights`; each a ``Float64`` of width ``n_leaves``."""
+    """(X, Y, Z) of Dr.Jit spectra with ``weights`` from :func:`colour_weights`.
+
+    Parameters
+    ----------
+    spectrum : drjit array
+        Flat ``Float64`` spectra, ``n_leaves`` × n_wl values, leaf after leaf (e.g. reflectance
+        [-]).
+    weights : array_like
+        (n_wl, 3) weights [-] on the spectrum's wavelengths.
+    n_leaves : int
+        Number of spectra (default 1).
+
+    Returns
+    -------
+    tuple of Float64
+        (X, Y, Z) [-], each a ``Float64`` of width ``n_leaves``.
+
+    Raises
+    ------
+    ParameterError
+        When the spectrum does not have ``n_leaves`` × n_wl values.
+    """
     w = np.asarray(weights, dtype=np.float64)
     n = w.shape[0]
     if dr.width(spectrum) != n * n_leaves:
@@ -113,16 +164,44 @@ def spectrum_to_xyz(spectrum, weights, n_leaves: int = 1):
 
 
 def xyz_to_linear_srgb(xyz):
-    """Linear sRGB (unclipped) from XYZ."""
+    """Linear sRGB (unclipped) from XYZ.
+
+    [R G B]ᵀ = M [X Y Z]ᵀ with :data:`SRGB_FROM_XYZ` (IEC 61966-2-1, D65 white).
+
+    Parameters
+    ----------
+    xyz : tuple of drjit array
+        (X, Y, Z) [-].
+
+    Returns
+    -------
+    tuple of drjit array
+        (R, G, B) linear sRGB [-], unclipped.
+    """
     X, Y, Z = xyz
     M = SRGB_FROM_XYZ.tolist()       # Python floats: NumPy scalars would capture the product
     return tuple(M[i][0] * X + M[i][1] * Y + M[i][2] * Z for i in range(3))
 
 
 def srgb_encode(rgb, clip: bool = False):
-    """sRGB transfer function (IEC 61966-2-1) on linear values. ``clip``: clip to [0, 1] first
-    (as ``spectrum_to_srgb``); without it the linear segment continues below 0 and the power
-    law above 1, so out-of-gamut colours keep a gradient."""
+    """sRGB transfer function (IEC 61966-2-1) on linear values.
+
+    12.92 c for c <= 0.0031308, else 1.055 c^{1/2.4} - 0.055.
+
+    Parameters
+    ----------
+    rgb : tuple of drjit array
+        Linear sRGB channels [-].
+    clip : bool
+        Clip to [0, 1] first (as ``spectrum_to_srgb``); without it the linear segment continues
+        below 0 and the power law above 1, so out-of-gamut colours keep a gradient (default
+        False).
+
+    Returns
+    -------
+    tuple of drjit array
+        Encoded sRGB channels [-].
+    """
     out = []
     for c in rgb:
         if clip:
@@ -138,7 +217,22 @@ def _lab_f(t):
 
 
 def xyz_to_lab(xyz, white):
-    """CIELAB (L*, a*, b*) from XYZ against the reference white ``white`` (X_n, Y_n, Z_n)."""
+    """CIELAB (L*, a*, b*) from XYZ against the reference white ``white`` (X_n, Y_n, Z_n).
+
+    CIE 1976 L*a*b* (CIE 15:2004), formulas in the module docstring.
+
+    Parameters
+    ----------
+    xyz : tuple of drjit array
+        (X, Y, Z) [-].
+    white : array_like
+        Reference white (X_n, Y_n, Z_n) [-], e.g. :func:`white_point`.
+
+    Returns
+    -------
+    tuple of drjit array
+        (L*, a*, b*) [-] (L* 0-100).
+    """
     X, Y, Z = xyz
     Xn, Yn, Zn = (float(v) for v in white)
     fx, fy, fz = _lab_f(X / Xn), _lab_f(Y / Yn), _lab_f(Z / Zn)
@@ -147,8 +241,32 @@ def xyz_to_lab(xyz, white):
 
 def spectrum_to_srgb(wavelength, spectrum, exposure: float = 1.0, n_leaves: int = 1,
                      illuminant="D65", clip: bool = True):
-    """Encoded sRGB of Dr.Jit spectra: the Dr.Jit twin of
-    :func:`mitsuba_veg.foliage.spectra.spectrum_to_srgb` (same weights, matrix, clipping)."""
+    """Encoded sRGB of Dr.Jit spectra.
+
+    The Dr.Jit twin of :func:`mitsuba_veg.foliage.spectra.spectrum_to_srgb` (same weights,
+    matrix, clipping): XYZ (:func:`spectrum_to_xyz`) times ``exposure``, linear sRGB, encoded.
+
+    Parameters
+    ----------
+    wavelength : array_like
+        (n_wl,) wavelengths of the spectra [nm].
+    spectrum : drjit array
+        Flat ``Float64`` spectra (``n_leaves`` × n_wl values, leaf after leaf), reflectance or
+        transmittance [-].
+    exposure : float
+        Factor on XYZ before encoding [-] (default 1).
+    n_leaves : int
+        Number of spectra (default 1).
+    illuminant : str or array_like
+        Illuminant of :func:`colour_weights` (default ``"D65"``).
+    clip : bool
+        Clip linear sRGB to [0, 1] before encoding (default True).
+
+    Returns
+    -------
+    tuple of drjit array
+        (R, G, B) encoded sRGB [-], each of width ``n_leaves``.
+    """
     xyz = spectrum_to_xyz(spectrum, colour_weights(wavelength, illuminant), n_leaves)
     rgb = xyz_to_linear_srgb(tuple(c * exposure for c in xyz))
     return srgb_encode(rgb, clip=clip)
@@ -164,14 +282,40 @@ def _lab_f_np(t):
 
 
 def xyz_to_lab_np(xyz, white) -> np.ndarray:
-    """CIELAB from XYZ (..., 3) against ``white``."""
+    """CIELAB from XYZ (..., 3) against ``white``.
+
+    Parameters
+    ----------
+    xyz : array_like
+        (..., 3) X, Y, Z [-].
+    white : array_like
+        (3,) reference white X_n, Y_n, Z_n [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) L*, a*, b* [-].
+    """
     x = np.asarray(xyz, dtype=np.float64) / np.asarray(white, dtype=np.float64)
     fx, fy, fz = (_lab_f_np(x[..., i]) for i in range(3))
     return np.stack([116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)], -1)
 
 
 def lab_to_xyz_np(lab, white) -> np.ndarray:
-    """XYZ (..., 3) from CIELAB against ``white`` (the inverse of :func:`xyz_to_lab_np`)."""
+    """XYZ (..., 3) from CIELAB against ``white`` (the inverse of :func:`xyz_to_lab_np`).
+
+    Parameters
+    ----------
+    lab : array_like
+        (..., 3) L*, a*, b* [-].
+    white : array_like
+        (3,) reference white X_n, Y_n, Z_n [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) X, Y, Z [-].
+    """
     lab = np.asarray(lab, dtype=np.float64)
     fy = (lab[..., 0] + 16.0) / 116.0
     f = np.stack([fy + lab[..., 1] / 500.0, fy, fy - lab[..., 2] / 200.0], -1)
@@ -180,14 +324,38 @@ def lab_to_xyz_np(lab, white) -> np.ndarray:
 
 
 def srgb_decode_np(srgb) -> np.ndarray:
-    """Linear sRGB from encoded sRGB (0-1)."""
+    """Linear sRGB from encoded sRGB (0-1).
+
+    Parameters
+    ----------
+    srgb : array_like
+        Encoded sRGB values [-] in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        Linear sRGB [-], the shape of ``srgb``.
+    """
     c = np.asarray(srgb, dtype=np.float64)
     return np.where(c <= 12.92 * _SRGB_KNEE, c / 12.92,
                     ((np.maximum(c, 0.04) + 0.055) / 1.055) ** 2.4)
 
 
 def srgb_encode_np(rgb, clip: bool = True) -> np.ndarray:
-    """Encoded sRGB from linear sRGB (clipped to [0, 1] unless ``clip=False``)."""
+    """Encoded sRGB from linear sRGB (clipped to [0, 1] unless ``clip=False``).
+
+    Parameters
+    ----------
+    rgb : array_like
+        Linear sRGB values [-].
+    clip : bool
+        Clip to [0, 1] before encoding (default True).
+
+    Returns
+    -------
+    numpy.ndarray
+        Encoded sRGB [-], the shape of ``rgb``.
+    """
     c = np.asarray(rgb, dtype=np.float64)
     if clip:
         c = np.clip(c, 0.0, 1.0)
@@ -196,10 +364,34 @@ def srgb_encode_np(rgb, clip: bool = True) -> np.ndarray:
 
 
 def srgb_to_xyz_np(srgb) -> np.ndarray:
-    """XYZ (..., 3) of an encoded sRGB colour (..., 3)."""
+    """XYZ (..., 3) of an encoded sRGB colour (..., 3).
+
+    Parameters
+    ----------
+    srgb : array_like
+        (..., 3) encoded sRGB [-] in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) X, Y, Z [-] (:data:`XYZ_FROM_SRGB`).
+    """
     return srgb_decode_np(srgb) @ XYZ_FROM_SRGB.T
 
 
 def xyz_to_srgb_np(xyz, clip: bool = True) -> np.ndarray:
-    """Encoded sRGB (..., 3) of XYZ (..., 3)."""
+    """Encoded sRGB (..., 3) of XYZ (..., 3).
+
+    Parameters
+    ----------
+    xyz : array_like
+        (..., 3) X, Y, Z [-].
+    clip : bool
+        Clip linear sRGB to [0, 1] before encoding (default True).
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) encoded sRGB [-].
+    """
     return srgb_encode_np(np.asarray(xyz, dtype=np.float64) @ SRGB_FROM_XYZ.T, clip)

@@ -46,7 +46,20 @@ MAPLE_IFS = np.array([
 
 
 def fixed_point(m) -> np.ndarray:
-    """Fixed point of one affine map (a b c d e f)."""
+    """Fixed point of one affine map (a b c d e f).
+
+    Solves w(x, y) = (x, y) for w(x, y) = [a b; c d] (x, y) + (e, f).
+
+    Parameters
+    ----------
+    m : array_like
+        The map's six coefficients a, b, c, d, e, f [-] (a row of :data:`MAPLE_IFS`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (2,) fixed point (x, y) in the IFS's coordinates [-].
+    """
     a, b, c, d, e, f = m
     return np.linalg.solve(np.array([[1 - a, -b], [-c, 1 - d]]), np.array([e, f]))
 
@@ -61,9 +74,43 @@ def chaos_game(n_points: int = 200_000, *, maps=MAPLE_IFS, probabilities=None,
                address_memory: float = 0.5, seed=0):
     """Points of the IFS attractor by the vectorised chaos game.
 
-    Returns ``(points (n, 2), address (n,))``: the address value is the map colour
-    ``address_colour[i]`` of the maps applied last, blended with memory ``address_memory``
-    (z ← ρ z + (1 − ρ) c_i): the paper's "colour per plotted point".
+    ``chains`` independent chains run side by side; each picks a map at random (``probabilities``)
+    at every step and keeps its points after ``burn_in`` steps. The address value is the map
+    colour ``address_colour[i]`` of the maps applied last, blended with memory
+    ``address_memory`` (z ← ρ z + (1 − ρ) c_i): the paper's "colour per plotted point".
+
+    Parameters
+    ----------
+    n_points : int
+        Number of points returned (1 to 1e8; default 200 000).
+    maps : array_like
+        (k, 6) affine maps, rows a b c d e f [-] (default :data:`MAPLE_IFS`, paper 003 table 2).
+    probabilities : array_like, optional
+        (k,) non-negative map weights (normalised here); default |det| of each map (even point
+        density over the blade).
+    chains : int
+        Chains run side by side (default 8192; at most ``n_points`` are used).
+    burn_in : int
+        Steps of each chain discarded before its points are kept (default 24).
+    address_colour : sequence of float
+        Colour value c_i [-] of each map (default (0, 1, 0.6, 0.6)).
+    address_memory : float
+        Memory ρ [-] of the address blend (default 0.5).
+    seed : int
+        Random seed (default 0).
+
+    Returns
+    -------
+    points : numpy.ndarray
+        (n_points, 2) points on the attractor in the IFS's unit square [-].
+    address : numpy.ndarray
+        (n_points,) address value [-] of each point.
+
+    Raises
+    ------
+    ParameterError
+        When ``maps`` is not (k, 6), ``probabilities`` is not k non-negative weights, or a count
+        is out of range.
     """
     check_range("n_points", n_points, 1, 1e8)
     check_range("chains", chains, 1, 1e7)
@@ -98,7 +145,23 @@ def chaos_game(n_points: int = 200_000, *, maps=MAPLE_IFS, probabilities=None,
 
 
 def vein_segments(levels: int = 2, maps=MAPLE_IFS) -> np.ndarray:
-    """Vein skeleton (k, 2, 2): petiole -> lobe tips, and its images under the maps."""
+    """Vein skeleton (k, 2, 2): petiole -> lobe tips, and its images under the maps.
+
+    The three main veins run from the petiole (the fixed point of w1) to the lobe tips (fixed
+    points of w2, w3, w4); every level applies all maps to the previous level's segments.
+
+    Parameters
+    ----------
+    levels : int
+        Levels of images under the maps (default 2).
+    maps : array_like
+        (k, 6) affine maps a b c d e f [-] (default :data:`MAPLE_IFS`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_segments, 2, 2) segment end points (x, y) in the IFS's coordinates [-].
+    """
     maps = np.asarray(maps, float)
     base = fixed_point(maps[0])
     tips = [fixed_point(m) for m in maps[1:]]
@@ -140,7 +203,22 @@ class MapleLeaf:
     components: dict          # the raw aging terms (vein distance, margin, tip, address)
 
     def fronts(self, table: StageTable | None = None):
-        """Stages S1(q), S2(q) at which each point turns dark green-red / red."""
+        """Stages S1(q), S2(q) at which each point turns dark green-red / red.
+
+        q = 1 − aging; S1 follows the stage table's ``coloured`` area fraction (stages 1..5), S2
+        its ``red`` fraction (stages 5..7), each inverted at its first crossing (linear), starting
+        half a stage before the first stage with coverage.
+
+        Parameters
+        ----------
+        table : StageTable, optional
+            Stage table (default: :func:`~mitsuba_veg.foliage.pigments.stage_table`()).
+
+        Returns
+        -------
+        s1, s2 : numpy.ndarray
+            (n,) stages [-] at which each point turns dark green-red and red.
+        """
         tb = table or stage_table()
         q = 1.0 - self.aging
         # coloured fraction rises over stages 1..5, red over 5..7 (table columns)
@@ -149,8 +227,30 @@ class MapleLeaf:
         return s1, s2
 
     def state_weights(self, stage, width: float = 0.5, table: StageTable | None = None):
-        """Per-point weights (n, 3) of the tissue states green / dark green-red / red at a leaf
-        stage in [1, 7]; a point's change takes ``width`` stages (soft fronts)."""
+        """Per-point weights (n, 3) of the tissue states green / dark green-red / red.
+
+        Weights at a leaf stage in [1, 7]; a point's change takes ``width`` stages (soft fronts
+        ending at S1 and S2 of :meth:`fronts`).
+
+        Parameters
+        ----------
+        stage : float
+            Leaf stage [-] in [1, 7].
+        width : float
+            Stages over which a point changes state [-] (default 0.5).
+        table : StageTable, optional
+            Stage table (default: the shipped one).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 3) weights [-] of green, dark green-red and red (they sum to 1).
+
+        Raises
+        ------
+        ParameterError
+            When ``stage`` is outside [1, 7].
+        """
         check_range("stage", stage, 1.0, 7.0)
         s1, s2 = self.fronts(table)
         c = _ramp(stage, s1 - width, s1)   # dark green-red or red
@@ -180,8 +280,35 @@ def maple_leaf(n_points: int = 200_000, *, seed=0, vein_levels: int = 2, weights
                raster: int = 256, probabilities=None) -> MapleLeaf:
     """A Barnsley maple leaf with per-point aging (see module docstring).
 
-    weights: dict of the aging terms' weights, default ``{"vein": 0.35, "margin": 0.3,
-    "tip": 0.2, "address": 0.15}``.
+    The aging is the weighted sum of the vein-distance, margin, tip and address terms (each
+    normalised to [0, 1]), rank-normalised to a uniform a ∈ [0, 1] (1 = colours first).
+
+    Parameters
+    ----------
+    n_points : int
+        Chaos-game points (default 200 000).
+    seed : int
+        Random seed of the chaos game (default 0).
+    vein_levels : int
+        Levels of the fractal vein skeleton (:func:`vein_segments`, default 2).
+    weights : dict, optional
+        Weights of the aging terms [-], default ``{"vein": 0.35, "margin": 0.3, "tip": 0.2,
+        "address": 0.15}``; the keys given replace those defaults.
+    raster : int
+        Raster size [pixels] of the blade mask for the margin's distance transform (default 256).
+    probabilities : array_like, optional
+        Map probabilities of :func:`chaos_game` (default |det|).
+
+    Returns
+    -------
+    MapleLeaf
+        Points (n, 2) [-] in the IFS's unit square, aging (n,) [-], petiole point and the raw
+        aging terms.
+
+    Raises
+    ------
+    ParameterError
+        When ``weights`` has an unknown key.
     """
     from scipy import ndimage
 
@@ -213,8 +340,25 @@ def maple_leaf(n_points: int = 200_000, *, seed=0, vein_levels: int = 2, weights
 
 
 def state_colours(exposure: float = 2.2, traits=None, table=None) -> np.ndarray:
-    """sRGB (3, 3) of the three tissue states (green, dark green-red, red): PROSPECT-D
-    reflectance under D65, times ``exposure``."""
+    """sRGB (3, 3) of the three tissue states (green, dark green-red, red).
+
+    PROSPECT-D reflectance of each state's pigments
+    (:func:`~mitsuba_veg.foliage.pigments.state_pigments`) under D65, times ``exposure``.
+
+    Parameters
+    ----------
+    exposure : float
+        Factor on XYZ before encoding [-] (default 2.2).
+    traits : LeafTraits, optional
+        Leaf structure, water and dry matter (default :class:`LeafTraits`()).
+    table : StageTable, optional
+        Stage table (default: the shipped one).
+
+    Returns
+    -------
+    numpy.ndarray
+        (3, 3) encoded sRGB [-] in [0, 1], one row per state.
+    """
     sp = state_pigments(table)
     traits = traits or LeafTraits()
     out = []
@@ -227,8 +371,37 @@ def state_colours(exposure: float = 2.2, traits=None, table=None) -> np.ndarray:
 
 def leaf_image(leaf: MapleLeaf, stage=None, tau=None, size: int = 256, colours=None,
                background=(1.0, 1.0, 1.0)) -> np.ndarray:
-    """RGB image (size, size, 3) of the leaf at a stage (or τ): every chaos-game point gets the
-    colour of its tissue state mix; pixels average their points."""
+    """RGB image (size, size, 3) of the leaf at a stage (or τ).
+
+    Every chaos-game point gets the colour of its tissue state mix
+    (:meth:`MapleLeaf.state_weights`); pixels average their points; empty pixels show the
+    background.
+
+    Parameters
+    ----------
+    leaf : MapleLeaf
+        The leaf (:func:`maple_leaf`).
+    stage : float, optional
+        Leaf stage [-] in [1, 7]; give it or ``tau``.
+    tau : float, optional
+        Autumn logical time [-] in [0, 1] (stage = 1 + 6 τ).
+    size : int
+        Image side [pixels] (default 256).
+    colours : array_like, optional
+        (3, 3) sRGB [-] of the three states (default :func:`state_colours`()).
+    background : sequence of float
+        sRGB [-] of empty pixels (default white).
+
+    Returns
+    -------
+    numpy.ndarray
+        (size, size, 3) encoded sRGB [-], row 0 at the top.
+
+    Raises
+    ------
+    ParameterError
+        Unless exactly one of ``stage`` and ``tau`` is given.
+    """
     if (stage is None) == (tau is None):
         raise ParameterError("stage/tau", (stage, tau), "exactly one of them")
     if tau is not None:

@@ -46,8 +46,35 @@ from .light_study import leaf_values, tree_scene
 # Shadow scene
 # --------------------------------------------------------------------------------------------
 def shadow_scene(tree_or_leaves, obstacles=(), bark: bool = True, bark_sides: int = 6):
-    """A Mitsuba scene of a tree's leaves (shape id ``leaves``), bark (``bark``) and obstacles
-    (``obstacle0``...; each a ``(vertices, faces)`` pair or an ``mi.Mesh``), for shadow rays."""
+    """A Mitsuba scene of a tree's leaves, bark and obstacles, for shadow rays.
+
+    Shape ids: ``leaves`` (the leaf quads, leaf i owning triangles 2i, 2i + 1), ``bark`` (the
+    live branches as tubes) and ``obstacle0``, ``obstacle1``, ...
+
+    Parameters
+    ----------
+    tree_or_leaves : Tree or Leaves
+        A :class:`~mitsuba_veg.trees.Tree` (leaves and bark) or
+        :class:`~mitsuba_veg.trees.Leaves` (leaves only).
+    obstacles : sequence
+        Further occluders: each a ``(vertices [m], faces)`` pair or an ``mi.Mesh``.
+    bark : bool
+        Include the tree's live branches (default True).
+    bark_sides : int
+        Sides of each bark tube (default 6).
+
+    Returns
+    -------
+    scene : mi.Scene
+        The scene (no emitters).
+    leaves : Leaves
+        The leaves, in the order of the ``leaves`` mesh.
+
+    Raises
+    ------
+    ParameterError
+        When ``tree_or_leaves`` is neither a Tree nor Leaves.
+    """
     if isinstance(tree_or_leaves, Tree):
         tree, leaves = tree_or_leaves, tree_or_leaves.leaves
     elif isinstance(tree_or_leaves, Leaves):
@@ -100,13 +127,39 @@ class InsolationResult:
         return self.daily.sum(axis=1)
 
     def cumulative_by_day(self) -> np.ndarray:
-        """(n_leaves, days) running sum of the daily insolation [MJ m-2]."""
+        """(n_leaves, days) running sum of the daily insolation [MJ m-2].
+
+        Returns
+        -------
+        numpy.ndarray
+            Insolation of each leaf from the first day through each day [MJ m-2].
+        """
         return np.cumsum(self.daily, axis=1)
 
 
 def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
                              two_sided: bool = True, obstacles=()) -> np.ndarray:
-    """I |L·S| [W m-2] per leaf for one sun direction (towards the sun), 0 where shaded."""
+    """I |L·S| [W m-2] per leaf for one sun direction (towards the sun), 0 where shaded.
+
+    Parameters
+    ----------
+    scene_or_tree : Tree, Leaves or tuple
+        A tree or leaves (a shadow scene is built with ``obstacles``), or a ``(scene, leaves)``
+        pair from :func:`shadow_scene`.
+    sun_vector : array_like
+        (3,) direction towards the sun (+x east, +y up, +z south; normalised here).
+    intensity : float
+        Beam (direct-normal) irradiance I [W m-2] (default 1).
+    two_sided : bool
+        |L·S| (a blade lit on either face, default) or max(L·S, 0).
+    obstacles : sequence
+        Further occluders (``(vertices, faces)`` pairs or ``mi.Mesh``) when a scene is built.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_leaves,) irradiance on each leaf [W m-2].
+    """
     scene, leaves = (scene_or_tree if isinstance(scene_or_tree, tuple)
                      else shadow_scene(scene_or_tree, obstacles))
     s = np.asarray(sun_vector, float).reshape(1, 3)
@@ -125,13 +178,61 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
                     batch: int = 1 << 23, seed: int = 0) -> InsolationResult:
     """Daily insolation per leaf over ``path`` with ray-traced shadows (module docstring).
 
-    tree_or_scene: a :class:`~mitsuba_veg.trees.Tree` (its leaves and live branches are the
-    occluders, plus ``obstacles``), :class:`~mitsuba_veg.trees.Leaves`, or a ``(scene, leaves)``
-    pair from :func:`shadow_scene`.
+    One shadow ray from every leaf centre towards the sun at every daytime step, all leaves × all
+    steps in one Dr.Jit kernel per ``batch`` rays; I |L·S| × step [MJ m-2] summed per leaf per
+    day. With ``sky`` the diffuse horizontal irradiance times the leaf's sky view factor is added.
 
-    sky_method: "rays" (view factor of the sky by shadow rays: direct skylight only) or
-    "photons" (a photon pass from a uniform sky through the tree with green ``veg_leaf`` leaves:
-    skylight including its scattering by leaves and bark, :func:`sky_view_factor_photons`).
+    Parameters
+    ----------
+    tree_or_scene : Tree, Leaves or tuple
+        A :class:`~mitsuba_veg.trees.Tree` (its leaves and live branches are the occluders, plus
+        ``obstacles``), :class:`~mitsuba_veg.trees.Leaves`, or a ``(scene, leaves)`` pair from
+        :func:`shadow_scene`.
+    path : SunPath
+        Sun directions, direct-normal and diffuse horizontal irradiance [W m-2] at regular steps
+        (:func:`~mitsuba_veg.light.sunpath.sun_path`).
+    obstacles : sequence
+        Further occluders (``(vertices [m], faces)`` pairs or ``mi.Mesh``), used when a scene is
+        built.
+    two_sided : bool
+        |L·S| (a thin blade lit on either face, default) or max(L·S, 0).
+    shadows : bool
+        Trace shadow rays (default True); False: every leaf sees the sun.
+    leaf_transmittance : float
+        Fraction [-] in [0, 1) of the beam each occluding leaf passes (default 0: opaque leaves,
+        as in the paper); bark and obstacles block.
+    max_layers : int
+        Most leaves a transmitted shadow ray crosses (default 8).
+    sky : bool
+        Add diffuse skylight: DHI × the leaf's sky view factor (default False).
+    sky_rays : int
+        Stratified shadow rays per leaf for the view factor (``sky_method="rays"``, default 64).
+    sky_method : str
+        ``"rays"`` (view factor of the sky by shadow rays: direct skylight only) or ``"photons"``
+        (a photon pass from a uniform sky through the tree with green ``veg_leaf`` leaves:
+        skylight including its scattering by leaves and bark, :func:`sky_view_factor_photons`;
+        needs a Tree or Leaves, refused with ``obstacles`` or ``bark=False``).
+    sky_photons : int
+        Photons of the ``"photons"`` sky pass (default 1 000 000).
+    bark : bool
+        Include the tree's live branches as occluders when a scene is built (default True).
+    batch : int
+        Rays per kernel (default 2**23, about 8M).
+    seed : int
+        Seed of the sky rays or sky photons (default 0).
+
+    Returns
+    -------
+    InsolationResult
+        ``daily`` and ``beam_daily`` (n_leaves, days) [MJ m-2], ``sunlit_fraction`` [-],
+        ``sky_view`` [-] (None without sky), ``open_daily`` (days,) [MJ m-2] on an unshaded
+        horizontal leaf, rays traced, seconds [s] and the settings.
+
+    Raises
+    ------
+    ParameterError
+        When there is no leaf, ``sky_method`` is unknown (or ``"photons"`` with a prebuilt
+        scene), or a setting is out of range.
     """
     check_range("leaf_transmittance", leaf_transmittance, 0.0, 1.0, hi_open=True)
     check_range("max_layers", max_layers, 1, 1000)
@@ -203,6 +304,12 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
             if isinstance(tree_or_scene, tuple):
                 raise ParameterError("sky_method", sky_method, "'rays' for a prebuilt scene",
                                      "pass the Tree or Leaves for sky_method='photons'")
+            if obstacles or not bark:
+                # the photon pass's scene is the tree with its bark: it would not see them
+                raise ParameterError("sky_method", sky_method,
+                                     "'rays' with obstacles or bark=False",
+                                     "use sky_method='rays' (its shadow rays see the obstacles "
+                                     "and honour bark=False)")
             sky_view = sky_view_factor_photons(tree_or_scene, photons=sky_photons, seed=seed)
         else:
             raise ParameterError("sky_method", sky_method, "'rays' or 'photons'")
@@ -242,9 +349,26 @@ def _transmit_loop(scene, ray, active, sid_leaf, t_leaf, max_layers):
 
 
 def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
-    """Per-leaf view factor of an isotropic sky, both faces: V = (1/π) ∫_upper vis |ω·L| dω
-    (1 for an unobstructed leaf of any tilt), by ``rays`` stratified uniform-hemisphere shadow
-    rays per leaf."""
+    """Per-leaf view factor of an isotropic sky, both faces.
+
+    V = (1/π) ∫_upper vis |ω·L| dω (1 for an unobstructed leaf of any tilt), by ``rays``
+    stratified uniform-hemisphere shadow rays per leaf.
+
+    Parameters
+    ----------
+    tree_or_scene : Tree, Leaves or tuple
+        A tree or leaves (a shadow scene is built), or a ``(scene, leaves)`` pair from
+        :func:`shadow_scene`.
+    rays : int
+        Shadow rays per leaf (rounded up to a square number for the stratification; default 64).
+    seed : int
+        Seed of the jitter (default 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_leaves,) sky view factor V [-] in [0, 1].
+    """
     if isinstance(tree_or_scene, tuple):
         scene, leaves = tree_or_scene
     else:
@@ -282,10 +406,29 @@ def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
 
 def sky_view_factor_photons(tree_or_leaves, photons: int = 1_000_000, seed: int = 0,
                             tau=None) -> np.ndarray:
-    """Per-leaf skylight factor from the photon pass: a uniform sky of unit horizontal
-    irradiance over a tree with ``veg_leaf`` leaves (PROSPECT-D, ``tau`` per leaf, default green)
-    and grey bark, no ground; V = PAR power on both faces / (leaf area x open PAR). Includes
-    light scattered by leaves (so V can exceed the ray-cast view factor)."""
+    """Per-leaf skylight factor from the photon pass.
+
+    A uniform sky of unit horizontal irradiance over a tree with ``veg_leaf`` leaves
+    (PROSPECT-D, ``tau`` per leaf, default green) and grey bark, no ground; V = PAR power on both
+    faces / (leaf area x open PAR). Includes light scattered by leaves (so V can exceed the
+    ray-cast view factor).
+
+    Parameters
+    ----------
+    tree_or_leaves : Tree or Leaves
+        The tree (leaves and bark) or its leaves.
+    photons : int
+        Photons of the pass (default 1 000 000).
+    seed : int
+        Seed of the pass (default 0).
+    tau : array_like, optional
+        (n_leaves,) autumn logical time [-] of the leaves' spectra (default: green, τ = 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_leaves,) skylight factor V [-] (can exceed 1).
+    """
     em = {"sky": {"type": "veg_sky", "radiance": {"type": "uniform", "value": 1.0 / np.pi},
                   "distribution": "uniform", "sun_direction": [0.0, 1.0, 0.0]}}
     leaves = tree_or_leaves.leaves if hasattr(tree_or_leaves, "leaves") else tree_or_leaves

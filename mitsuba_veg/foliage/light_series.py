@@ -82,7 +82,7 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     Parameters
     ----------
     scenario : str or Path
-        Scenario TOML with ``[[sensors]]`` and ``[site]``.
+        Scenario TOML with ``[[sensors]]`` and ``[site]`` (and no ``[[trees]]``).
     out_dir : str or Path
         Output folder (a ``light-study`` folder).
     start, end : date or str, optional
@@ -96,7 +96,8 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     sky_photons : int, optional
         Photons of the one sky pass (default 10 x photons).
     seed, max_depth, indirect : optional
-        Default: the scenario's ``[light]``.
+        Random seed (int), most bounces of a photon path (int) and whether scattered light is
+        traced (bool). Default: the scenario's ``[light]``.
     heatmap_every : int
         Daily steps: also trace hourly passes every this many days (0: none) for the
         hour × day heat map and the hours above ``par_threshold``.
@@ -108,6 +109,19 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
         ``--set`` overrides of the scenario.
     progress : bool
         Progress bars.
+
+    Returns
+    -------
+    dict
+        The summary written to ``summary.json``: settings, site, period, per-sensor means (DLI
+        [mol m-2 d-1], R:FR [-], hours above the threshold [h d-1]), the open-sky DLI, passes,
+        timings [s] and the files written.
+
+    Raises
+    ------
+    ParameterError
+        When the scenario is not a ``.toml`` with ``[[sensors]]`` and without ``[[trees]]``, the
+        period is missing, reversed or given twice, or a setting is out of range.
     """
 
     t0 = time.perf_counter()
@@ -303,7 +317,28 @@ def _save(fig, path):
 
 
 def year_figure(series, days, dli, odli, i, path) -> str:
-    """Daily DLI (total, direct, diffuse, open sky) and daily R:FR of sensor ``i``."""
+    """Daily DLI (total, direct, diffuse, open sky) and daily R:FR of sensor ``i``.
+
+    Parameters
+    ----------
+    series : SensorSeries
+        The time series (:func:`mitsuba_veg.light.sensor_study.run_series`).
+    days : numpy.ndarray
+        (days,) local days (datetime64[D]).
+    dli : numpy.ndarray
+        (days, sensors, 3) daily light integral of PAR [mol m-2 d-1]: direct, diffuse, total.
+    odli : numpy.ndarray
+        (days, 3) open-sky (horizontal) DLI [mol m-2 d-1], same components.
+    i : int
+        Index of the sensor plotted.
+    path : pathlib.Path
+        PNG file to write (atomically).
+
+    Returns
+    -------
+    str
+        The path written.
+    """
     plt = _mpl()
     x = days.astype("datetime64[D]").astype(object)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True, constrained_layout=True,
@@ -333,7 +368,22 @@ def year_figure(series, days, dli, odli, i, path) -> str:
 
 
 def heatmap_figure(hourly, i, path) -> str:
-    """PPFD of sensor ``i``: hour of the day × day."""
+    """PPFD of sensor ``i``: hour of the day × day.
+
+    Parameters
+    ----------
+    hourly : SensorSeries
+        An hourly series (hour means of the PPFD [µmol m-2 s-1]).
+    i : int
+        Index of the sensor plotted.
+    path : pathlib.Path
+        PNG file to write (atomically).
+
+    Returns
+    -------
+    str
+        The path written.
+    """
     plt = _mpl()
     day = hourly.times.astype("datetime64[D]")
     days, inv = np.unique(day, return_inverse=True)
@@ -363,8 +413,35 @@ def heatmap_figure(hourly, i, path) -> str:
 
 def grid_map_figure(sensors, mask, values, path, title, label, cmap, vmin=None,
                     vmax=None) -> str:
-    """One grid's values as a map: plan view (x east, north up) for grids facing up or down,
-    else an elevation view along the grid."""
+    """One grid's values as a map.
+
+    Plan view (x east, north up) for grids facing up or down, else an elevation view along the
+    grid.
+
+    Parameters
+    ----------
+    sensors : Sensors
+        The scenario's sensors (grid cells carry their (i, j) in ``ij``).
+    mask : numpy.ndarray
+        (n_sensors,) bool: the cells of the grid to draw.
+    values : array_like
+        (n_sensors,) value per sensor (e.g. DLI [mol m-2 d-1] or R:FR [-]).
+    path : pathlib.Path
+        PNG file to write (atomically).
+    title : str
+        Figure title.
+    label : str
+        Colour-bar label (with the unit).
+    cmap : str
+        Matplotlib colour map.
+    vmin, vmax : float, optional
+        Colour-scale limits (in the unit of ``values``; default: the data's range).
+
+    Returns
+    -------
+    str
+        The path written.
+    """
     plt = _mpl()
     idx = np.flatnonzero(mask)
     ij, pos, v = sensors.ij[idx], sensors.position[idx], np.asarray(values, float)[idx]

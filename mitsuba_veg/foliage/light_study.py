@@ -61,7 +61,20 @@ DEFAULT_WHEN = "2026-07-15T12:00:00+09:00"
 # Scenes from trees
 # --------------------------------------------------------------------------------------------
 def stage_classes(tau, n_classes: int = 7) -> np.ndarray:
-    """Integer class per leaf from τ (n_classes bins over [0, 1])."""
+    """Integer class per leaf from τ (n_classes bins over [0, 1]).
+
+    Parameters
+    ----------
+    tau : array_like
+        Autumn logical time τ [-] per leaf (clipped to [0, 1]).
+    n_classes : int
+        Number of equal bins (default 7).
+
+    Returns
+    -------
+    numpy.ndarray
+        Class index per leaf in 0 .. n_classes − 1 (int).
+    """
     t = np.clip(np.asarray(tau, float), 0.0, 1.0)
     return np.minimum((t * n_classes).astype(int), n_classes - 1)
 
@@ -70,11 +83,53 @@ def tree_scene(tree, *, emitters: dict, tau=None, n_classes: int = 7, ground=Tru
                ground_extent: float | None = None, ground_resolution: int = 60,
                ground_albedo: float = 0.15, bark_albedo: float = 0.2, obstacles=(),
                traits=None):
-    """A Mitsuba scene of a tree over a square ground grid (id ``ground``): bark (``bark``),
-    leaves in ``n_classes`` autumn classes (ids ``leaves_k``, ``veg_leaf`` BSDF with the
-    PROSPECT-D spectra of the class's mean τ; all green when ``tau`` is None) and ``emitters``
-    (e.g. :func:`mitsuba_veg.light.daylight_from_angles`). Returns ``(scene, leaf_map)`` with
-    ``leaf_map = {shape_id: leaf indices}`` (leaf ``idx[j]`` owns triangles 2j, 2j + 1)."""
+    """A Mitsuba scene of a tree over a square ground grid.
+
+    Shapes: ground (id ``ground``), bark (``bark``, grey diffuse), leaves in ``n_classes`` autumn
+    classes (ids ``leaves_k``, ``veg_leaf`` BSDF with the PROSPECT-D spectra of the class's mean
+    τ; all green when ``tau`` is None), obstacles (``obstacle0``...) and ``emitters`` (e.g.
+    :func:`mitsuba_veg.light.daylight_from_angles`).
+
+    Parameters
+    ----------
+    tree : Tree or Leaves
+        The tree (leaves and live branches) or leaves only.
+    emitters : dict
+        Mitsuba emitter dicts by id.
+    tau : array_like, optional
+        (n_leaves,) autumn logical time [-] per leaf (default: green, τ = 0).
+    n_classes : int
+        Autumn classes (:func:`stage_classes`, default 7).
+    ground : bool
+        Add the ground grid (default True).
+    ground_extent : float, optional
+        Side of the square ground [m], centred on the leaves' mean (x, z); default four times the
+        leaves' largest horizontal offset from it (at least 2 m).
+    ground_resolution : int
+        Cells per side of the ground grid (default 60; two triangles per cell).
+    ground_albedo : float
+        Diffuse reflectance of the ground [-] (default 0.15).
+    bark_albedo : float
+        Diffuse reflectance of the bark [-] (default 0.2).
+    obstacles : sequence
+        Further shapes: ``(vertices [m], faces)`` pairs or ``mi.Mesh``.
+    traits : LeafTraits, optional
+        Leaf structure, water and dry matter of the spectra (default :class:`LeafTraits`()).
+
+    Returns
+    -------
+    scene : mi.Scene
+        The scene.
+    leaf_map : dict
+        ``{shape_id: leaf indices}`` (leaf ``idx[j]`` owns triangles 2j, 2j + 1).
+
+    Raises
+    ------
+    SceneError
+        When ``emitters`` is empty (is the sun below the horizon at that time?).
+    ParameterError
+        When ``tau`` does not have one value per leaf.
+    """
 
 
 
@@ -117,9 +172,28 @@ def tree_scene(tree, *, emitters: dict, tau=None, n_classes: int = 7, ground=Tru
 def leaf_values(result, leaf_map: dict | None = None, n_leaves: int | None = None) -> dict:
     """Per-leaf light from a photon pass: both faces' incident power per one-sided leaf area.
 
-    Returns ``{"par_W_m2", "ppfd", "red_W_m2", "far_red_W_m2", "rfr", "front_par_W_m2",
-    "back_par_W_m2"}`` arrays (one value per leaf, leaf order of ``leaf_map``'s indices, or
-    concatenated shape order when ``leaf_map`` is None)."""
+    Leaves are the shapes whose id starts with ``leaves``, two triangles per leaf.
+
+    Parameters
+    ----------
+    result : PhotonIrradianceResult
+        The photon pass (:func:`mitsuba_veg.light.photon_irradiance`).
+    leaf_map : dict, optional
+        ``{shape_id: leaf indices}`` (from :func:`tree_scene`); default: the leaf shapes'
+        leaves concatenated in shape order.
+    n_leaves : int, optional
+        Length of the arrays (default: the number of leaves in ``leaf_map``).
+
+    Returns
+    -------
+    dict
+        ``{"par_W_m2", "ppfd", "red_W_m2", "far_red_W_m2", "rfr", "front_par_W_m2",
+        "back_par_W_m2", "area_m2"}`` arrays (one value per leaf, leaf order of ``leaf_map``'s
+        indices, or concatenated shape order when ``leaf_map`` is None): PAR (400-700 nm), red
+        (655-665 nm) and far-red (725-735 nm) irradiance [W m-2], PPFD [µmol m-2 s-1], R:FR
+        photon ratio [-] (NaN without far-red), PAR on each face [W m-2], blade area [m2]; NaN
+        for leaves not in ``leaf_map``. An empty dict when the scene has no leaf shapes.
+    """
     ids = [s for s in result.index.shape_ids if s and s.startswith("leaves")]
     if not ids:
         return {}
@@ -153,7 +227,26 @@ def leaf_values(result, leaf_map: dict | None = None, n_leaves: int | None = Non
 
 
 def open_reference(azimuth: float, elevation: float, day_of_year: int = 172) -> dict:
-    """Light on open flat ground from the daylight spectra (SPCTRAL2 beam + sky)."""
+    """Light on open flat ground from the daylight spectra (SPCTRAL2 beam + sky).
+
+    Global horizontal spectral irradiance = DNI sin(elevation) + DHI of
+    :func:`~mitsuba_veg.light.clear_sky.clear_sky_spectra`.
+
+    Parameters
+    ----------
+    azimuth : float
+        Sun azimuth [degrees] (not used: horizontal ground does not depend on it).
+    elevation : float
+        Sun elevation [degrees].
+    day_of_year : int
+        Day of the year (Earth-Sun distance; default 172).
+
+    Returns
+    -------
+    dict
+        ``par_W_m2`` (400-700 nm), ``red_W_m2`` (655-665 nm), ``far_red_W_m2`` (725-735 nm)
+        [W m-2], ``ppfd`` [µmol m-2 s-1] and ``rfr`` (photon ratio) [-].
+    """
 
     wl, dni, dhi = clear_sky_spectra(elevation, day_of_year=day_of_year)
     ghi = dni * np.sin(np.radians(elevation)) + dhi
@@ -236,10 +329,55 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
                     tree_leaves: int = 3000, progress: bool = False) -> dict:
     """Run a spectral light study and write its files (module docstring). Returns the summary.
 
-    scene_or_scenario: scenario ``.toml`` / scene ``.xml`` path, ``mi.Scene``, ``Tree``, or
-    ``"sphere-tree"``. Trees get daylight (SPCTRAL2 sun + Perez sky) at ``when`` (ISO, default
-    mid-July noon) for ``latitude``/``longitude`` (default 35 N, 139 E) and a ground grid;
-    ``tau`` gives per-leaf autumn time for their spectra (default green).
+    Trees get daylight (SPCTRAL2 sun + Perez sky) at ``when`` for ``latitude``/``longitude`` and a
+    ground grid covering the crown and its shadow; ``tau`` gives per-leaf autumn time for their
+    spectra (default green).
+
+    Parameters
+    ----------
+    scene_or_scenario : str, pathlib.Path, mi.Scene or Tree
+        Scenario ``.toml`` / scene ``.xml`` path, ``mi.Scene``, ``Tree``, or ``"sphere-tree"``.
+    out_dir : str or pathlib.Path
+        Output folder (a ``light-study`` folder).
+    photons : int
+        Photons of the pass (default 2 000 000).
+    seed : int
+        Random seed (default 0).
+    max_depth : int
+        Most bounces of a photon path (default 8).
+    indirect : bool
+        Trace scattered light too (default True).
+    when : str, optional
+        Time (ISO 8601 with UTC offset): for trees default mid-July noon
+        (:data:`DEFAULT_WHEN`); for a scenario it overrides ``light.when``; refused for an XML
+        scene.
+    latitude, longitude : float, optional
+        Site of a tree [degrees] (default 35 N, 139 E).
+    ground : str, optional
+        Shape id of the ground (default: the scenario's ``terrain.ground``, else ``ground``).
+    overrides : sequence of str
+        ``--set`` overrides of a scenario.
+    tau : array_like, optional
+        (n_leaves,) autumn logical time [-] of a tree's leaves (default green).
+    tree_leaves : int
+        Leaves of the built-in ``"sphere-tree"`` (default 3000).
+    progress : bool
+        Progress bar of the photon pass.
+
+    Returns
+    -------
+    dict
+        The summary written to ``summary.json``: scene, sun and open-sky reference, settings,
+        ground means (PAR [W m-2], PPFD [µmol m-2 s-1], red and far-red [W m-2], R:FR [-],
+        fractions of open light), leaf and sensor statistics, timings [s] and the files written.
+
+    Raises
+    ------
+    ParameterError
+        When the scene cannot be read, a setting is out of range, or the sun is below the
+        horizon for a tree.
+    SceneError
+        When the scene has no ground shape ``ground`` or no emitters.
     """
 
 
@@ -365,7 +503,27 @@ def _write_leaves_csv(path, lv, leaf_map, src):
 
 
 def light_maps_figure(vertices, faces, values: dict, path, title: str = "") -> str:
-    """2 x 2 plan-view maps (PPFD, red, far-red, R:FR) with colour bars."""
+    """2 x 2 plan-view maps (PPFD, red, far-red, R:FR) with colour bars.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray
+        (n, 3) ground vertices [m].
+    faces : numpy.ndarray
+        (f, 3) ground triangles.
+    values : dict
+        Per-triangle ``ppfd`` [µmol m-2 s-1], ``red_W_m2``, ``far_red_W_m2`` [W m-2] and ``rfr``
+        [-].
+    path : pathlib.Path
+        PNG file to write (atomically).
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    str
+        The path written.
+    """
 
     plt = _mpl()
     fig, axs = plt.subplots(2, 2, figsize=(11, 9.2), constrained_layout=True)

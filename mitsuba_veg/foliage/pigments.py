@@ -35,7 +35,28 @@ class StageTable:
 
 @lru_cache(maxsize=4)
 def stage_table(path: str | None = None) -> StageTable:
-    """The stage pigment table (default: the shipped Ishikura reconstruction)."""
+    """The stage pigment table (default: the shipped Ishikura reconstruction).
+
+    Reads a CSV with comment lines (``#``, the sources) and the columns ``stage, coloured, red,
+    cab_ug_cm2, car_ug_cm2, anth_ug_cm2`` for stages 1..7 in order (cached).
+
+    Parameters
+    ----------
+    path : str, optional
+        CSV file; default :data:`TABLE_FILE` (``mitsuba_veg/data/foliage_ishikura_stages.csv``).
+
+    Returns
+    -------
+    StageTable
+        Stages [-], area fractions coloured / red [-], contents Cab, Car, Anth [µg cm-2] and the
+        source text.
+
+    Raises
+    ------
+    ParameterError
+        When the file is missing, its columns or rows differ from the above, or a content is
+        negative.
+    """
     p = Path(path) if path else TABLE_FILE
     if not p.exists():
         raise ParameterError("stage table", str(p), "an existing CSV file",
@@ -72,7 +93,25 @@ class LeafTraits:
 
 
 def stage_from_tau(tau):
-    """Ishikura stage (continuous, 1..7) from autumn logical time τ (clipped to [0, 1])."""
+    """Ishikura stage (continuous, 1..7) from autumn logical time τ (clipped to [0, 1]).
+
+    stage = 1 + 6 clip(τ, 0, 1).
+
+    Parameters
+    ----------
+    tau : float or array_like
+        Autumn logical time τ [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        Stage [-] in [1, 7], the shape of ``tau`` (0-d for a number).
+
+    Raises
+    ------
+    ParameterError
+        When ``tau`` holds NaN.
+    """
     t = np.asarray(tau, dtype=np.float64)
     if np.isnan(t).any():
         raise ParameterError("tau", "NaN", "numbers (autumn logical time, 0..1)")
@@ -80,7 +119,18 @@ def stage_from_tau(tau):
 
 
 def tau_from_stage(stage):
-    """Inverse of :func:`stage_from_tau` for stages in [1, 7]."""
+    """Inverse of :func:`stage_from_tau` for stages in [1, 7].
+
+    Parameters
+    ----------
+    stage : float or array_like
+        Ishikura stage [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        τ = (stage − 1) / 6 [-], clipped to [0, 1].
+    """
     s = np.asarray(stage, dtype=np.float64)
     return np.clip((s - 1.0) / 6.0, 0.0, 1.0)
 
@@ -88,7 +138,23 @@ def tau_from_stage(stage):
 def pigments_at_stage(stage, table: StageTable | None = None) -> dict:
     """Leaf-mean pigment contents [µg cm-2] at continuous stage(s) in [1, 7] (linear in stage).
 
-    Returns ``{"Cab": ..., "Car": ..., "Anth": ...}`` with the shape of ``stage``.
+    Parameters
+    ----------
+    stage : float or array_like
+        Ishikura stage(s) [-] in [1, 7].
+    table : StageTable, optional
+        Stage table (default: :func:`stage_table`()).
+
+    Returns
+    -------
+    dict
+        ``{"Cab": ..., "Car": ..., "Anth": ...}``: chlorophyll a+b, carotenoid and anthocyanin
+        contents [µg cm-2] with the shape of ``stage``.
+
+    Raises
+    ------
+    ParameterError
+        When a stage is NaN or outside [1, 7].
     """
     tb = table or stage_table()
     s = np.asarray(stage, dtype=np.float64)
@@ -100,21 +166,65 @@ def pigments_at_stage(stage, table: StageTable | None = None) -> dict:
 
 
 def pigments_at_tau(tau, table: StageTable | None = None) -> dict:
-    """Leaf-mean pigment contents [µg cm-2] at autumn logical time τ ∈ [0, 1]."""
+    """Leaf-mean pigment contents [µg cm-2] at autumn logical time τ ∈ [0, 1].
+
+    Parameters
+    ----------
+    tau : float or array_like
+        Autumn logical time τ [-] (clipped to [0, 1]).
+    table : StageTable, optional
+        Stage table (default: :func:`stage_table`()).
+
+    Returns
+    -------
+    dict
+        ``{"Cab", "Car", "Anth"}`` [µg cm-2] with the shape of ``tau``
+        (:func:`pigments_at_stage`).
+    """
     return pigments_at_stage(stage_from_tau(tau), table)
 
 
 def state_pigments(table: StageTable | None = None) -> dict:
-    """Contents of the three tissue states drawn on a leaf: green (stage 1), dark green-red
-    (stage 5) and red (stage 7): ``{state: {"Cab", "Car", "Anth"}}``."""
+    """Contents of the three tissue states drawn on a leaf.
+
+    Green (stage 1), dark green-red (stage 5) and red (stage 7).
+
+    Parameters
+    ----------
+    table : StageTable, optional
+        Stage table (default: :func:`stage_table`()).
+
+    Returns
+    -------
+    dict
+        ``{state: {"Cab", "Car", "Anth"}}`` for the states of :data:`STATES`: contents
+        [µg cm-2] (float).
+    """
     tb = table or stage_table()
     return {name: {"Cab": float(tb.cab[i]), "Car": float(tb.car[i]), "Anth": float(tb.anth[i])}
             for name, i in zip(STATES, (0, 4, 6))}
 
 
 def vary_pigments(pigments: dict, rng, sigma: float = 0.1) -> dict:
-    """Per-leaf random variation (paper 003 §6's non-deterministic factors): each content is
-    multiplied by an independent log-normal factor with median 1 and log-sd ``sigma``."""
+    """Per-leaf random variation (paper 003 §6's non-deterministic factors).
+
+    Each content is multiplied by an independent log-normal factor with median 1 and log-sd
+    ``sigma``.
+
+    Parameters
+    ----------
+    pigments : dict
+        Contents [µg cm-2] (e.g. ``{"Cab", "Car", "Anth"}``), numbers or arrays.
+    rng : int or numpy.random.Generator
+        Seed or generator (passed to ``numpy.random.default_rng``).
+    sigma : float
+        Log-sd of the factors [-] in [0, 2] (default 0.1).
+
+    Returns
+    -------
+    dict
+        The same keys, varied contents [µg cm-2] (float arrays of the input shapes).
+    """
     check_range("sigma", sigma, 0.0, 2.0)
     rng = np.random.default_rng(rng)
     return {k: np.asarray(v, float) * np.exp(sigma * rng.standard_normal(np.shape(v)))

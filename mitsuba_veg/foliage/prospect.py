@@ -18,7 +18,7 @@ Dr.Jit (:mod:`mitsuba_veg.foliage.prospect_dr`, differentiable); :func:`prospect
 NumPy face, vectorised over leaves (``Cab`` etc. may be arrays: one spectrum per leaf).
 
 Units: Cab, Car, Anth [µg cm-2]; Cbrown [arbitrary, 0-1]; Cw [cm] (= g cm-2 of water);
-Cm [g cm-2]; N [-] (1-3; 1.2-1.8 for thin leaves such as maples).
+Cm [g cm-2]; N [-] (1-4; 1.2-1.8 for thin leaves such as maples).
 """
 from __future__ import annotations
 

@@ -110,8 +110,23 @@ def _data_file() -> Path:
 
 @lru_cache(maxsize=1)
 def coefficients() -> ProspectCoefficients:
-    """The PROSPECT-D specific absorption coefficients and refractive index (Féret et al. 2017),
-    read from ``prosail``'s data file (columns: λ, n, k_ab, k_car, k_anth, k_brown, k_w, k_m)."""
+    """The PROSPECT-D specific absorption coefficients and refractive index (Féret et al. 2017).
+
+    Read from ``prosail``'s data file (columns: λ, n, k_ab, k_car, k_anth, k_brown, k_w, k_m),
+    once (cached).
+
+    Returns
+    -------
+    ProspectCoefficients
+        (2101,) arrays on 400-2500 nm by 1 nm: wavelength [nm], refractive index n [-], k_ab,
+        k_car, k_anth [cm2 µg-1], k_brown [arbitrary], k_w [cm-1], k_m [cm2 g-1].
+
+    Raises
+    ------
+    ImportError
+        When ``prosail`` (with ``prospect_d_spectra.txt``) is not installed or the table has an
+        unexpected layout.
+    """
     data = np.loadtxt(_data_file(), comments="#")
     if data.shape != (2101, 8) or not np.allclose(data[:, 0], WAVELENGTHS):
         raise ImportError(f"unexpected PROSPECT-D table layout in {_data_file()}: {data.shape}")
@@ -119,8 +134,23 @@ def coefficients() -> ProspectCoefficients:
 
 
 def calctav(alpha_deg: float, nr: np.ndarray) -> np.ndarray:
-    """Average transmissivity of a dielectric interface for isotropic light within a cone of
-    half angle ``alpha_deg`` (Stern 1964; Allen 1973), refractive index ``nr``."""
+    """Average transmissivity of a dielectric interface for isotropic light within a cone.
+
+    Stern 1964; Allen 1973: t_av(α, n) for isotropic incident light within a cone of half angle
+    ``alpha_deg`` on an interface of refractive index ``nr`` (module docstring, step 3).
+
+    Parameters
+    ----------
+    alpha_deg : float
+        Half angle α of the incident cone [degrees] (40 for the top surface, 90 inside).
+    nr : numpy.ndarray
+        Refractive index n(λ) [-] per wavelength.
+
+    Returns
+    -------
+    numpy.ndarray
+        t_av [-] per wavelength, the shape of ``nr``.
+    """
     n2 = nr * nr
     npx = n2 + 1.0
     nm = n2 - 1.0
@@ -148,7 +178,7 @@ PARAMETERS = ("N", "Cab", "Car", "Anth", "Cbrown", "Cw", "Cm")
 
 #: allowed ranges (the ones :func:`mitsuba_veg.foliage.prospect.prospect_d` checks) and fixes
 BOUNDS = {
-    "N": (1.0, 4.0, "the leaf structure parameter N is 1-3 (1.5 for thin leaves)"),
+    "N": (1.0, 4.0, "the leaf structure parameter N is 1-4 (1.5 for thin leaves)"),
     "Cab": (0.0, 200.0, "chlorophyll a+b in µg/cm2 (0-100 typical)"),
     "Car": (0.0, 60.0, "carotenoids in µg/cm2 (0-25 typical)"),
     "Anth": (0.0, 100.0, "anthocyanins in µg/cm2 (0-40 typical)"),
@@ -204,9 +234,22 @@ def _exp1_value(x):
 
 
 def exp1(x):
-    """Exponential integral E1(x) = ∫_x^∞ e^{-t}/t dt for x >= 0 (E1(0) = inf), differentiable:
-    dE1/dx = -e^{-x}/x (Abramowitz & Stegun 5.1.26). Accepts numbers, NumPy or Dr.Jit arrays;
-    returns a Dr.Jit ``Float64``."""
+    """Exponential integral E1(x) = ∫_x^∞ e^{-t}/t dt for x >= 0 (E1(0) = inf), differentiable.
+
+    dE1/dx = -e^{-x}/x (Abramowitz & Stegun 5.1.26), attached with ``dr.replace_grad`` when
+    ``x`` has gradients enabled. Series for x <= 2.5, continued fraction above (module
+    docstring, step 2).
+
+    Parameters
+    ----------
+    x : float, array_like or drjit array
+        Argument [-], x >= 0 (numbers, NumPy or Dr.Jit arrays).
+
+    Returns
+    -------
+    Float64
+        E1(x) [-] as a Dr.Jit ``Float64`` (AD kept).
+    """
     x = _as_float64(x)
     v = _exp1_value(x)
     if not dr.grad_enabled(x):
@@ -217,9 +260,21 @@ def exp1(x):
 
 
 def plate_transmissivity(k):
-    """τ(k) = (1 - k) e^{-k} + k² E1(k): transmissivity of an elementary plate of absorption k
-    [-] for isotropic incident light (Allen et al. 1969); τ(0) = 1. Derivative attached
-    analytically: dτ/dk = 2 (k E1(k) - e^{-k})."""
+    """τ(k) = (1 - k) e^{-k} + k² E1(k): transmissivity of an elementary plate.
+
+    For isotropic incident light (Allen et al. 1969); τ(0) = 1. Derivative attached
+    analytically: dτ/dk = 2 (k E1(k) - e^{-k}).
+
+    Parameters
+    ----------
+    k : float, array_like or drjit array
+        Absorption k of the plate [-], k >= 0.
+
+    Returns
+    -------
+    Float64
+        τ(k) [-] as a Dr.Jit ``Float64`` (AD kept).
+    """
     k = _as_float64(k)
     kd = dr.detach(k)
     e1 = _exp1_value(kd)
@@ -236,8 +291,25 @@ def plate_transmissivity(k):
 # constants per wavelength set
 # ------------------------------------------------------------------------------------------
 def wavelength_indices(wavelengths=None) -> np.ndarray:
-    """Indices into the 1-nm PROSPECT-D grid (400-2500 nm): ``None`` = all, ``(lo, hi)`` = the
-    closed range [lo, hi] nm, or an array of wavelengths [nm] on the grid (integers)."""
+    """Indices into the 1-nm PROSPECT-D grid (400-2500 nm).
+
+    Parameters
+    ----------
+    wavelengths : None, tuple of float or array_like, optional
+        ``None`` = all; ``(lo, hi)`` = the closed range [lo, hi] [nm] (hi − lo > 1); or an array
+        of wavelengths [nm] on the grid (whole nanometres).
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 indices into :data:`WAVELENGTHS`.
+
+    Raises
+    ------
+    ParameterError
+        When the range or a wavelength lies outside [400, 2500] nm, or a wavelength is not a
+        whole nanometre.
+    """
     if wavelengths is None:
         return np.arange(len(WAVELENGTHS))
     w = np.asarray(wavelengths, dtype=np.float64)
@@ -282,7 +354,13 @@ class ProspectSpectra(NamedTuple):
     n_leaves: int
 
     def numpy(self) -> tuple[np.ndarray, np.ndarray]:
-        """(R, T) as NumPy arrays of shape (n_wl,) for one leaf, (m, n_wl) for several."""
+        """(R, T) as NumPy arrays of shape (n_wl,) for one leaf, (m, n_wl) for several.
+
+        Returns
+        -------
+        R, T : numpy.ndarray
+            Reflectance and transmittance [-] (float64).
+        """
         shape = (len(self.wavelength),) if self.n_leaves == 1 else (self.n_leaves, -1)
         return (np.asarray(self.reflectance, dtype=np.float64).reshape(shape),
                 np.asarray(self.transmittance, dtype=np.float64).reshape(shape))
@@ -313,16 +391,44 @@ def check_parameter(name: str, x) -> int:
 
 def prospect_d(N=1.5, Cab=40.0, Car=5.0, Anth=0.0, Cbrown=0.0, Cw=0.012, Cm=0.005, *,
                alpha: float = 40.0, wavelengths=None, check: bool = True) -> ProspectSpectra:
-    """PROSPECT-D in Dr.Jit: directional-hemispherical reflectance and transmittance of a leaf
-    (equations in the module docstring), differentiable in all seven inputs.
+    """PROSPECT-D in Dr.Jit: directional-hemispherical reflectance and transmittance of a leaf.
 
-    N [-], Cab, Car, Anth [µg cm-2], Cbrown [-], Cw [cm], Cm [g cm-2]: numbers, NumPy arrays or
-    Dr.Jit arrays (e.g. ``Float64`` with ``dr.enable_grad``); length m gives m leaves.
-    ``alpha`` [deg]: half angle of the incident cone (40°, the model's calibration).
-    ``wavelengths``: ``None`` (400-2500 nm), ``(lo, hi)`` [nm] or whole nanometres; only those
-    are computed (``(400, 830)`` for colours). ``check``: validate the ranges (reads the values
-    back; switch off inside tight loops that keep values in range themselves).
-    Agrees with ``prosail``'s PROSPECT-D to < 1e-10 (``tests/test_leaf_spectra.py``).
+    Equations in the module docstring; differentiable in all seven inputs. Inputs are numbers,
+    NumPy arrays or Dr.Jit arrays (e.g. ``Float64`` with ``dr.enable_grad``); length m gives m
+    leaves (every input has 1 or m values). Agrees with ``prosail``'s PROSPECT-D to < 1e-10
+    (``tests/test_leaf_spectra.py``).
+
+    Parameters
+    ----------
+    N : float, array_like or drjit array
+        Leaf structure parameter [-] (1-4; default 1.5).
+    Cab, Car, Anth : float, array_like or drjit array
+        Chlorophyll a+b, carotenoids, anthocyanins [µg cm-2] (defaults 40, 5, 0).
+    Cbrown : float, array_like or drjit array
+        Brown pigments [-] (arbitrary units, default 0).
+    Cw : float, array_like or drjit array
+        Equivalent water thickness [cm] (default 0.012).
+    Cm : float, array_like or drjit array
+        Dry matter [g cm-2] (default 0.005).
+    alpha : float
+        Half angle of the incident cone [degrees] (40°, the model's calibration).
+    wavelengths : None, tuple of float or array_like, optional
+        ``None`` (400-2500 nm), ``(lo, hi)`` [nm] or whole nanometres; only those are computed
+        (``(400, 830)`` for colours); see :func:`wavelength_indices`.
+    check : bool
+        Validate the ranges (:data:`BOUNDS`; reads the values back; switch off inside tight
+        loops that keep values in range themselves).
+
+    Returns
+    -------
+    ProspectSpectra
+        Wavelengths [nm] and flat ``Float64`` reflectance and transmittance [-] (m × n_wl
+        values, leaf after leaf), and m.
+
+    Raises
+    ------
+    ParameterError
+        When an input is out of range or the inputs' lengths differ (other than 1).
     """
     check_range("alpha", alpha, 0.0, 90.0, lo_open=True)
     vals = dict(zip(PARAMETERS, (N, Cab, Car, Anth, Cbrown, Cw, Cm)))

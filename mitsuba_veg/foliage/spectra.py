@@ -30,10 +30,28 @@ class LeafSpectra(NamedTuple):
 
     @property
     def absorptance(self) -> np.ndarray:
+        """Leaf absorptance 1 − R − T [-], shape of ``reflectance``."""
         return 1.0 - self.reflectance - self.transmittance
 
     def at(self, wavelength_nm) -> tuple[np.ndarray, np.ndarray]:
-        """(R, T) interpolated at wavelength(s) [nm] (last axis)."""
+        """(R, T) interpolated at wavelength(s) [nm] (last axis).
+
+        Parameters
+        ----------
+        wavelength_nm : float or array_like
+            Wavelength(s) [nm] in [400, 2500].
+
+        Returns
+        -------
+        R, T : numpy.ndarray
+            Reflectance and transmittance [-], shape ``(..., len(wavelength_nm))`` (leading axes as
+            the spectra's).
+
+        Raises
+        ------
+        ParameterError
+            When a wavelength is outside [400, 2500] nm.
+        """
         wl = np.atleast_1d(np.asarray(wavelength_nm, float))
         if (wl < 400).any() or (wl > 2500).any():
             raise ParameterError("wavelength_nm", wl.tolist(), "[400, 2500] nm")
@@ -44,7 +62,24 @@ class LeafSpectra(NamedTuple):
         return R, T
 
     def band_mean(self, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
-        """(R, T) averaged (flat weight) over [lo, hi] nm."""
+        """(R, T) averaged (flat weight) over [lo, hi] nm.
+
+        Parameters
+        ----------
+        lo, hi : float
+            Band limits [nm] (closed interval on the 1-nm grid).
+
+        Returns
+        -------
+        R, T : numpy.ndarray
+            Band-mean reflectance and transmittance [-], the spectra's leading shape (a 0-d array
+            for one leaf).
+
+        Raises
+        ------
+        ParameterError
+            When no wavelength of the grid lies in the band.
+        """
         m = (self.wavelength >= lo) & (self.wavelength <= hi)
         if not m.any():
             raise ParameterError("band", (lo, hi), "a range inside 400-2500 nm")
@@ -57,9 +92,36 @@ def leaf_spectra(tau=None, *, stage=None, Cab=None, Car=None, Anth=None,
 
     Give either autumn logical time ``tau`` ∈ [0, 1], or an Ishikura ``stage`` ∈ [1, 7], or the
     pigment contents ``Cab``, ``Car``, ``Anth`` [µg cm-2] directly (any of them overrides the
-    stage table's value). Arrays broadcast: m values give (m, 2101) spectra. ``traits`` holds
-    the leaf structure N, water Cw [cm], dry matter Cm [g cm-2] and brown pigments.
+    stage table's value; with none of them and not all three contents, stage 1). Arrays broadcast:
+    m values give (m, 2101) spectra. ``traits`` holds the leaf structure N, water Cw [cm], dry
+    matter Cm [g cm-2] and brown pigments.
 
+    Parameters
+    ----------
+    tau : float or array_like, optional
+        Autumn logical time τ [-] in [0, 1] (stage = 1 + 6 τ).
+    stage : float or array_like, optional
+        Ishikura stage [-] in [1, 7].
+    Cab, Car, Anth : float or array_like, optional
+        Chlorophyll a+b, carotenoid, anthocyanin contents [µg cm-2].
+    traits : LeafTraits
+        N [-], Cw [cm], Cm [g cm-2], Cbrown [-] (default: a thin maple leaf).
+    table : StageTable, optional
+        Stage table (default: the shipped Ishikura table).
+
+    Returns
+    -------
+    LeafSpectra
+        Wavelengths (2101,) [nm], directional-hemispherical reflectance and transmittance [-]
+        (shape ``broadcast + (2101,)``) and the inputs used.
+
+    Raises
+    ------
+    ParameterError
+        When both ``tau`` and ``stage`` are given, or an input is out of range.
+
+    Examples
+    --------
     >>> s = leaf_spectra(tau=0.0)          # a green maple leaf (stage 1)
     >>> R, T = s.at([660, 730])            # red, far-red
     """
@@ -83,8 +145,30 @@ def leaf_spectra(tau=None, *, stage=None, Cab=None, Car=None, Anth=None,
 
 
 def mitsuba_spectrum(wavelength, values, lo: float = MITSUBA_MIN_NM) -> dict:
-    """A Mitsuba ``regular`` spectrum dict from a spectrum on a regular 1-nm grid; extended
-    down to ``lo`` nm by holding the first value (Mitsuba samples 360-830 nm)."""
+    """A Mitsuba ``regular`` spectrum dict from a spectrum on a regular 1-nm grid.
+
+    Extended down to ``lo`` nm by holding the first value (Mitsuba samples 360-830 nm).
+
+    Parameters
+    ----------
+    wavelength : array_like
+        (n,) regular wavelength grid [nm].
+    values : array_like
+        n values (flattened), e.g. reflectance [-].
+    lo : float
+        Lowest wavelength of the result [nm] (default :data:`MITSUBA_MIN_NM`, 360 nm).
+
+    Returns
+    -------
+    dict
+        ``{"type": "regular", "wavelength_min" [nm], "wavelength_max" [nm], "values"}``
+        (values as a comma-separated string).
+
+    Raises
+    ------
+    ParameterError
+        When ``values`` does not have one value per wavelength.
+    """
     wl = np.asarray(wavelength, float)
     v = np.asarray(values, float).ravel()
     if wl.ndim != 1 or len(wl) != len(v):

@@ -13,6 +13,9 @@ from mitsuba_veg.integrators.photon_irradiance import (  # noqa: F401
     BANDS, DEFAULT_BANDS, DEFAULT_BATCH, PhotonIrradianceIntegrator, PhotonIrradianceResult,
     band_range)
 
+__all__ = ["BANDS", "DEFAULT_BANDS", "DEFAULT_BATCH", "PhotonIrradianceIntegrator",
+           "PhotonIrradianceResult", "band_range", "integrator", "photon_irradiance"]
+
 
 def _band_property(bands) -> str:
     """Bands as the plugin's ``bands`` string: names, and ranges as ``"min-max"`` [nm]."""
@@ -36,7 +39,25 @@ def integrator(photons: int = 1_000_000, seed: int = 0, max_depth: int = 8,
                batch: int = DEFAULT_BATCH) -> PhotonIrradianceIntegrator:
     """The ``veg_photon_irradiance`` plugin with these properties (what a scene file declares).
 
-    Parameters are those of :func:`photon_irradiance`; returns the loaded Mitsuba integrator.
+    Parameters
+    ----------
+    photons : int
+        Total photons, shared among emitters by power (>= 5 % each).
+    seed : int
+        Random seed, 0 .. 2^31 - 1.
+    max_depth : int
+        Maximum surface hits per photon, 1 .. 1000.
+    bands : sequence
+        Band names of :data:`BANDS` or (min_nm, max_nm) pairs [nm].
+    indirect : bool
+        False records only the first hit.
+    batch : int
+        Photons per kernel launch (>= 1024).
+
+    Returns
+    -------
+    PhotonIrradianceIntegrator
+        The loaded Mitsuba integrator.
     """
     # checked here too: an error raised inside mi.load_dict would reach the caller re-wrapped
     check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")

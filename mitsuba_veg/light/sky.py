@@ -110,7 +110,36 @@ _CIE = {12: (-1.0, -0.32, 10.0, -3.0, 0.45),   # clear, low luminance turbidity
 
 
 def perez_coefficients(epsilon: float, delta: float, sun_zenith: float):
-    """Perez (1993) all-weather coefficients (a, b, c, d, e); ``sun_zenith`` in radians."""
+    """Perez (1993) all-weather coefficients (a, b, c, d, e) of the sky radiance distribution.
+
+    Each coefficient is ``x = x1 + x2 Z + delta (x3 + x4 Z)`` with (x1..x4) from
+    :data:`PEREZ_1993` for the clearness bin of ``epsilon`` (the first bin has special forms of c
+    and d). As in Radiance's gendaylit, epsilon is clamped to at most 12.01 and delta to
+    [0.01, 0.6], and delta is raised to 0.2 for 1.065 < epsilon < 2.8 (no unphysical skies at low
+    brightness).
+
+    Parameters
+    ----------
+    epsilon : float
+        Perez sky clearness [-], >= 1:
+        ``((DHI + DNI)/DHI + 1.041 Z^3) / (1 + 1.041 Z^3)`` (Z in [rad]).
+    delta : float
+        Perez sky brightness [-], >= 0: ``DHI m / E0`` (m: air mass, E0: extraterrestrial
+        irradiance).
+    sun_zenith : float
+        Solar zenith angle Z [rad].
+
+    Returns
+    -------
+    tuple of float
+        ``(a, b, c, d, e)`` of ``f = (1 + a exp(b / cos theta)) (1 + c exp(d gamma) +
+        e cos^2 gamma)`` (theta, gamma in [rad]; f relative, unnormalised).
+
+    Raises
+    ------
+    ParameterError
+        If ``epsilon < 1`` or ``delta < 0`` (or either is NaN / infinite).
+    """
     if not (epsilon >= 1.0) or not math.isfinite(epsilon):
         raise ParameterError("perez_epsilon", epsilon, "[1, inf)",
                              "sky clearness is ((DHI+DNI)/DHI + 1.041 Z^3)/(1 + 1.041 Z^3) >= 1")
@@ -136,7 +165,22 @@ def cie_coefficients(sky_type: int = 12):
 
     CIE: phi(Z) f(chi) with f = 1 + c (exp(d chi) - exp(d pi/2)) + e cos^2 chi; dividing f by
     k = 1 - c exp(d pi/2) gives 1 + (c/k) exp(d chi) + (e/k) cos^2 chi (the scale is irrelevant
-    after normalisation).
+    after normalisation). Coefficients of CIE S 011/E:2003.
+
+    Parameters
+    ----------
+    sky_type : int, optional
+        12 (clear, low luminance turbidity; default) or 13 (clear, polluted atmosphere).
+
+    Returns
+    -------
+    tuple of float
+        ``(a, b, c, d, e)`` in the Perez form [-] (angles in [rad]).
+
+    Raises
+    ------
+    ParameterError
+        If ``sky_type`` is not 12 or 13.
     """
     if sky_type not in _CIE:
         raise ParameterError("cie sky type", sky_type, "12 (clear) or 13 (turbid)")
@@ -147,7 +191,33 @@ def cie_coefficients(sky_type: int = 12):
 
 def sky_coefficients(distribution: str, sun_zenith: float = 0.0, *, epsilon=None, delta=None,
                      custom=None):
-    """Perez-form coefficients for a distribution name (see module docstring)."""
+    """Perez-form coefficients for a distribution name (see module docstring).
+
+    Parameters
+    ----------
+    distribution : str
+        ``"perez"``, ``"cie_clear"`` (CIE type 12), ``"cie_turbid"`` (type 13), ``"uniform"``
+        (all zero) or ``"custom"``.
+    sun_zenith : float, optional
+        Solar zenith angle [rad] (used by ``"perez"`` only); default 0.
+    epsilon : float, optional
+        Perez sky clearness [-] (>= 1); required for ``"perez"``.
+    delta : float, optional
+        Perez sky brightness [-] (>= 0); required for ``"perez"``.
+    custom : sequence of float, optional
+        The five coefficients a, b, c, d, e for ``"custom"``.
+
+    Returns
+    -------
+    tuple of float
+        ``(a, b, c, d, e)`` [-].
+
+    Raises
+    ------
+    ParameterError
+        For an unknown distribution, ``"perez"`` without epsilon and delta, or ``"custom"``
+        without five numbers.
+    """
     if distribution == "perez":
         if epsilon is None or delta is None:
             raise ParameterError("perez_epsilon/perez_delta", (epsilon, delta), "two numbers",
@@ -168,7 +238,24 @@ def sky_coefficients(distribution: str, sun_zenith: float = 0.0, *, epsilon=None
 
 
 def relative_radiance(cos_theta, cos_gamma, coeffs):
-    """Unnormalised Perez-form radiance (numpy, float64); 0 at and below the horizon."""
+    """Unnormalised Perez-form radiance (numpy, float64); 0 at and below the horizon.
+
+    ``max((1 + a exp(b / max(cos theta, 0.01))) (1 + c exp(d gamma) + e cos^2 gamma), 0)``.
+
+    Parameters
+    ----------
+    cos_theta : float or array_like
+        Cosine of the zenith angle of the direction [-].
+    cos_gamma : float or array_like
+        Cosine of the angle between the direction and the sun [-] (clipped to [-1, 1]).
+    coeffs : sequence of float
+        ``(a, b, c, d, e)`` of :func:`sky_coefficients`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Relative radiance f [-] (broadcast shape of the inputs), >= 0.
+    """
     a, b, c, d, e = coeffs
     ct = np.asarray(cos_theta, dtype=float)
     cg = np.clip(np.asarray(cos_gamma, dtype=float), -1.0, 1.0)
@@ -245,6 +332,8 @@ class VegSky(mi.Emitter):
             raise ParameterError(f"veg_sky {key}", spec, "a spectrum (e.g. {'type': 'regular', "
                                  "...}) or a number")
         self.m_radiance = spec
+        #: the property the spectrum came from, and its name in ``mi.traverse``
+        self.spectrum_key = key
         self.m_scale = 1.0 if has_r else 1.0 / math.pi
 
         sun = np.array(props.get("sun_direction", [0.0, 1.0, 0.0]), dtype=float).reshape(-1)
@@ -295,15 +384,23 @@ class VegSky(mi.Emitter):
                 delta: float | None = None) -> None:
         """Move the sky to another sun (and Perez sky clearness/brightness) in place.
 
+        The tables keep their sizes and the coefficients stay opaque, so a scene rendered
+        before renders again with the same compiled kernel (an animation's daily light). A
+        ``custom`` sky keeps its coefficients; the spectrum S is unchanged.
+
         Parameters
         ----------
         sun_direction : array_like
-            (3,) direction towards the sun (scene frame, +y up).
+            (3,) direction towards the sun (scene frame, +y up), need not be normalised.
         epsilon, delta : float, optional
-            Perez sky clearness and brightness [-] (``distribution="perez"``).
+            Perez sky clearness and brightness [-] (``distribution="perez"``, where both are
+            required).
 
-        The tables keep their sizes and the coefficients stay opaque, so a scene rendered
-        before renders again with the same compiled kernel (an animation's daily light).
+        Raises
+        ------
+        ParameterError
+            If ``sun_direction`` is not a finite non-zero 3-vector, or is at or below the
+            horizon for a Perez sky.
         """
         sun = np.asarray(sun_direction, dtype=float).reshape(-1)
         if sun.shape != (3,) or not np.all(np.isfinite(sun)) or np.linalg.norm(sun) == 0:
@@ -370,7 +467,13 @@ class VegSky(mi.Emitter):
 
     # ------------------------------------------------------------------ Emitter interface
     def set_scene(self, scene):
-        """Learn the scene's bounding sphere (for sample_ray); not called by Mitsuba itself."""
+        """Learn the scene's bounding sphere (for sample_ray); not called by Mitsuba itself.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The loaded scene; an empty one gives a sphere of radius 1e-4 m at the origin.
+        """
         bbox = scene.bbox()
         if bbox.valid():
             bs = bbox.bounding_sphere()
@@ -383,13 +486,66 @@ class VegSky(mi.Emitter):
         dr.make_opaque(self.m_center)
 
     def eval(self, si, active=True):
+        """Radiance arriving from the sky along ``-si.wi`` (a ray that escaped the scene).
+
+        Parameters
+        ----------
+        si : mi.SurfaceInteraction3f
+            The escaping ray's interaction (``wi``: direction back along the ray; ``wavelengths``
+            [nm]).
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        mi.Spectrum
+            Radiance S(lambda) f(w) [W m-2 sr-1 nm-1]; 0 below the horizon.
+        """
         d = -si.wi
         return self._spectrum(si.wavelengths, active) * self._f(d, active)
 
     def eval_direction(self, it, ds, active=True):
+        """Radiance from the sky in the direction of a direction sample.
+
+        Parameters
+        ----------
+        it : mi.Interaction3f
+            The reference point (its ``wavelengths`` [nm] are used).
+        ds : mi.DirectionSample3f
+            Direction sample; ``ds.d`` points towards the sky.
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        mi.Spectrum
+            Radiance S(lambda) f(ds.d) [W m-2 sr-1 nm-1]; 0 below the horizon.
+        """
         return self._spectrum(it.wavelengths, active) * self._f(ds.d, active)
 
     def sample_direction(self, it, sample, active=True):
+        """Importance-sample a direction towards the sky from a reference point.
+
+        The direction comes from the piecewise-constant table of f (upper hemisphere only); the
+        sample's point lies at twice the bounding-sphere radius along it.
+
+        Parameters
+        ----------
+        it : mi.Interaction3f
+            The reference point (position [m], time, wavelengths [nm]).
+        sample : mi.Point2f
+            Uniform 2D sample in [0, 1)^2.
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        ds : mi.DirectionSample3f
+            The sample: ``d`` towards the sky, ``pdf`` in solid angle [sr-1],
+            ``uv`` = (azimuth / 2pi, zenith / (pi/2)), ``dist`` [m], ``delta`` False.
+        weight : mi.Spectrum
+            Radiance / pdf [W m-2 nm-1]; 0 for inactive lanes.
+        """
         d, pdf, uv = self._sample(sample, active)
         active = active & (pdf > 0.0)
         radius = dr.maximum(self.m_radius, dr.norm(it.p - self.m_center))
@@ -409,18 +565,95 @@ class VegSky(mi.Emitter):
         return ds, dr.select(active, weight, 0.0)
 
     def pdf_direction(self, it, ds, active=True):
+        """Solid-angle density of :meth:`sample_direction` for a direction.
+
+        Parameters
+        ----------
+        it : mi.Interaction3f
+            The reference point (unused: the density does not depend on it).
+        ds : mi.DirectionSample3f
+            Direction sample; ``ds.d`` points towards the sky.
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        mi.Float
+            Density [sr-1]; 0 at and below the horizon.
+        """
         return self._pdf(ds.d, active)
 
     def sample_wavelengths(self, si, sample, active=True):
+        """Sample wavelengths from the sky spectrum S for a ray escaping along ``-si.wi``.
+
+        Parameters
+        ----------
+        si : mi.SurfaceInteraction3f
+            The interaction (``wi``: direction back along the ray).
+        sample : mi.Float
+            Uniform sample in [0, 1) (shifted for the other wavelengths).
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        wavelengths : mi.Spectrum
+            Sampled wavelengths [nm].
+        weight : mi.Spectrum
+            The spectrum's sampling weight S(lambda)/p(lambda) times f(-si.wi)
+            [W m-2 sr-1].
+        """
         wav, w = self.m_radiance.sample_spectrum(si, mi.sample_shifted(sample), active)
         return wav, w * self._f(-si.wi, active)
 
     def pdf_wavelengths(self, wavelengths, active=True):
+        """Density of :meth:`sample_wavelengths` for given wavelengths (that of the spectrum S).
+
+        Parameters
+        ----------
+        wavelengths : mi.Spectrum
+            Wavelengths [nm].
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        mi.Spectrum
+            Density per wavelength [nm-1].
+        """
         si = dr.zeros(mi.SurfaceInteraction3f)
         si.wavelengths = wavelengths
         return self.m_radiance.pdf_spectrum(si, active)
 
     def sample_ray(self, time, wavelength_sample, sample2, sample3, active=True):
+        """Sample a ray leaving the sky towards the scene (light tracing, photon passes).
+
+        The direction is importance-sampled from f; the origin lies on a disk of the bounding-sphere
+        radius perpendicular to it, one radius out (see :func:`attach_scene`: without it the scene
+        is assumed to fit in the unit sphere at the origin).
+
+        Parameters
+        ----------
+        time : mi.Float
+            Time of the ray [s].
+        wavelength_sample : mi.Float
+            Uniform sample in [0, 1) for the wavelengths.
+        sample2 : mi.Point2f
+            Uniform 2D sample for the position on the disk.
+        sample3 : mi.Point2f
+            Uniform 2D sample for the direction.
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Returns
+        -------
+        ray : mi.Ray3f
+            The ray (origin [m], direction into the scene, wavelengths [nm]).
+        weight : mi.Spectrum
+            ``S(lambda)/p(lambda) * f * pi r^2 / pdf``: the power the ray carries [W]
+            (r: bounding-sphere radius [m], pdf: direction density [sr-1]); 0 for inactive
+            lanes.
+        """
         offset = mi.warp.square_to_uniform_disk_concentric(sample2)
         d, pdf, _ = self._sample(sample3, active)
         active = active & (pdf > 0.0)
@@ -436,21 +669,85 @@ class VegSky(mi.Emitter):
         return ray, dr.select(active, weight, 0.0)
 
     def sample_position(self, time, sample, active=True):
+        """Not supported: an infinite emitter has no positions to sample.
+
+        Parameters
+        ----------
+        time : mi.Float
+            Time [s] (unused).
+        sample : mi.Point2f
+            2D sample (unused).
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Raises
+        ------
+        NotImplementedError
+            Always.
+        """
         raise NotImplementedError("veg_sky is an infinite emitter: it has no positions to sample")
 
     def pdf_position(self, ps, active=True):
+        """Not supported: an infinite emitter has no positions to sample.
+
+        Parameters
+        ----------
+        ps : mi.PositionSample3f
+            Position sample (unused).
+        active : mi.Bool, optional
+            Mask of the active lanes; default True.
+
+        Raises
+        ------
+        NotImplementedError
+            Always.
+        """
         raise NotImplementedError("veg_sky is an infinite emitter: it has no positions to sample")
 
     def bbox(self):
+        """Bounding box of the emitter: empty (an infinite emitter).
+
+        Returns
+        -------
+        mi.ScalarBoundingBox3f
+            An empty (invalid) box.
+        """
         return mi.ScalarBoundingBox3f()
 
     def traverse(self, callback):
-        callback.put("radiance", self.m_radiance, mi.ParamFlags.Differentiable)
+        """Expose the spectrum as a differentiable parameter named after its property.
+
+        ``radiance`` (S [W m-2 sr-1 nm-1]) when the emitter was built with ``radiance``,
+        ``irradiance`` (E [W m-2 nm-1], the 1/pi applied in the normalisation) when it was built
+        with ``irradiance``: a value set through ``mi.traverse`` means what its name says.
+
+        Parameters
+        ----------
+        callback : mi.TraversalCallback
+            Mitsuba's traversal callback.
+        """
+        callback.put(self.spectrum_key, self.m_radiance, mi.ParamFlags.Differentiable)
 
     def parameters_changed(self, keys=None):
+        """Nothing to update: the spectrum is evaluated on the fly (sun and coefficients change
+        through :meth:`set_sky`).
+
+        Parameters
+        ----------
+        keys : list of str, optional
+            Names of the changed parameters (unused); default None.
+        """
         pass
 
     def to_string(self):
+        """A one-line description of the emitter.
+
+        Returns
+        -------
+        str
+            Distribution, coefficients, sun direction, table resolution (rows x columns) and
+            spectrum.
+        """
         return (f"VegSky[distribution={self.distribution}, coefficients="
                 f"{tuple(round(c, 4) for c in self.coefficients)}, sun_direction="
                 f"{self.sun.round(4).tolist()}, resolution={self.rows}x{self.cols}, "
@@ -458,7 +755,25 @@ class VegSky(mi.Emitter):
 
 
 def attach_scene(scene) -> int:
-    """Call ``set_scene(scene)`` on every :class:`VegSky` of a loaded scene; return how many."""
+    """Call ``set_scene(scene)`` on every :class:`VegSky` of a loaded scene.
+
+    Needed before ``sample_ray`` (Mitsuba 3.9.1 does not call ``set_scene`` on Python emitters).
+
+    Parameters
+    ----------
+    scene : mi.Scene
+        The loaded scene.
+
+    Returns
+    -------
+    int
+        How many ``veg_sky`` emitters were attached.
+
+    Raises
+    ------
+    SceneError
+        If ``scene`` is not a loaded ``mi.Scene``.
+    """
     if not isinstance(scene, mi.Scene):
         raise SceneError(f"attach_scene needs a loaded mitsuba Scene, got {type(scene).__name__}")
     n = 0

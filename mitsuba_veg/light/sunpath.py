@@ -144,37 +144,15 @@ def sun_path(latitude: float, longitude: float, start="2026-10-01", days: int = 
                         utc_offset_hours=off, intensity=intensity))
 
 
-def relative_dni(elevation_deg):
-    """Clear-sky direct-normal irradiance relative to the top of the atmosphere.
-
-    Meinel & Meinel (1976): 0.7^(AM^0.678), with the air mass AM of Kasten & Young (1989). The
-    daily sun path of the moss loop weights its directions with it; SPCTRAL2
-    (:func:`clear_sky_broadband`) would change the tested moss and world results (see
-    docs/architecture.md).
-
-    Parameters
-    ----------
-    elevation_deg : array_like
-        Sun elevations [deg].
-
-    Returns
-    -------
-    numpy.ndarray
-        DNI / extraterrestrial DNI [-]; 0 below the horizon.
-    """
-    el = np.asarray(elevation_deg, float)
-    z = np.radians(90.0 - el)
-    am = 1.0 / (np.cos(z) + 0.50572 * np.maximum(96.07995 - np.degrees(z), 1e-3) ** -1.6364)
-    return np.where(el > 0, 0.7 ** (np.maximum(am, 1.0) ** 0.678), 0.0)
-
-
 def day_sun_path(latitude, longitude, date, step_minutes: float = 10.0):
     """Sun directions and weights of one day, for the ``veg_sun_path`` emitter.
 
-    The sun every ``step_minutes`` over the whole UTC day (:func:`sun_path`; the whole 24 h are
-    covered, so the time zone does not matter for daily means), weighted by its relative
-    clear-sky DNI (:func:`relative_dni`) × Δt / 86400 and normalised so that
-    Σ_k w_k sin(el_k) = 1 (a unit daily-mean beam on the horizontal).
+    The sun every ``step_minutes`` over the whole UTC day from :func:`sun_path` with its
+    SPCTRAL2 clear-sky direct-normal irradiance (:func:`clear_sky_broadband`, the model of every
+    sun path in the package), weighted by DNI_k × Δt / 86400 and normalised so that
+    Σ_k w_k sin(el_k) = 1 (a unit daily-mean beam on the horizontal). The whole 24 h are
+    covered, so the time zone does not matter for daily means. Directions with the sun at or
+    below 0.5° elevation keep a zero weight (SPCTRAL2 gives no beam there).
 
     Parameters
     ----------
@@ -197,11 +175,12 @@ def day_sun_path(latitude, longitude, date, step_minutes: float = 10.0):
     if isinstance(date, _dt.datetime):
         date = date.date()
     p = sun_path(latitude, longitude, start=date, days=1, step_hours=step_minutes / 60.0,
-                 utc_offset_hours=0.0, intensity=1.0)
-    if len(p) == 0:
+                 utc_offset_hours=0.0, intensity="clear_sky")
+    w = p.dni * (step_minutes * 60.0 / 86400.0)
+    horizontal = float(np.sum(w * np.sin(np.radians(p.elevation))))
+    if len(p) == 0 or horizontal <= 0.0:  # polar night, or the sun never above 0.5°
         return np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-    w = relative_dni(p.elevation) * (step_minutes * 60.0 / 86400.0)
-    w = w / np.sum(w * np.sin(np.radians(p.elevation)))
+    w = w / horizontal
     return p.direction, w, p.elevation
 
 

@@ -26,10 +26,28 @@ from mitsuba_veg.errors import SceneError
 
 
 def make_mesh(name: str, vertices, faces, albedo: float | None = None, bsdf=None) -> mi.Mesh:
-    """A Mitsuba mesh from numpy arrays (vertices (n,3) [m], faces (m,3) int).
+    """A Mitsuba mesh from numpy arrays, with its id set.
 
     ``albedo`` gives it a diffuse BSDF with a uniform (spectrally flat) reflectance; ``bsdf``
     any Mitsuba BSDF dict or object.
+
+    Parameters
+    ----------
+    name : str
+        Mesh name and id.
+    vertices : array_like
+        Vertex positions (n, 3) [m] (stored as float32).
+    faces : array_like of int
+        Triangles (m, 3), vertex indices (stored as uint32).
+    albedo : float, optional
+        Reflectance of a diffuse BSDF [-], in [0, 1]; overrides ``bsdf``; default None.
+    bsdf : dict or mi.BSDF, optional
+        Any BSDF (a dict is loaded with ``mi.load_dict``); default None: Mitsuba's default BSDF.
+
+    Returns
+    -------
+    mi.Mesh
+        The mesh.
     """
     v = np.asarray(vertices, dtype=np.float32)
     f = np.asarray(faces, dtype=np.uint32)
@@ -50,7 +68,26 @@ def make_mesh(name: str, vertices, faces, albedo: float | None = None, bsdf=None
 def grid_mesh(nx: int, nz: int, x=(-1.0, 1.0), z=(-1.0, 1.0), y=0.0, height=None, up=True):
     """Vertices/faces of a grid in the x-z plane at height ``y`` (normals +y when ``up``).
 
-    ``height(X, Z)`` may add relief [m]. Returns (vertices, faces).
+    Parameters
+    ----------
+    nx, nz : int
+        Cells along x and z (2 nx nz triangles).
+    x, z : tuple of float, optional
+        Extent ``(min, max)`` along x and z [m]; default ``(-1, 1)``.
+    y : float, optional
+        Height of the grid [m]; default 0.
+    height : callable, optional
+        ``height(X, Z)`` adds relief [m] to ``y`` (X, Z: arrays of the vertex coordinates [m]);
+        default None (flat).
+    up : bool, optional
+        Normals towards +y (True, default) or -y.
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        ((nx+1)(nz+1), 3) positions [m].
+    faces : numpy.ndarray
+        (2 nx nz, 3) vertex indices.
     """
     xs = np.linspace(x[0], x[1], nx + 1)
     zs = np.linspace(z[0], z[1], nz + 1)
@@ -67,7 +104,20 @@ def grid_mesh(nx: int, nz: int, x=(-1.0, 1.0), z=(-1.0, 1.0), y=0.0, height=None
 
 
 def box_mesh(lo, hi):
-    """Vertices/faces of an axis-aligned box with outward normals (12 triangles)."""
+    """Vertices/faces of an axis-aligned box with outward normals (12 triangles).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Lower and upper corners ``[x, y, z]`` [m].
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        (8, 3) corner positions [m].
+    faces : numpy.ndarray
+        (12, 3) vertex indices, wound so that the normals point outwards.
+    """
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     c = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
     V = lo + c * (hi - lo)
@@ -86,7 +136,20 @@ def box_mesh(lo, hi):
 
 
 def sun_vector(elevation_deg: float, azimuth_deg: float = 180.0) -> np.ndarray:
-    """Unit vector towards the sun (+y up, +x east, +z south; azimuth clockwise from north)."""
+    """Unit vector towards the sun (+y up, +x east, +z south; azimuth clockwise from north).
+
+    Parameters
+    ----------
+    elevation_deg : float
+        Solar elevation above the horizon [degrees].
+    azimuth_deg : float, optional
+        Solar azimuth, clockwise from north [degrees]; default 180 (south).
+
+    Returns
+    -------
+    numpy.ndarray
+        (3,) unit vector towards the sun [-].
+    """
     e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
     return np.array([math.sin(a) * math.cos(e), math.sin(e), -math.cos(a) * math.cos(e)])
 
@@ -96,8 +159,29 @@ def roof_wall_scene(sun_elevation=50.0, sun_azimuth=180.0, sun_irradiance=1.0, s
     """Scene dict: 2 m x 2 m ground grid, a roof slab over its north half, a wall at the north.
 
     Emitters: a ``directional`` sun [W m-2 nm-1, uniform spectrum] and a ``constant`` sky
-    [W m-2 sr-1 nm-1]. Returns the dict for ``mi.load_dict(d, optimize=False)``; meshes are
-    given as ``mi.Mesh`` objects with ids ground/roof/wall.
+    [W m-2 sr-1 nm-1]; meshes are given as ``mi.Mesh`` objects with ids ground/roof/wall and
+    diffuse, spectrally flat BSDFs. The roof slab spans y 0.60-0.66 m over z in [-1, 0] m; the
+    wall is 0.6 m high at z in [-1.3, -1.0] m.
+
+    Parameters
+    ----------
+    sun_elevation : float, optional
+        Solar elevation [degrees]; default 50.
+    sun_azimuth : float, optional
+        Solar azimuth clockwise from north [degrees]; default 180 (south).
+    sun_irradiance : float, optional
+        Sun irradiance on a plane normal to the beam [W m-2 nm-1]; <= 0: no sun; default 1.
+    sky_radiance : float, optional
+        Uniform sky radiance [W m-2 sr-1 nm-1]; <= 0: no sky; default 0.05.
+    ground_albedo, roof_albedo, wall_albedo : float, optional
+        Diffuse reflectances [-]; defaults 0.3, 0.5, 0.5.
+    n : int, optional
+        Ground grid cells per side (2 n^2 triangles); default 12.
+
+    Returns
+    -------
+    dict
+        The scene dict for ``mi.load_dict(d, optimize=False)``.
     """
     gv, gf = grid_mesh(n, n)
     rv, rf = box_mesh((-1.0, 0.6, -1.0), (1.0, 0.66, 0.0))
@@ -123,7 +207,38 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     Each triangle in ``triangles`` is cut out of its mesh (an in-memory ``mi.Mesh`` of the dict,
     see :func:`as_meshes`) into its own mesh carrying an ``irradiancemeter`` whose ``specfilm``
     integrates the band ``band`` [nm]; the scene is otherwise identical. The direct irradiance
-    of delta emitters is added with shadow rays. Returns (irradiance, std_error) arrays.
+    of delta emitters is added with shadow rays (4096 points per triangle, from ``seed``). Each
+    triangle is rendered in 4 batches of ``spp / 4`` samples.
+
+    Parameters
+    ----------
+    scene_dict : dict
+        Scene dict whose shape ``shape_id`` is an in-memory ``mi.Mesh`` (not modified).
+    shape_id : str
+        Id of the mesh.
+    triangles : iterable of int
+        Indices of the triangles of the mesh to measure.
+    spp : int, optional
+        Samples per pixel of each irradiancemeter; default 4096.
+    max_depth : int, optional
+        ``max_depth`` of the ``path`` integrator; default 16.
+    band : tuple of float, optional
+        Band ``(lo, hi)`` [nm] the irradiance is integrated over; default (360, 830).
+    seed : int, optional
+        Seed of the renders and of the shadow-ray points; default 0.
+
+    Returns
+    -------
+    irradiance : numpy.ndarray
+        (len(triangles),) band-integrated front irradiance [W m-2].
+    std_error : numpy.ndarray
+        (len(triangles),) standard error [W m-2]: the path-traced part's (from the 4 batches)
+        and the shadow-ray part's (from its 4096 points) in quadrature.
+
+    Raises
+    ------
+    SceneError
+        If the dict holds no in-memory mesh with id ``shape_id``.
     """
     key = None
     for k, v in scene_dict.items():
@@ -176,22 +291,25 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
             vals.append(float(np.asarray(img).ravel()[0]))
         out[j] = np.mean(vals)
         err[j] = np.std(vals, ddof=1) / math.sqrt(batches)
-    # direct light of delta-direction emitters, which the irradiancemeter never samples
-    out += _delta_direct(scene, F[tris], V, (lo, hi))
-    return out, err
+    # direct light of delta-direction emitters, which the irradiancemeter never samples; its
+    # Monte-Carlo error adds to the path-traced batches' in quadrature
+    direct, direct_err = _delta_direct(scene, F[tris], V, (lo, hi), seed=seed)
+    return out + direct, np.sqrt(err**2 + direct_err**2)
 
 
-def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
+def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096, seed: int = 0):
     """Direct irradiance [W m-2] of directional emitters on triangles, integrated over ``band``
-    [nm] (wavelengths drawn uniformly in the band), with shadow rays."""
+    [nm] (wavelengths drawn uniformly in the band), with shadow rays; and its standard error
+    [W m-2] (points and wavelengths from ``seed``)."""
     faces = np.asarray(faces)
     res = np.zeros(len(faces))
+    se = np.zeros(len(faces))
     emitters = [e for e in scene.emitters()
                 if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)]
     if not emitters:
-        return res
+        return res, se
     lo, hi = band
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng([int(seed), 1])
     for i, f in enumerate(faces):
         p0, p1, p2 = V[f[0]], V[f[1]], V[f[2]]
         n = np.cross(p1 - p0, p2 - p0)
@@ -201,6 +319,7 @@ def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
         u[flip] = 1 - u[flip]
         pts = p0 + u[:, :1] * (p1 - p0) + u[:, 1:] * (p2 - p0)
         lam = lo + (hi - lo) * rng.random((4, samples_per_tri))
+        per_sample = np.zeros(samples_per_tri)
         for e in emitters:
             it = dr.zeros(mi.Interaction3f, samples_per_tri)
             it.p = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
@@ -211,8 +330,10 @@ def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096):
             vis = ~scene.ray_test(ray)
             val = (w[0] + w[1] + w[2] + w[3]) * 0.25
             val = dr.select(vis & (cos > 0), val * cos, 0.0)
-            res[i] += float(np.asarray(val).mean()) * (hi - lo)
-    return res
+            per_sample += np.asarray(val, dtype=np.float64) * (hi - lo)
+        res[i] = per_sample.mean()
+        se[i] = per_sample.std(ddof=1) / math.sqrt(samples_per_tri)
+    return res, se
 
 
 def as_meshes(scene_dict: dict) -> dict:
@@ -222,6 +343,21 @@ def as_meshes(scene_dict: dict) -> dict:
     objects with their world-space vertices [m] and their BSDF (``ref``s resolved to the dict's
     BSDFs), which :func:`path_reference` can cut triangles out of. Shapes with an area emitter
     and everything else are kept as they are.
+
+    Parameters
+    ----------
+    scene_dict : dict
+        A Mitsuba scene dict (not modified), e.g. ``mi.cornell_box()``.
+
+    Returns
+    -------
+    dict
+        The converted copy (same keys).
+
+    Raises
+    ------
+    SceneError
+        If a BSDF ``ref`` names no entry of the dict.
     """
     loaded = {}
 
@@ -249,8 +385,23 @@ def as_meshes(scene_dict: dict) -> dict:
 
 
 def plant_mesh(kind: int = 0):
-    """Vertices [m] and faces of a small plant: 4 + ``kind`` leaf quads (8-14 triangles)
-    spiralling up a 5-20 cm stem, one leaf every 3 cm. Returns (vertices, faces)."""
+    """Vertices [m] and faces of a small plant: 4 + ``kind`` leaf quads (8-14 triangles).
+
+    The leaves spiral up a 5-20 cm stem, one leaf every 3 cm from 5 cm up, each about 6 cm
+    long; the stem itself is not part of the mesh (see :func:`plant_scene`).
+
+    Parameters
+    ----------
+    kind : int, optional
+        Plant kind; it has ``4 + kind`` leaves; default 0.
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        (4 (4 + kind), 3) positions [m], stem on the y axis.
+    faces : numpy.ndarray
+        (2 (4 + kind), 3) vertex indices (int64).
+    """
     verts, faces = [], []
     n = 4 + int(kind)
     for j in range(n):
@@ -268,14 +419,40 @@ def plant_mesh(kind: int = 0):
 def plant_scene(n_plants: int = 1000, kinds: int = 3, instanced: bool = True, size: float = 4.0,
                 leaf_albedo: float = 0.4, stem_albedo: float = 0.1, ground_albedo: float = 0.2,
                 seed: int = 0, sun_elevation: float = 55.0, sky_radiance: float = 0.05) -> dict:
-    """Scene dict: ``n_plants`` small plants on a ``size`` x ``size`` m ground [m], sun + uniform
-    sky, spectrally flat (sun 1 W m-2 nm-1, sky ``sky_radiance`` W m-2 sr-1 nm-1).
+    """Scene dict: ``n_plants`` small plants on a ``size`` x ``size`` m ground, sun + uniform sky.
 
-    A plant is two meshes: leaves (:func:`plant_mesh`, albedo ``leaf_albedo``) and a 1 cm stem
-    (a box, ``stem_albedo``) standing 2 mm above the ground (no coplanar faces). ``instanced=True`` writes ``kinds`` shapegroups (``plant0``, ...,
-    meshes ``leaves{k}`` and ``stem{k}``) and one ``instance`` per plant (ids ``p0000``, ...), as
-    exporters and scatterers do; ``instanced=False`` writes the same geometry as plain meshes
-    ``p0000_leaves`` and ``p0000_stem``. Load with ``optimize=False``.
+    Spectrally flat (sun 1 W m-2 nm-1 at azimuth 160 deg, sky ``sky_radiance``
+    W m-2 sr-1 nm-1). A plant is two meshes: leaves (:func:`plant_mesh`, albedo ``leaf_albedo``)
+    and a 1 cm stem (a box, ``stem_albedo``) standing 2 mm above the ground (no coplanar faces),
+    placed at random within 0.47 ``size`` of the centre and turned at random about +y.
+    ``instanced=True`` writes ``kinds`` shapegroups (``plant0``, ..., meshes ``leaves{k}`` and
+    ``stem{k}``) and one ``instance`` per plant (ids ``p0000``, ...), as exporters and scatterers
+    do; ``instanced=False`` writes the same geometry as plain meshes ``p0000_leaves`` and
+    ``p0000_stem``. Load with ``optimize=False``.
+
+    Parameters
+    ----------
+    n_plants : int, optional
+        Number of plants; default 1000.
+    kinds : int, optional
+        Number of plant kinds (plant i is of kind ``i % kinds``); default 3.
+    instanced : bool, optional
+        Shapegroups and instances (True, default) or plain meshes.
+    size : float, optional
+        Side of the square ground [m]; default 4.
+    leaf_albedo, stem_albedo, ground_albedo : float, optional
+        Diffuse reflectances [-]; defaults 0.4, 0.1, 0.2.
+    seed : int, optional
+        Seed of the plant positions and rotations; default 0.
+    sun_elevation : float, optional
+        Solar elevation [degrees]; default 55.
+    sky_radiance : float, optional
+        Uniform sky radiance [W m-2 sr-1 nm-1]; <= 0: no sky; default 0.05.
+
+    Returns
+    -------
+    dict
+        The scene dict for ``mi.load_dict(d, optimize=False)``.
     """
     rng = np.random.default_rng(seed)
     gv, gf = grid_mesh(20, 20, x=(-size / 2, size / 2), z=(-size / 2, size / 2))

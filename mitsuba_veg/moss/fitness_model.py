@@ -40,12 +40,32 @@ def _check_window(x0, x1, n=None):
 
 
 def s(x, x0, x1):
-    """Suitability of x for the range [x0, x1], eq (3.18) [-]::
+    """Suitability of x for the range [x0, x1], eq (3.18) [-].
+
+    ::
 
         s = exp{ -4 ln 2 / (x1 - x0)^2 * (x - (x1 + x0)/2)^2 }
 
     A Gaussian with its maximum 1 at the centre and s = 1/2 at x0 and x1 (the paper's "log" is the
     natural logarithm: only then is s(x0) = 1/2). x, x0, x1 in the unit of the factor.
+
+    Parameters
+    ----------
+    x : float, array_like or drjit array
+        Value of the growth factor, in the unit of the factor (e.g. [K], [-] or [W m-2]).
+    x0, x1 : float, array_like or drjit array
+        Lower and upper end of the range, in the unit of ``x``; x0 < x1.
+
+    Returns
+    -------
+    numpy.float64, numpy.ndarray or drjit array
+        Suitability s in (0, 1] [-], of the kind given (NumPy or Dr.Jit); NaN where an input is
+        NaN.
+
+    Raises
+    ------
+    ParameterError
+        If scalar ``x0`` and ``x1`` do not satisfy x0 < x1 (arrays are not checked).
     """
     _check_window(x0, x1)
     x, x0, x1 = _prep(x, x0, x1)
@@ -55,7 +75,9 @@ def s(x, x0, x1):
 
 
 def fitness(x, x0, x1, n):
-    """Fitness g of one growth factor, eq (3.19) [-]::
+    """Fitness g of one growth factor, eq (3.19) [-].
+
+    ::
 
         g = 1/2 + (s - 1/2)^n   if s > 1/2
         g = 1/2 - (1/2 - s)^n   otherwise,       s = s(x, x0, x1) of eq 3.18
@@ -63,6 +85,25 @@ def fitness(x, x0, x1, n):
     n in (0, 1] is the tolerance (n = 1: g = s). g = 1/2 at x0 and x1; g is symmetric about the
     centre and monotone on each side. As printed, g(centre) = 1/2 + (1/2)^n (1 for n = 1, 1.207 for
     n = 0.5) and g >= 1/2 - (1/2)^n.
+
+    Parameters
+    ----------
+    x : float, array_like or drjit array
+        Value of the growth factor, in the unit of the factor (e.g. [K], [-] or [W m-2]).
+    x0, x1 : float, array_like or drjit array
+        Lower and upper end of the range (table 3.7), in the unit of ``x``; x0 < x1.
+    n : float, array_like or drjit array
+        Tolerance in (0, 1] [-] (nT, nrh or nS of table 3.7).
+
+    Returns
+    -------
+    numpy.float64, numpy.ndarray or drjit array
+        Fitness g [-], in [1/2 - (1/2)^n, 1/2 + (1/2)^n] (see the module note), of the kind given.
+
+    Raises
+    ------
+    ParameterError
+        If scalar ``x0``, ``x1`` do not satisfy x0 < x1, or a scalar ``n`` is not > 0.
     """
     _check_window(x0, x1, n)
     sv, n = _prep(s(x, x0, x1), n)
@@ -72,12 +113,34 @@ def fitness(x, x0, x1, n):
 
 
 def daily_fitness(species, Ts, rhs, S):
-    """Daily environmental fitness G, eq (3.17) [-]::
+    """Daily environmental fitness G, eq (3.17) [-].
+
+    ::
 
         G = g(Ts, T0, T1, nT) * g(rhs, rh0, rh1, nrh) * g(S, S0, S1, nS)
 
-    species a :class:`Species` or a key of ``SPECIES``; Ts surface temperature [K], rhs surface
-    relative humidity [-], S daily-mean insolation [W m-2] (per moss, vectorised).
+    Vectorised: one value per moss (or per spot).
+
+    Parameters
+    ----------
+    species : Species or str
+        A :class:`Species` or a key of ``SPECIES``.
+    Ts : float, array_like or drjit array
+        Surface temperature [K].
+    rhs : float, array_like or drjit array
+        Surface relative humidity [-].
+    S : float, array_like or drjit array
+        Daily-mean insolation [W m-2].
+
+    Returns
+    -------
+    numpy.float64, numpy.ndarray or drjit array
+        Daily fitness G [-], of the kind given.
+
+    Raises
+    ------
+    ParameterError
+        If ``species`` is not a :class:`Species` or a key of ``SPECIES``.
     """
     sp = get_species(species)
     gT, grh, gS = _prep(fitness(Ts, sp.T0, sp.T1, sp.nT), fitness(rhs, sp.rh0, sp.rh1, sp.nrh),
@@ -90,6 +153,23 @@ def daily_growth(species, G):
 
     The total growth since germination is ``G_moss = sum of D`` (eq 3.21); a moss dies when
     ``G_moss < tau_d`` while declining (D < 0).
+
+    Parameters
+    ----------
+    species : Species or str
+        A :class:`Species` or a key of ``SPECIES`` (gives alpha_g and tau_g [-]).
+    G : float, array_like or drjit array
+        Daily fitness of eq 3.17 [-].
+
+    Returns
+    -------
+    numpy.float64, numpy.ndarray or drjit array
+        Daily growth D [-] (negative = decline), of the kind given.
+
+    Raises
+    ------
+    ParameterError
+        If ``species`` is not a :class:`Species` or a key of ``SPECIES``.
     """
     sp = get_species(species)
     (G,) = _prep(G)
@@ -107,9 +187,26 @@ def _window(kind):
 def germination_value(G, L, kind):
     """Germination test value of eq (3.24): ``G * g(L, L0, L1, 1)`` [-].
 
-    G daily fitness (eq 3.17), L days since the propagule was made [day], kind ``"spore"``
-    (L0, L1 = 60, 365) or ``"gemma"`` (L0, L1 = -60, 60). A propagule germinates when the value
-    exceeds the species' ``tau_b`` (:func:`germinates`).
+    A propagule germinates when the value exceeds the species' ``tau_b`` (:func:`germinates`).
+
+    Parameters
+    ----------
+    G : float, array_like or drjit array
+        Daily fitness of eq 3.17 [-].
+    L : float, array_like or drjit array
+        Days since the propagule was made [days].
+    kind : str
+        ``"spore"`` (L0, L1 = 60, 365 [days]) or ``"gemma"`` (L0, L1 = -60, 60 [days]).
+
+    Returns
+    -------
+    numpy.float64, numpy.ndarray or drjit array
+        The test value [-], of the kind given.
+
+    Raises
+    ------
+    ParameterError
+        If ``kind`` is neither ``"spore"`` nor ``"gemma"``.
     """
     L0, L1 = _window(kind)
     G, gL = _prep(G, fitness(L, L0, L1, 1.0))
@@ -117,6 +214,28 @@ def germination_value(G, L, kind):
 
 
 def germinates(species, G, L, kind):
-    """Germination mask of eq (3.24): ``G * g(L, L0, L1, 1) > tau_b`` (bool / Dr.Jit Bool)."""
+    """Germination mask of eq (3.24): ``G * g(L, L0, L1, 1) > tau_b``.
+
+    Parameters
+    ----------
+    species : Species or str
+        A :class:`Species` or a key of ``SPECIES`` (gives tau_b [-]).
+    G : float, array_like or drjit array
+        Daily fitness of eq 3.17 [-].
+    L : float, array_like or drjit array
+        Days since the propagule was made [days].
+    kind : str
+        ``"spore"`` or ``"gemma"`` (the germination window of eq 3.24).
+
+    Returns
+    -------
+    bool, numpy.ndarray of bool or drjit Bool array
+        True where the propagule germinates.
+
+    Raises
+    ------
+    ParameterError
+        If ``species`` or ``kind`` is not known.
+    """
     sp = get_species(species)
     return germination_value(G, L, kind) > sp.tau_b

@@ -68,6 +68,18 @@ class SlotQueue:
         return self.count - self.listed + dr.width(self.buf)
 
     def take(self, m: int) -> mi.UInt32:
+        """The next ``m`` set slots of the mask, in slot order.
+
+        Parameters
+        ----------
+        m : int
+            How many slots to take (capped at :attr:`left`).
+
+        Returns
+        -------
+        mi.UInt32
+            Up to ``m`` slot indices (fewer when fewer are left), evaluated.
+        """
         m = min(int(m), self.left)
         while dr.width(self.buf) < m:
             need = m - dr.width(self.buf)
@@ -95,7 +107,19 @@ class SlotQueue:
 
 
 def concat_u32(a: mi.UInt32, b: mi.UInt32) -> mi.UInt32:
-    """a followed by b (UInt32 arrays)."""
+    """a followed by b (UInt32 arrays).
+
+    Parameters
+    ----------
+    a, b : mi.UInt32
+        The arrays (either may be empty).
+
+    Returns
+    -------
+    mi.UInt32
+        The concatenation, of width ``width(a) + width(b)`` (``a`` or ``b`` itself when the other
+        is empty).
+    """
     na, nb = dr.width(a), dr.width(b)
     if na == 0 or nb == 0:
         return b if na == 0 else a
@@ -118,12 +142,48 @@ class SpeciesTable:
             setattr(self, n, mi.Float([float(getattr(s, n)) for s in self.species]))
         pr = priority if priority is not None else [0.0] * len(self.species)
         self.priority = mi.Float([float(p) for p in pr])
+        # dense rank of each species' priority, 0 for the highest: an exact integer key for
+        # ordering newcomers of one cell, whatever the priorities' magnitude
+        levels = sorted({float(p) for p in pr}, reverse=True)
+        self.priority_rank = mi.UInt32([levels.index(float(p)) for p in pr])
 
     def get(self, name: str, idx: mi.UInt32) -> mi.Float:
+        """Parameter ``name`` of the species ``idx`` (one gather).
+
+        Parameters
+        ----------
+        name : str
+            One of :attr:`NAMES` (table 3.7: T0, T1 [K]; rh0, rh1 [-]; S0, S1 [W m-2]; the others
+            [-]).
+        idx : mi.UInt32
+            Species index of each individual.
+
+        Returns
+        -------
+        mi.Float
+            The parameter per individual, in its unit.
+        """
         return dr.gather(mi.Float, getattr(self, name), idx)
 
     def fitness(self, idx: mi.UInt32, Ts, rhs, S) -> mi.Float:
-        """Daily fitness G of eq 3.17 for individuals of species ``idx``."""
+        """Daily fitness G of eq 3.17 for individuals of species ``idx``.
+
+        Parameters
+        ----------
+        idx : mi.UInt32
+            Species index of each individual.
+        Ts : mi.Float
+            Surface temperature [K], one per individual.
+        rhs : mi.Float
+            Surface relative humidity [-], one per individual.
+        S : mi.Float
+            Daily-mean insolation [W m-2], one per individual.
+
+        Returns
+        -------
+        mi.Float
+            Daily fitness G [-], one per individual.
+        """
         g = self.get
         gT = fitness(Ts, g("T0", idx), g("T1", idx), g("nT", idx))
         grh = fitness(rhs, g("rh0", idx), g("rh1", idx), g("nrh", idx))
@@ -131,9 +191,26 @@ class SpeciesTable:
         return gT * grh * gS
 
     def fitness_table(self, Ts, rhs, S) -> mi.Float:
-        """G of eq 3.17 for every (element, species) pair, element-major (index
-        ``elem * n_species + species``). G depends only on the spot's environment and the
-        species, so it is evaluated once per triangle and species, not once per moss."""
+        """G of eq 3.17 for every (element, species) pair.
+
+        Element-major (index ``elem * n_species + species``). G depends only on the spot's
+        environment and the species, so it is evaluated once per triangle and species, not once per
+        moss.
+
+        Parameters
+        ----------
+        Ts : mi.Float
+            Surface temperature per element [K].
+        rhs : mi.Float
+            Surface relative humidity per element [-].
+        S : mi.Float
+            Daily-mean insolation per element [W m-2].
+
+        Returns
+        -------
+        mi.Float
+            Daily fitness G [-], of width ``n_elements * n_species``.
+        """
         n_sp = len(self.species)
         n_el = dr.width(Ts)
         e = dr.arange(mi.UInt32, n_el * n_sp) // n_sp
@@ -167,19 +244,52 @@ class MossPopulation:
     # ---- bookkeeping ------------------------------------------------------------------------
     @property
     def moss(self) -> mi.Bool:
+        """Mask over the slots: True where the slot holds a moss (state 2)."""
         return self.state == MOSS
 
     def count(self, state=MOSS) -> int:
+        """Number of slots in a state.
+
+        Parameters
+        ----------
+        state : int, optional
+            ``FREE`` (0), ``PROPAGULE`` (1) or ``MOSS`` (2, the default).
+
+        Returns
+        -------
+        int
+            How many slots are in ``state``.
+        """
         return int(dr.count(self.state == state)[0]) if dr.width(self.state) else 0
 
     def count_by_species(self, state=MOSS) -> list[int]:
+        """Number of slots in a state, per species.
+
+        Parameters
+        ----------
+        state : int, optional
+            ``FREE`` (0), ``PROPAGULE`` (1) or ``MOSS`` (2, the default).
+
+        Returns
+        -------
+        list of int
+            One count per species of the table, in its order.
+        """
         n = len(self.table.species)
         counts = dr.zeros(mi.UInt32, n)
         dr.scatter_add(counts, mi.UInt32(1), self.species, self.state == state)
         return [int(v) for v in np.asarray(counts)]
 
     def to_numpy(self) -> dict:
-        """All state as NumPy arrays (checkpoints, outputs)."""
+        """All state as NumPy arrays (checkpoints, outputs).
+
+        Returns
+        -------
+        dict
+            Copies of ``state``, ``species``, ``kind``, ``elem``, ``growth`` [-], ``age`` [days],
+            ``gemmae`` (each of shape (capacity,)), ``pos`` [m] and ``nrm`` [-] (capacity, 3), and
+            ``overflow`` (0-d array).
+        """
         # copies: a NumPy view would follow the in-place writes of later days
         d = {k: np.array(getattr(self, k)) for k in _FIELDS}
         d["pos"] = np.stack([np.asarray(c) for c in (self.pos.x, self.pos.y, self.pos.z)], 1)
@@ -188,6 +298,18 @@ class MossPopulation:
         return d
 
     def load_numpy(self, d: dict) -> None:
+        """Restore the state written by :meth:`to_numpy` (a checkpoint).
+
+        Parameters
+        ----------
+        d : dict
+            Arrays as returned by :meth:`to_numpy`.
+
+        Raises
+        ------
+        ValueError
+            If the checkpoint's capacity differs from this population's.
+        """
         if len(d["state"]) != self.capacity:
             raise ValueError(f"checkpoint capacity {len(d['state'])} != run capacity "
                              f"{self.capacity}")
@@ -203,8 +325,31 @@ class MossPopulation:
     def add(self, state, species, kind, elem, pos, nrm, growth) -> mi.UInt32:
         """Put new individuals (Dr.Jit arrays of equal width n) into the lowest free slots.
 
-        Returns the slots used (width = number placed); individuals beyond the free capacity
-        are dropped and counted in ``overflow``.
+        Individuals beyond the free capacity are dropped and counted in ``overflow``. A moss placed
+        with some growth starts with its gemma counter past the thresholds it has already reached.
+        Each argument is a Dr.Jit array of width n or a scalar (the same for all).
+
+        Parameters
+        ----------
+        state : int or mi.UInt32
+            ``PROPAGULE`` (1) or ``MOSS`` (2).
+        species : int or mi.UInt32
+            Species index into the table.
+        kind : int or mi.UInt32
+            ``GEMMA`` (0) or ``SPORE`` (1).
+        elem : mi.UInt32
+            Global element (triangle) index; its width gives n.
+        pos : mi.Point3f
+            Positions on the surface [m].
+        nrm : mi.Vector3f
+            Unit surface normals [-].
+        growth : float or mi.Float
+            Initial G_moss [-] (0 for a propagule).
+
+        Returns
+        -------
+        mi.UInt32
+            The slots used (width = number placed).
         """
         n = dr.width(elem)
         if n == 0:
@@ -240,7 +385,13 @@ class MossPopulation:
         return slots
 
     def remove(self, slots: mi.UInt32) -> None:
-        """Free ``slots`` (written in place)."""
+        """Free ``slots`` (written in place).
+
+        Parameters
+        ----------
+        slots : mi.UInt32
+            The slots to free (may be empty).
+        """
         if dr.width(slots):
             dr.scatter(self.state, mi.UInt32(FREE), slots)
             dr.eval(self.state)
@@ -249,11 +400,30 @@ class MossPopulation:
     def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None):
         """Steps 1-2 of the day (germination, growth and death) and the parents of step 3-4.
 
-        S, Ts, rhs: per-element arrays (mi.Float over all elements) of the day's insolation
-        [W m-2], surface temperature [K] and surface humidity [-]; interior: per-slot mask of moss
-        inside a dense clump (no gemmae), or None to return the gemma *candidates* (the caller
-        then drops those inside a clump, testing only them). Returns (gemma_parents or
-        candidates, spore_parents, DayEvents), masks as Dr.Jit Bool arrays over the slots.
+        Propagules age by one day and germinate by eq 3.24 (or are freed past their window); moss
+        grow by eqs 3.20-3.21 and die when G_moss < tau_d while declining; the gemma parents (one
+        gemma per +0.5 of G_moss) and spore parents (G_moss >= 2.0 and growing) are returned.
+
+        Parameters
+        ----------
+        S : mi.Float
+            Daily-mean insolation per element (over all elements) [W m-2].
+        Ts : mi.Float
+            Surface temperature per element [K].
+        rhs : mi.Float
+            Surface relative humidity per element [-].
+        interior : mi.Bool or None, optional
+            Per-slot mask of moss inside a dense clump (no gemmae), or None (default) to return the
+            gemma *candidates* (the caller then drops those inside a clump, testing only them).
+
+        Returns
+        -------
+        gemma : mi.Bool
+            Per slot: gemma parents (or candidates when ``interior`` is None).
+        spores : mi.Bool
+            Per slot: spore parents.
+        events : DayEvents
+            Counts of the day's germinations, deaths, expiries and parents.
         """
         t = self.table
         alive = self.state != FREE

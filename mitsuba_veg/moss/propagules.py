@@ -25,12 +25,42 @@ from .population import MossPopulation
 
 
 def uniform_sphere(u: mi.Point2f) -> mi.Vector3f:
+    """Uniform random unit vectors on the sphere (the direction I of a gemma, eq 3.22).
+
+    Parameters
+    ----------
+    u : mi.Point2f
+        Uniform random samples in [0, 1)^2 [-].
+
+    Returns
+    -------
+    mi.Vector3f
+        Unit vectors [-], uniform in solid angle.
+    """
     return mi.warp.square_to_uniform_sphere(u)
 
 
 def spore_direction(nrm: mi.Vector3f, u: mi.Point2f, side: mi.Float) -> mi.Vector3f:
-    """Unit vectors at an angle < 45° to ``nrm`` (side >= 0.5) or > 135° (side < 0.5), uniform
-    in solid angle within the cone (eq 3.23)."""
+    """Spore directions I_N of eq (3.23), uniform in solid angle within a 45° cone.
+
+    Unit vectors at an angle < 45° to ``nrm`` (side >= 0.5) or > 135° (side < 0.5), uniform in
+    solid angle within the cone (eq 3.23).
+
+    Parameters
+    ----------
+    nrm : mi.Vector3f
+        Unit surface normal N of the parent [-].
+    u : mi.Point2f
+        Uniform random samples in [0, 1)^2 [-] (direction within the cone).
+    side : mi.Float
+        Uniform random number in [0, 1) [-]: >= 0.5 picks the cone around ``nrm``, < 0.5 the cone
+        around ``-nrm``.
+
+    Returns
+    -------
+    mi.Vector3f
+        Unit directions in world space [-].
+    """
     cos45 = float(np.cos(np.radians(45.0)))
     local = mi.warp.square_to_uniform_cone(u, cos45)
     n = dr.select(side < 0.5, -nrm, nrm)
@@ -39,9 +69,38 @@ def spore_direction(nrm: mi.Vector3f, u: mi.Point2f, side: mi.Float) -> mi.Vecto
 
 def land(scene: mi.Scene, lookup: mi.UInt32, origin: mi.Point3f, direction: mi.Vector3f,
          distance: float, active: mi.Bool):
-    """Move propagules from ``origin`` along ``direction`` by ``distance`` [m] (stopping at the
-    first surface), then let them fall along -y. Returns (landed, elem, pos, nrm): landed is False
-    for those that hit nothing or the back of a polygon."""
+    """Where propagules released from ``origin`` come to rest.
+
+    Move propagules from ``origin`` along ``direction`` by ``distance`` [m] (stopping at the first
+    surface), then let them fall along -y.
+
+    Parameters
+    ----------
+    scene : mi.Scene
+        The scene to cast rays into.
+    lookup : mi.UInt32
+        Registry id of a shape (``si.shape`` reinterpreted as UInt32) -> global index of its
+        first element (``SceneIndex.lookup``): ``lookup[shape] + prim_index`` is the element.
+    origin : mi.Point3f
+        Positions of the parents [m].
+    direction : mi.Vector3f
+        Unit release directions [-] (I of eq 3.22 or I_N of eq 3.23).
+    distance : float
+        Release distance k (gemma) or l (spore) [m].
+    active : mi.Bool
+        Which lanes carry a propagule.
+
+    Returns
+    -------
+    landed : mi.Bool
+        False for those that hit nothing or the back of a polygon.
+    elem : mi.UInt32
+        Global element (triangle) index of the landing point (valid where ``landed``).
+    pos : mi.Point3f
+        Landing point [m], lifted 1e-4 m off the surface along its normal.
+    nrm : mi.Vector3f
+        Surface normal at the landing point [-].
+    """
     ray = mi.Ray3f(origin, direction, distance)
     si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal, coherent=False, active=active)
     stopped = active & si.is_valid()
@@ -68,16 +127,35 @@ def land(scene: mi.Scene, lookup: mi.UInt32, origin: mi.Point3f, direction: mi.V
 def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt32,
            new_order: mi.UInt32, landed: mi.Bool):
     """Resolve where propagules may stay (one individual per cell, priority rule above).
-    ``grid``: the spot grid (:class:`~mitsuba_veg.moss.spatial.SpotGrid`), in step with ``pop``
-    (``grid.sync(pop.state)`` since the population last changed).
 
-    Returns (keep mask over the new propagules, the slots of existing individuals that lose
-    their cell).
+    Parameters
+    ----------
+    pop : MossPopulation
+        The population (species priorities, species and G_moss of the occupants).
+    grid : SpotGrid
+        The spot grid (:class:`~mitsuba_veg.moss.spatial.SpotGrid`), in step with ``pop``
+        (``grid.sync(pop.state)`` since the population last changed).
+    new_pos : mi.Point3f
+        Landing points of the new propagules [m].
+    new_species : mi.UInt32
+        Species index of each new propagule.
+    new_order : mi.UInt32
+        Tie-break order of each new propagule among equal species priorities: the lowest wins
+        (the day's order: gemmae, then spores, each by parent slot).
+    landed : mi.Bool
+        Which new propagules landed (the others take no part).
+
+    Returns
+    -------
+    keep : mi.Bool
+        Mask over the new propagules: those that take their cell.
+    evicted : mi.UInt32
+        The slots of existing individuals that lose their cell.
     """
     keys = grid.key(new_pos)
     # among the newcomers of one cell: highest species priority, then lowest order
     pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
-    rank = mi.UInt64(mi.UInt32(dr.clip(1000.0 - pri_new * 10.0, 0.0, 2000.0)))  # high first
+    rank = mi.UInt64(dr.gather(mi.UInt32, pop.table.priority_rank, new_species))  # high first
     dr.eval(keys, rank)
     first = grid.first_per_cell(keys, (rank << 32) | mi.UInt64(new_order), landed)
     # against the individual already there

@@ -103,7 +103,19 @@ class SpotGrid:
 
     # ---- keys -------------------------------------------------------------------------------
     def coords(self, p: mi.Point3f):
-        """Integer cell coordinates of points ``p`` [m] (offset by 2^20: non-negative)."""
+        """Integer cell coordinates of points ``p`` [m] (offset by 2^20: non-negative).
+
+        Parameters
+        ----------
+        p : mi.Point3f
+            Points [m].
+
+        Returns
+        -------
+        list of mi.UInt32
+            ``[ix, iy, iz]``: the cell index per axis plus 2^20 [cells], clamped to the addressable
+            range 0 .. 2^21 - 1.
+        """
         out = []
         for k, c in enumerate((p.x, p.y, p.z)):
             i = mi.Int32(dr.floor((c - float(self.lo[k])) * (1.0 / self.cell)))
@@ -111,7 +123,18 @@ class SpotGrid:
         return out
 
     def key(self, p: mi.Point3f) -> mi.UInt64:
-        """The cell key of points ``p`` (equal keys = same spot)."""
+        """The cell key of points ``p`` (equal keys = same spot).
+
+        Parameters
+        ----------
+        p : mi.Point3f
+            Points [m].
+
+        Returns
+        -------
+        mi.UInt64
+            The packed cell coordinates (21 bits per axis, top bit set), one per point.
+        """
         return _pack(*self.coords(p))
 
     index = key  # the spot of a point (callers compare spots)
@@ -257,10 +280,21 @@ class SpotGrid:
 
     # ---- following the population -----------------------------------------------------------
     def insert(self, p: mi.Point3f, slots: mi.UInt32, state: mi.UInt32) -> None:
-        """Newcomers in ``slots`` occupy the cells of points ``p`` (one per cell: the caller
-        has resolved conflicts, see ``propagules.settle``). ``state``: the population's state
-        after adding them (kept until the next call: not a view of a NumPy array that changes).
-        Call :meth:`sync` before the population frees or reuses slots."""
+        """Newcomers in ``slots`` occupy the cells of points ``p``.
+
+        One per cell: the caller has resolved conflicts, see ``propagules.settle``. Call
+        :meth:`sync` before the population frees or reuses slots.
+
+        Parameters
+        ----------
+        p : mi.Point3f
+            Positions of the newcomers [m].
+        slots : mi.UInt32
+            Their population slots (may be empty).
+        state : mi.UInt32
+            The population's state after adding them, per slot (kept until the next call: not a view
+            of a NumPy array that changes).
+        """
         if dr.width(slots):
             ix, iy, iz = self.coords(p)
             dr.eval(ix, iy, iz)
@@ -278,8 +312,16 @@ class SpotGrid:
         dr.eval(self.pool, self.slot_cell)
 
     def sync(self, state: mi.UInt32) -> None:
-        """Follow the population's changes since the last call: freed slots empty their cell,
-        propagules that germinated are marked as moss."""
+        """Follow the population's changes since the last call.
+
+        Freed slots empty their cell, propagules that germinated are marked as moss, and the moss
+        neighbour counts are updated where cells changed.
+
+        Parameters
+        ----------
+        state : mi.UInt32
+            The population's current state per slot (0 free, 1 propagule, 2 moss).
+        """
         prev = self._code
         # one pass over the slots finds the few that changed; the rest works on those
         changed = dr.compress(prev != state)
@@ -301,7 +343,15 @@ class SpotGrid:
         dr.eval(self.pool)
 
     def rebuild(self, pos: mi.Point3f, state: mi.UInt32) -> None:
-        """Empty every cell and insert all occupied slots (after loading a checkpoint)."""
+        """Empty every cell and insert all occupied slots (after loading a checkpoint).
+
+        Parameters
+        ----------
+        pos : mi.Point3f
+            Position of every slot [m] (width = capacity).
+        state : mi.UInt32
+            State of every slot (0 free, 1 propagule, 2 moss).
+        """
         self.pool = dr.zeros(mi.UInt32, self.block_cap * _B3)
         self._code = dr.zeros(mi.UInt32, self.capacity)
         self.nb = dr.zeros(mi.UInt32, self.capacity)
@@ -363,19 +413,62 @@ class SpotGrid:
 
     # ---- reading ----------------------------------------------------------------------------
     def occupant(self, p: mi.Point3f, active=True) -> mi.UInt32:
-        """Slot + 1 of the individual in the cell of each point (0 = the spot is free)."""
+        """Slot + 1 of the individual in the cell of each point (0 = the spot is free).
+
+        Parameters
+        ----------
+        p : mi.Point3f
+            Points [m].
+        active : bool or mi.Bool, optional
+            Which points to look up (default all); inactive ones give 0.
+
+        Returns
+        -------
+        mi.UInt32
+            Slot + 1 of the occupant, or 0, per point.
+        """
         ix, iy, iz = self.coords(p)
         cell, ok = self._cell(ix, iy, iz, active)
         return dr.gather(mi.UInt32, self.pool, cell, ok & active) & _SLOT_MASK
 
     def moss_neighbours(self, slots: mi.UInt32) -> mi.UInt32:
-        """Moss among the 26 neighbour cells of the moss in ``slots`` (kept up to date by
-        :meth:`sync` and :meth:`insert`; equal to ``neighbour_count`` at their positions)."""
+        """Moss among the 26 neighbour cells of the moss in ``slots``.
+
+        Kept up to date by :meth:`sync` and :meth:`insert`; equal to :meth:`neighbour_count` at
+        their positions.
+
+        Parameters
+        ----------
+        slots : mi.UInt32
+            Slots of moss.
+
+        Returns
+        -------
+        mi.UInt32
+            Number of moss neighbours (0 .. 26), per slot.
+        """
         return dr.gather(mi.UInt32, self.nb, slots)
 
     def neighbour_count(self, p: mi.Point3f, active=True, moss_only: bool = True) -> mi.UInt32:
-        """Number of the 26 neighbour cells of each point that hold a moss (``moss_only``) or
-        any individual, read from the pool."""
+        """Number of the 26 neighbour cells of each point that hold a moss or any individual.
+
+        Read from the pool (not from the kept counts of :meth:`moss_neighbours`).
+
+        Parameters
+        ----------
+        p : mi.Point3f
+            Points [m].
+        active : bool or mi.Bool, optional
+            Which points to count for (default all); inactive ones give 0.
+        moss_only : bool, optional
+            Count only cells that hold a moss (default True); False counts any individual (moss or
+            propagule).
+
+        Returns
+        -------
+        mi.UInt32
+            Neighbour count (0 .. 26), per point.
+        """
         ix, iy, iz = self.coords(p)
         count = dr.zeros(mi.UInt32, dr.width(ix))
         for v, ok in self._neighbour_values(ix, iy, iz, active):
@@ -427,10 +520,25 @@ class SpotGrid:
     def first_per_cell(keys: mi.UInt64, rank: mi.UInt64, active=True) -> mi.Bool:
         """Among the active items, the one of lowest (distinct) ``rank`` in each cell.
 
-        Rounds of bucketing by a hash of the key (4 buckets per item): an item with the lowest
-        rank of its bucket is the best of its cell (all items of a cell share a bucket); an
-        item whose bucket went to its own cell lost; the rest (their bucket went to another
-        cell) try again with another hash."""
+        Rounds of bucketing by a hash of the key (4 buckets per item): an item with the lowest rank
+        of its bucket is the best of its cell (all items of a cell share a bucket); an item whose
+        bucket went to its own cell lost; the rest (their bucket went to another cell) try again
+        with another hash.
+
+        Parameters
+        ----------
+        keys : mi.UInt64
+            Cell key of each item (:meth:`key`).
+        rank : mi.UInt64
+            Rank of each item; ranks must be distinct within a cell (lowest wins).
+        active : bool or mi.Bool, optional
+            Which items take part (default all).
+
+        Returns
+        -------
+        mi.Bool
+            True for the winning item of each cell.
+        """
         active = dr.full(mi.Bool, True, dr.width(keys)) & active  # a scalar True: all
         it = dr.compress(active)
         out = dr.zeros(mi.Bool, dr.width(keys))
@@ -461,13 +569,41 @@ class SpotGrid:
 
 
 def per_element_count(elem: mi.UInt32, active: mi.Bool, n_elements: int) -> mi.UInt32:
-    """How many active individuals sit on each element (triangle): integer scatter-add."""
+    """How many active individuals sit on each element (triangle): integer scatter-add.
+
+    Parameters
+    ----------
+    elem : mi.UInt32
+        Element index of each individual.
+    active : mi.Bool
+        Which individuals count (e.g. the moss mask).
+    n_elements : int
+        Number of elements.
+
+    Returns
+    -------
+    mi.UInt32
+        Count m per element (m of eq 3.5), width ``n_elements``.
+    """
     counts = dr.zeros(mi.UInt32, n_elements)
     dr.scatter_add(counts, mi.UInt32(1), elem, active)
     return counts
 
 
 def max_per_element(areas: np.ndarray, cell: float) -> np.ndarray:
-    """M of eq 3.5: the most moss of footprint cell² that fit on each triangle (>= 1)."""
+    """M of eq 3.5: the most moss of footprint cell² that fit on each triangle (>= 1).
+
+    Parameters
+    ----------
+    areas : numpy.ndarray
+        Triangle areas [m2].
+    cell : float
+        Moss size (the spot grid's cell side) [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        M = max(area / cell², 1) per triangle [-] (float64).
+    """
     return np.maximum(np.asarray(areas, float) / (cell * cell), 1.0)
 

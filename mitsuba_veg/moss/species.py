@@ -99,11 +99,35 @@ class Species:
                 "S": (self.S0, self.S1, self.nS)}
 
     def replace(self, **changes) -> "Species":
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again).
+
+        Parameters
+        ----------
+        **changes : float or str
+            New values of fields, by name (``T0=280.0`` [K], ``S1=120.0`` [W m-2], ``name="x"`` ...;
+            units as in the class docstring).
+
+        Returns
+        -------
+        Species
+            The changed copy.
+
+        Raises
+        ------
+        ParameterError
+            If a changed value fails validation.
+        """
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields as a plain dict (the TOML layout of one species)."""
+        """The fields as a plain dict (the TOML layout of one species).
+
+        Returns
+        -------
+        dict
+            ``{field: value}`` for the 13 numeric fields (units as in the class docstring) and
+            ``"name"``, plus ``"name_ja"`` when it is set.
+        """
         d = {f: getattr(self, f) for f in PARAMETER_FIELDS}
         d["name"] = self.name
         if self.name_ja:
@@ -138,8 +162,21 @@ def _species_from_table(key: str, table: Mapping[str, Any], source: str) -> Spec
 def load_species(path) -> dict[str, Species]:
     """Load species from a TOML file with one ``[species.<key>]`` table per species.
 
-    Returns ``{key: Species}``. Errors (missing file, TOML syntax, unknown/missing/invalid fields)
-    raise :class:`ParameterError` naming the file, the species and the field.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The TOML file (layout of ``mitsuba_veg/data/moss_species.toml``).
+
+    Returns
+    -------
+    dict
+        ``{key: Species}``, one entry per ``[species.<key>]`` table.
+
+    Raises
+    ------
+    ParameterError
+        On a missing file, TOML syntax errors and unknown, missing or invalid fields, naming the
+        file, the species and the field.
     """
     p = Path(path)
     try:
@@ -173,7 +210,23 @@ SPECIES: dict[str, Species] = _load_builtin()
 
 
 def get_species(species) -> Species:
-    """A :class:`Species` from an instance or a key of :data:`SPECIES`."""
+    """A :class:`Species` from an instance or a key of :data:`SPECIES`.
+
+    Parameters
+    ----------
+    species : Species or str
+        A species, returned as it is, or a key of :data:`SPECIES` (e.g. ``"bryum_argenteum"``).
+
+    Returns
+    -------
+    Species
+        The species.
+
+    Raises
+    ------
+    ParameterError
+        If ``species`` is not a key of :data:`SPECIES`.
+    """
     if isinstance(species, Species):
         return species
     try:

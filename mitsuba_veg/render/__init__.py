@@ -15,7 +15,8 @@ from __future__ import annotations
 
 from . import materials  # noqa: F401
 from .film import BANDS, develop, read_exr, rfr_false_colour, to_srgb8, write_exr  # noqa: F401
-from .history import Frame, Run, SnapshotWriter, load_run, write_snapshot  # noqa: F401
+from ..outputs import SnapshotWriter, write_snapshot  # noqa: F401
+from .history import Frame, Run, load_run  # noqa: F401
 from .moss import MossSet, live_moss, place_tufts  # noqa: F401
 from .scene import RenderOptions, RenderScene, Terrain, build_scene, make_mesh  # noqa: F401
 from .still import render, run_render, write_outputs  # noqa: F401

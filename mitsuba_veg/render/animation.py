@@ -1,8 +1,8 @@
 """Animations of a run: :func:`run_animate` renders the run's days (the snapshot days, thinned
 to ``frames``) at lower settings, each in its day's daylight moved into one scene (or one fixed
-light), so that the rendering kernel is compiled once, and writes ``frames/frame_NNNN.png``, ``animation.mp4`` (H.264, ffmpeg),
-``animation.gif`` and ``animate.json``. The same frames as Dask tasks:
-:mod:`mitsuba_veg.sweeps.frames`.
+light), so that the rendering kernel is compiled once, and writes ``frames/frame_NNNN.png``,
+``animation.mp4`` (H.264, ffmpeg), ``animation.gif`` and ``animate.json``. The same frames as
+Dask tasks: :mod:`mitsuba_veg.sweeps.frames`.
 """
 from __future__ import annotations
 
@@ -38,6 +38,7 @@ def label_frame(img8, text: str):
     img8 : numpy.ndarray
         (height, width, 3) uint8 sRGB.
     text : str
+        The label (white, font size 1/22 of the image height, at least 11 px).
 
     Returns
     -------
@@ -59,7 +60,13 @@ def label_frame(img8, text: str):
 
 
 def ffmpeg_path() -> str | None:
-    """The ``ffmpeg`` executable on ``PATH``, or None."""
+    """The ``ffmpeg`` executable on ``PATH``, or None.
+
+    Returns
+    -------
+    str or None
+        Path of ``ffmpeg``, or None when it is not installed.
+    """
     return shutil.which("ffmpeg")
 
 
@@ -134,8 +141,25 @@ def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> P
 
 
 def default_light(light, when) -> str:
-    """The animation's light: ``light`` checked, or the default (``"fixed"`` when a time
-    ``when`` is given, else ``"daily"``)."""
+    """The animation's light: ``light`` checked, or the default.
+
+    Parameters
+    ----------
+    light : {"fixed", "daily"} or None
+        The light asked for; None: ``"fixed"`` when a time ``when`` is given, else ``"daily"``.
+    when : str or None
+        ISO date-time of a fixed light, if any.
+
+    Returns
+    -------
+    str
+        ``"fixed"`` or ``"daily"``.
+
+    Raises
+    ------
+    ParameterError
+        If ``light`` is neither ``"fixed"`` nor ``"daily"``.
+    """
     if light is None:
         return "fixed" if when is not None else "daily"
     if light not in ("fixed", "daily"):
@@ -146,8 +170,10 @@ def default_light(light, when) -> str:
 def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height=None,
                       spp=None, frames=None, every=None, fps=None, when=None, hour=None,
                       seed=0):
-    """What every animation needs first (here or on Dask): the run, its output folder (claimed;
-    old frames removed), the frame days, fps and the render options.
+    """What every animation needs first (here or on Dask).
+
+    The run, its output folder (claimed; old frames removed), the frame days, fps and the render
+    options (``max_depth`` 5).
 
     Parameters
     ----------
@@ -155,13 +181,34 @@ def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height
         The run folder and the output folder (default ``RUN_DIR/animation``).
     scenario : path-like or None
         The run's scenario file (default: the one its summary names).
-    camera, width, height, spp, frames, every, fps, when, hour, seed
-        As in :func:`run_animate` (pixels, samples per pixel, frames per second, hour [h]).
+    camera : str, optional
+        Camera preset (default ``overview``).
+    width, height : int, optional
+        Image size [pixels] (default 480 x 270).
+    spp : int, optional
+        Samples per pixel (default 8).
+    frames : int, optional
+        At most this many frames (default 31).
+    every : int, optional
+        One frame every ``every`` days [days].
+    fps : int, optional
+        Frames per second (default 6).
+    when : str, optional
+        ISO date-time of a fixed light.
+    hour : float, optional
+        Local hour of the light [h] (default 10).
+    seed : int, optional
+        Sampler seed (default 0).
 
     Returns
     -------
     tuple
         ``(run, out, frames_dir, days, fps, options dict, RenderOptions, OutputFolder)``.
+
+    Raises
+    ------
+    ParameterError
+        If a setting is out of range or the run has fewer than 2 days to animate.
     """
     check_image(width, height, spp, None, frames, every, fps)
     run = load_run(run_dir, scenario)
@@ -191,6 +238,10 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
                 trees=None, scenario=None, gif_width=None, seed=0, progress=True) -> dict:
     """Render the days of a run to ``animation.mp4`` and ``animation.gif`` in this process.
 
+    The last day is rendered first: its exposure is used for every frame (no flicker). Frames go to
+    ``frames/frame_NNNN.png``, the summary to ``animate.json``. The same frames as Dask tasks:
+    :func:`mitsuba_veg.sweeps.frames.run_animate`.
+
     Parameters
     ----------
     run_dir, out : path-like
@@ -207,21 +258,28 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     fps : int, optional
         Frames per second (default 6).
     when : str, optional
-        ISO date-time of a fixed light; ``hour``: local hour of the light [h] (default 10).
+        ISO date-time of a fixed light.
+    hour : float, optional
+        Local hour of the light [h] (default 10).
     light : {"daily", "fixed"}, optional
         ``"daily"`` (the default without ``when``): each frame's own date, moved into the one
         scene (:meth:`RenderScene.set_light`, ~0.1 s a frame, no recompile); ``"fixed"`` (the
         default with ``when``): the light of ``when`` or of the last day in every frame.
     trees : list of Tree, optional
         Trees instead of the scenario's.
+    scenario : path-like, optional
+        The run's scenario file (default: the one its summary names).
     gif_width : int, optional
         Downscale the GIF to this width [pixels] (default 360; 0 keeps the frame width).
+    seed : int, optional
+        Sampler seed (default 0); frame k renders with ``seed + k``.
+    progress : bool, optional
+        Show a progress bar over the frames (default True).
 
     Returns
     -------
     dict
-        The summary written to ``animate.json``. The same frames as Dask tasks:
-        :func:`mitsuba_veg.sweeps.frames.run_animate`.
+        The summary written to ``animate.json``.
     """
     light = default_light(light, when)
     if gif_width is not None:

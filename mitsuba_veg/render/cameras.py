@@ -6,7 +6,7 @@ A scenario can name its own views::
     origin = [2.6, 1.9, 2.9]      # [m]
     target = [-0.05, 0.25, -0.25]
     up = [0.0, 1.0, 0.0]          # optional
-    fov = 50.0                    # [deg] along the image's smaller side... see fov_axis
+    fov = 50.0                    # [deg] field of view along the axis fov_axis names
     fov_axis = "x"                # optional: "x" (default, as Mitsuba), "y", "smaller"
 
 Built-in presets, computed from the scene (the ground's bounding box when there is a
@@ -31,7 +31,6 @@ BUILTIN = ("overview", "shelter", "top", "scene")
 
 def _scene_camera(terrain):
     try:
-        import mitsuba as mi
         for s in terrain.base_scene.sensors():
             if s.id() == "camera" or len(terrain.base_scene.sensors()) == 1:
                 m = np.array(s.world_transform().matrix, dtype=np.float64).reshape(4, 4)
@@ -48,8 +47,28 @@ def _scene_camera(terrain):
 
 
 def presets(scn, terrain) -> dict:
-    """All camera presets of a scenario: the built-ins, overridden/extended by
-    ``[render.cameras]``."""
+    """All camera presets of a scenario: the built-ins, overridden/extended by ``[render.cameras]``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (its ``render.cameras`` tables).
+    terrain : Terrain
+        The scene's meshes (:class:`~mitsuba_veg.render.scene.Terrain`): its bounding boxes
+        place the built-in views, its base scene gives the ``scene`` preset.
+
+    Returns
+    -------
+    dict
+        ``{name: {"origin": [x, y, z] [m], "target": [x, y, z] [m], "up": [x, y, z] [-],
+        "fov": float [degrees], "fov_axis": str}}``.
+
+    Raises
+    ------
+    ParameterError
+        If a ``[render.cameras.NAME]`` entry has a malformed origin, target or up, a fov outside
+        [1, 170] degrees, an unknown fov_axis, or lacks origin or target.
+    """
     lo, hi = terrain.ground_bbox()
     c = 0.5 * (lo + hi)
     ext = hi - lo
@@ -98,6 +117,32 @@ def presets(scn, terrain) -> dict:
 
 
 def sensor_dict(scn, terrain, options, film: dict) -> dict:
+    """The Mitsuba ``perspective`` sensor dict of the preset ``options.camera``.
+
+    Near and far clip 0.005 m and 1e5 m; the sampler is ``options.sampler`` with
+    ``options.samples`` samples per pixel and ``options.seed``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (its own camera presets).
+    terrain : Terrain
+        The scene's meshes (see :func:`presets`).
+    options : RenderOptions
+        Camera name, sampler, samples per pixel and seed.
+    film : dict
+        The film dict (:func:`mitsuba_veg.render.film.film_dict`).
+
+    Returns
+    -------
+    dict
+        The sensor dict (id ``"camera"``) for ``mi.load_dict``.
+
+    Raises
+    ------
+    ParameterError
+        If ``options.camera`` is not a preset of the scenario.
+    """
     cams = presets(scn, terrain)
     if options.camera not in cams:
         raise ParameterError("camera", options.camera, "one of " + ", ".join(cams),

@@ -45,8 +45,23 @@ def _cmfs():
 
 
 def band_response(lo: float, hi: float, height: float = BAND_WEIGHT) -> np.ndarray:
-    """A box response on the 1-nm grid: ``height`` inside (lo, hi), half at lo and hi, so that
-    its integral is exactly height * (hi - lo) (Mitsuba interpolates linearly)."""
+    """A box response on the 1-nm grid (360-830 nm).
+
+    ``height`` inside (lo, hi), half at lo and hi, so that its integral is exactly
+    height * (hi - lo) [nm] (Mitsuba interpolates linearly).
+
+    Parameters
+    ----------
+    lo, hi : float
+        Band edges [nm], on the 1-nm grid.
+    height : float, optional
+        Sensitivity inside the band [-] (default :data:`BAND_WEIGHT`, 8).
+
+    Returns
+    -------
+    numpy.ndarray
+        Response on 360, 361, ..., 830 nm (471 values) [-].
+    """
     r = np.where((_WL > lo) & (_WL < hi), height, 0.0)
     r[np.isclose(_WL, lo) | np.isclose(_WL, hi)] = 0.5 * height
     return r
@@ -58,8 +73,22 @@ def _regular(v) -> dict:
 
 
 def film_dict(options) -> dict:
-    """The ``specfilm`` of a render (channels c0_X, c1_Y, c2_Z, c3_<band>, ... in this order:
-    specfilm sorts channels by name)."""
+    """The ``specfilm`` of a render.
+
+    Channels c0_X, c1_Y, c2_Z (CIE 1931 colour matching functions), c3_<band>, ... (the
+    :data:`BANDS`) in this order: specfilm sorts channels by name. Float32, Gaussian
+    reconstruction filter.
+
+    Parameters
+    ----------
+    options : RenderOptions
+        Gives the image ``width`` and ``height`` [px].
+
+    Returns
+    -------
+    dict
+        The film dict for ``mi.load_dict``.
+    """
     xyz = _cmfs()
     d = {"type": "specfilm", "width": int(options.width), "height": int(options.height),
          "component_format": "float32", "rfilter": {"type": "gaussian"}}
@@ -71,7 +100,26 @@ def film_dict(options) -> dict:
 
 
 def develop(tensor) -> dict:
-    """Calibrated images from the film tensor (module docstring)."""
+    """Calibrated images from the film tensor (module docstring).
+
+    Parameters
+    ----------
+    tensor : array_like
+        The rendered ``specfilm`` tensor (h, w, 3 + len(BANDS)): channels X, Y, Z, then the bands.
+
+    Returns
+    -------
+    dict
+        ``XYZ`` (h, w, 3): CIE XYZ with Y the ȳ-weighted mean spectral radiance
+        [W m-2 sr-1 nm-1]; ``rgb`` (h, w, 3): linear sRGB on the same scale; ``bands``
+        {name: (h, w)}: band-mean spectral radiance [W m-2 sr-1 nm-1]; ``r_fr`` (h, w): the
+        red:far-red photon ratio [-] (NaN where undefined).
+
+    Raises
+    ------
+    ParameterError
+        If the tensor does not have the shape (h, w, 3 + len(BANDS)).
+    """
     import colour
     a = np.asarray(tensor, np.float64)
     if a.ndim != 3 or a.shape[2] != 3 + len(BANDS):
@@ -94,9 +142,25 @@ def develop(tensor) -> dict:
 
 # ---- EXR ---------------------------------------------------------------------------------------
 def write_exr(path, images: dict, meta: dict | None = None) -> Path:
-    """OpenEXR (float32, ZIP) with channels R, G, B (linear sRGB), X, Y, Z, the bands
-    (``red_655_665``, ``far_red_725_735``: band-mean spectral radiance W m-2 sr-1 nm-1) and
-    ``R_FR`` (photon ratio). ``meta``: string header attributes (units, time, camera ...)."""
+    """Write the images as OpenEXR (float32, ZIP compression, written atomically).
+
+    Channels R, G, B (linear sRGB), X, Y, Z, the bands (``red_655_665``, ``far_red_725_735``:
+    band-mean spectral radiance W m-2 sr-1 nm-1) and ``R_FR`` (photon ratio; NaN written as 0).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The EXR file.
+    images : dict
+        From :func:`develop` (``rgb``, ``XYZ``, optional ``bands`` and ``r_fr``).
+    meta : dict, optional
+        String header attributes (units, time, camera ...).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     import OpenEXR
 
     path = Path(path)
@@ -122,7 +186,19 @@ def write_exr(path, images: dict, meta: dict | None = None) -> Path:
 
 
 def read_exr(path) -> dict:
-    """Channels of an EXR as float32 arrays {name: (h, w)}."""
+    """Channels of an EXR as float32 arrays {name: (h, w)}.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The EXR file.
+
+    Returns
+    -------
+    dict
+        ``{channel name: numpy.ndarray (h, w)}`` (for :func:`write_exr`'s files: see there for
+        the units).
+    """
     import OpenEXR
     with OpenEXR.File(str(path), separate_channels=True) as f:
         return {k: np.array(v.pixels) for k, v in f.channels().items()}
@@ -130,8 +206,23 @@ def read_exr(path) -> dict:
 
 # ---- display -----------------------------------------------------------------------------------
 def auto_exposure(rgb, key: float = 0.18) -> float:
-    """Exposure that maps the image's log-average luminance to ``key`` (Reinhard et al. 2002's
-    "key value"): shade and sun both stay readable under :func:`tone_map`'s shoulder."""
+    """Exposure that maps the image's log-average luminance to ``key``.
+
+    Reinhard et al. 2002's "key value": shade and sun both stay readable under :func:`tone_map`'s
+    shoulder. Luminances below 1e-4 of the 99th percentile are raised to it before the log mean.
+
+    Parameters
+    ----------
+    rgb : numpy.ndarray
+        Linear sRGB image (h, w, 3) [W m-2 sr-1 nm-1].
+    key : float, optional
+        Target log-average luminance after exposure [-] (default 0.18).
+
+    Returns
+    -------
+    float
+        The exposure factor [sr nm m2 W-1] (1.0 for an image without positive luminance).
+    """
     Y = 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
     Y = Y[np.isfinite(Y) & (Y > 0)]
     if Y.size == 0:
@@ -142,15 +233,46 @@ def auto_exposure(rgb, key: float = 0.18) -> float:
 
 
 def tone_map(x):
-    """Filmic curve (Narkowicz's fit of the ACES reference rendering transform): a toe, a nearly
-    linear middle and a soft shoulder that reaches 1 only far above the key, so sunlit sand does
-    not clip while the shade keeps its contrast."""
+    """Filmic curve (Narkowicz's fit of the ACES reference rendering transform).
+
+    A toe, a nearly linear middle and a soft shoulder that reaches 1 only far above the key, so
+    sunlit sand does not clip while the shade keeps its contrast::
+
+        f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14),   clipped to [0, 1]
+
+    Parameters
+    ----------
+    x : array_like
+        Exposed linear values [-] (negative values are set to 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Display-linear values in [0, 1] [-].
+    """
     x = np.maximum(np.asarray(x, np.float64), 0.0)
     return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
 
 
 def to_srgb8(rgb, exposure: float | None = None) -> tuple[np.ndarray, float]:
-    """8-bit sRGB image (h, w, 3) of a linear sRGB image and the exposure used."""
+    """8-bit sRGB image (h, w, 3) of a linear sRGB image and the exposure used.
+
+    NaN and +inf are set to 0; then exposure, :func:`tone_map` and the sRGB encoding.
+
+    Parameters
+    ----------
+    rgb : array_like
+        Linear sRGB image (h, w, 3) [W m-2 sr-1 nm-1].
+    exposure : float, optional
+        Exposure factor (default None: :func:`auto_exposure`).
+
+    Returns
+    -------
+    img8 : numpy.ndarray
+        The uint8 image (h, w, 3).
+    exposure : float
+        The exposure factor used.
+    """
     import colour
     rgb = np.nan_to_num(np.asarray(rgb, np.float64), nan=0.0, posinf=0.0)
     if exposure is None:
@@ -161,6 +283,20 @@ def to_srgb8(rgb, exposure: float | None = None) -> tuple[np.ndarray, float]:
 
 
 def write_png(path, img8) -> Path:
+    """Write an 8-bit image as PNG (atomically).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The PNG file.
+    img8 : array_like
+        uint8 image (h, w, 3) (or (h, w)).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     from PIL import Image
     path = Path(path)
     with atomic_write(path) as tmp:
@@ -170,9 +306,28 @@ def write_png(path, img8) -> Path:
 
 def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None = None,
                      luminance=None):
-    """An RGB uint8 image of the red:far-red ratio on a log scale (``lo``..``hi``) with a colour
-    bar: low ratios (light filtered or reflected by vegetation) purple-blue, daylight's ~1.15
-    yellow-orange. ``luminance`` (optional) shades the colours so that shapes stay readable."""
+    """An RGB uint8 image of the red:far-red ratio on a log scale with a colour bar.
+
+    Low ratios (light filtered or reflected by vegetation) purple-blue, daylight's ~1.15
+    yellow-orange. NaN pixels show as ``lo``; the picture is 125 px wider and 45 px taller than
+    the ratio image (colour bar and title).
+
+    Parameters
+    ----------
+    r_fr : array_like
+        Red:far-red photon ratio (h, w) [-].
+    lo, hi : float, optional
+        Range of the log colour scale [-] (default 0.05 .. 2.0); values outside are clipped.
+    title : str, optional
+        A title at the top left.
+    luminance : array_like, optional
+        Luminance (h, w) (e.g. the Y image) that shades the colours so that shapes stay readable.
+
+    Returns
+    -------
+    numpy.ndarray
+        The picture (h + 45, w + 125, 3), uint8 (approximately those sizes: figure rounding).
+    """
     from matplotlib.colors import LogNorm
 
     plt = _mpl()

@@ -2,9 +2,11 @@
 
 A run directory (``mitsuba-veg run ... --out DIR``) holds ``summary.json`` (settings, species,
 one record per day), ``checkpoint.npz`` (the whole population at the last checkpoint) and, when
-the run was made with snapshots (:class:`SnapshotWriter`), ``snapshots/day_NNNN.npz``: the living
-moss (positions, normals, species, growth) on the frame days. :func:`load_run` reads them;
-:meth:`Run.frames` gives the moss of each frame day for the animation:
+the run was made with snapshots (:class:`~mitsuba_veg.outputs.SnapshotWriter`),
+``snapshots/day_NNNN.npz``: the living moss (positions, normals, species, growth) on the frame
+days. :func:`load_run` reads them;
+:meth:`Run.frame_days` picks the frame days and :meth:`Run.frame` gives the moss of one day
+for the animation:
 
 - from the snapshots when they exist (exact);
 - otherwise reconstructed from the last checkpoint and the per-day counts of ``summary.json``
@@ -26,7 +28,7 @@ import numpy as np
 from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
 from ..daily.run import run
 from ..errors import ParameterError
-from ..outputs import SNAPSHOT_DIR, SnapshotWriter, write_snapshot  # noqa: F401 (re-exported)
+from ..outputs import SNAPSHOT_DIR
 from ..scenario import Scenario, load_scenario
 from .moss import MossSet, live_moss
 
@@ -53,10 +55,36 @@ class Run:
     snapshots: list = field(default_factory=list)
 
     def date(self, day: int) -> _dt.date:
-        """Calendar date of simulated day ``day`` (1-based)."""
+        """Calendar date of simulated day ``day`` (1-based).
+
+        Parameters
+        ----------
+        day : int
+            Simulated day [days] (1 = the start date).
+
+        Returns
+        -------
+        datetime.date
+            ``start + (day - 1)`` days.
+        """
         return self.start + _dt.timedelta(days=int(day) - 1)
 
     def final_moss(self) -> MossSet:
+        """The living moss at the end of the run.
+
+        From the last snapshot when it is at least as recent as the checkpoint, else from the
+        checkpoint.
+
+        Returns
+        -------
+        MossSet
+            The living moss (positions [m], normals, species, growth G_moss [-]).
+
+        Raises
+        ------
+        ParameterError
+            If the run has neither a checkpoint nor snapshots.
+        """
         if self.snapshots and (self.checkpoint is None or
                                int(self.checkpoint.get("day", 0)) <= self.snapshots[-1][0]):
             return self._snapshot(self.snapshots[-1][1])
@@ -67,6 +95,7 @@ class Run:
 
     @property
     def final_day(self) -> int:
+        """The last day with moss: the checkpoint's, else the last snapshot's, else ``days``."""
         if self.checkpoint is not None:
             return int(self.checkpoint["day"])
         return self.snapshots[-1][0] if self.snapshots else self.days
@@ -77,8 +106,20 @@ class Run:
                            z["growth"].astype(np.float64), list(self.species))
 
     def leaf_state(self, day: int) -> dict | None:
-        """A world run's leaf state (``leaf_tau``, ``leaf_grown``, ``leaf_on``, one entry per
-        leaf of its trees) at the latest snapshot on or before ``day`` (None without one)."""
+        """A world run's leaf state at the latest snapshot on or before ``day``.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day [days] (1-based).
+
+        Returns
+        -------
+        dict or None
+            ``leaf_tau`` (autumn logical time [-]), ``leaf_grown`` (leaf-out size factor [-]) and
+            ``leaf_on`` (bool), one entry per leaf of its trees; None without such a snapshot (or
+            when the snapshot has no leaf state).
+        """
         best = None
         for d, p in self.snapshots:
             if d <= day:
@@ -91,8 +132,24 @@ class Run:
             return {k: np.asarray(z[k]) for k in ("leaf_tau", "leaf_grown", "leaf_on")}
 
     def frame_days(self, count: int | None = None, every: int | None = None) -> list[int]:
-        """Days to animate: the snapshot days (or every ``every`` days), thinned to at most
-        ``count`` frames, always including the last day."""
+        """Days to animate.
+
+        The snapshot days (or every ``every`` days), thinned to at most ``count`` frames, always
+        including the last day.
+
+        Parameters
+        ----------
+        count : int, optional
+            Most frames (evenly spaced over the days); None: no limit.
+        every : int, optional
+            Keep days that are multiples of ``every`` [days] (and day 1 and the last); without
+            snapshots the step of the days (default 10).
+
+        Returns
+        -------
+        list of int
+            The simulated days [days], ascending.
+        """
         last = self.final_day
         if self.snapshots:
             days = [d for d, _ in self.snapshots]
@@ -107,7 +164,21 @@ class Run:
         return days
 
     def frame(self, day: int) -> Frame:
-        """The moss at the end of simulated ``day``."""
+        """The moss at the end of simulated ``day``.
+
+        Exact from a snapshot of that day or on/after the final day; otherwise reconstructed from
+        the final moss (module docstring, ``exact=False``).
+
+        Parameters
+        ----------
+        day : int
+            Simulated day [days] (1-based).
+
+        Returns
+        -------
+        Frame
+            Day, date, moss and whether it is exact.
+        """
         snap = dict(self.snapshots)
         if day in snap:
             return Frame(day, self.date(day), self._snapshot(snap[day]), True)
@@ -163,8 +234,28 @@ def _resolve_scenario(summary: dict, checkpoint, run_dir: Path):
 
 
 def load_run(run_dir, scenario=None) -> Run:
-    """Read a run directory (see module docstring). ``scenario``: a scenario path or
-    :class:`~mitsuba_veg.scenario.Scenario` to use instead of the one the run names."""
+    """Read a run directory (see module docstring).
+
+    Parameters
+    ----------
+    run_dir : str or pathlib.Path
+        The run folder (``summary.json``, ``checkpoint.npz``, optional ``snapshots/``).
+    scenario : str, pathlib.Path or Scenario, optional
+        A scenario path or :class:`~mitsuba_veg.scenario.Scenario` to use instead of the one the
+        run names.
+
+    Returns
+    -------
+    Run
+        The run: scenario, species keys, moss size [m], start date, days simulated, checkpoint
+        arrays and snapshot files.
+
+    Raises
+    ------
+    ParameterError
+        If the folder is not a run, its checkpoint or summary cannot be read, or its scenario
+        cannot be found.
+    """
     d = Path(run_dir)
     sp = d / "summary.json"
     cp = d / "checkpoint.npz"
@@ -218,7 +309,32 @@ def load_run(run_dir, scenario=None) -> Run:
 
 def run_with_snapshots(scenario, out, days: int | None = None, overrides=(),
                        resume: bool = True, progress: bool = True, every: int | None = None):
-    """:func:`mitsuba_veg.daily.run.run` with moss snapshots every ``every`` days (default:
-    the scenario's ``frame_every``) for exact animations. Returns the run's summary dict."""
+    """:func:`mitsuba_veg.daily.run.run` with moss snapshots every ``every`` days.
+
+    Snapshots give exact animations.
+
+    Parameters
+    ----------
+    scenario : str, pathlib.Path or Scenario
+        The scenario to run.
+    out : str or pathlib.Path
+        The run folder.
+    days : int, optional
+        Simulated days [days] (default: the scenario's ``simulation.days``).
+    overrides : sequence of str, optional
+        ``KEY=VALUE`` fields (as ``--set``), for a TOML path.
+    resume : bool, optional
+        Resume from the folder's checkpoint (default True); False discards it and the earlier
+        outputs in the folder.
+    progress : bool, optional
+        Show a progress bar (default True).
+    every : int, optional
+        Days between snapshots [days] (default: the scenario's ``simulation.frame_every``).
+
+    Returns
+    -------
+    dict
+        The run's summary dict.
+    """
     return run(scenario, out, days=days, overrides=overrides, resume=resume,
                progress=progress, snapshot_every=every)

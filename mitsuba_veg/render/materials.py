@@ -9,8 +9,7 @@ a little green, absorb red near 670 nm and reflect strongly beyond the red edge 
 Their band means agree with the moss model's albedo per band (``[moss] albedo`` of the moss
 garden: red 0.05, far-red 0.45) within a few hundredths; ``band_mean`` reports them.
 
-Leaves use PROSPECT-D spectra and the ``veg_leaf`` BSDF (:mod:`mitsuba_veg.foliage`) when that
-package is importable; otherwise :func:`leaf_bsdf` falls back to a one-sided diffuse green.
+Leaves use PROSPECT-D spectra and the two-sided ``veg_leaf`` BSDF (:mod:`mitsuba_veg.foliage`).
 """
 from __future__ import annotations
 
@@ -78,8 +77,6 @@ def _spectra() -> dict:
         # the carpet of old stems and rhizoids under living moss
         "moss_base": _vegetation(0.03, 0.06, 0.045, 0.28, yellow=0.015, edge=712,
                                  edge_width=16.0),
-        # fallback leaf (no PROSPECT-D available): a mature green leaf, R only
-        "leaf_green": _vegetation(0.04, 0.13, 0.04, 0.48, edge=710, green_width=28.0),
     }
     return {k: np.clip(v, 0.0, 0.95) for k, v in s.items()}
 
@@ -94,7 +91,24 @@ MOSS_MATERIAL = {"bryum_argenteum": "bryum_argenteum",
 
 
 def spectrum(name_or_values) -> np.ndarray:
-    """Reflectance on :data:`WAVELENGTHS`: a material name or an array of that length."""
+    """Reflectance on :data:`WAVELENGTHS`: a material name or an array of that length.
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        A key of :data:`SPECTRA`, a constant reflectance [-], or 95 reflectances [-] on
+        360-830 nm in 5 nm steps.
+
+    Returns
+    -------
+    numpy.ndarray
+        Reflectance (95,) [-] on :data:`WAVELENGTHS` [nm].
+
+    Raises
+    ------
+    ParameterError
+        If the name is unknown or the array has another length.
+    """
     if isinstance(name_or_values, str):
         if name_or_values not in SPECTRA:
             raise ParameterError("material", name_or_values, "one of " + ", ".join(sorted(SPECTRA)),
@@ -110,7 +124,19 @@ def spectrum(name_or_values) -> np.ndarray:
 
 
 def regular(values) -> dict:
-    """A Mitsuba ``regular`` spectrum dict on :data:`WAVELENGTHS`."""
+    """A Mitsuba ``regular`` spectrum dict on :data:`WAVELENGTHS`.
+
+    Parameters
+    ----------
+    values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+
+    Returns
+    -------
+    dict
+        ``{"type": "regular", "wavelength_min": 360, "wavelength_max": 830, "values": ...}``
+        (wavelengths [nm]).
+    """
     v = spectrum(values)
     return {"type": "regular", "wavelength_min": float(WAVELENGTHS[0]),
             "wavelength_max": float(WAVELENGTHS[-1]),
@@ -118,24 +144,74 @@ def regular(values) -> dict:
 
 
 def diffuse(name_or_values) -> dict:
-    """A ``diffuse`` BSDF dict with an explicit spectral reflectance."""
+    """A ``diffuse`` BSDF dict with an explicit spectral reflectance.
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+
+    Returns
+    -------
+    dict
+        The BSDF dict.
+    """
     return {"type": "diffuse", "reflectance": regular(name_or_values)}
 
 
 def blend(bsdf0: dict, bsdf1: dict, weight) -> dict:
-    """``blendbsdf``: weight 0 -> ``bsdf0``, 1 -> ``bsdf1``; weight a float or texture dict."""
+    """``blendbsdf``: weight 0 -> ``bsdf0``, 1 -> ``bsdf1``.
+
+    Parameters
+    ----------
+    bsdf0, bsdf1 : dict
+        The two BSDF dicts.
+    weight : float or dict
+        Blend weight in [0, 1] [-]: a number (a ``uniform`` texture) or a texture dict.
+
+    Returns
+    -------
+    dict
+        The ``blendbsdf`` dict.
+    """
     w = {"type": "uniform", "value": float(weight)} if np.isscalar(weight) else weight
     return {"type": "blendbsdf", "weight": w, "bsdf_0": bsdf0, "bsdf_1": bsdf1}
 
 
 def band_mean(name_or_values, lo: float, hi: float) -> float:
-    """Mean reflectance over [lo, hi] nm (linear interpolation of the 5-nm grid)."""
+    """Mean reflectance over [lo, hi] nm (linear interpolation of the 5-nm grid).
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+    lo, hi : float
+        Band edges [nm].
+
+    Returns
+    -------
+    float
+        Band-mean reflectance [-] (64 evenly spaced wavelengths).
+    """
     x = np.linspace(lo, hi, 64)
     return float(np.interp(x, WAVELENGTHS, spectrum(name_or_values)).mean())
 
 
 def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
-    """sRGB (0-1, gamma-encoded) of a reflectance under D65, for legends and checks."""
+    """sRGB (0-1, gamma-encoded) of a reflectance under D65, for legends and checks.
+
+    Parameters
+    ----------
+    name_or_values : str, float or array_like
+        As for :func:`spectrum`: a material name or reflectances [-].
+    exposure : float, optional
+        Factor on XYZ before encoding [-] (default 1: a perfect white reflector has Y = 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        sRGB (3,) in [0, 1] [-].
+    """
     import colour
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     d65 = colour.SDS_ILLUMINANTS["D65"]
@@ -150,8 +226,20 @@ def srgb(name_or_values, exposure: float = 1.0) -> np.ndarray:
 
 # ---- leaves ----------------------------------------------------------------------------------
 def leaf_bsdf(tau: float = 0.0) -> dict:
-    """BSDF dict of a leaf at autumn logical time ``tau`` (0 green .. 1 red, paper 003):
-    PROSPECT-D reflectance and transmittance in the two-sided ``veg_leaf`` BSDF."""
+    """BSDF dict of a leaf at autumn logical time ``tau``.
+
+    PROSPECT-D reflectance and transmittance (paper 003) in the two-sided ``veg_leaf`` BSDF.
+
+    Parameters
+    ----------
+    tau : float, optional
+        Autumn logical time [-], clipped to 0 (green) .. 1 (red) (default 0).
+
+    Returns
+    -------
+    dict
+        The ``veg_leaf`` BSDF dict.
+    """
     return leaf_bsdf_dict(leaf_spectra(tau=float(np.clip(tau, 0.0, 1.0))))
 
 

@@ -55,12 +55,39 @@ class MossSet:
         return len(self.pos)
 
     def subset(self, mask) -> "MossSet":
+        """The moss selected by ``mask``.
+
+        Parameters
+        ----------
+        mask : numpy.ndarray
+            Boolean mask (n,) or integer indices into the moss.
+
+        Returns
+        -------
+        MossSet
+            A new set with the selected moss (same species names).
+        """
         return MossSet(self.pos[mask], self.nrm[mask], self.species[mask], self.growth[mask],
                        list(self.species_names))
 
 
 def live_moss(arrays: dict, species_names) -> MossSet:
-    """The living moss (state 2) of a population dict (checkpoint.npz or a snapshot)."""
+    """The living moss (state 2) of a population dict (checkpoint.npz or a snapshot).
+
+    Parameters
+    ----------
+    arrays : dict
+        ``pos`` (n, 3) [m], ``nrm`` (n, 3) [-], ``species`` (n,), ``growth`` (n,) G_moss [-],
+        and, for a checkpoint, ``state`` (n,): then only slots with state 2 (moss) are kept; a
+        snapshot (no ``state``) holds living moss only.
+    species_names : list of str
+        Species keys, indexed by the population's species id.
+
+    Returns
+    -------
+    MossSet
+        The living moss.
+    """
     if "state" in arrays:
         m = np.asarray(arrays["state"]) == MOSS_STATE
         return MossSet(np.asarray(arrays["pos"])[m], np.asarray(arrays["nrm"])[m],
@@ -71,7 +98,20 @@ def live_moss(arrays: dict, species_names) -> MossSet:
 
 
 def growth_scale(growth) -> np.ndarray:
-    """Tuft scale factor from total growth G_moss (see module docstring)."""
+    """Tuft scale factor from total growth G_moss (see module docstring).
+
+    ``0.45 + (1 - exp(-G / 4))``, G clipped at 0: 0.45 for a young moss, up to 1.45.
+
+    Parameters
+    ----------
+    growth : float or array_like
+        Total growth G_moss (eq 3.21) [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        Scale factor in [0.45, 1.45) [-], of the shape of ``growth``.
+    """
     g = np.maximum(np.asarray(growth, np.float64), 0.0)
     return 0.45 + 1.0 * (1.0 - np.exp(-g / 4.0))
 
@@ -100,11 +140,38 @@ def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
                 noise_scale: float = 0.08) -> list[TuftMesh]:
     """Merge one tuft model per moss into one mesh per species (module docstring).
 
-    ``size``: tuft footprint [m] at scale 1 (the moss size of the run); ``jitter``: 1/f
-    placement jitter amplitude as a fraction of ``size``; ``tilt_deg``: random tilt of the tuft
-    axis; ``noise_scale``: the 1/f noise's largest wavelength [m]; ``seed``: makes rotations and
-    variant choices reproducible (a moss keeps its look from frame to frame when the seed and its
-    position stay the same: every random draw is keyed on the position).
+    A moss keeps its look from frame to frame when the seed and its position stay the same: every
+    random draw is keyed on the position (quantised to 0.1 mm).
+
+    Parameters
+    ----------
+    moss : MossSet
+        The living moss.
+    size : float, optional
+        Tuft footprint [m] at scale 1 (the moss size of the run; default :data:`TUFT_SIZE`,
+        0.01 m).
+    jitter : float, optional
+        1/f placement jitter amplitude as a fraction of ``size`` [-] (default 0.35).
+    tilt_deg : float, optional
+        Largest random tilt of the tuft axis from the surface normal [degrees] (default 12).
+    seed : int, optional
+        Makes rotations and variant choices reproducible (default 0).
+    variants : int or None, optional
+        Tuft models per species to choose from (default None: :data:`~.tufts.VARIANTS`).
+    noise_scale : float, optional
+        The 1/f noise's largest wavelength [m] (default 0.08; size and tone patches use twice
+        that).
+
+    Returns
+    -------
+    list of TuftMesh
+        One merged mesh per species present (vertices [m], faces, per-vertex tone in [0, 1]),
+        empty when there is no moss.
+
+    Raises
+    ------
+    ParameterError
+        If ``size`` is not a finite length > 0.
     """
     if size <= 0 or not np.isfinite(size):
         raise ParameterError("size", size, "> 0 [m]", "the moss size of the run, e.g. 0.01")

@@ -26,7 +26,22 @@ def _hash(ix, iy, iz, seed):
 
 
 def value_noise(p, seed: int = 0) -> np.ndarray:
-    """Smooth value noise in [-1, 1] at points ``p`` (n, 3), lattice spacing 1."""
+    """Smooth value noise in [-1, 1] at points ``p`` (n, 3), lattice spacing 1.
+
+    Random values on the integer lattice, trilinear interpolation with a smoothstep fade.
+
+    Parameters
+    ----------
+    p : array_like
+        Points (n, 3), in lattice units [-] (spacing 1).
+    seed : int, optional
+        Seed of the lattice values (default 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Noise values (n,) in [-1, 1] [-], float64.
+    """
     p = np.asarray(p, np.float64)
     i0 = np.floor(p).astype(np.int64)
     f = p - i0
@@ -43,9 +58,27 @@ def value_noise(p, seed: int = 0) -> np.ndarray:
 
 
 def pink_noise(p, scale: float = 0.1, octaves: int = 5, seed: int = 0) -> np.ndarray:
-    """1/f noise at points ``p`` (n, 3) [m]: octaves of value noise with frequencies
-    2^k / ``scale`` and amplitudes 2^-k, normalised to a standard deviation of about 1/3 (values
-    mostly in [-1, 1])."""
+    """1/f noise at points ``p`` (n, 3) [m].
+
+    Octaves of value noise with frequencies 2^k / ``scale`` and amplitudes 2^-k, normalised to a
+    standard deviation of about 1/3 (values mostly in [-1, 1]).
+
+    Parameters
+    ----------
+    p : array_like
+        Points, reshaped to (n, 3) [m] (or any length unit: ``scale`` is in the same unit).
+    scale : float, optional
+        Wavelength of the lowest octave [m] (default 0.1).
+    octaves : int, optional
+        Number of octaves (default 5).
+    seed : int, optional
+        Seed (default 0); octave k uses ``seed + 101 k``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Noise values (n,) [-], standard deviation about 1/3, float64.
+    """
     p = np.asarray(p, np.float64).reshape(-1, 3)
     out = np.zeros(len(p))
     norm = 0.0
@@ -59,7 +92,24 @@ def pink_noise(p, scale: float = 0.1, octaves: int = 5, seed: int = 0) -> np.nda
 
 
 def pink_noise_image(shape, scale_px: float = 64.0, octaves: int = 6, seed: int = 0):
-    """A 2D 1/f noise image (h, w) with values mostly in [-1, 1]."""
+    """A 2D 1/f noise image (h, w) with values mostly in [-1, 1].
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(h, w)`` [px].
+    scale_px : float, optional
+        Wavelength of the lowest octave [px] (default 64).
+    octaves : int, optional
+        Number of octaves (default 6).
+    seed : int, optional
+        Seed (default 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Noise image (h, w) [-], standard deviation about 1/3, float64.
+    """
     h, w = shape
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
     p = np.stack([xx.ravel() / scale_px, yy.ravel() / scale_px, np.zeros(h * w)], 1)

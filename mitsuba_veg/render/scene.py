@@ -15,7 +15,7 @@
 - **moss**: one tuft model per living moss (:mod:`.moss`), merged into one mesh per species,
   two-sided, blending the species' dark and light spectra by a per-vertex ``tone`` attribute.
 - **trees**: bark tubes and leaves (:mod:`.trees`): leaves binned by autumn logical time, one
-  ``veg_leaf`` (PROSPECT-D) BSDF per bin when :mod:`mitsuba_veg.foliage` is available.
+  ``veg_leaf`` (PROSPECT-D) BSDF per bin (:mod:`mitsuba_veg.foliage`).
 - **light**: the physical sun (``directional``) and sky (``veg_sky``) of
   :func:`mitsuba_veg.light.daylight` for the scenario's site and the render time, with explicit
   spectra over 360-830 nm (all of Mitsuba's range; the far-red band is inside it).
@@ -49,6 +49,12 @@ __all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_t
            "Terrain"]
 
 
+#: allowed ranges of the image settings (inclusive), shared by :meth:`RenderOptions.validate`
+#: and the command line's early check (:func:`mitsuba_veg.render.still.check_image`)
+IMAGE_LIMITS = {"width": (8, 16384), "height": (8, 16384), "spp": (1, 1 << 20),
+                "max_depth": (1, 100)}
+
+
 @dataclass
 class RenderOptions:
     """Settings of a render (all optional)."""
@@ -80,10 +86,26 @@ class RenderOptions:
         return n
 
     def validate(self) -> "RenderOptions":
-        check_range("width", self.width, 8, 16384, fix="image width in pixels")
-        check_range("height", self.height, 8, 16384, fix="image height in pixels")
-        check_range("spp", self.spp, 1, 1 << 20, fix="samples per pixel, e.g. 64")
-        check_range("max_depth", self.max_depth, 1, 100)
+        """Check the settings' ranges.
+
+        width and height 8-16384 [px], spp 1-2^20, max_depth 1-100, hour 0-24 [h],
+        moss_jitter 0-2 [-], leaf_bins 1-64, cover_resolution 16-8192 [px], surround a material of
+        :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
+
+        Returns
+        -------
+        RenderOptions
+            ``self``, unchanged.
+
+        Raises
+        ------
+        ParameterError
+            If a setting is out of range.
+        """
+        check_range("width", self.width, *IMAGE_LIMITS["width"], fix="image width in pixels")
+        check_range("height", self.height, *IMAGE_LIMITS["height"], fix="image height in pixels")
+        check_range("spp", self.spp, *IMAGE_LIMITS["spp"], fix="samples per pixel, e.g. 64")
+        check_range("max_depth", self.max_depth, *IMAGE_LIMITS["max_depth"])
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
@@ -110,9 +132,30 @@ class RenderScene:
     tree_cache: dict | None = None
 
     def update(self, moss: MossSet | None = None, trees=None) -> dict:
-        """Replace the moss (and, when given, the trees' leaves) of the scene; returns the new
-        counts. The scene must have been built with ``species`` (and with trees when ``trees``
-        is given)."""
+        """Replace the moss (and, when given, the trees' leaves) of the scene.
+
+        The scene must have been built with ``species`` (and with trees when ``trees`` is given).
+        The moss meshes, the ground's moss-cover texture and the leaf-bin meshes get new buffers;
+        the Mitsuba objects stay the same.
+
+        Parameters
+        ----------
+        moss : MossSet, optional
+            The living moss to show (None or empty: no moss; every species mesh becomes empty).
+        trees : list of Tree, optional
+            Trees whose leaf state (autumn tau, fallen, leaf-out scale) to show; None keeps the
+            leaves as they are.
+
+        Returns
+        -------
+        dict
+            The new counts: ``{"tufts": int}`` (also merged into :attr:`info`).
+
+        Raises
+        ------
+        SceneError
+            If the scene has no moss mesh for a species of ``moss``.
+        """
         params = mi.traverse(self.scene)
         keys = set(params.keys())
         info = {}
@@ -146,18 +189,25 @@ class RenderScene:
     def set_light(self, emitters: dict, when: str | None = None) -> None:
         """Give the scene another daylight in place (an animation's ``--light daily``).
 
+        The sun's direction and spectrum and the sky's spectrum are traversed parameters; the sky's
+        sun and Perez distribution are moved with :meth:`VegSky.set_sky`. Array sizes do not change,
+        so the rendering kernel compiled for the first frame is reused.
+
         Parameters
         ----------
         emitters : dict
-            ``{"sun": directional dict, "sky": veg_sky dict}`` as
-            :func:`mitsuba_veg.light.daylight` makes them for the scene's spectral range (the
-            same number of spectrum values as the scene was built with).
+            ``{"sun": directional dict, "sky": veg_sky dict}`` as :func:`mitsuba_veg.light.daylight`
+            makes them for the scene's spectral range (the same number of spectrum values as the
+            scene was built with; irradiance [W m-2 nm-1], radiance [W m-2 sr-1 nm-1]).
         when : str, optional
             The light's time, kept in :attr:`info` (``"when"``).
 
-        The sun's direction and spectrum and the sky's spectrum are traversed parameters; the
-        sky's sun and Perez distribution are moved with :meth:`VegSky.set_sky`. Array sizes do
-        not change, so the rendering kernel compiled for the first frame is reused.
+        Raises
+        ------
+        SceneError
+            If the scene lacks an emitter of ``emitters`` or the number of spectrum values differs.
+        ParameterError
+            If an emitter is neither ``directional`` nor ``veg_sky``.
         """
         params = mi.traverse(self.scene)
         keys = set(params.keys())
@@ -177,6 +227,9 @@ class RenderScene:
             elif kind == "veg_sky":
                 if name not in sky_objs:
                     raise SceneError(f"set_light(): the scene has no veg_sky '{name}'")
+                if sky_objs[name].spectrum_key != "radiance":
+                    raise SceneError(f"set_light(): veg_sky '{name}' was built with "
+                                     "'irradiance'; build it with daylight emitters ('radiance')")
                 params[f"{name}.radiance.values"] = _spectrum_values(
                     d["radiance"], params[f"{name}.radiance.values"], name)
                 sky_objs[name].set_sky(d["sun_direction"], d.get("perez_epsilon"),
@@ -238,6 +291,30 @@ class Terrain:
 
     @staticmethod
     def from_scenario(scn) -> "Terrain":
+        """Read the scenario's meshes and what the ground's material needs.
+
+        The meshes of the scenario's scene (without daylight), the ground (``terrain.ground``,
+        default ``"ground"``, when it is a mesh), its scale (metres per UV unit, from the 3D and UV
+        areas), the geology masks of ``terrain.geology_texture`` (when given and the ground has
+        UVs), a 512 x 512 1/f noise image and the ``[render.materials]`` of other meshes.
+
+        Parameters
+        ----------
+        scn : Scenario
+            The scenario.
+
+        Returns
+        -------
+        Terrain
+            The terrain, reused for every frame.
+
+        Raises
+        ------
+        SceneError
+            If the scene has no meshes.
+        ParameterError
+            If ``[render.materials]`` names an unknown material.
+        """
         base = scn.load_scene(daylight=False)
         meshes = {}
         for sh in base.shapes():
@@ -271,6 +348,24 @@ class Terrain:
 
     # ground material --------------------------------------------------------------------------
     def ground_bsdf(self, cover: np.ndarray | None) -> dict:
+        """The ground's BSDF dict: geology classes, 1/f variation and moss cover.
+
+        Humus everywhere, sand and asphalt where their masks are 1 (nested ``blendbsdf``s); each
+        class varies between its dark and light spectrum by the noise image; the moss-carpet base
+        spectrum is blended in by ``cover``. Without geology masks the ground's
+        ``[render.materials]`` material (default humus) is used.
+
+        Parameters
+        ----------
+        cover : numpy.ndarray or None
+            Moss cover (H, W) in [0, 1] [-] over the ground's UV space (:meth:`moss_cover`), or
+            None.
+
+        Returns
+        -------
+        dict
+            The (one-sided) BSDF dict.
+        """
         noise = _bitmap(self.noise, wrap="repeat")
 
         def varied(name):
@@ -294,7 +389,27 @@ class Terrain:
         return b
 
     def moss_cover(self, moss: MossSet, size: float, resolution: int = 1024) -> np.ndarray | None:
-        """Moss cover of the ground in its UV space (H, W) in [0, 1]."""
+        """Moss cover of the ground in its UV space (H, W) in [0, 1].
+
+        Each moss on the ground (found by a 6 mm ray from 2 mm above it, down its normal) is
+        splatted into a ``resolution`` x ``resolution`` image with weight ``growth_scale(G)^2`` and
+        blurred with a Gaussian of sigma 0.45 ``size`` (the tuft's footprint).
+
+        Parameters
+        ----------
+        moss : MossSet
+            The living moss.
+        size : float
+            Moss size of the run [m].
+        resolution : int, optional
+            Image size [px] (default 1024).
+
+        Returns
+        -------
+        numpy.ndarray or None
+            Cover (resolution, resolution) float32 in [0, 1] [-]; None when there is no ground with
+            UVs, no moss, or no moss on the ground.
+        """
         if self.ground is None or self.meshes[self.ground][2] is None or len(moss) == 0:
             return None
         o = moss.pos + moss.nrm * 2e-3
@@ -324,6 +439,24 @@ class Terrain:
 
     # shapes -----------------------------------------------------------------------------------
     def shapes(self, cover=None, surround: str | None = "gravel") -> dict:
+        """Mitsuba mesh dicts of the terrain, all two-sided.
+
+        The ground gets :meth:`ground_bsdf`, other meshes their ``[render.materials]`` spectrum
+        (default concrete); ``surround`` adds a flat ring out to 2 km around the ground, 1 mm below
+        its rim.
+
+        Parameters
+        ----------
+        cover : numpy.ndarray, optional
+            Moss cover of the ground (:meth:`moss_cover`), or None.
+        surround : str or None, optional
+            Material of the ring around the ground (default ``"gravel"``; None: no ring).
+
+        Returns
+        -------
+        dict
+            ``{id: mesh}`` for ``mi.load_dict``.
+        """
         out = {}
         for sid, (v, f, uv, nrm) in self.meshes.items():
             if sid == self.ground:
@@ -365,10 +498,24 @@ class Terrain:
         return verts, faces
 
     def bbox(self):
+        """Bounding box of all meshes.
+
+        Returns
+        -------
+        lo, hi : numpy.ndarray
+            Lower and upper corners (3,) [m].
+        """
         v = np.concatenate([m[0] for m in self.meshes.values()])
         return v.min(0).astype(float), v.max(0).astype(float)
 
     def ground_bbox(self):
+        """Bounding box of the ground (of all meshes when there is no ground).
+
+        Returns
+        -------
+        lo, hi : numpy.ndarray
+            Lower and upper corners (3,) [m].
+        """
         if self.ground is None:
             return self.bbox()
         v = self.meshes[self.ground][0]
@@ -405,7 +552,29 @@ def _moss_parts(moss: MossSet | None, size: float, options: RenderOptions,
 
 def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
                 species: list | None = None) -> tuple[dict, dict]:
-    """Merged tuft meshes (one per species) and counts."""
+    """Merged tuft meshes (one per species) and counts.
+
+    Each mesh is two-sided and blends the species' dark and light spectra by its per-vertex
+    ``vertex_tone`` (species without spectra of their own use ``hypnum_plumaeforme``'s).
+
+    Parameters
+    ----------
+    moss : MossSet or None
+        The living moss.
+    size : float
+        Moss size of the run [m].
+    options : RenderOptions
+        Gives ``moss_jitter`` and ``seed``.
+    species : list of str, optional
+        Species keys that always get a mesh (an empty one without moss).
+
+    Returns
+    -------
+    shapes : dict
+        ``{"moss_<species>": mesh}``.
+    info : dict
+        ``tufts`` and ``moss_triangles`` counts.
+    """
     out, info = {}, {"tufts": 0, "moss_triangles": 0}
     for sid, (v, f, tone, count) in _moss_parts(moss, size, options, species).items():
         sp = sid[len("moss_"):]
@@ -431,9 +600,26 @@ def _timezone(scn) -> _dt.timezone:
 
 
 def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
-    """ISO date-time of the render's daylight: ``options.when``, else the scenario's
-    ``render.when``, else ``date`` at ``options.hour`` local time (time zone ``site.timezone``
-    [h] or longitude/15)."""
+    """ISO date-time of the render's daylight.
+
+    ``options.when``, else the scenario's ``render.when``, else ``date`` at ``options.hour`` local
+    time (time zone ``site.timezone`` [h] or longitude/15); without a date the scenario's
+    ``light.when``, else 21 June 2026.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (``render.when``, ``light.when``, ``site.timezone``, ``site.longitude``).
+    date : datetime.date or None
+        The day being rendered.
+    options : RenderOptions
+        Gives ``when`` and ``hour`` [h].
+
+    Returns
+    -------
+    str
+        ISO 8601 date-time (with a UTC offset when built from ``date``).
+    """
     if options.when:
         return str(options.when)
     if scn.get("render.when"):
@@ -443,14 +629,32 @@ def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
         if w:
             return str(w)
         date = _dt.date(2026, 6, 21)
-    h = int(options.hour)
-    m = int(round((options.hour - h) * 60))
-    t = _dt.datetime(date.year, date.month, date.day, min(h, 23), min(m, 59),
-                     tzinfo=_timezone(scn))
+    # rounded to the minute once (10.999 h is 11:00, not 10:60); hour 24 is the next midnight
+    t = _dt.datetime(date.year, date.month, date.day, tzinfo=_timezone(scn)) \
+        + _dt.timedelta(minutes=round(options.hour * 60.0))
     return t.isoformat()
 
 
 def sky_emitters(scn, when: str) -> dict:
+    """The physical sun and sky of the scenario's site at ``when``, over 360-830 nm.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (``site.latitude``, ``site.longitude`` [degrees]).
+    when : str
+        ISO date-time of the light.
+
+    Returns
+    -------
+    dict
+        ``{"sun": directional dict, "sky": veg_sky dict}`` (:func:`mitsuba_veg.light.daylight`).
+
+    Raises
+    ------
+    ParameterError
+        If the sun is below the horizon at ``when``.
+    """
     em = daylight(float(scn.get("site.latitude")), float(scn.get("site.longitude")), when,
                   wavelength_range=(360.0, 830.0))
     if not em:
@@ -465,12 +669,40 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
                 options: RenderOptions | None = None, terrain: Terrain | None = None,
                 tree_cache=None, emitters: dict | None = None,
                 species: list | None = None) -> RenderScene:
-    """Assemble the render scene (module docstring). ``trees``: a list of
-    :class:`~mitsuba_veg.trees.Tree` (leaves may carry ``autumn_tau`` and ``fallen`` attrs);
-    ``terrain``: a prebuilt :class:`Terrain` to reuse across frames; ``emitters``: sun and sky
-    dicts to use instead of the daylight of ``date`` (an animation keeps one light so that every
-    frame reuses the same compiled kernel); ``species``: species keys that always get a moss
-    mesh (an empty one when no moss of theirs lives), for the same reason."""
+    """Assemble the render scene (module docstring).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario.
+    moss : MossSet, optional
+        The living moss to show.
+    moss_size : float, optional
+        Moss size of the run [m] (default 0.01).
+    trees : list of Tree, optional
+        A list of :class:`~mitsuba_veg.trees.Tree` (leaves may carry ``autumn_tau`` and
+        ``fallen`` attrs).
+    date : datetime.date, optional
+        The day being rendered (its light at ``options.hour``, see :func:`render_time`).
+    options : RenderOptions, optional
+        Render settings (default ``RenderOptions()``), validated.
+    terrain : Terrain, optional
+        A prebuilt :class:`Terrain` to reuse across frames.
+    tree_cache : dict, optional
+        Tree geometry cache (:func:`~mitsuba_veg.render.trees.tree_geometry`), kept in the result.
+    emitters : dict, optional
+        Sun and sky dicts to use instead of the daylight of ``date`` (an animation keeps one light
+        so that every frame reuses the same compiled kernel).
+    species : list of str, optional
+        Species keys that always get a moss mesh (an empty one when no moss of theirs lives), for
+        the same reason.
+
+    Returns
+    -------
+    RenderScene
+        The scene, its camera sensor, the options and ``info`` (counts, ``when``, ``camera``,
+        ``triangles`` and build ``seconds`` [s]).
+    """
     options = (options or RenderOptions()).validate()
     t0 = time.perf_counter()
     terrain = terrain or Terrain.from_scenario(scn)

@@ -6,7 +6,7 @@ simple phenology driven by the calendar and by light (documented in docs/render.
 - **leaf-out**: leaves grow from nothing to full size between ``leaf_out`` (default day-of-year
   95, early April) and ``leaf_out + 30``: per-leaf ``leaf_scale`` (a smoothstep, 5 days earlier
   for the sunniest leaves);
-- **autumn** (paper 003 through :func:`mitsuba_veg.foliage.autumn_time` when available): each
+- **autumn** (paper 003 through :func:`mitsuba_veg.foliage.autumn_time`): each
   leaf's logical time tau grows with its cumulative insolation from the onset day
   (``autumn_onset``, default day-of-year 258, mid-September). The daily insolation of a leaf is
   the clear-sky daily irradiation of the site (extraterrestrial irradiation x 0.55) times an
@@ -21,10 +21,10 @@ simple phenology driven by the calendar and by light (documented in docs/render.
 from __future__ import annotations
 
 import datetime as _dt
-import math
 
 import numpy as np
 
+from ..climate import extraterrestrial_irradiation
 from ..foliage import AutumnParams, autumn_time
 
 LEAF_OUT_DOY = 95
@@ -33,19 +33,44 @@ AUTUMN_ONSET_DOY = 258
 
 
 def daily_extraterrestrial_mj(latitude: float, doy) -> np.ndarray:
-    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2] (Duffie & Beckman)."""
-    doy = np.asarray(doy, float)
-    phi = math.radians(latitude)
-    dec = np.radians(23.45) * np.sin(2 * np.pi * (284 + doy) / 365.0)
-    ws = np.arccos(np.clip(-np.tan(phi) * np.tan(dec), -1.0, 1.0))
-    e0 = 1 + 0.033 * np.cos(2 * np.pi * doy / 365.0)
-    h0 = 24 * 3600 * 1367 / np.pi * e0 * (np.cos(phi) * np.cos(dec) * np.sin(ws)
-                                           + ws * np.sin(phi) * np.sin(dec))
+    """Daily extraterrestrial irradiation on a horizontal surface [MJ m-2].
+
+    The climate's H0 (:func:`mitsuba_veg.climate.extraterrestrial_irradiation`, FAO-56 eqs
+    21-25: the moss loop's model) in MJ m-2; negative values (none in practice) set to 0.
+
+    Parameters
+    ----------
+    latitude : float
+        Site latitude phi [degrees] (north positive).
+    doy : int or array_like
+        Day of the year [days] (1 = 1 January).
+
+    Returns
+    -------
+    numpy.ndarray
+        H0 [MJ m-2] (per day), of the shape of ``doy``.
+    """
+    h0 = extraterrestrial_irradiation(latitude, np.asarray(doy, float))
     return np.maximum(h0, 0.0) / 1e6
 
 
 def leaf_exposure(tree) -> np.ndarray:
-    """Exposure factor per leaf in [0.35, 1]: higher and outer leaves get more light."""
+    """Exposure factor per leaf in [0.35, 1]: higher and outer leaves get more light.
+
+    ``0.35 + 0.65 (0.6 h + 0.4 r)`` with h the leaf's height in the crown and r its horizontal
+    distance from the crown's mean position, both scaled to [0, 1] [-]: a proxy for the crown's
+    self-shading.
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree (its ``leaves.position`` (n, 3) [m]).
+
+    Returns
+    -------
+    numpy.ndarray
+        Exposure factor (n,) in [0.35, 1] [-] (empty for a tree without leaves).
+    """
     p = tree.leaves.position
     if len(p) == 0:
         return np.zeros(0)
@@ -87,7 +112,17 @@ class TreeSeasons:
             self.fall_thr = np.full(n, np.inf)
 
     def apply(self, date: _dt.date) -> None:
-        """Write the tree's leaf attributes for ``date``."""
+        """Write the tree's leaf attributes for ``date``.
+
+        Sets ``leaf_scale`` (the leaf-out smoothstep, 0..1 [-]; 1 after day-of-year 200),
+        ``autumn_tau`` (logical autumn time clipped to [0, 1] [-]) and ``fallen`` (raw tau past the
+        leaf's fall threshold) in ``tree.leaves.attrs``.
+
+        Parameters
+        ----------
+        date : datetime.date
+            The date; dates outside the precomputed range use its first or last day's autumn state.
+        """
         i = int(np.clip((date - self.start).days, 0, self.days - 1))
         doy = date.timetuple().tm_yday
         lv = self.tree.leaves

@@ -15,7 +15,7 @@ from ..outputs import OutputFolder, write_json
 from ..backend import versions
 from . import film as _film
 from .history import load_run
-from .scene import RenderOptions, Terrain, build_scene
+from .scene import IMAGE_LIMITS, RenderOptions, Terrain, build_scene
 from .world import trees_for_run
 
 
@@ -116,22 +116,31 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
     spp : int, optional
         Samples per pixel (default 24).
     day : int, optional
-        The simulated day to show (default: the last).
+        The simulated day to show [days] (default: the last).
     when : str, optional
         ISO date-time of the light (default: that day at ``hour``).
     hour : float, optional
         Local hour of the light [h] (default 10).
     max_depth : int, optional
-        Path length of the render (default 8).
+        Path length of the render (default :class:`RenderOptions`' 6).
     trees : list of Tree, optional
         Trees instead of the scenario's ``[[render.trees]]``.
     scenario : path-like, optional
         The run's scenario file (default: the one its summary names).
+    seed : int, optional
+        Sampler seed and tuft placement seed (default 0).
+    progress : bool, optional
+        Show a progress bar over the cameras (default True).
 
     Returns
     -------
     dict
         The summary written to ``render.json``.
+
+    Raises
+    ------
+    ParameterError
+        If an image setting or ``day`` is out of range, or the run cannot be read.
     """
     t0 = time.perf_counter()
     check_image(width, height, spp, max_depth)
@@ -179,11 +188,31 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
 
 
 def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps=None):
-    """Refuse image settings out of range (``None`` = the default): width and height [pixels]
-    16-16384, spp 1-65536, max_depth 1-1000, frames 2-10000, every 1-100000 [d], fps 1-120.
+    """Refuse image settings out of range (``None`` = the default).
+
+    Parameters
+    ----------
+    width, height : int or None
+        Image size [pixels], 8-16384 (:data:`~mitsuba_veg.render.scene.IMAGE_LIMITS`).
+    spp : int or None
+        Samples per pixel, 1-2^20.
+    max_depth : int or None, optional
+        Path length, 1-100.
+    frames : int or None, optional
+        Animation frames, 2-10000.
+    every : int or None, optional
+        Days between frames [d], 1-100000.
+    fps : int or None, optional
+        Frames per second, 1-120.
+
+    Raises
+    ------
+    ParameterError
+        If a value is out of its range (named by its command-line option, e.g. ``--width``).
     """
-    for name, v, lo, hi in (("--width", width, 16, 16384), ("--height", height, 16, 16384),
-                            ("--spp", spp, 1, 65536), ("--max-depth", max_depth, 1, 1000),
+    L = IMAGE_LIMITS
+    for name, v, lo, hi in (("--width", width, *L["width"]), ("--height", height, *L["height"]),
+                            ("--spp", spp, *L["spp"]), ("--max-depth", max_depth, *L["max_depth"]),
                             ("--frames", frames, 2, 10000), ("--every", every, 1, 100_000),
                             ("--fps", fps, 1, 120)):
         if v is not None:

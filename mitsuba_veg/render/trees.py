@@ -1,14 +1,14 @@
 """Trees and leaves for the render.
 
-- **bark**: the smooth Weber-Penn mesh with junctions (:func:`mitsuba_veg.trees.junction.
-  tree_mesh`, paper 004) when available, else the tube mesh of
+- **bark**: for Weber-Penn trees the smooth mesh with junctions (:func:`mitsuba_veg.trees.junction.
+  tree_mesh`, paper 004), for the other trees (growth model) the tube mesh of
   :meth:`mitsuba_veg.trees.Tree.to_mesh`; all trees merged into one two-sided spectral ``bark``
   mesh.
-- **leaves**: one blade per leaf (oval when the junction module is there, else a quad), binned
+- **leaves**: one blade per leaf (an oval for Weber-Penn trees, else a quad), binned
   by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
   ``leaf_bins`` meshes, each with the leaf BSDF of its bin's tau
   (:func:`mitsuba_veg.render.materials.leaf_bsdf`: PROSPECT-D spectra in the two-sided
-  ``veg_leaf`` BSDF when :mod:`mitsuba_veg.foliage` is present). Leaves with ``fallen`` set are
+  ``veg_leaf`` BSDF). Leaves with ``fallen`` set are
   not drawn; an optional ``leaf_scale`` attr (0..1) shrinks leaves (spring leaf-out).
 
 :func:`scenario_trees` builds the trees a scenario asks for in ``[[render.trees]]``::
@@ -60,17 +60,37 @@ def _bark_and_leaf_geometry(tree, smooth=True):
 
 
 def tree_geometry(trees, cache=None):
-    """Merged bark and per-leaf geometry of several trees (cached per tree object id)."""
+    """Merged bark and per-leaf geometry of several trees (cached per tree object id).
+
+    Parameters
+    ----------
+    trees : list of Tree
+        The trees; leaves may carry ``autumn_tau``, ``fallen`` and ``leaf_scale`` attrs.
+    cache : dict, optional
+        ``{id(tree): (tree, bark, leaves)}``, filled on first use and reused (the geometry of a tree
+        object is assumed not to change).
+
+    Returns
+    -------
+    bark : tuple of numpy.ndarray or None
+        ``(vertices (v, 3) [m], faces (f, 3))`` of all trees, None without trees.
+    leaves : dict or None
+        ``v`` vertices [m], ``f`` faces, ``leaf`` leaf index per face, and per leaf ``tau``
+        (autumn logical time [-], 0 when absent), ``keep`` (not fallen), ``scale`` (leaf-out size
+        factor [-], 1 when absent) and ``centre`` (position [m]); None without leaves.
+    """
     bv, bf, lv, lf, lleaf, ltau, lkeep, lscale, lcentre = [], [], [], [], [], [], [], [], []
     nb = nl = nleaf = 0
     for t in trees:
         key = id(t)
-        if cache is not None and key in cache:
-            bark, leaves = cache[key]
+        if cache is not None and key in cache and cache[key][0] is t:
+            _, bark, leaves = cache[key]
         else:
             bark, leaves = _bark_and_leaf_geometry(t)
             if cache is not None:
-                cache[key] = (bark, leaves)
+                # the tree itself is kept in the entry: while the cache lives, its id cannot be
+                # reused by another object
+                cache[key] = (t, bark, leaves)
         bv.append(bark[0])
         bf.append(bark[1] + nb)
         nb += len(bark[0])
@@ -99,8 +119,27 @@ _EMPTY_F = np.array([[0, 1, 2]], np.uint32)
 
 
 def leaf_bin_arrays(trees, options, cache=None) -> dict:
-    """{``leaves_KK``: (vertices, faces)} for all ``options.leaf_bins`` autumn bins (an empty
-    bin is one degenerate triangle far away, so that the scene keeps its structure)."""
+    """The leaves binned by autumn logical time, one mesh per bin.
+
+    Leaf-out scales each leaf about its centre; fallen leaves and leaves with ``leaf_scale``
+    <= 1e-3 are left out. An empty bin is one degenerate triangle far away, so that the scene keeps
+    its structure.
+
+    Parameters
+    ----------
+    trees : list of Tree
+        The trees.
+    options : RenderOptions
+        Gives ``leaf_bins``, the number of bins over tau in [0, 1].
+    cache : dict, optional
+        Geometry cache of :func:`tree_geometry`.
+
+    Returns
+    -------
+    dict
+        ``{"leaves_KK": (vertices (v, 3) float32 [m], faces (f, 3) uint32)}`` for all
+        ``options.leaf_bins`` bins.
+    """
     _, lv = tree_geometry(trees, cache)
     K = int(options.leaf_bins)
     out = {f"leaves_{b:02d}": (_EMPTY_V, _EMPTY_F) for b in range(K)}
@@ -129,7 +168,27 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
 
 
 def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
-    """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts."""
+    """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts.
+
+    The bark is one two-sided diffuse ``bark`` mesh; leaf bin k of K gets the leaf BSDF of
+    tau = (k + 0.5) / K (:func:`mitsuba_veg.render.materials.leaf_bsdf`).
+
+    Parameters
+    ----------
+    trees : list of Tree
+        The trees.
+    options : RenderOptions
+        Gives ``leaf_bins``.
+    cache : dict, optional
+        Geometry cache of :func:`tree_geometry`.
+
+    Returns
+    -------
+    shapes : dict
+        ``{id: mesh}`` for ``mi.load_dict``.
+    info : dict
+        ``trees``, ``leaves`` (drawn) and ``tree_triangles`` counts.
+    """
     bark, lv = tree_geometry(trees, cache)
     out = {}
     info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
@@ -151,8 +210,24 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
 
 # ---- trees of a scenario ------------------------------------------------------------------------
 def simple_tree(height: float = 3.0, seed: int = 0, leaves_per_twig: int = 12):
-    """A small deciduous tree made directly with the Tree constructor (no growth model):
-    trunk, 3 levels of branches, leaves on the last level."""
+    """A small deciduous tree made directly with the Tree constructor (no growth model).
+
+    Trunk, 3 levels of branches, leaves on the last level; sizes scale with ``height``.
+
+    Parameters
+    ----------
+    height : float, optional
+        Nominal tree height [m] (default 3; the trunk is 0.45 of it).
+    seed : int, optional
+        Random seed (default 0).
+    leaves_per_twig : int, optional
+        Leaves per last-level branch (default 12).
+
+    Returns
+    -------
+    Tree
+        The tree, trunk base at the origin, named ``"simple"``.
+    """
     rng = np.random.default_rng(seed)
     start, end, r0, r1, parent, level = [], [], [], [], [], []
 
@@ -218,7 +293,29 @@ def simple_tree(height: float = 3.0, seed: int = 0, leaves_per_twig: int = 12):
 
 
 def make_tree(cfg: dict, source: str | None = None):
-    """One tree from a ``[[render.trees]]`` entry (module docstring)."""
+    """One tree from a ``[[render.trees]]`` entry (module docstring).
+
+    Parameters
+    ----------
+    cfg : dict
+        The entry: ``preset``, ``model`` (``"weber_penn"`` (default), ``"growth"`` or
+        ``"simple"``), ``seed``, ``position`` (trunk base [m]), ``height`` [m] (0.05-200),
+        ``autumn``, ``overrides`` (Weber-Penn parameters), ``generations`` and ``growth``
+        (:class:`~mitsuba_veg.trees.GrowthParams` fields).
+    source : str, optional
+        Where the entry comes from (the scenario path), for error messages.
+
+    Returns
+    -------
+    Tree
+        The tree, scaled to ``height`` (when given) about its base and moved so that its base is
+        at ``position``.
+
+    Raises
+    ------
+    ParameterError
+        On an unknown field, a malformed position, a height out of range or an unknown model.
+    """
     allowed = {"preset", "model", "seed", "position", "height", "autumn", "overrides",
                "generations", "growth"}
     for k in cfg:
@@ -253,7 +350,18 @@ def make_tree(cfg: dict, source: str | None = None):
 
 
 def scenario_trees(scn) -> list:
-    """The trees of ``[[render.trees]]`` (empty list when there are none)."""
+    """The trees of ``[[render.trees]]`` (empty list when there are none).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario.
+
+    Returns
+    -------
+    list of Tree
+        One tree per entry (:func:`make_tree`).
+    """
     cfgs = scn.get("render.trees", []) or []
     if isinstance(cfgs, dict):
         cfgs = [cfgs]

@@ -54,6 +54,7 @@ class Tuft:
 
     @property
     def extent(self) -> np.ndarray:
+        """Size of the model's bounding box along x, y, z [m] (3,)."""
         return self.vertices.max(0) - self.vertices.min(0)
 
 
@@ -209,12 +210,36 @@ _MAKERS = {"polytrichum": _polytrichum, "bryum_argenteum": _bryum,
 
 
 def model_key(species: str) -> str:
-    """The tuft model family of a species key (unknown species: the feather moss)."""
+    """The tuft model family of a species key (unknown species: the feather moss).
+
+    Parameters
+    ----------
+    species : str
+        Species key (e.g. ``"polytrichum"``).
+
+    Returns
+    -------
+    str
+        ``species`` when it has models of its own, else ``"hypnum_plumaeforme"``.
+    """
     return species if species in _MAKERS else "hypnum_plumaeforme"
 
 
 def generate(species: str, variant: int = 0) -> Tuft:
-    """Generate tuft ``variant`` of ``species`` (deterministic), centred, base at y = 0."""
+    """Generate tuft ``variant`` of ``species`` (deterministic), centred, base at y = 0.
+
+    Parameters
+    ----------
+    species : str
+        Species key (unknown species get the ``hypnum_plumaeforme`` models).
+    variant : int, optional
+        Variant number (default 0); it seeds the random generator with the species.
+
+    Returns
+    -------
+    Tuft
+        The model, vertices [m] in its local frame (+y along the surface normal).
+    """
     key = model_key(species)
     seed = [SPECIES_MODELS.index(key), int(variant), 20260]
     t = _MAKERS[key](np.random.default_rng(seed))
@@ -224,7 +249,15 @@ def generate(species: str, variant: int = 0) -> Tuft:
 
 # ---- PLY files -------------------------------------------------------------------------------
 def write_ply(path, tuft: Tuft) -> None:
-    """Binary little-endian PLY with vertex properties x, y, z, tone."""
+    """Binary little-endian PLY with vertex properties x, y, z, tone (written atomically).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write.
+    tuft : Tuft
+        The model (vertices [m], triangle faces, tone in [0, 1]).
+    """
     path = Path(path)
     v = np.zeros(len(tuft.vertices), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
                                              ("tone", "<f4")])
@@ -245,7 +278,23 @@ def write_ply(path, tuft: Tuft) -> None:
 
 
 def read_ply(path) -> Tuft:
-    """Read a tuft PLY written by :func:`write_ply`."""
+    """Read a tuft PLY written by :func:`write_ply`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The PLY file.
+
+    Returns
+    -------
+    Tuft
+        The model (vertices [m]), named after the file's stem.
+
+    Raises
+    ------
+    ParameterError
+        If a face is not a triangle.
+    """
     data = Path(path).read_bytes()
     end = data.index(b"end_header\n") + len(b"end_header\n")
     head = data[:end].decode("ascii").splitlines()
@@ -264,7 +313,22 @@ _CACHE: dict = {}
 
 
 def tuft_models(species: str, variants: int = VARIANTS) -> list[Tuft]:
-    """The tuft models of a species: the shipped PLY files, regenerated where missing."""
+    """The tuft models of a species: the shipped PLY files, regenerated where missing.
+
+    Cached per model family and variant count.
+
+    Parameters
+    ----------
+    species : str
+        Species key (unknown species get the ``hypnum_plumaeforme`` models).
+    variants : int, optional
+        How many variants (default :data:`VARIANTS`, 4).
+
+    Returns
+    -------
+    list of Tuft
+        ``variants`` models (vertices [m]).
+    """
     key = (model_key(species), int(variants))
     if key not in _CACHE:
         out = []
@@ -279,7 +343,18 @@ def tuft_models(species: str, variants: int = VARIANTS) -> list[Tuft]:
 
 
 def write_all(directory=DATA_DIR) -> list[Path]:
-    """(Re)write the shipped tuft PLY files."""
+    """(Re)write the shipped tuft PLY files.
+
+    Parameters
+    ----------
+    directory : str or pathlib.Path, optional
+        Where to write them (default :data:`DATA_DIR`, ``mitsuba_veg/data/tufts``).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, ``<species>_<k>.ply`` for every species model and variant.
+    """
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     paths = []

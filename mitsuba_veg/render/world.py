@@ -20,6 +20,17 @@ class WorldLeaves:
         self.run, self.trees, self.offsets = run, trees, offsets
 
     def apply(self, date) -> None:
+        """Write the leaf state of the run's snapshot for ``date`` into the trees' leaves.
+
+        Sets ``autumn_tau`` [-], ``leaf_scale`` [-] and ``fallen`` (bool) in ``leaves.attrs`` from
+        the latest snapshot on or before that day; without one (or with too few leaves in it) the
+        leaves are green, full-size and on the tree.
+
+        Parameters
+        ----------
+        date : datetime.date
+            The frame's date (day ``(date - run.start).days + 1`` of the run).
+        """
         day = (date - self.run.start).days + 1
         st = self.run.leaf_state(day)
         for t, (a, b) in zip(self.trees, self.offsets):

@@ -37,7 +37,18 @@ def require_distributed():
 
 
 def require_pandas():
-    """``pandas`` (and a Parquet engine), or :class:`DependencyError` naming the fix."""
+    """``pandas`` (and a Parquet engine), or :class:`DependencyError` naming the fix.
+
+    Returns
+    -------
+    module
+        The imported ``pandas`` module (``pyarrow`` is imported too).
+
+    Raises
+    ------
+    DependencyError
+        If pandas or pyarrow is missing (fix: ``pip install 'mitsuba-veg[distributed]'``).
+    """
     try:
         import pandas
         import pyarrow  # noqa: F401  (Parquet)
@@ -49,7 +60,13 @@ def require_pandas():
 
 
 def machine_cores() -> int:
-    """CPU cores this process may use (affinity mask, else the CPU count)."""
+    """CPU cores this process may use (affinity mask, else the CPU count).
+
+    Returns
+    -------
+    int
+        Core count, at least 1.
+    """
     try:
         return max(len(os.sched_getaffinity(0)), 1)
     except AttributeError:  # pragma: no cover - not Linux
@@ -57,7 +74,13 @@ def machine_cores() -> int:
 
 
 def machine_memory() -> int | None:
-    """Physical memory [bytes], or None when unknown."""
+    """Physical memory [bytes], or None when unknown.
+
+    Returns
+    -------
+    int or None
+        Page size x physical pages [bytes]; None where ``os.sysconf`` cannot tell.
+    """
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):  # pragma: no cover
@@ -188,8 +211,23 @@ def open_client(scheduler=None, workers: int | None = None, client=None,
 
 
 def worker_drjit_threads(drjit_threads: int | None, host_workers: dict) -> int:
-    """Dr.Jit threads for the worker this runs on: ``drjit_threads`` if given, else the
-    host's cores divided by the worker processes on the host (at least 1)."""
+    """Dr.Jit threads for the worker this runs on.
+
+    ``drjit_threads`` if given, else the host's cores divided by the worker processes on the
+    host (at least 1); outside a Dask worker, all the machine's cores.
+
+    Parameters
+    ----------
+    drjit_threads : int or None
+        Threads asked for (None or 0: derive them).
+    host_workers : dict
+        Worker processes per host IP (``ClusterInfo.host_workers``).
+
+    Returns
+    -------
+    int
+        Dr.Jit threads to use, >= 1.
+    """
     if drjit_threads:
         return int(drjit_threads)
     n = 1
@@ -203,7 +241,18 @@ def worker_drjit_threads(drjit_threads: int | None, host_workers: dict) -> int:
 
 
 def set_drjit_threads(n: int) -> int:
-    """Size Dr.Jit's (process-wide) thread pool; returns the size now in use."""
+    """Size Dr.Jit's (process-wide) thread pool.
+
+    Parameters
+    ----------
+    n : int
+        Threads wanted.
+
+    Returns
+    -------
+    int
+        The thread count now in use.
+    """
     if dr.thread_count() != n:
         dr.set_thread_count(int(n))
     return dr.thread_count()

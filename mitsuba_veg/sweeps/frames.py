@@ -75,8 +75,9 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
                     threads=None, camera=None, width=None, height=None, spp=None, frames=None,
                     every=None, fps=None, when=None, hour=None, light=None, scenario=None,
                     gif_width=None, seed=0, progress=True) -> dict:
-    """Render the days of a moss run as Dask tasks into ``animation.mp4`` and
-    ``animation.gif`` (module docstring).
+    """Render the days of a moss run as Dask tasks into ``animation.mp4`` and ``animation.gif``.
+
+    See the module docstring: the last frame runs first and fixes the exposure of every frame.
 
     Parameters
     ----------
@@ -84,12 +85,43 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
         A moss run folder (``mitsuba-veg run ... --out DIR``).
     out : str or Path, optional
         Output folder (default ``RUN_DIR/animation``).
-    scheduler, workers, client, threads
-        Where the frames run: as in :func:`mitsuba_veg.sweeps.sweep` (default: a local cluster
-        of one worker process per core).
-    camera, width, height, spp, frames, every, fps, when, hour, light, scenario, gif_width, seed
-        As in :func:`mitsuba_veg.render.animation.run_animate` (width, height in pixels; spp samples
-        per pixel; fps frames per second; hour local time [h]).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); as in
+        :func:`mitsuba_veg.sweeps.sweep` (default: a local cluster of one worker process per
+        core).
+    workers : int, optional
+        Worker processes of the local cluster; with ``scheduler`` or ``client``: wait for this
+        many workers.
+    client : distributed.Client, optional
+        An open Dask client (left open).
+    threads : int, optional
+        Dr.Jit threads per worker (default: the host's cores // its worker processes).
+    camera : str, optional
+        Camera preset (default ``overview``); the settings from here to ``seed`` are as in
+        :func:`mitsuba_veg.render.animation.run_animate`.
+    width, height : int, optional
+        Image size [pixels] (default 480 x 270).
+    spp : int, optional
+        Samples per pixel (default 8).
+    frames : int, optional
+        At most this many frames spread over the snapshot days (default 31).
+    every : int, optional
+        One frame every ``every`` days [days] instead of ``frames``.
+    fps : int, optional
+        Frames per second [s-1] (default 6).
+    when : str, optional
+        ISO date-time of a fixed light.
+    hour : float, optional
+        Local hour of the light [h] (default 10).
+    light : {"daily", "fixed"}, optional
+        Each frame's own date (default without ``when``) or one fixed light (default with
+        ``when``).
+    scenario : str or Path, optional
+        A scenario file instead of the run's own (default None).
+    gif_width : int, optional
+        Downscale the GIF to this width [pixels] (default 360; 0 keeps the frame width).
+    seed : int, optional
+        Render seed; frame k uses ``seed + k`` (default 0).
     progress : bool
         Print the dashboard link and show a progress bar (frames).
 
@@ -175,6 +207,10 @@ def run_animate(run_dir, out=None, *, scheduler=None, workers=None, client=None,
                 **kwargs) -> dict:
     """Animate a run here or with its frames as Dask tasks.
 
+    Without ``scheduler``, ``workers`` and ``client`` the frames render in this process
+    (:func:`mitsuba_veg.render.animation.run_animate`), else as Dask tasks
+    (:func:`animate_on_dask`).
+
     Parameters
     ----------
     run_dir, out : path-like
@@ -187,7 +223,7 @@ def run_animate(run_dir, out=None, *, scheduler=None, workers=None, client=None,
         An open Dask client.
     trees : list of Tree, optional
         Trees instead of the scenario's (in this process only).
-    **kwargs
+    **kwargs : dict
         The settings of :func:`mitsuba_veg.render.animation.run_animate` (sizes in pixels,
         ``spp`` samples per pixel, ``fps`` frames per second, ...).
 
@@ -195,6 +231,11 @@ def run_animate(run_dir, out=None, *, scheduler=None, workers=None, client=None,
     -------
     dict
         The summary written to ``animate.json`` (with ``dask`` when the frames ran on Dask).
+
+    Raises
+    ------
+    ParameterError
+        If ``trees`` is given with Dask, or for an invalid ``light``.
     """
     if scheduler is None and workers is None and client is None:
         return animation.run_animate(run_dir, out, trees=trees, **kwargs)

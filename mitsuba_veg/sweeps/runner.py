@@ -39,9 +39,25 @@ TASK_PREFIX = "mitsuba-veg-run"
 
 
 def expected_days(scenario, overrides, days) -> int | None:
-    """Days a run will simulate: ``days``, else the scenario's ``simulation.days`` (300 by
-    default); None when the scenario with these overrides does not load (the run will say
-    why)."""
+    """Days a run will simulate.
+
+    ``days``, else the scenario's ``simulation.days`` (300 by default); None when the scenario
+    with these overrides does not load (the run will say why).
+
+    Parameters
+    ----------
+    scenario : str or pathlib.Path
+        The scenario file.
+    overrides : sequence of str
+        The run's ``--set`` overrides (``field=value``).
+    days : int or None
+        Days forced by the sweep (None: the scenario's).
+
+    Returns
+    -------
+    int or None
+        Simulated days [days], or None when the scenario does not load.
+    """
     if days is not None:
         return int(days)
     try:
@@ -52,7 +68,20 @@ def expected_days(scenario, overrides, days) -> int | None:
 
 
 def finished(run_dir, days: int | None) -> dict | None:
-    """The summary of a finished run in ``run_dir`` (all ``days`` days recorded), else None."""
+    """The summary of a finished run in ``run_dir`` (all ``days`` days recorded), else None.
+
+    Parameters
+    ----------
+    run_dir : str or pathlib.Path
+        The run folder (holding ``summary.json``).
+    days : int or None
+        Days the run must have recorded [days]; None: never counts as finished.
+
+    Returns
+    -------
+    dict or None
+        The parsed ``summary.json``, or None when missing, unreadable or incomplete.
+    """
     p = Path(run_dir) / "summary.json"
     if days is None or not p.is_file():
         return None

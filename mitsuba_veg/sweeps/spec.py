@@ -116,7 +116,21 @@ class Sweep:
 
 
 def toml_value(v) -> str:
-    """A value as ``--set`` text (TOML syntax)."""
+    """A value as ``--set`` text (TOML syntax).
+
+    Booleans as ``true``/``false``, strings quoted, non-finite floats as ``nan``/``inf``/``-inf``,
+    lists as arrays and dicts as inline tables (recursively).
+
+    Parameters
+    ----------
+    v : bool, int, float, str, list, tuple or dict
+        The value.
+
+    Returns
+    -------
+    str
+        Its TOML text.
+    """
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
@@ -195,8 +209,15 @@ def _flatten_axes(node: dict, prefix: str = "") -> dict:
 
 
 def known_fields(data: dict) -> tuple[set, tuple]:
-    """Dotted scenario fields a sweep may vary: those of the (defaulted) base scenario, the
-    documented defaults of the run, and free-keyed tables (per-shape settings).
+    """Dotted scenario fields a sweep may vary.
+
+    Those of the (defaulted) base scenario, the documented defaults of the run, and free-keyed
+    tables (per-shape settings).
+
+    Parameters
+    ----------
+    data : dict
+        The base scenario's (defaulted) data, nested tables.
 
     Returns
     -------

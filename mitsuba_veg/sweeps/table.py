@@ -40,7 +40,21 @@ def _cell(v):
 
 
 def flatten_record(rec: dict) -> dict:
-    """A day record of ``summary.json`` as flat columns (module docstring)."""
+    """A day record of ``summary.json`` as flat columns (module docstring).
+
+    Nested tables become dotted columns (``events.<name>``, ``alive.<Species>``); ``regions``
+    becomes ``regions.<name>.covered_area_m2`` [m2].
+
+    Parameters
+    ----------
+    rec : dict
+        One entry of the summary's ``days_record``.
+
+    Returns
+    -------
+    dict
+        Column name -> value.
+    """
     row = {}
     for k, v in rec.items():
         if k == "regions":
@@ -105,7 +119,20 @@ def tidy(sw: Sweep, results: list):
 
 
 def write_table(df, out) -> dict:
-    """Write ``sweep.parquet`` and ``sweep.csv`` into ``out``; returns their paths."""
+    """Write ``sweep.parquet`` and ``sweep.csv`` into ``out`` (atomically); returns their paths.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The tidy table (:func:`tidy`).
+    out : str or pathlib.Path
+        Output folder (created if missing).
+
+    Returns
+    -------
+    dict
+        ``{"parquet": path, "csv": path}`` (str).
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     files = {}
@@ -119,7 +146,20 @@ def write_table(df, out) -> dict:
 
 
 def comparable(df):
-    """The table without what differs between identical runs (timings, status, order of
-    completion): for comparing sweeps."""
+    """The table without what differs between identical runs: for comparing sweeps.
+
+    Drops the ``seconds.*`` timing columns and ``status``, and sorts by ``index`` and ``day``
+    (the order of completion differs).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A tidy table (:func:`tidy`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The comparable table, with a fresh index.
+    """
     drop = [c for c in df.columns if c.startswith("seconds.") or c == "status"]
     return df.drop(columns=drop).sort_values(["index", "day"]).reset_index(drop=True)

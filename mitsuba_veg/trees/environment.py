@@ -73,8 +73,28 @@ class Environment:
     # ---- construction ----------------------------------------------------------------------
     @staticmethod
     def coerce(scene) -> "Environment | None":
-        """None, an Environment, a Mitsuba scene (its meshes), a trimesh, a (V, F) pair or a list
-        of them -> Environment (or None for no obstacles)."""
+        """Turn any accepted description of the surroundings into an Environment (or None).
+
+        Accepts None, an Environment, a Mitsuba scene (its meshes), a trimesh, a (V, F) pair or a
+        list of them.
+
+        Parameters
+        ----------
+        scene : None, Environment, mi.Scene, trimesh.Trimesh, tuple or list
+            The surroundings: None for no obstacles; an Environment (returned as is); a Mitsuba
+            scene (its non-emitter, non-sensor meshes, :meth:`from_mitsuba`); a trimesh, a Mitsuba
+            mesh or a (vertices (n, 3) [m], faces (m, 3) int) pair; or a list of meshes / pairs.
+
+        Returns
+        -------
+        Environment or None
+            The environment, or None when ``scene`` is None.
+
+        Raises
+        ------
+        ParameterError
+            If an item is none of the accepted kinds (:meth:`add`).
+        """
         if scene is None or isinstance(scene, Environment):
             return scene
         if isinstance(scene, mi.Scene):
@@ -86,7 +106,35 @@ class Environment:
         return env
 
     def add(self, mesh, name="obstacle", light_factor=1.0, max_edge=None):
-        """Add a trimesh, a Mitsuba mesh or a (vertices, faces) pair."""
+        """Add a trimesh, a Mitsuba mesh or a (vertices, faces) pair as an obstacle.
+
+        An empty mesh (no faces) is skipped. The mesh is subdivided to ``max_edge`` so that the
+        per-triangle reflected light resolves shadows; the caches are cleared.
+
+        Parameters
+        ----------
+        mesh : trimesh.Trimesh, mi.Mesh or tuple
+            The obstacle: anything with ``vertices`` and ``faces``, a Mitsuba mesh (its id names the
+            obstacle) or a (vertices (n, 3) [m], faces (m, 3) int) pair.
+        name : str, optional
+            Obstacle name used in error messages (default ``"obstacle"``).
+        light_factor : float, optional
+            Scales the light the obstacle reflects [-] (albedo relative to the ground of paper 001;
+            1 = as the paper, the default); >= 0.
+        max_edge : float, optional
+            Subdivide triangles until no edge is longer than this [m]; default None: no subdivision.
+
+        Returns
+        -------
+        Environment
+            ``self``, for chaining.
+
+        Raises
+        ------
+        ParameterError
+            If ``mesh`` is of no accepted kind, a face index is out of range, or ``light_factor``
+            is negative.
+        """
         if _is_vf(mesh):
             V, F = mesh
         elif hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
@@ -113,6 +161,18 @@ class Environment:
 
     @staticmethod
     def from_mitsuba(scene) -> "Environment":
+        """An Environment of a Mitsuba scene's meshes (emitters and sensors left out).
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene; each mesh shape with faces becomes an obstacle named by its id.
+
+        Returns
+        -------
+        Environment
+            The environment.
+        """
         env = Environment()
         for sh in scene.shapes():
             if sh.is_mesh() and sh.face_count() > 0 and not sh.is_emitter() \
@@ -121,7 +181,28 @@ class Environment:
         return env
 
     def add_ground(self, size=40.0, y=0.0, n=20, center=(0.0, 0.0), light_factor=1.0):
-        """A flat square ground grid (n x n cells) of side ``size`` [m] at height ``y``."""
+        """Add a flat square ground grid (n x n cells) of side ``size`` [m] at height ``y``.
+
+        Also sets ``ground_y`` to ``y``.
+
+        Parameters
+        ----------
+        size : float, optional
+            Side of the square [m] (default 40); > 0.
+        y : float, optional
+            Height of the ground [m] (default 0).
+        n : int, optional
+            Cells per side (default 20, the paper's 20 x 20 grid).
+        center : tuple of float, optional
+            Centre (x, z) of the square [m] (default the origin).
+        light_factor : float, optional
+            Reflected-light factor of the ground [-] (default 1, as the paper).
+
+        Returns
+        -------
+        Environment
+            ``self``, for chaining.
+        """
         check_range("ground.size", size, 0.0, None, lo_open=True)
         h = size / 2
         V, F = grid_mesh(int(n), int(n), (center[0] - h, center[0] + h),
@@ -131,8 +212,32 @@ class Environment:
 
     def add_slope(self, angle_deg=20.0, size=40.0, n=20, downhill=(1.0, 0.0), y0=0.0,
                   light_factor=1.0):
-        """A plane tilted by ``angle_deg`` going down towards the horizontal direction
-        ``downhill`` (x, z); height ``y0`` at the origin."""
+        """Add a tilted plane going down towards a horizontal direction.
+
+        The plane (a square grid of side ``size`` centred on the origin) is tilted by ``angle_deg``
+        and goes down towards the horizontal direction ``downhill`` (x, z); it has height ``y0`` at
+        the origin. Also sets ``ground_y`` to ``y0``.
+
+        Parameters
+        ----------
+        angle_deg : float, optional
+            Slope angle [degrees] (default 20), in [0, 80].
+        size : float, optional
+            Side of the square [m] (default 40).
+        n : int, optional
+            Cells per side (default 20).
+        downhill : tuple of float, optional
+            Horizontal direction (x, z) the slope goes down to (default +x); need not be unit.
+        y0 : float, optional
+            Height at the origin [m] (default 0).
+        light_factor : float, optional
+            Reflected-light factor of the slope [-] (default 1).
+
+        Returns
+        -------
+        Environment
+            ``self``, for chaining.
+        """
         check_range("slope.angle_deg", angle_deg, 0.0, 80.0)
         dx, dz = np.asarray(downhill, float) / max(np.hypot(*downhill), 1e-12)
         t = math.tan(math.radians(angle_deg))
@@ -143,7 +248,29 @@ class Environment:
         return self.add((V, F), "slope", light_factor)
 
     def add_box(self, lo, hi, name="building", max_edge=1.0, light_factor=1.0):
-        """An axis-aligned box (a building, a wall) from corner ``lo`` to ``hi`` [m]."""
+        """Add an axis-aligned box (a building, a wall) from corner ``lo`` to ``hi`` [m].
+
+        Parameters
+        ----------
+        lo, hi : array_like
+            (3,) lower and upper corners (x, y, z) [m]; ``hi > lo`` on every axis.
+        name : str, optional
+            Obstacle name (default ``"building"``).
+        max_edge : float, optional
+            Subdivide the box's faces to this edge length [m] (default 1).
+        light_factor : float, optional
+            Reflected-light factor of the box [-] (default 1).
+
+        Returns
+        -------
+        Environment
+            ``self``, for chaining.
+
+        Raises
+        ------
+        ParameterError
+            If ``hi <= lo`` on some axis.
+        """
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
         if np.any(hi <= lo):
             raise ParameterError(f"{name}.hi", hi.tolist(), f"> lo = {lo.tolist()} on every axis")
@@ -152,6 +279,22 @@ class Environment:
 
     @staticmethod
     def flat_ground(size=40.0, y=0.0, n=20) -> "Environment":
+        """A new Environment holding only a flat ground grid (:meth:`add_ground`).
+
+        Parameters
+        ----------
+        size : float, optional
+            Side of the square ground [m] (default 40).
+        y : float, optional
+            Height of the ground [m] (default 0).
+        n : int, optional
+            Cells per side (default 20).
+
+        Returns
+        -------
+        Environment
+            The environment.
+        """
         return Environment().add_ground(size, y, n)
 
     # ---- geometry --------------------------------------------------------------------------
@@ -159,7 +302,25 @@ class Environment:
         return len(self.obstacles)
 
     def triangles(self):
-        """Concatenated (V, F, normals, centroids, areas, obstacle index, light factor)."""
+        """All obstacle triangles, concatenated (cached).
+
+        Returns
+        -------
+        V : numpy.ndarray
+            (n, 3) vertices [m].
+        F : numpy.ndarray
+            (m, 3) int64 faces (indices into ``V``).
+        normals : numpy.ndarray
+            (m, 3) unit face normals [-].
+        centroids : numpy.ndarray
+            (m, 3) face centroids [m].
+        areas : numpy.ndarray
+            (m,) face areas [m2].
+        obstacle : numpy.ndarray
+            (m,) int index of the obstacle of each face.
+        light_factor : numpy.ndarray
+            (m,) reflected-light factor of each face's obstacle [-].
+        """
         if "tri" not in self._cache:
             Vs, Fs, obj, off = [], [], [], 0
             for i, o in enumerate(self.obstacles):
@@ -177,20 +338,39 @@ class Environment:
         return self._cache["tri"]
 
     def bbox(self):
+        """Axis-aligned bounding box of all obstacles.
+
+        Returns
+        -------
+        tuple of numpy.ndarray or None
+            (lo, hi), each (3,) [m]; None when there are no obstacle vertices.
+        """
         V = self.triangles()[0]
         if len(V) == 0:
             return None
         return V.min(0), V.max(0)
 
     def mitsuba_meshes(self) -> dict:
-        """{id: mi.Mesh} of the obstacles (built once)."""
+        """The obstacles as Mitsuba meshes (built once).
+
+        Returns
+        -------
+        dict
+            ``{"obstacle_<i>": mi.Mesh}``, one entry per obstacle.
+        """
         if "mi" not in self._cache:
             self._cache["mi"] = {f"obstacle_{i}": make_mesh(f"obstacle_{i}", o.vertices, o.faces)
                                  for i, o in enumerate(self.obstacles)}
         return self._cache["mi"]
 
     def scene(self):
-        """A Mitsuba scene of the obstacles only."""
+        """A Mitsuba scene of the obstacles only (built once).
+
+        Returns
+        -------
+        mi.Scene
+            The scene (no emitter, no sensor).
+        """
         if "scene" not in self._cache:
             d = {"type": "scene"}
             d.update(self.mitsuba_meshes())
@@ -198,8 +378,23 @@ class Environment:
         return self._cache["scene"]
 
     def height_at(self, x, z, default=None):
-        """Terrain height [m] under (x, z): the highest upward-facing obstacle surface below
-        y = 1e4, or ``default`` (``ground_y``) where there is none."""
+        """Terrain height [m] under (x, z).
+
+        The first obstacle surface hit by a ray cast straight down from 1 m above the obstacles'
+        bounding box (whichever way the surface faces), or ``default`` where the ray hits nothing.
+
+        Parameters
+        ----------
+        x, z : float or array_like
+            Horizontal coordinates [m] (scalars or (k,) arrays).
+        default : float, optional
+            Height where there is no obstacle [m]; default None: ``ground_y``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (k,) heights [m] (k = 1 for scalar inputs).
+        """
         x = np.atleast_1d(np.asarray(x, float))
         z = np.atleast_1d(np.asarray(z, float))
         default = self.ground_y if default is None else default
@@ -213,8 +408,21 @@ class Environment:
         return np.where(np.isfinite(t), top - t, default)
 
     def inside(self, points) -> np.ndarray:
-        """Which points are inside an obstacle: the first surface straight above them faces up
-        (below a terrain surface, inside a closed building)."""
+        """Which points are inside an obstacle.
+
+        A point is inside when the first surface straight above it faces up (we see its back):
+        below a terrain surface, inside a closed building.
+
+        Parameters
+        ----------
+        points : array_like
+            (k, 3) points [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            (k,) bool, True for points inside an obstacle (all False without obstacles).
+        """
         pts = np.asarray(points, np.float32).reshape(-1, 3)
         if not self.obstacles or len(pts) == 0:
             return np.zeros(len(pts), bool)
@@ -225,8 +433,22 @@ class Environment:
         return np.asarray(si.is_valid()) & (np.asarray(si.n.y) > 0)
 
     def blocked(self, start, direction, length) -> np.ndarray:
-        """Which straight segments (start (n, 3), unit direction (n, 3), length (n,) [m]) cross
-        an obstacle surface."""
+        """Which straight segments cross an obstacle surface.
+
+        Parameters
+        ----------
+        start : array_like
+            (n, 3) segment starts [m].
+        direction : array_like
+            (n, 3) unit directions [-].
+        length : array_like
+            (n,) segment lengths [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool, True where the segment hits an obstacle within its length.
+        """
         start = np.asarray(start, np.float32).reshape(-1, 3)
         if not self.obstacles or len(start) == 0:
             return np.zeros(len(start), bool)
@@ -241,8 +463,25 @@ class Environment:
 
     # ---- light (paper 001) -------------------------------------------------------------------
     def reflected_light(self, sky, passes: int = 2) -> np.ndarray:
-        """Per-triangle reflected-light factor env (see module docstring), for ``sky`` (a
-        :class:`~mitsuba_veg.trees.leaflight.Sky`). Cached per sky."""
+        """Per-triangle reflected-light factor env (see module docstring), cached per sky.
+
+        Computed by :func:`~mitsuba_veg.trees.leaflight.obstacle_sky_light`: sky irradiance of each
+        triangle relative to open flat ground (1 for open flat ground).
+
+        Parameters
+        ----------
+        sky : mitsuba_veg.trees.leaflight.Sky
+            The H x V sky of paper 001 (same as the leaf spheres').
+        passes : int, optional
+            Light passes (default 2): the first gives 0 to rays that hit another obstacle, each
+            later pass gives them C2 x the previous pass's env x light_factor of the hit triangle
+            (one bounce per extra pass).
+
+        Returns
+        -------
+        numpy.ndarray
+            (m,) env of every obstacle triangle [-], in the order of :meth:`triangles`.
+        """
         key = ("env", sky.H, sky.V, sky.C, passes)
         if key in self._cache:
             return self._cache[key]
@@ -252,9 +491,26 @@ class Environment:
 
     # ---- voxels (paper 002) ------------------------------------------------------------------
     def voxel_mask(self, origin, size, shape) -> np.ndarray:
-        """Boolean (nx, ny, nz) mask of voxels filled by obstacles: voxels whose centre is inside
-        a closed mesh or below a terrain surface (first hit upwards is a back face), and voxels
-        that contain a surface sample (thin walls)."""
+        """Boolean (nx, ny, nz) mask of voxels filled by obstacles (paper 002).
+
+        Voxels whose centre is inside a closed mesh or below a terrain surface (first hit upwards is
+        a back face, :meth:`inside`), and voxels that contain a surface sample of a steep face
+        (thin walls; about 4 samples per voxel face area, seeded, so the mask is deterministic).
+
+        Parameters
+        ----------
+        origin : array_like
+            (3,) corner of voxel (0, 0, 0) [m].
+        size : float
+            Voxel edge length [m].
+        shape : tuple of int
+            Grid shape (nx, ny, nz).
+
+        Returns
+        -------
+        numpy.ndarray
+            (nx, ny, nz) bool, True for voxels filled by an obstacle.
+        """
         nx, ny, nz = shape
         mask = np.zeros(shape, bool)
         if not self.obstacles:

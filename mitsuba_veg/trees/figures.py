@@ -24,8 +24,45 @@ def _plt():
 
 def draw(ax, trees, view="side", env=None, spheres=True, dead=False, colors=None,
          title=None, width_scale=1.0, sphere_alpha=0.08, clip=None):
-    """Draw ``trees`` (a Tree or a list) on a matplotlib axis in ``view`` ('side', 'front',
-    'top'). ``clip``: only segments whose start lies in the box (lo, hi) are drawn."""
+    """Draw ``trees`` (a Tree or a list) on a matplotlib axis in ``view``.
+
+    Branch line widths follow the radius at the segment start (``width_scale x 40 x radius``
+    [points], clipped to [0.3, 8]); leaf spheres are translucent discs of their true radius,
+    trees without spheres show their leaves as dots; obstacles are grey projected triangles.
+    The axis limits fit the drawn branches and spheres (5 % margin), with equal aspect; the
+    top view has +z down (north up).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The axis to draw on.
+    trees : Tree or list of Tree
+        The trees.
+    view : str, optional
+        'side' (x-y), 'front' (z-y) or 'top' (x-z); default 'side'.
+    env : mitsuba_veg.trees.environment.Environment, optional
+        Obstacles to draw behind the trees (default None: none).
+    spheres : bool, optional
+        Draw the leaf spheres (default True).
+    dead : bool, optional
+        Also draw dead branches, thin and grey (default False: left out).
+    colors : sequence of str, optional
+        Branch colour per tree, cycled (default None: brown for all).
+    title : str, optional
+        Axis title (default None: none).
+    width_scale : float, optional
+        Multiplier of the branch line widths [-] (default 1).
+    sphere_alpha : float, optional
+        Opacity of the leaf-sphere discs [-] (default 0.08).
+    clip : tuple of array_like, optional
+        Box (lo, hi), each (3,) [m]: only segments whose start lies in it (and leaf spheres whose
+        centre lies in it) are drawn; default None: everything.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``.
+    """
     from matplotlib.collections import LineCollection, PatchCollection, PolyCollection
     from matplotlib.patches import Circle
 
@@ -85,7 +122,30 @@ def draw(ax, trees, view="side", env=None, spheres=True, dead=False, colors=None
 
 
 def picture(trees, path, env=None, title=None, views=("side", "top"), dpi=110, **kw) -> str:
-    """Save a figure with one panel per view; returns the path."""
+    """Save a figure with one panel per view; returns the path.
+
+    Parameters
+    ----------
+    trees : Tree or list of Tree
+        The trees.
+    path : str or pathlib.Path
+        Output image file (format by extension).
+    env : mitsuba_veg.trees.environment.Environment, optional
+        Obstacles to draw (default None: none).
+    title : str, optional
+        Figure title (default None: none).
+    views : sequence of str, optional
+        Views, one panel each (default ('side', 'top'); see :data:`VIEWS`).
+    dpi : int, optional
+        Resolution [dots per inch] (default 110).
+    **kw : dict
+        Further keyword arguments of :func:`draw` (``spheres``, ``dead``, ``colors``, ...).
+
+    Returns
+    -------
+    str
+        The path written.
+    """
     plt = _plt()
     fig, axs = plt.subplots(1, len(views), figsize=(5.2 * len(views), 5.0))
     axs = np.atleast_1d(axs)

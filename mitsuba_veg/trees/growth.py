@@ -97,6 +97,27 @@ class GrowthParams:
         self.validate()
 
     def validate(self, source: str | None = None) -> "GrowthParams":
+        """Check every field's range and normalise the integer and fraction fields, in place.
+
+        ``phyllotaxis`` given as a string ('5/8') becomes a float [turn]; ``sky_h``, ``sky_v`` and
+        ``leaves_per_sphere`` become int.
+
+        Parameters
+        ----------
+        source : str, optional
+            Where the values came from (e.g. a TREE.toml path), named in errors; default None.
+
+        Returns
+        -------
+        GrowthParams
+            ``self``, for chaining.
+
+        Raises
+        ------
+        ParameterError
+            If a field is out of range (e.g. ``branch_angle`` not in (0, 180) [deg], ``sky_v`` odd,
+            ``engine`` unknown).
+        """
         def c(name, lo=None, hi=None, **kw):
             check_range(name, getattr(self, name), lo, hi, source=source, **kw)
         c("branch_angle", 0.0, 180.0, lo_open=True, hi_open=True)
@@ -136,8 +157,30 @@ class GrowthParams:
     @classmethod
     def from_dict(cls, d: dict, source: str | None = None, prefix: str = "growth.") \
             -> "GrowthParams":
-        """From a dict (e.g. the [growth] table of a TREE.toml); unknown keys are an error
-        naming the allowed ones; errors name the field as ``prefix + name``."""
+        """Growth parameters from a dict (e.g. the [growth] table of a TREE.toml).
+
+        Unknown keys are an error naming the allowed ones; errors name the field as
+        ``prefix + name``.
+
+        Parameters
+        ----------
+        d : dict
+            Field name -> value (units as the class fields: lengths in model units, angles [deg]).
+        source : str, optional
+            Where ``d`` came from, named in errors (default None).
+        prefix : str, optional
+            Prefix of the field names in errors (default ``"growth."``).
+
+        Returns
+        -------
+        GrowthParams
+            The validated parameters (defaults for missing keys, paper 001 table 3.1).
+
+        Raises
+        ------
+        ParameterError
+            For an unknown key or a value out of range.
+        """
         names = {f.name for f in fields(cls)}
         bad = [k for k in d if k not in names]
         if bad:
@@ -149,11 +192,30 @@ class GrowthParams:
             raise ParameterError(prefix + e.field, e.value, e.allowed, e.fix, source) from None
 
     def replace(self, **kw) -> "GrowthParams":
+        """A validated copy with some fields changed.
+
+        Parameters
+        ----------
+        **kw : dict
+            Field name -> new value.
+
+        Returns
+        -------
+        GrowthParams
+            The new parameters.
+        """
         d = asdict(self)
         d.update(kw)
         return GrowthParams(**d)
 
     def to_dict(self) -> dict:
+        """All fields as a plain dict (field name -> value).
+
+        Returns
+        -------
+        dict
+            The parameters (lengths in model units, ``unit`` [m], angles [deg]).
+        """
         return asdict(self)
 
 
@@ -323,12 +385,50 @@ def grow_forest(positions, params: GrowthParams | None = None, generations: int 
                 history: list | None = None) -> list[Tree]:
     """Grow trees at ``positions`` together, so that they shade each other (paper 001 §3.3).
 
-    positions: (n, 3) [m] tree bases, or (n, 2) (x, z) pairs placed on the scene's terrain
-    (``y`` from the obstacles below, else the ground at y = 0). scene: None (open sky all round,
-    the paper's ideal environment), an :class:`~mitsuba_veg.trees.environment.Environment`, a
-    Mitsuba scene (its meshes are obstacles), a trimesh or (vertices, faces) pairs.
-    Returns one :class:`~mitsuba_veg.trees.structure.Tree` per position (dead branches kept with
-    ``alive = False``), with the per-leaf-sphere light in ``tree.attrs``.
+    Each of the ``generations`` generations: light at all tip spheres, death of tips below
+    ``death_threshold`` (and of parents whose children all died), branching of the survivors;
+    after the last generation one more light pass culls the new tips (see the module docstring).
+
+    Parameters
+    ----------
+    positions : array_like
+        (n, 3) [m] tree bases, or (n, 2) (x, z) pairs placed on the scene's terrain (``y`` from
+        the obstacles below, else the ground at y = 0); see :func:`base_positions`.
+    params : GrowthParams or dict, optional
+        Model parameters (a dict is read with :meth:`GrowthParams.from_dict`); default None:
+        paper 001 table 3.1.
+    generations : int, optional
+        Number of branching generations G (default 10); >= 0.
+    scene : None, Environment, mi.Scene, trimesh.Trimesh or list, optional
+        None (open sky all round, the paper's ideal environment), an
+        :class:`~mitsuba_veg.trees.environment.Environment`, a Mitsuba scene (its meshes are
+        obstacles), a trimesh or (vertices, faces) pairs.
+    seed : int, optional
+        Random seed (initial phyllotaxis phase, leaf blades); default 0.
+    progress : bool, optional
+        Show a tqdm progress bar over generations (default False).
+    engine : str, optional
+        Sphere-counting engine, "grid" | "mitsuba" | "analytic" | "auto"; default None:
+        ``params.engine``.
+    history : list, optional
+        If given, one dict per generation is appended to it (``generation``, ``tips``,
+        ``died``, ``blocked``, ``rays``, ``casts``, ``engine``, ``light_s`` [s], ``seconds`` [s]);
+        the same list is stored in every tree's ``attrs["history"]``.
+
+    Returns
+    -------
+    list of Tree
+        One :class:`~mitsuba_veg.trees.structure.Tree` per position (in metres, +y up; dead
+        branches kept with ``alive = False``), with the per-leaf-sphere light in ``tree.attrs``
+        (``leaf_sphere_center`` [m], ``leaf_sphere_radius`` [m], ``light`` [-],
+        ``red_far_red`` [-], ``light_vector``, ``generation``, ``lateral``, ``params``,
+        ``history``, ``seed``).
+
+    Raises
+    ------
+    ParameterError
+        If ``generations`` is not an integer >= 0, a parameter is out of range or the positions
+        are not valid points.
     """
     p = GrowthParams() if params is None else params
     if not isinstance(p, GrowthParams):
@@ -427,15 +527,63 @@ def _subset_light(light, keep):
 
 def grow(params: GrowthParams | None = None, generations: int = 10, position=(0.0, 0.0, 0.0),
          scene=None, seed: int = 0, progress: bool = False, engine: str | None = None) -> Tree:
-    """Grow one tree at ``position`` [m] (see :func:`grow_forest`)."""
+    """Grow one tree at ``position`` [m] (see :func:`grow_forest`).
+
+    Parameters
+    ----------
+    params : GrowthParams or dict, optional
+        Model parameters; default None: paper 001 table 3.1.
+    generations : int, optional
+        Number of branching generations G (default 10).
+    position : array_like, optional
+        Tree base (x, y, z) [m], or (x, z) placed on the terrain; default the origin.
+    scene : None, Environment, mi.Scene, trimesh.Trimesh or list, optional
+        Obstacles around the tree (default None: open sky, the paper's ideal environment).
+    seed : int, optional
+        Random seed (default 0).
+    progress : bool, optional
+        Show a progress bar (default False).
+    engine : str, optional
+        Sphere-counting engine (default None: ``params.engine``).
+
+    Returns
+    -------
+    Tree
+        The grown tree, in metres (see :func:`grow_forest`).
+    """
     return grow_forest([position], params, generations, scene, seed, progress, engine)[0]
 
 
 def branching(params: GrowthParams | None = None, generations: int = 10,
               position=(0.0, 0.0, 0.0), seed: int = 0) -> Tree:
-    """The pure branching model (no light: no death, no phototropism, no shade avoidance):
-    the paper's H = 0 shape, used as the sample tree of paper 002."""
-    p = (GrowthParams() if params is None else params).replace(phototropism=0.0)
+    """The pure branching model (no light: no death, no phototropism, no shade avoidance).
+
+    The paper's H = 0 shape, used as the sample tree of paper 002: ``phototropism`` is forced to
+    0 and every tip branches every generation.
+
+    Parameters
+    ----------
+    params : GrowthParams or dict, optional
+        Model parameters (only the branching ones matter; a dict is read with
+        :meth:`GrowthParams.from_dict`, as :func:`grow_forest` does); default None: paper 001
+        table 3.1.
+    generations : int, optional
+        Number of branching generations (default 10).
+    position : array_like, optional
+        (3,) tree base (x, y, z) [m]; default the origin.
+    seed : int, optional
+        Random seed (phyllotaxis phase, leaf blades); default 0.
+
+    Returns
+    -------
+    Tree
+        The tree, in metres, with uniform received light (1) in ``attrs``.
+    """
+    p = GrowthParams() if params is None else params
+    if not isinstance(p, GrowthParams):
+        p = GrowthParams.from_dict(dict(p), prefix="params.")
+    p.validate()
+    p = p.replace(phototropism=0.0)
     forest = _Forest(p, np.asarray(position, float)[None], seed)
     for g in range(int(generations)):
         n = len(forest.tip)

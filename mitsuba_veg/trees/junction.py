@@ -41,7 +41,25 @@ LEAF_OUTLINE = np.array([[-0.5, 0.0], [-0.25, 0.433], [0.25, 0.433], [0.5, 0.0],
 
 
 def subdivisions(D_u, level):
-    """Eq 4.1: junction subdivisions ``D = D_u / level`` (integer division, at least 1)."""
+    """Eq 4.1: junction subdivisions ``D = D_u / level`` (integer division, at least 1).
+
+    Parameters
+    ----------
+    D_u : int
+        ``Du``, subdivisions of a first-level junction [-]; >= 1.
+    level : int or array_like
+        Branching level of each branch (levels below 1 count as 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 ``D`` per branch (shape of ``level``), >= 1.
+
+    Raises
+    ------
+    ParameterError
+        If ``D_u < 1``.
+    """
     D_u = int(D_u)
     if D_u < 1:
         raise ParameterError("Du", D_u, "an integer >= 1", "set junction.Du to 1 or more")
@@ -52,8 +70,27 @@ def subdivisions(D_u, level):
 def eq42(P, C, B, d, D, F, scale):
     """Eq 4.2 for one subdivision ``d`` (0..D): the junction vertex of each corner.
 
-    ``P``, ``C``, ``B`` (..., 3) control points, ``F`` (...) Stretch or Compress,
-    ``scale`` (...) = (length_c radius_c)/(length_p radius_p)."""
+    ``N_{d,m} = ((1 - d/D)^F (P - B) + (d/D)^F (C - B)) · scale + B``.
+
+    Parameters
+    ----------
+    P, C, B : array_like
+        (..., 3) control points [m]: connection point on the parent, corner at the branch's first
+        node, original contact point.
+    d : int or array_like
+        Subdivision index, 0..D.
+    D : int or array_like
+        Number of subdivisions (eq 4.1).
+    F : float or array_like
+        (...) exponent: Stretch (upper side) or Compress (lower side) [-].
+    scale : float or array_like
+        (...) ``(length_c radius_c)/(length_p radius_p)`` [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) junction vertices [m].
+    """
     P, C, B = (np.asarray(x, float) for x in (P, C, B))
     t = np.asarray(d, float) / np.asarray(D, float)
     F = np.asarray(F, float)[..., None]
@@ -63,8 +100,24 @@ def eq42(P, C, B, d, D, F, scale):
 
 
 def junction_rings(P, C, B, D, F, scale):
-    """Rings d = 0..D (eq 4.2) for junctions with the same ``D``: (n, D+1, M, 3) from control
-    points (n, M, 3), ``F`` (n, M) and ``scale`` (n,)."""
+    """Rings d = 0..D (eq 4.2) for junctions with the same ``D``.
+
+    Parameters
+    ----------
+    P, C, B : array_like
+        (n, M, 3) control points [m] of n junctions with M ring corners each (see :func:`eq42`).
+    D : int
+        Number of subdivisions, shared by all n junctions.
+    F : array_like
+        (n, M) exponents (Stretch / Compress) [-].
+    scale : array_like
+        (n,) ``(length_c radius_c)/(length_p radius_p)`` [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, D+1, M, 3) ring vertices [m].
+    """
     P, C, B = (np.asarray(x, float) for x in (P, C, B))
     t = (np.arange(D + 1) / D)[None, :, None, None]
     F = np.asarray(F, float)[:, None, :, None]
@@ -88,14 +141,42 @@ def _perp_unit(u, t, fallback=None):
 
 
 def contact_points(S, O, a_c, a_p, e, r_c, r_p, s_max=None, slope=None):
-    """Original contact points B: where the corner lines ``S + r_c e_m + s a_c`` of a branch
-    meet the parent's surface, a cone around the axis through ``O`` along ``a_p`` with radius
-    ``r_p + slope · h`` at height ``h`` above ``O`` (``slope`` = 0: a cylinder).
+    """Original contact points B: where the corner lines of a branch meet its parent's surface.
 
-    ``S`` (n, 3) branch start, ``e`` (n, M, 3) unit corner directions; returns ``(B, s)``
-    (n, M, 3), (n, M). The outer intersection is taken (``s`` may be negative when a corner
-    starts outside the parent); ``s`` is clamped to ``s_max`` (n,) so that B stays before the
-    branch's first node. A corner line that misses the surface keeps ``s = 0``."""
+    The corner lines ``S + r_c e_m + s a_c`` meet the parent's surface, a cone around the axis
+    through ``O`` along ``a_p`` with radius ``r_p + slope · h`` at height ``h`` above ``O``
+    (``slope`` = 0: a cylinder). The outer intersection is taken (``s`` may be negative when a
+    corner starts outside the parent); ``s`` is clamped to ``s_max`` so that B stays before the
+    branch's first node. A corner line that misses the surface keeps ``s = 0``.
+
+    Parameters
+    ----------
+    S : numpy.ndarray
+        (n, 3) branch starts [m].
+    O : numpy.ndarray
+        (n, 3) the junction on the parent's axis [m].
+    a_c : numpy.ndarray
+        (n, 3) unit branch directions [-].
+    a_p : numpy.ndarray
+        (n, 3) unit parent directions [-].
+    e : numpy.ndarray
+        (n, M, 3) unit corner directions [-] (perpendicular to ``a_c``).
+    r_c : numpy.ndarray
+        (n,) branch radii [m].
+    r_p : numpy.ndarray
+        (n,) parent radii at ``O`` [m].
+    s_max : array_like, optional
+        (n,) or (n, M) upper bound on ``s`` [m]; default None: unbounded.
+    slope : array_like, optional
+        (n,) change of the parent's radius per unit height [-] (default None: 0, a cylinder).
+
+    Returns
+    -------
+    B : numpy.ndarray
+        (n, M, 3) contact points [m].
+    s : numpy.ndarray
+        (n, M) distance along ``a_c`` from each corner's start to B [m].
+    """
     sl = np.zeros(len(S)) if slope is None else np.asarray(slope, float)
     w = (S - O)[:, None] + r_c[:, None, None] * e
     a0 = np.sum(w * a_p[:, None], -1)                       # height of the corner start
@@ -120,11 +201,27 @@ def contact_points(S, O, a_c, a_p, e, r_c, r_p, s_max=None, slope=None):
 
 
 def stem_structure(tree: Tree) -> dict:
-    """Per-segment stem bookkeeping: ``stem`` ids, ``cont`` (continues its parent's stem),
-    ``nxt`` (next segment of the stem or -1), ``arc`` (distance from the stem base at the segment
-    start), ``frame_x``, ``clone``, ``attach``, ``stem_length``, ``stem_radius``. Uses the
-    Weber-Penn attributes when present, else infers them (a child continues its parent's stem
-    when it is the parent's first child of the same level)."""
+    """Per-segment stem bookkeeping of a tree.
+
+    Uses the Weber-Penn attributes when present, else infers them (a child continues its
+    parent's stem when it is the parent's first child of the same level).
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree.
+
+    Returns
+    -------
+    dict
+        Arrays over the n segments: ``stem`` (int stem ids), ``cont`` (bool, continues its
+        parent's stem), ``nxt`` (next segment of the stem or -1), ``arc`` (distance from the stem
+        base at the segment start [m]), ``frame_x`` ((n, 3) reference direction of the tube
+        frame), ``clone`` (bool, a same-level fork of its parent), ``attach`` (position of the
+        start on the parent, fraction 0..1 of its length [-]), ``stem_length`` [m],
+        ``stem_radius`` (radius at the stem base [m]), ``length`` (segment lengths [m]) and
+        ``dir`` ((n, 3) unit segment directions).
+    """
     n = len(tree)
     at = tree.attrs
     par = tree.parent
@@ -226,18 +323,55 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
               leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True):
     """``(bark, leaves)`` trimesh meshes of ``tree``.
 
-    ``smooth``: rebuild branch bases with eq 4.2 (paper 004 §4); ``D_u``, ``stretch``,
-    ``compress``: junction parameters (default: the tree's Weber-Penn ``junction`` table, else
-    6 / 1.3 / 2.0); ``gain``, ``knot_gain``: extra factors on eq 4.2's scale for branches and
-    knots (default the table's ``Gain``/``KnotGain``, 1 = the paper; the scale is clipped to
-    1); ``sides``: tube
-    corners per level (the trunk gets at least 4 x Lobes for its lobes); ``leaf_shape``:
-    ``"oval"`` (6-gon, 4 triangles) or ``"quad"``.
-
     The bark carries UVs (u around the stem, v along it in units of the stem's base
-    circumference); ``bark.metadata`` holds ``junction_D`` (D per segment, 0 where not smoothed),
-    ``segment`` (the tree segment of each face), ``vertex_ring`` (ring id of each vertex),
-    ``ring_segment`` (segment of each ring) and ``top_ring`` (ring at each segment's end).
+    circumference); ``bark.metadata`` holds ``junction_D`` (D per segment, 0 where not
+    smoothed), ``segment`` (the tree segment of each face), ``vertex_ring`` (ring id of each
+    vertex), ``ring_segment`` (segment of each ring) and ``top_ring`` (ring at each segment's
+    end).
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree (positions and radii [m]).
+    smooth : bool, optional
+        Rebuild branch bases with eq 4.2 (paper 004 §4); default True.
+    sides : sequence of int, optional
+        Tube corners per level, the last entry for all deeper levels (default (16, 8, 6, 4));
+        each >= 3. The trunk gets at least 4 x Lobes for its lobes.
+    knot_sides : int, optional
+        Minimum corners of knot tubes (default 8).
+    D_u : int, optional
+        Junction subdivisions ``Du`` (eq 4.1); default None: the tree's Weber-Penn
+        ``junction`` table, else 6.
+    stretch : float, optional
+        Exponent F on the upper side (tension wood) [-]; default None: the table, else 1.3.
+    compress : float, optional
+        Exponent F on the lower side (compression wood) [-]; default None: the table, else 2.0.
+    gain : float, optional
+        Extra factor on eq 4.2's scale for branches [-] (default None: the table's ``Gain``,
+        else 1 = the paper); the scale is clipped to 1.
+    knot_gain : float, optional
+        The same for knots [-] (default None: the table's ``KnotGain``, else 1).
+    leaves : bool, optional
+        Build the leaf mesh (default True; else an empty mesh).
+    leaf_shape : str, optional
+        ``"oval"`` (6-gon, 4 triangles, the default) or ``"quad"``.
+    min_radius : float, optional
+        Lower bound on the drawn radii [m] (default 0).
+    caps : bool, optional
+        Close branch tips and roots with triangle fans (default True).
+
+    Returns
+    -------
+    bark : trimesh.Trimesh
+        The bark mesh [m], with UVs and the metadata above.
+    leaves : trimesh.Trimesh
+        The leaf mesh [m] (:func:`leaf_mesh`).
+
+    Raises
+    ------
+    ParameterError
+        For junction parameters out of range, an unknown ``leaf_shape`` or ``sides`` < 3.
     """
     import trimesh
 
@@ -536,8 +670,22 @@ def _junction_control(tree, st, jc, Sg, r0, r1, depth, u_bot, top_id, ring_verts
 
 
 def leaf_mesh(tree: Tree, shape: str = "oval"):
-    """One polygon per leaf (``oval``: 6 vertices / 4 triangles; ``quad``: 4 / 2) with UVs
-    (u across the blade, v from petiole to tip)."""
+    """One polygon per leaf with UVs (u across the blade, v from petiole to tip).
+
+    Blade length is the leaf's ``size``, its width the leaf attr ``width`` (default 0.6 x size).
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree whose leaves are meshed.
+    shape : str, optional
+        ``"oval"`` (6 vertices / 4 triangles, the default) or ``"quad"`` (4 / 2).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        The leaf mesh [m]; ``metadata["leaf"]`` gives the leaf of each face.
+    """
     import trimesh
 
     lv = tree.leaves

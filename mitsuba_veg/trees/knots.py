@@ -30,34 +30,85 @@ __all__ = ["knot_length", "knot_radius", "sprout_length", "sprout_radius", "expe
 
 
 def knot_length(length_branch, offset, contraction, contraction_v=0.0, xi=0.0):
-    """Eq 3.1: ``length_knot = length_branch / (Contraction ± ContractionV·Random) · (1 − offset)``.
+    """Eq 3.1: length of a knot from the length its branch would have had.
 
-    ``length_branch`` [m] is the length the branch would have had (Weber-Penn), ``offset`` its
-    position on the parent as a fraction 0 (base) .. 1 (tip), ``xi`` the signed random in [-1, 1].
+    ``length_knot = length_branch / (Contraction ± ContractionV·Random) · (1 − offset)``.
     Knots near the base of their parent are longer than knots near its tip.
+
+    Parameters
+    ----------
+    length_branch : float or array_like
+        Length the branch would have had (Weber-Penn) [m].
+    offset : float or array_like
+        Position of the knot on its parent as a fraction 0 (base) .. 1 (tip) [-].
+    contraction : float or array_like
+        ``Contraction``, growth suppression [-] (larger: shorter knots).
+    contraction_v : float or array_like, optional
+        ``ContractionV``, its variation [-] (default 0).
+    xi : float or array_like, optional
+        The signed random in [-1, 1] [-] (default 0: no variation).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Knot length [m] (broadcast shape of the inputs).
     """
     c = np.asarray(contraction, float) + np.asarray(contraction_v, float) * np.asarray(xi, float)
     return np.asarray(length_branch, float) / c * (1.0 - np.asarray(offset, float))
 
 
 def knot_radius(radius_branch, density, density_v=0.0, xi=0.0):
-    """Eq 3.2: ``radius_knot = radius_branch · (Density ± DensityV·Random)``.
+    """Eq 3.2: radius of a knot, ``radius_knot = radius_branch · (Density ± DensityV·Random)``.
 
     The printed equation has no brackets (``radius_branch × Density ± (DensityV × Random)``);
     the text defines Density as a correction factor of the branch thickness and DensityV as its
     variation, so the variation multiplies the radius too (docs/deviations.md).
+
+    Parameters
+    ----------
+    radius_branch : float or array_like
+        Radius the branch would have had (Weber-Penn) [m].
+    density : float or array_like
+        ``Density``, thickness factor [-] (larger: thicker knots).
+    density_v : float or array_like, optional
+        ``DensityV``, its variation [-] (default 0).
+    xi : float or array_like, optional
+        The signed random in [-1, 1] [-] (default 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Knot radius [m].
     """
     d = np.asarray(density, float) + np.asarray(density_v, float) * np.asarray(xi, float)
     return np.asarray(radius_branch, float) * d
 
 
 def sprout_length(length_parent, contraction, variation, length_n, xi=0.0):
-    """Eq 3.3: ``length_c = length_p · (Contraction ± V·Random) · LengthN``.
+    """Eq 3.3: length of a branch sprouting from a knot.
 
-    ``length_p`` is the knot's length, ``LengthN`` the Weber-Penn ``nLength`` of the sprouting
-    branch's level. The paper prints ``DensityV`` as ``V`` while its text names ContractionV;
-    the caller passes whichever it uses (``SproutVariation`` option, docs/deviations.md).
-    Multiplying by Contraction undoes the 1/Contraction of eq 3.1: the sprout grows "suddenly".
+    ``length_c = length_p · (Contraction ± V·Random) · LengthN``.
+    The paper prints ``DensityV`` as ``V`` while its text names ContractionV; the caller passes
+    whichever it uses (``SproutVariation`` option, docs/deviations.md). Multiplying by
+    Contraction undoes the 1/Contraction of eq 3.1: the sprout grows "suddenly".
+
+    Parameters
+    ----------
+    length_parent : float or array_like
+        ``length_p``, the knot's length [m].
+    contraction : float or array_like
+        ``Contraction`` of the knot [-].
+    variation : float or array_like
+        ``V``, the variation of ``Contraction`` (ContractionV or DensityV) [-].
+    length_n : float or array_like
+        ``LengthN``, the Weber-Penn ``nLength`` of the sprouting branch's level [-].
+    xi : float or array_like, optional
+        The signed random in [-1, 1] [-] (default 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Length of the sprouted branch [m].
     """
     c = np.asarray(contraction, float) + np.asarray(variation, float) * np.asarray(xi, float)
     return np.asarray(length_parent, float) * c * np.asarray(length_n, float)
@@ -65,9 +116,32 @@ def sprout_length(length_parent, contraction, variation, length_n, xi=0.0):
 
 def sprout_radius(radius_parent, length_child, length_parent, density, density_v, ratio_power,
                   xi=0.0):
-    """Eq 3.4: ``radius_c = radius_p / (Density ± DensityV·Random) · (length_c/length_p)^RatioPower``.
+    """Eq 3.4: radius of a branch sprouting from a knot.
 
+    ``radius_c = radius_p / (Density ± DensityV·Random) · (length_c/length_p)^RatioPower``.
     Dividing by Density undoes eq 3.2; the power law is Weber-Penn's child radius rule.
+
+    Parameters
+    ----------
+    radius_parent : float or array_like
+        ``radius_p``, the knot's radius [m].
+    length_child : float or array_like
+        ``length_c``, the sprouted branch's length (eq 3.3) [m].
+    length_parent : float or array_like
+        ``length_p``, the knot's length [m].
+    density : float or array_like
+        ``Density`` [-].
+    density_v : float or array_like
+        ``DensityV`` [-].
+    ratio_power : float or array_like
+        Weber-Penn ``RatioPower`` [-].
+    xi : float or array_like, optional
+        The signed random in [-1, 1] [-] (default 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Radius of the sprouted branch [m].
     """
     d = np.asarray(density, float) + np.asarray(density_v, float) * np.asarray(xi, float)
     ratio = np.asarray(length_child, float) / np.asarray(length_parent, float)
@@ -79,13 +153,30 @@ def expected_knots(n_zone, rate, decay=0.0, max_factor=4.0):
 
     The paper (§3.3.1, 発生率) folds the knot rate into the branch count so that knots do not
     thin out the branches: a parent that should carry ``n_zone`` normal branches in its knot zone
-    gets ``n_zone + E`` buds there, where ``E`` is the expected number of knots. The rate starts at
-    ``rate`` and is multiplied by ``1 - decay`` after each knot; ``E`` is the mean-field count:
-    buds are added one at a time, each a knot with probability ``rate·(1-decay)^E_so_far``, until
-    the expected normal buds reach ``n_zone`` (the last bud counts by the fraction needed).
+    gets ``n_zone + E`` buds there, where ``E`` is the expected number of knots. The rate starts
+    at ``rate`` and is multiplied by ``1 - decay`` after each knot; ``E`` is the mean-field
+    count: buds are added one at a time, each a knot with probability ``rate·(1-decay)^E_so_far``,
+    until the expected normal buds reach ``n_zone`` (the last bud counts by the fraction needed).
     ``max_factor`` caps the buds at ``max_factor · n_zone`` (rate 1 without decay never ends).
 
     Example (tests): n_zone = 4, rate 0.5, decay 0.5 gives E = 1.6477.
+
+    Parameters
+    ----------
+    n_zone : float or array_like
+        Normal branches wanted in the knot zone of each parent [-] (may be fractional).
+    rate : float or array_like
+        Initial knot rate ``KnotRate``, a probability in [0, 1] [-].
+    decay : float or array_like, optional
+        ``KnotRateDecay``: the rate is multiplied by ``1 - decay`` after each knot [-]
+        (default 0).
+    max_factor : float, optional
+        Cap on the buds, as a multiple of ``n_zone`` [-] (default 4).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Expected knot count ``E`` [-]: a float for scalar ``n_zone``, else an array of its shape.
     """
     scalar = np.ndim(n_zone) == 0
     n_zone = np.atleast_1d(np.asarray(n_zone, float))
@@ -112,14 +203,34 @@ def expected_knots(n_zone, rate, decay=0.0, max_factor=4.0):
 def assign_knots(row, in_zone, forced, rate, decay, u):
     """Decide bud by bud which buds become knots (vectorised over parents).
 
-    ``row`` (m,) parent index of each bud, buds of one parent in order from its base to its tip;
-    ``in_zone`` (m,) bud lies in the knot zone; ``forced`` (m,) bud lies between the knot position
-    and ``BaseSize`` (always a knot, rate unchanged); ``rate`` (n,) initial knot rate per parent,
-    ``decay`` (n,) its decay per knot, ``u`` (m,) uniform draws in [0, 1).
-
     A zone bud becomes a knot when ``u < rate[row]``; after each such knot the parent's rate is
-    multiplied by ``1 - decay``. Returns ``(is_knot (m,) bool, rate_used (m,) float)`` where
-    ``rate_used`` is the parent's rate at the time the bud was decided (NaN outside the zone).
+    multiplied by ``1 - decay``. Forced buds are knots whatever their draw and leave the rate
+    unchanged.
+
+    Parameters
+    ----------
+    row : array_like
+        (m,) int parent index of each bud, buds of one parent contiguous and in order from its
+        base to its tip.
+    in_zone : array_like
+        (m,) bool: the bud lies in the knot zone.
+    forced : array_like
+        (m,) bool: the bud lies between the knot position and ``BaseSize`` (always a knot, rate
+        unchanged).
+    rate : array_like
+        (n,) initial knot rate per parent [-].
+    decay : float or array_like
+        (n,) decay of the rate per knot [-].
+    u : array_like
+        (m,) uniform draws in [0, 1) [-].
+
+    Returns
+    -------
+    is_knot : numpy.ndarray
+        (m,) bool, True for buds that become knots.
+    rate_used : numpy.ndarray
+        (m,) float, the parent's rate at the time the bud was decided [-] (NaN outside the zone
+        and for forced buds).
     """
     row = np.asarray(row, np.int64)
     m = len(row)
@@ -147,10 +258,36 @@ def assign_knots(row, in_zone, forced, rate, decay, u):
 
 
 def dormancy_after(value, step=1.0):
-    """Dormancy-break value one branching level later (it decreases by ``step`` per level)."""
+    """Dormancy-break value one branching level later (it decreases by ``step`` per level).
+
+    Parameters
+    ----------
+    value : float or array_like
+        Dormancy-break value (``DormancyBreak``) [-].
+    step : float, optional
+        ``DormancyStep``, decrease per branching level [-] (default 1).
+
+    Returns
+    -------
+    numpy.ndarray or numpy.float64
+        ``value - step`` [-] (a NumPy scalar for a scalar ``value``).
+    """
     return np.asarray(value, float) - step
 
 
 def sprouts(value, step=1.0):
-    """True where a knot with dormancy ``value`` sprouts at the next level (value reaches 0)."""
+    """True where a knot with dormancy ``value`` sprouts at the next level (value reaches 0).
+
+    Parameters
+    ----------
+    value : float or array_like
+        Dormancy-break value [-].
+    step : float, optional
+        ``DormancyStep``, decrease per branching level [-] (default 1).
+
+    Returns
+    -------
+    numpy.ndarray or numpy.bool_
+        True where ``value - step <= 0`` (a NumPy scalar for a scalar ``value``).
+    """
     return dormancy_after(value, step) <= 0.0

@@ -66,8 +66,21 @@ class Sky:
             raise ParameterError("light_ratio", self.C, "> 0 (C = C1/C2)")
 
     def cells(self):
-        """(directions (M, 3), solid angles (M,), upper (M,) bool, B0 (M,)); M = H x V, +y up,
-        ordered latitude-major from the zenith."""
+        """The sky cells of eq 2.1 (cached per (H, V, C)).
+
+        M = H x V cells, +y up, ordered latitude-major from the zenith.
+
+        Returns
+        -------
+        directions : numpy.ndarray
+            (M, 3) unit directions N(h, v) to the cell centres [-].
+        solid_angles : numpy.ndarray
+            (M,) solid angles S(h, v) [sr] (summing to 4 pi).
+        upper : numpy.ndarray
+            (M,) bool, True above the horizon.
+        B0 : numpy.ndarray
+            (M,) unobstructed intensity [-]: C1 = C above the horizon, C2 = 1 below.
+        """
         key = (self.H, self.V, self.C)
         if key not in _CELL_CACHE:
             H, V = int(self.H), int(self.V)
@@ -85,6 +98,7 @@ class Sky:
 
     @property
     def M(self) -> int:
+        """Number of sky cells M = H x V."""
         return int(self.H) * int(self.V)
 
 
@@ -105,6 +119,20 @@ class LeafLight:
     stats: dict = field(default_factory=dict)
 
     def ratio(self, num="red", den="far_red") -> np.ndarray:
+        """Ratio of two bands' received light per sphere (e.g. red / far-red, eq 2.5).
+
+        Parameters
+        ----------
+        num : str, optional
+            Numerator band (default ``"red"``).
+        den : str, optional
+            Denominator band (default ``"far_red"``).
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) ratio [-]; 0 where the denominator is 0.
+        """
         d = self.received[den]
         return np.where(d > 0, self.received[num] / np.maximum(d, 1e-300), 0.0)
 
@@ -116,7 +144,20 @@ def _vec3(a, cls=None):
 
 
 def inside_counts(centers, radius) -> np.ndarray:
-    """For every sphere, the number of *other* spheres (same radius) containing its centre."""
+    """For every sphere, the number of *other* spheres (same radius) containing its centre.
+
+    Parameters
+    ----------
+    centers : array_like
+        (N, 3) sphere centres [m].
+    radius : float
+        Common sphere radius [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        (N,) int64 counts.
+    """
     centers = np.asarray(centers, float)
     n = len(centers)
     cnt = np.zeros(n, np.int64)
@@ -225,11 +266,36 @@ def _grid_loop(o, d, own, tmax, kmax, q, cell_start, cell_items, centers, r2, h,
 
 
 def sphere_grid(centers, radius, cell=None):
-    """Uniform grid of sphere lists: (origin (3,), cell size, shape, cell_start (ncell + 1,),
-    items (sphere ids, grouped by cell)). Every sphere is listed in each cell its bounding box
-    overlaps. Cell size 2R by default: R minimises sphere tests per unit of ray length, but
-    most rays spend their steps crossing empty cells on the way out, and 2R measured as fast or
-    faster (benchmarks/trees_growth.py)."""
+    """Uniform grid of sphere lists, for the ``"grid"`` engine.
+
+    Every sphere is listed in each cell its bounding box overlaps. Cell size 2R by default:
+    R minimises sphere tests per unit of ray length, but most rays spend their steps crossing
+    empty cells on the way out, and 2R measured as fast or faster (benchmarks/trees_growth.py).
+    Cells grow (x 1.5 at a time) until the grid has at most 16M cells.
+
+    Parameters
+    ----------
+    centers : array_like
+        (N, 3) sphere centres [m].
+    radius : float
+        Common sphere radius R [m].
+    cell : float, optional
+        Cell edge length [m]; default None: 2R.
+
+    Returns
+    -------
+    origin : numpy.ndarray
+        (3,) lower corner of the grid [m].
+    cell : float
+        Cell edge length used [m].
+    shape : tuple of int
+        Cells per axis (nx, ny, nz).
+    cell_start : numpy.ndarray
+        (ncell + 1,) uint32 offsets into ``items`` of each cell's list (cell index
+        ix + nx (iy + ny iz)).
+    items : numpy.ndarray
+        uint32 sphere ids, grouped by cell.
+    """
     c = np.asarray(centers, float).reshape(-1, 3)
     h = float(2.0 * radius if cell is None else cell)
     lo = c.min(0) - radius - 1e-3 * h
@@ -319,9 +385,42 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
                       cutoff: float = 1e-3, vector_band: str | None = None) -> LeafLight:
     """Light at leaf spheres of radius ``radius`` [m] centred at ``centers`` (N, 3) [m].
 
-    ``alphas``: band -> transmitted fraction per sphere passed (e.g. {"light": 0.3, "red": 0.3,
-    "far_red": 0.7}); the first band (or ``vector_band``) gives the light vector. ``env``: an
-    :class:`~mitsuba_veg.trees.environment.Environment` or None (open sky all round).
+    Received light per band (eq 2.3) and light vector (eq 2.4) from the H x V sky, each ray
+    attenuated by α per other leaf sphere passed; rays that hit an obstacle take C2 x env of the
+    triangle's front (nothing from its back). A sphere centred inside an obstacle receives
+    nothing. See the module docstring for the engines.
+
+    Parameters
+    ----------
+    centers : array_like
+        (N, 3) sphere centres [m].
+    radius : float
+        Common leaf-sphere radius R [m].
+    sky : Sky
+        The H x V sky (C = C1/C2).
+    alphas : dict
+        Band -> transmitted fraction per sphere passed [-] (e.g. {"light": 0.3, "red": 0.3,
+        "far_red": 0.7}).
+    env : mitsuba_veg.trees.environment.Environment, optional
+        The obstacles, or None (the default: open sky all round).
+    engine : str, optional
+        ``"grid"`` (the default), ``"mitsuba"`` or ``"analytic"``.
+    cutoff : float, optional
+        A ray stops once every band is attenuated below this [-] (default 1e-3; at most 64
+        spheres are counted per ray).
+    vector_band : str, optional
+        Band that gives the light vector; default None: the first band of ``alphas``.
+
+    Returns
+    -------
+    LeafLight
+        ``received[band]`` (N,) [-] (1 = unobstructed sky), unit ``vector`` (N, 3), the cost
+        (rays, ray casts, seconds [s], mean spheres passed per ray) and ``stats``.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown ``engine``.
     """
     t0 = time.perf_counter()
     centers = np.asarray(centers, float).reshape(-1, 3)
@@ -337,9 +436,12 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
     n_rays = n * m
     kin = inside_counts(centers, radius)
     amax = max(float(a) for a in alphas.values())
-    kcap = 64 if amax >= 1 else int(min(64, max(1, math.ceil(math.log(cutoff) / math.log(amax)))))
-    if amax <= 0:
+    if amax <= 0:          # opaque spheres: the first one stops the ray (and log(0) is undefined)
         kcap = 1
+    elif amax >= 1:
+        kcap = 64
+    else:
+        kcap = int(min(64, max(1, math.ceil(math.log(cutoff) / math.log(amax)))))
     dirs_dr = _vec3(N, mi.Vector3f)
     centers_dr = _vec3(centers)
     eps = float(radius) * 1e-4
@@ -422,9 +524,26 @@ def leaf_sphere_light(centers, radius, sky: Sky, alphas: dict, env=None, engine=
 # obstacles' own light (paper 001 §2.3.2, generalised to meshes)
 # --------------------------------------------------------------------------------------------
 def obstacle_sky_light(env, sky: Sky, passes: int = 2) -> np.ndarray:
-    """Reflected-light factor env per obstacle triangle: sky irradiance (cells weighted by the
-    cosine to the triangle normal) relative to open flat ground; rays that hit another obstacle
-    take C2 x env of the previous pass (first pass: 0)."""
+    """Reflected-light factor env per obstacle triangle (paper 001 §2.3.2, generalised to meshes).
+
+    Sky irradiance (cells weighted by the cosine to the triangle normal) relative to open flat
+    ground; rays that hit another obstacle's front take C2 x env x light_factor of the previous
+    pass (first pass: 0), rays that hit a back face take 0.
+
+    Parameters
+    ----------
+    env : mitsuba_veg.trees.environment.Environment
+        The obstacles.
+    sky : Sky
+        The H x V sky.
+    passes : int, optional
+        Number of passes (default 2; at least 1 is made).
+
+    Returns
+    -------
+    numpy.ndarray
+        (m,) env of every obstacle triangle [-] (order of ``env.triangles()``).
+    """
     V, F, nrm, cen, area, obj, lf = env.triangles()
     nt = len(F)
     N, S, upper, B0 = sky.cells()

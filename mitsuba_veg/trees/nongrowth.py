@@ -173,21 +173,60 @@ def deform(trees, obstacles=None, rules=("death", "heliotropism"), voxel_size: f
            copy: bool = True) -> DeformResult:
     """Deform placed sample ``trees`` (a Tree or a list) by the rules of paper 002.
 
-    obstacles: None or anything :meth:`Environment.coerce` takes (opaque voxels).
-    voxel_size [m]; shading: fraction of the light crossing its voxel (along a voxel edge) that
-    one tip / leaf removes, or "auto": 0.3 per tip (``shade_from="tips"``, the paper's fixed
-    amount), half the blade area over the voxel face area per leaf (``"leaves"``);
-    death_threshold: T/N below which a subtree dies [light units, open sky = 1]; with N = tips
-    it is the subtree's mean leaf light (0.5 = half the open sky; the paper's 0.25 with N =
-    branches is about the same, since a binary subtree has 2 x tips - 1 branches);
-    helio_constant [rad]: the constant of the rotation angle constant x sqrt(L/N);
-    max_angle [deg]: cap of one rotation; shade_from: "tips" (paper) or "leaves" (a tree's
-    leaf blades, e.g. Weber-Penn trees); iterations: how often the whole rule list is applied;
-    death_order: "bottom_up" (deepest subtrees first, T and N over what is still alive) or
-    "simultaneous" (every subtree judged on the intact tree); death_count: N of T/N, "tips"
-    (the subtree's live tips: T/N is their mean light) or "branches" (its branches, as printed;
-    a whole tree's T/N is then about half its mean tip light, so trees die whole).
-    Returns a :class:`DeformResult` (the input trees are copied unless ``copy=False``).
+    Rules run in the order given, ``iterations`` times; the light is re-evaluated before each
+    rule (see the module docstring). Leaves on dead segments are dropped at the end.
+
+    Parameters
+    ----------
+    trees : Tree or list of Tree
+        The placed sample trees (positions [m]).
+    obstacles : optional
+        None (the default) or anything :meth:`Environment.coerce` takes; obstacles are opaque
+        voxels.
+    rules : str or sequence of str, optional
+        Rules to apply, from ``RULES`` (default ("death", "heliotropism")).
+    voxel_size : float, optional
+        Voxel side [m] (default 0.5).
+    shading : float or str, optional
+        Fraction [-] of the light crossing its voxel (along a voxel edge) that one tip / leaf
+        removes, in [0, 1), or "auto" (the default): 0.3 per tip (``shade_from="tips"``, the
+        paper's fixed amount), half the blade area over the voxel face area per leaf
+        (``"leaves"``).
+    death_threshold : float, optional
+        T/N below which a subtree dies [light units, open sky = 1] (default 0.5). With N = tips
+        it is the subtree's mean leaf light (0.5 = half the open sky; the paper's 0.25 with N =
+        branches is about the same, since a binary subtree has 2 x tips - 1 branches).
+    helio_constant : float, optional
+        The constant of the rotation angle constant x sqrt(L/N) [rad] (default 1).
+    max_angle : float, optional
+        Cap of one rotation [deg] (default 30), in [0, 180].
+    shade_from : str, optional
+        "tips" (the paper, the default) or "leaves" (a tree's leaf blades, e.g. Weber-Penn
+        trees).
+    iterations : int, optional
+        How often the whole rule list is applied (default 1).
+    death_order : str, optional
+        "bottom_up" (the default: deepest subtrees first, T and N over what is still alive) or
+        "simultaneous" (every subtree judged on the intact tree).
+    death_count : str, optional
+        N of T/N: "tips" (the default: the subtree's live tips, T/N is their mean light) or
+        "branches" (its branches, as printed; a whole tree's T/N is then about half its mean tip
+        light, so trees die whole).
+    copy : bool, optional
+        Work on copies of the input trees (default True); False deforms them in place.
+
+    Returns
+    -------
+    DeformResult
+        The deformed trees (one Tree when a single Tree was given, else a list), per-rule
+        statistics (``rule``, ``iteration``, ``voxels``, ``voxel_shape``, ``seconds`` [s], ...)
+        and the total time [s].
+
+    Raises
+    ------
+    ParameterError
+        For no tree or a non-Tree item, an unknown rule, option value or a parameter out of
+        range.
     """
     t0 = time.perf_counter()
     single = isinstance(trees, Tree)

@@ -51,12 +51,31 @@ class Leaves:
 
     @staticmethod
     def empty() -> "Leaves":
+        """An empty leaf set (no rows).
+
+        Returns
+        -------
+        Leaves
+            A leaf set with zero leaves.
+        """
         return Leaves(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64))
 
     def __len__(self) -> int:
         return len(self.size)
 
     def subset(self, mask) -> "Leaves":
+        """The leaves selected by a mask (or index array), their ``attrs`` included.
+
+        Parameters
+        ----------
+        mask : array_like
+            (m,) boolean mask over the leaves, or integer indices of the leaves to keep.
+
+        Returns
+        -------
+        Leaves
+            A new leaf set holding the selected rows (arrays are indexed copies).
+        """
         mask = np.asarray(mask)
         return Leaves(self.position[mask], self.normal[mask], self.size[mask], self.segment[mask],
                       None if self.up is None else self.up[mask],
@@ -108,20 +127,50 @@ class Tree:
 
     @property
     def direction(self) -> np.ndarray:
+        """Unit direction (n, 3) [-] of every segment, start to end (0 if zero-length)."""
         d = self.end - self.start
         return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
 
     def depth(self) -> np.ndarray:
-        """Number of ancestors of every segment (0 for roots)."""
+        """Number of ancestors of every segment (0 for roots).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) int ancestor count per segment.
+        """
         return segment_depth(self.parent)
 
     def subtree_sum(self, values) -> np.ndarray:
-        """Sum of ``values`` over each segment's subtree (itself included): one vectorised
-        pass per depth level, deepest first."""
+        """Sum of ``values`` over each segment's subtree (itself included).
+
+        One vectorised pass per depth level, deepest first (:func:`subtree_sum`).
+
+        Parameters
+        ----------
+        values : array_like
+            (n,) per-segment values (any unit, e.g. leaf area [m2] or light).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) float64 subtree sums, in the unit of ``values``.
+        """
         return subtree_sum(self.parent, values)
 
     def subtree_mask(self, root: int) -> np.ndarray:
-        """Boolean mask of the segments in ``root``'s subtree (itself included)."""
+        """Boolean mask of the segments in ``root``'s subtree (itself included).
+
+        Parameters
+        ----------
+        root : int
+            Index of the segment at the root of the subtree.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool, True for ``root`` and its descendants.
+        """
         m = np.zeros(len(self), bool)
         m[root] = True
         for i in range(root + 1, len(self)):
@@ -131,8 +180,19 @@ class Tree:
         return m
 
     def tips(self, alive_only: bool = True) -> np.ndarray:
-        """Indices of terminal segments (no live child; among live segments if
-        ``alive_only``)."""
+        """Indices of terminal segments (no live child).
+
+        Parameters
+        ----------
+        alive_only : bool, optional
+            If True (default), consider live segments only: a tip is a live segment with no live
+            child. If False, every segment with no child.
+
+        Returns
+        -------
+        numpy.ndarray
+            int indices of the terminal segments, ascending.
+        """
         keep = self.alive if alive_only else np.ones(len(self), bool)
         has_child = np.zeros(len(self), bool)
         par = self.parent[keep & (self.parent >= 0)]
@@ -140,7 +200,16 @@ class Tree:
         return np.nonzero(keep & ~has_child)[0]
 
     def drop_dead_leaves(self) -> "Tree":
-        """Remove leaves (and leaf spheres) hanging on dead segments, in place."""
+        """Remove leaves (and leaf spheres) hanging on dead segments, in place.
+
+        The per-leaf-sphere attrs (``LEAF_SPHERE_ATTRS``) are filtered with the spheres, and the
+        leaves' ``"sphere"`` attribute is renumbered to match.
+
+        Returns
+        -------
+        Tree
+            ``self`` (modified in place), for chaining.
+        """
         if len(self.leaves):
             self.leaves = self.leaves.subset(self.alive[self.leaves.segment])
         seg = self.attrs.get("leaf_sphere_segment")
@@ -158,6 +227,13 @@ class Tree:
         return self
 
     def copy(self) -> "Tree":
+        """A deep copy of the tree (arrays, leaves and ``attrs`` copied).
+
+        Returns
+        -------
+        Tree
+            An independent copy.
+        """
         lv = self.leaves
         leaves = Leaves(lv.position.copy(), lv.normal.copy(), lv.size.copy(), lv.segment.copy(),
                         None if lv.up is None else lv.up.copy(),
@@ -168,6 +244,21 @@ class Tree:
                     self.name)
 
     def translated(self, offset) -> "Tree":
+        """A copy of the tree moved by ``offset``.
+
+        Segments, leaves and the point attrs (``POINT_ATTRS``, e.g. leaf-sphere centres) move;
+        radii, normals and other arrays are shared with the original, ``alive`` and ``kind`` copied.
+
+        Parameters
+        ----------
+        offset : array_like
+            (3,) translation (x, y, z) [m].
+
+        Returns
+        -------
+        Tree
+            The translated tree.
+        """
         o = np.asarray(offset, float)
         lv = self.leaves
         leaves = Leaves(lv.position + o, lv.normal, lv.size, lv.segment, lv.up, dict(lv.attrs))
@@ -181,10 +272,21 @@ class Tree:
 
     # ---- metrics -----------------------------------------------------------------------------
     def metrics(self) -> dict:
-        """Shape numbers: height [m], crown centroid (x, y, z) [m], crown radius [m] (mean
-        horizontal distance of the crown points from the crown's vertical axis through the
-        centroid), branch and leaf counts. Crown points are the leaf spheres when the tree has
-        them (growth model), else the leaves, else the live segment ends."""
+        """Shape numbers of the tree.
+
+        Height [m], crown centroid (x, y, z) [m], crown radius [m] (mean horizontal distance of the
+        crown points from the crown's vertical axis through the centroid), branch and leaf counts.
+        Crown points are the leaf spheres when the tree has them (growth model), else the leaves,
+        else the live segment ends.
+
+        Returns
+        -------
+        dict
+            ``height`` (float) [m] from the base to the highest live segment end or crown point;
+            ``crown_centroid`` (list of 3 floats) [m]; ``crown_radius`` (float) [m];
+            ``live_branches``, ``dead_branches``, ``leaves``, ``leaf_spheres`` (int) counts;
+            ``base`` (list of 3 floats) [m], the start of the first segment.
+        """
         live = self.alive
         base = self.start[0] if len(self) else np.zeros(3)
         spheres = self.attrs.get("leaf_sphere_center")
@@ -207,9 +309,26 @@ class Tree:
 
     # ---- geometry ----------------------------------------------------------------------------
     def to_mesh(self, sides: int = 8, leaves: bool = True, min_radius: float = 0.0):
-        """A ``trimesh.Trimesh`` of the live branches (tapered tubes, ``sides`` corners) plus,
-        when ``leaves``, one quad per leaf (two triangles). Face attribute ``part`` (in
-        ``mesh.metadata``): 0 bark, 1 leaf."""
+        """A ``trimesh.Trimesh`` of the live branches plus, optionally, the leaves.
+
+        Branches are open tapered tubes with ``sides`` corners; when ``leaves``, one quad per leaf
+        (two triangles, :func:`leaf_quads`). Face attribute ``part`` (in ``mesh.metadata``):
+        0 bark, 1 leaf.
+
+        Parameters
+        ----------
+        sides : int, optional
+            Corners of each tube's cross-section (default 8).
+        leaves : bool, optional
+            Add the leaf quads (default True).
+        min_radius : float, optional
+            Lower bound on the drawn branch radii [m] (default 0: the tree's radii).
+
+        Returns
+        -------
+        trimesh.Trimesh
+            The mesh (vertices in [m]), with ``metadata["part"]`` (one int8 per face).
+        """
         import trimesh
 
         bark_v, bark_f = tube_mesh(self.start[self.alive], self.end[self.alive],
@@ -226,7 +345,25 @@ class Tree:
         return mesh
 
     def export(self, path, **kw) -> str:
-        """Write the mesh to PLY / OBJ / GLB (by extension)."""
+        """Write the mesh to PLY / OBJ / GLB / glTF / STL (by extension).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            Output file; its extension picks the format.
+        **kw : dict
+            Keyword arguments of :meth:`to_mesh` (``sides``, ``leaves``, ``min_radius``).
+
+        Returns
+        -------
+        str
+            The path written.
+
+        Raises
+        ------
+        ParameterError
+            If the extension is not .ply, .obj, .glb, .gltf or .stl.
+        """
         path = str(path)
         ext = path.rsplit(".", 1)[-1].lower()
         if ext not in ("ply", "obj", "glb", "gltf", "stl"):
@@ -236,7 +373,25 @@ class Tree:
 
 
 def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
-    """A copy of ``tree`` scaled about its base by ``factor`` and moved by ``offset`` [m]."""
+    """A copy of ``tree`` scaled about its base by ``factor`` and moved by ``offset`` [m].
+
+    Positions, radii, leaf sizes (and leaf ``width`` attrs) and leaf-sphere centres scale; a
+    Weber-Penn parameter set attached as ``tree.weber_penn`` is carried over.
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree; its base is the start of its first segment.
+    factor : float
+        Scale factor [-].
+    offset : array_like, optional
+        (3,) translation applied after scaling [m] (default none).
+
+    Returns
+    -------
+    Tree
+        The scaled copy.
+    """
     t = tree.copy()
     base = t.start[0].copy() if len(t) else np.zeros(3)
     o = np.asarray(offset, float)
@@ -258,7 +413,18 @@ def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
 
 
 def segment_depth(parent) -> np.ndarray:
-    """Ancestor count per segment for a parents-first ``parent`` array."""
+    """Ancestor count per segment for a parents-first ``parent`` array.
+
+    Parameters
+    ----------
+    parent : array_like
+        (n,) int parent index of every segment, -1 for roots.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) int64 number of ancestors (0 for roots).
+    """
     parent = np.asarray(parent, np.int64)
     n = len(parent)
     depth = np.zeros(n, np.int64)
@@ -272,7 +438,22 @@ def segment_depth(parent) -> np.ndarray:
 
 
 def subtree_sum(parent, values) -> np.ndarray:
-    """Sum of ``values`` over every segment's subtree (itself included)."""
+    """Sum of ``values`` over every segment's subtree (itself included).
+
+    One vectorised pass per depth level, deepest first.
+
+    Parameters
+    ----------
+    parent : array_like
+        (n,) int parent index of every segment (parents first), -1 for roots.
+    values : array_like
+        (n,) per-segment values (any unit).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) float64 subtree sums, in the unit of ``values``.
+    """
     parent = np.asarray(parent, np.int64)
     acc = np.array(values, dtype=np.float64, copy=True)
     if len(parent) == 0:
@@ -294,7 +475,24 @@ def _frames(d):
 
 
 def tube_mesh(start, end, r0, r1, sides=8):
-    """Vertices/faces of open tapered tubes, one per segment (vectorised over segments)."""
+    """Vertices/faces of open tapered tubes, one per segment (vectorised over segments).
+
+    Parameters
+    ----------
+    start, end : array_like
+        (n, 3) segment end points [m].
+    r0, r1 : array_like
+        (n,) radii at ``start`` and ``end`` [m].
+    sides : int, optional
+        Corners of each cross-section (default 8).
+
+    Returns
+    -------
+    verts : numpy.ndarray
+        (2 * sides * n, 3) vertices [m].
+    faces : numpy.ndarray
+        (2 * sides * n, 3) int64 triangle vertex indices.
+    """
     start, end = np.asarray(start, float), np.asarray(end, float)
     n = len(start)
     if n == 0:
@@ -316,7 +514,24 @@ def tube_mesh(start, end, r0, r1, sides=8):
 
 
 def leaf_quads(leaves: Leaves):
-    """Vertices/faces of one quad (blade length x 0.6 width) per leaf."""
+    """Vertices/faces of one quad (blade length x 0.6 blade length wide) per leaf.
+
+    The quad lies in the blade plane (normal ``leaves.normal``), its long axis along
+    ``leaves.up`` (made perpendicular to the normal) or an arbitrary in-plane axis when the
+    leaves have no ``up``.
+
+    Parameters
+    ----------
+    leaves : Leaves
+        The leaves (centre, normal, size [m]).
+
+    Returns
+    -------
+    verts : numpy.ndarray
+        (4 m, 3) vertices [m].
+    faces : numpy.ndarray
+        (2 m, 3) int triangle vertex indices.
+    """
     n = len(leaves)
     nrm = leaves.normal / np.maximum(np.linalg.norm(leaves.normal, axis=1, keepdims=True), 1e-30)
     if leaves.up is not None:

@@ -30,8 +30,25 @@ TAU_STOP = 20.7
 
 
 def sky_rays(azimuths: int = 12, elevations: int = 3):
-    """(directions (k, 3), weights (k,)) of the paper's sky sampling: ``azimuths`` x
-    ``elevations`` rays at the centres of equal-angle bands, weighted by solid angle (sum 1)."""
+    """Directions and weights of the paper's sky sampling.
+
+    ``azimuths`` x ``elevations`` rays at the centres of equal-angle bands (elevation 0..90°),
+    weighted by the solid angle of their band (sum 1); +y up, azimuth 0 towards -z.
+
+    Parameters
+    ----------
+    azimuths : int, optional
+        Rays per elevation band (default 12).
+    elevations : int, optional
+        Elevation bands (default 3: centres at 15°, 45°, 75°).
+
+    Returns
+    -------
+    directions : numpy.ndarray
+        (k, 3) unit ray directions [-], k = azimuths x elevations, elevation-major.
+    weights : numpy.ndarray
+        (k,) weights [-], summing to 1.
+    """
     e0 = np.arange(elevations) * (math.pi / 2) / elevations
     e1 = e0 + (math.pi / 2) / elevations
     ec = 0.5 * (e0 + e1)
@@ -43,9 +60,29 @@ def sky_rays(azimuths: int = 12, elevations: int = 3):
 
 
 def dda_start(q, d, h=1.0):
-    """Start of a 3D-DDA walk (Amanatides & Woo) from q (in cell units) along unit directions d
-    in cells of side h [m]: the cell (ix, iy, iz), the step signs, the ray length per cell
-    along each axis (td) and to the first boundary on each axis (tm)."""
+    """Start of a 3D-DDA walk (Amanatides & Woo) from ``q`` along unit directions ``d``.
+
+    Parameters
+    ----------
+    q : mi.Point3f
+        Ray origins in cell units (position relative to the grid corner / cell size) [-].
+    d : mi.Vector3f
+        Unit ray directions [-].
+    h : float or mi.Float, optional
+        Cell side [m] (default 1: distances in cell units).
+
+    Returns
+    -------
+    cell : tuple of mi.Int32
+        The start cell (ix, iy, iz).
+    step : tuple of mi.Int32
+        The step signs (+1 / -1) on each axis.
+    td : list of mi.Float
+        Ray length per cell along each axis (in the unit of ``h``; 1e30 for an axis the ray is
+        parallel to).
+    tm : list of mi.Float
+        Ray length to the first cell boundary on each axis (same unit).
+    """
     ix, iy, iz = (mi.Int32(dr.floor(c)) for c in (q.x, q.y, q.z))
     sx, sy, sz = (dr.select(c > 0, mi.Int32(1), mi.Int32(-1)) for c in (d.x, d.y, d.z))
     big = mi.Float(1e30)
@@ -56,8 +93,30 @@ def dda_start(q, d, h=1.0):
 
 
 def dda_advance(i, s, td, tm, active=True):
-    """One step of the walk of :func:`dda_start`: where ``active``, move to the neighbour cell
-    across the nearest boundary. Returns the new cell and distances to the next boundaries."""
+    """One step of the walk of :func:`dda_start`.
+
+    Where ``active``, move to the neighbour cell across the nearest boundary.
+
+    Parameters
+    ----------
+    i : tuple of mi.Int32
+        Current cell (ix, iy, iz).
+    s : tuple of mi.Int32
+        Step signs of :func:`dda_start`.
+    td : tuple of mi.Float
+        Ray length per cell along each axis.
+    tm : tuple of mi.Float
+        Ray length to the next boundary on each axis.
+    active : bool or mi.Bool, optional
+        Lanes that step (default True: all).
+
+    Returns
+    -------
+    cell : tuple of mi.Int32
+        The new cell (ix, iy, iz).
+    tm : tuple of mi.Float
+        Ray lengths to the next boundaries on each axis.
+    """
     (ix, iy, iz), (sx, sy, sz), (tdx, tdy, tdz), (tmx, tmy, tmz) = i, s, td, tm
     bx = active & (tmx <= tmy) & (tmx <= tmz)
     by = active & ~bx & (tmy <= tmz)
@@ -103,14 +162,47 @@ class VoxelSpace:
 
     @property
     def shape(self):
+        """Grid shape (nx, ny, nz)."""
         return self.tau.shape
 
     @staticmethod
     def build(leaf_points, size: float = 0.5, shading=0.3, env=None, bounds=None,
               margin: int = 2, max_voxels: int = 20_000_000) -> "VoxelSpace":
-        """Voxels covering ``leaf_points`` (n, 3) [m] (and ``bounds`` (lo, hi), and the
-        obstacles of ``env`` near them), each point removing the fraction ``shading`` (one
-        value, or one per point) of the light crossing its voxel along a voxel edge."""
+        """Voxels covering ``leaf_points`` (and ``bounds``, and the obstacles of ``env`` near them).
+
+        Each point removes the fraction ``shading`` of the light crossing its voxel along a voxel
+        edge (optical depth ``-ln(1 - s)`` per point); obstacle voxels are opaque
+        (``OPAQUE_TAU``). Obstacles count from the lowest leaf point up to their top, within the
+        horizontal reach of the lowest (15°) rays; ``margin`` voxels are added on every side.
+
+        Parameters
+        ----------
+        leaf_points : array_like
+            (n, 3) leaf (branch tip) positions [m].
+        size : float, optional
+            Voxel side [m] (default 0.5); > 0.
+        shading : float or array_like, optional
+            Fraction ``s`` of the light removed per point [-], one value or one per point, each in
+            [0, 1) (default 0.3).
+        env : mitsuba_veg.trees.environment.Environment, optional
+            Obstacles, as opaque voxels (default None: none).
+        bounds : tuple of array_like, optional
+            (lo, hi), each (3,) [m], a box the grid must also cover (default None).
+        margin : int, optional
+            Extra voxels on every side (default 2).
+        max_voxels : int, optional
+            Largest allowed voxel count (default 20,000,000).
+
+        Returns
+        -------
+        VoxelSpace
+            The grid, with ``stats`` (``voxels``, ``leaf_points``).
+
+        Raises
+        ------
+        ParameterError
+            If ``size`` <= 0, a shading is outside [0, 1) or the grid would exceed ``max_voxels``.
+        """
         check_range("voxel_size", size, 0.0, None, lo_open=True)
         sh = np.asarray(shading, float)
         if sh.ndim == 0:
@@ -158,8 +250,23 @@ class VoxelSpace:
 
     # ---- light -------------------------------------------------------------------------------
     def optical_depth(self, points, directions):
-        """Optical depth [-] from every point (n, 3) [m] along every unit direction (k, 3)
-        to the grid's boundary: (n, k) array, one DDA kernel for all n x k rays."""
+        """Optical depth [-] from every point along every direction to the grid's boundary.
+
+        One DDA kernel for all n x k rays; a ray stops once its depth exceeds ``TAU_STOP``.
+        Updates ``stats`` (``rays``, ``dda_steps``).
+
+        Parameters
+        ----------
+        points : array_like
+            (n, 3) ray origins [m].
+        directions : array_like
+            (k, 3) unit directions [-].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, k) optical depths [-].
+        """
         pts = np.asarray(points, float).reshape(-1, 3)
         D = np.asarray(directions, float).reshape(-1, 3)
         n, k = len(pts), len(D)
@@ -184,7 +291,25 @@ class VoxelSpace:
         return np.asarray(tau, np.float64).reshape(n, k)
 
     def light(self, points, azimuths: int = 12, elevations: int = 3) -> np.ndarray:
-        """Sky light (open sky = 1) at ``points`` (n, 3) [m] from 36 (default) rays each."""
+        """Sky light (open sky = 1) at ``points`` from 36 (default) rays each.
+
+        ``light = Σ_rays w_ray exp(-τ_ray)`` (:func:`sky_rays` weights); points inside an obstacle
+        voxel get 0. Updates ``stats["light_s"]`` [s].
+
+        Parameters
+        ----------
+        points : array_like
+            (n, 3) points [m].
+        azimuths : int, optional
+            Rays per elevation band (default 12).
+        elevations : int, optional
+            Elevation bands (default 3).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) light [-] in [0, 1].
+        """
         t0 = time.perf_counter()
         pts = np.asarray(points, float).reshape(-1, 3)
         if len(pts) == 0:
@@ -202,18 +327,54 @@ class VoxelSpace:
         return out
 
     def centers(self) -> np.ndarray:
+        """Centres of all voxels, x-major (index ix ny nz + iy nz + iz).
+
+        Returns
+        -------
+        numpy.ndarray
+            (nx ny nz, 3) voxel centres [m].
+        """
         nx, ny, nz = self.shape
         ix, iy, iz = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         return self.origin + (np.stack([ix, iy, iz], -1).reshape(-1, 3) + 0.5) * self.size
 
     def light_field(self, **kw) -> np.ndarray:
-        """Light at every voxel centre, (nx, ny, nz)."""
+        """Light at every voxel centre.
+
+        Parameters
+        ----------
+        **kw : dict
+            Keyword arguments of :meth:`light` (``azimuths``, ``elevations``).
+
+        Returns
+        -------
+        numpy.ndarray
+            (nx, ny, nz) light [-] (open sky = 1).
+        """
         return self.light(self.centers(), **kw).reshape(self.shape)
 
 
 def gradient_sampler(field: np.ndarray, origin, size):
-    """A function points (n, 3) -> trilinear interpolation of the finite-difference gradient of
-    ``field`` (on voxel centres) [field units per m]; zero outside the grid."""
+    """A sampler of the gradient of a field given on voxel centres.
+
+    The returned function maps points (n, 3) [m] to the trilinear interpolation of the
+    finite-difference gradient of ``field`` [field units per m]; zero outside the grid of voxel
+    centres (and everywhere for a grid one voxel thick along some axis).
+
+    Parameters
+    ----------
+    field : numpy.ndarray
+        (nx, ny, nz) values on voxel centres (e.g. :meth:`VoxelSpace.light_field`).
+    origin : array_like
+        (3,) corner of the grid [m].
+    size : float
+        Voxel side [m].
+
+    Returns
+    -------
+    callable
+        ``sample(points) -> (n, 3)`` gradient [field units per m].
+    """
     g = np.stack(np.gradient(field, size), -1) if min(field.shape) > 1 else \
         np.zeros(field.shape + (3,))
     origin = np.asarray(origin, float)

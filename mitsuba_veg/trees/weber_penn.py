@@ -156,23 +156,98 @@ class WeberPennParams:
         raise KeyError(key)
 
     def lv(self, key: str, level: int):
-        """Per-level parameter ``nKey`` for level ``level`` (levels >= 3 reuse level 3)."""
+        """Per-level parameter ``nKey`` for level ``level`` (levels >= 3 reuse level 3).
+
+        Parameters
+        ----------
+        key : str
+            Level parameter name without its level prefix (e.g. ``"DownAngle"``).
+        level : int
+            Branching level (0 = trunk).
+
+        Returns
+        -------
+        float or int
+            The value (angles [degrees], lengths as fractions of the parent [-]).
+        """
         return self.levels[key][min(int(level), 3)]
 
     def kn(self, key: str, level: int):
+        """Per-level knot parameter ``key`` for level ``level`` (levels >= 3 reuse level 3).
+
+        Parameters
+        ----------
+        key : str
+            Knot parameter name (e.g. ``"KnotRate"``, ``"Contraction"``).
+        level : int
+            Branching level of the parent (0 = trunk).
+
+        Returns
+        -------
+        float
+            The value (see :mod:`mitsuba_veg.trees.knots` for meanings; mostly [-]).
+        """
         return self.knots[key][min(int(level), 3)]
 
     def copy(self) -> "WeberPennParams":
+        """A deep copy of the parameters.
+
+        Returns
+        -------
+        WeberPennParams
+            The copy.
+        """
         return copy.deepcopy(self)
 
     def updated(self, values: dict | None = None, source=None, **kw) -> "WeberPennParams":
-        """A copy with ``values`` applied (flat or sectioned keys, see :func:`load_params`)."""
+        """A validated copy with ``values`` applied (flat or sectioned keys, :func:`load_params`).
+
+        Parameters
+        ----------
+        values : dict, optional
+            Parameter values, sectioned (``params``, ``levels``, ``knots``, ``junction``) or flat
+            with Weber-Penn names (default None: none).
+        source : str, optional
+            Where the values came from, named in errors (default None).
+        **kw : dict
+            More flat parameter values (applied after ``values``).
+
+        Returns
+        -------
+        WeberPennParams
+            The updated copy.
+
+        Raises
+        ------
+        ParameterError
+            For an unknown name or a value out of range.
+        """
         out = self.copy()
         _apply(out, dict(values or {}) | kw, source)
         out.validate(source)
         return out
 
     def validate(self, source=None):
+        """Check every parameter's range and normalise integer ones, in place.
+
+        Also checks the knot options and that ``ContractionV < Contraction`` and
+        ``DensityV < Density`` on every level (the denominators of eqs 3.1 and 3.4 stay positive).
+
+        Parameters
+        ----------
+        source : str, optional
+            Where the values came from, named in errors (default None).
+
+        Returns
+        -------
+        WeberPennParams
+            ``self``, for chaining.
+
+        Raises
+        ------
+        ParameterError
+            For a value out of range (see docs/weber_penn.md).
+        """
         for k, v in self.params.items():
             self.params[k] = _check(k, v, source)
         for k, vals in self.levels.items():
@@ -203,6 +278,14 @@ class WeberPennParams:
         return self
 
     def to_dict(self) -> dict:
+        """The parameters as a sectioned dict (as in the preset files).
+
+        Returns
+        -------
+        dict
+            ``model`` ("weber_penn"), ``name``, ``source``, ``params``, ``levels``, ``knots``,
+            ``junction`` (copies).
+        """
         return {"model": "weber_penn", "name": self.name, "source": self.source,
                 "params": dict(self.params), "levels": copy.deepcopy(self.levels),
                 "knots": copy.deepcopy(self.knots), "junction": dict(self.junction)}
@@ -275,7 +358,23 @@ def _apply_one(p, k, v, source, hint=None):
 
 
 def preset_path(name: str) -> Path:
-    """Path of the TOML file of a shipped preset."""
+    """Path of the TOML file of a shipped preset.
+
+    Parameters
+    ----------
+    name : str
+        A preset name from :data:`PRESETS`.
+
+    Returns
+    -------
+    pathlib.Path
+        The preset file (under ``mitsuba_veg/data/weber_penn``).
+
+    Raises
+    ------
+    ParameterError
+        For an unknown name or a missing preset file.
+    """
     if name not in PRESETS:
         raise ParameterError("preset", name, "one of " + ", ".join(PRESETS),
                              "use a shipped preset name or pass a parameter dict / TOML path")
@@ -294,6 +393,22 @@ def load_params(preset_or_params="quaking_aspen") -> WeberPennParams:
     ``junction``; optional ``preset`` to start from and ``model = "weber_penn"``) or flat with
     Weber-Penn names (``"Shape": 2``, ``"1Length": 0.4``, ``"Length": [1, 0.3, 0.6, 0]``,
     ``"KnotRate": 0.2``, ``"Du": 4``). Unknown names raise :class:`ParameterError`.
+
+    Parameters
+    ----------
+    preset_or_params : str, pathlib.Path, dict or WeberPennParams, optional
+        The parameters (default ``"quaking_aspen"``); a WeberPennParams is copied.
+
+    Returns
+    -------
+    WeberPennParams
+        The validated parameters.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown preset, a missing or invalid TOML file, an unknown name or a value out
+        of range.
     """
     obj = preset_or_params
     if isinstance(obj, WeberPennParams):
@@ -352,6 +467,29 @@ def shape_ratio(shape, ratio, *, prune_width_peak=0.5, prune_power_low=0.5, prun
 
     ``ratio`` may be an array. The envelope branch is kept as printed: for PruneWidthPeak != 0.5
     it jumps at ratio = 1 - PruneWidthPeak (docs/deviations.md).
+
+    Parameters
+    ----------
+    shape : int
+        Shape number 0..8 (table above).
+    ratio : float or array_like
+        Position ratio [-] (0..1 along the stem or height).
+    prune_width_peak : float, optional
+        ``PruneWidthPeak`` [-], in [0, 0.999] (envelope only; default 0.5).
+    prune_power_low : float, optional
+        ``PrunePowerLow`` [-] (envelope only; default 0.5).
+    prune_power_high : float, optional
+        ``PrunePowerHigh`` [-] (envelope only; default 0.5).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        ShapeRatio [-]: a float for a scalar ``ratio``, else an array of its shape.
+
+    Raises
+    ------
+    ParameterError
+        If ``shape`` is not an integer 0..8 (or ``prune_width_peak`` out of range).
     """
     try:
         s = int(shape)
@@ -418,8 +556,25 @@ def _unit(v):
 def taper_radius(r0, length, taper, z):
     """Weber & Penn's stem radius at fraction ``z`` (0 base .. 1 tip) for ``nTaper``.
 
-    0 <= taper < 1: linear to ``r0 (1 - taper)``; 1 <= taper < 2: cone (unit taper ``2 - taper``)
-    with a spherical end; 2 <= taper <= 3: periodic spheres of depth ``taper - 2``.
+    0 <= taper < 1: linear to ``r0 (1 - taper)``; 1 <= taper < 2: cone (unit taper
+    ``2 - taper``) with a spherical end; 2 <= taper <= 3: periodic spheres of depth
+    ``taper - 2``.
+
+    Parameters
+    ----------
+    r0 : float or array_like
+        Radius at the stem base [m].
+    length : float or array_like
+        Stem length [m].
+    taper : float or array_like
+        ``nTaper`` [-], in [0, 3].
+    z : float or array_like
+        Position along the stem, fraction 0 (base) .. 1 (tip) [-] (clipped to [0, 1]).
+
+    Returns
+    -------
+    numpy.ndarray
+        Radius [m] (broadcast shape of the inputs).
     """
     r0, length, taper, z = np.broadcast_arrays(*(np.asarray(a, float) for a in (r0, length,
                                                                                taper, z)))
@@ -442,7 +597,20 @@ def taper_radius(r0, length, taper, z):
 
 
 def flare_factor(flare, z):
-    """Trunk flare: ``1 + Flare (100^y - 1)/100`` with ``y = max(0, 1 - 8 z)``."""
+    """Trunk flare: ``1 + Flare (100^y - 1)/100`` with ``y = max(0, 1 - 8 z)``.
+
+    Parameters
+    ----------
+    flare : float
+        ``Flare`` [-] (> -1).
+    z : float or array_like
+        Position along the trunk, fraction 0 (base) .. 1 (tip) [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        Factor on the trunk radius [-] (1 above z = 1/8).
+    """
     y = np.maximum(0.0, 1.0 - 8.0 * np.asarray(z, float))
     return 1.0 + flare * (100.0 ** y - 1.0) / 100.0
 
@@ -1141,17 +1309,34 @@ def generate(preset_or_params="quaking_aspen", seed=0, *, knots: bool | None = N
              overrides: dict | None = None) -> Tree:
     """Grow one Weber-Penn tree.
 
-    ``preset_or_params``: a preset name (:data:`PRESETS`), a TOML path, a dict or a
-    :class:`WeberPennParams`; ``seed``: integer seed (the same seed gives the same tree);
-    ``knots``: grow knots (default: the parameters' ``knots.enabled``); ``overrides``: extra
-    parameter values (flat Weber-Penn names or sections).
+    Per-segment extras in ``tree.attrs``: ``stem`` (stem id), ``attach`` (where on its parent
+    segment a stem starts, 0..1), ``frame_x`` (cross-section reference axis), ``arc`` (distance
+    from the stem base [m]), ``stem_length`` [m], ``stem_radius`` [m], ``dormancy`` (knots),
+    ``sprout`` (branch grown from a knot), ``clone`` (first segment of a split clone),
+    ``lobes``/``lobe_depth`` (trunk). Leaves carry ``attrs["width"]`` [m].
+    ``tree.weber_penn`` records the parameters, seed and counts.
 
-    Returns a :class:`Tree` in metres (+y up, trunk base at the origin). Per-segment extras in
-    ``tree.attrs``: ``stem`` (stem id), ``attach`` (where on its parent segment a stem starts,
-    0..1), ``frame_x`` (cross-section reference axis), ``arc`` (distance from the stem base),
-    ``stem_length``, ``stem_radius``, ``dormancy`` (knots), ``sprout`` (branch grown from a knot),
-    ``clone`` (first segment of a split clone), ``lobes``/``lobe_depth`` (trunk). Leaves carry
-    ``attrs["width"]``. ``tree.weber_penn`` records the parameters, seed and counts.
+    Parameters
+    ----------
+    preset_or_params : str, pathlib.Path, dict or WeberPennParams, optional
+        A preset name (:data:`PRESETS`), a TOML path, a dict or a :class:`WeberPennParams`
+        (default ``"quaking_aspen"``).
+    seed : int or None, optional
+        Integer seed >= 0 (the same seed gives the same tree; default 0); None for a random tree.
+    knots : bool, optional
+        Grow knots (default None: the parameters' ``knots.enabled``).
+    overrides : dict, optional
+        Extra parameter values (flat Weber-Penn names or sections); default None.
+
+    Returns
+    -------
+    Tree
+        The tree in metres (+y up, trunk base at the origin).
+
+    Raises
+    ------
+    ParameterError
+        For invalid parameters or a seed that is not an integer >= 0.
     """
     p = load_params(preset_or_params)
     if overrides:
@@ -1169,14 +1354,55 @@ def generate(preset_or_params="quaking_aspen", seed=0, *, knots: bool | None = N
 
 
 def mesh(tree: Tree, *, smooth: bool = True, **kw):
-    """``(bark, leaves)`` trimesh meshes of a tree (see :func:`junction.tree_mesh`)."""
+    """``(bark, leaves)`` trimesh meshes of a tree (see :func:`junction.tree_mesh`).
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree (e.g. from :func:`generate`).
+    smooth : bool, optional
+        Smooth the junctions with eq 4.2 (paper 004 §4); default True.
+    **kw : dict
+        Further keyword arguments of :func:`~mitsuba_veg.trees.junction.tree_mesh`.
+
+    Returns
+    -------
+    bark : trimesh.Trimesh
+        Bark mesh [m].
+    leaves : trimesh.Trimesh
+        Leaf mesh [m].
+    """
     return tree_mesh(tree, smooth=smooth, **kw)
 
 
 def export(tree: Tree, path, *, smooth: bool = True, **kw) -> list[str]:
-    """Write the bark and leaf meshes: ``.glb``/``.gltf``/``.obj`` hold both (named ``bark``
-    and ``leaves``); ``.ply`` writes ``name.ply`` (bark) and ``name_leaves.ply``. Returns the
-    paths written."""
+    """Write the bark and leaf meshes of a tree.
+
+    ``.glb``/``.gltf``/``.obj`` hold both (named ``bark`` and ``leaves``); ``.ply`` writes
+    ``name.ply`` (bark) and ``name_leaves.ply`` (when the tree has leaves). Parent folders are
+    created.
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree.
+    path : str or pathlib.Path
+        Output file; the extension picks the format.
+    smooth : bool, optional
+        Smooth the junctions (default True).
+    **kw : dict
+        Further keyword arguments of :func:`~mitsuba_veg.trees.junction.tree_mesh`.
+
+    Returns
+    -------
+    list of str
+        The paths written.
+
+    Raises
+    ------
+    ParameterError
+        If the extension is not .ply, .obj, .glb or .gltf.
+    """
     import trimesh
 
     path = Path(path)

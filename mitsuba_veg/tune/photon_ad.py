@@ -8,13 +8,15 @@ carries the product of the albedos it met as a *weight*:
 
     P_0 = s_e w_0 / N,        P_{k+1} = P_k a(e_k),        flux(e) += P_k   for every hit k on e,
 
-with ``w_0`` the emitter's sample weight (the integrator's own ``_emit``, same aim and
+with ``w_0`` the emitter's sample weight (the integrator's own emission: same aim and
 stratification), ``s_e`` a strength factor per emitter, ``a(e)`` the albedo of triangle e
 (grey, Lambertian, the same on both sides) and ``e_k`` the triangle of the k-th hit. Both
 estimators have the same expectation (the integrator's RR keeps P a/q with probability q).
 
 Because the directions do not depend on the albedo (cosine sampling), the geometry of every path
-is traced once (:func:`trace_paths`: triangle and side of each hit, Mitsuba ray casts, no AD) and
+is traced once (:func:`trace_paths`: triangle and side of each hit, no AD) by the integrator's
+own photon kernel in its "weights" mode (``PhotonIrradianceIntegrator.trace_paths``: one
+kernel for the plain and the differentiable pass; this module has no transport loop) and
 the flux is a polynomial in the albedos that :func:`replay` evaluates with Dr.Jit gathers and
 scatter-adds: differentiable in reverse and forward mode w.r.t. per-triangle albedo and emitter
 strength, and exactly the derivative of the Monte-Carlo estimate (common random numbers: a
@@ -26,7 +28,6 @@ normal; the moss model uses front irradiance only. Reflection is two-sided.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import drjit as dr
@@ -68,6 +69,13 @@ class PhotonPaths:
 
     @property
     def nbytes(self) -> int:
+        """Memory of the recorded paths [bytes] (w0 and, per depth, element and side).
+
+        Returns
+        -------
+        int
+            Bytes.
+        """
         return self.photons * (8 + len(self.elem) * 5)
 
 
@@ -88,80 +96,80 @@ def _emitter(scene, emitter):
 
 def trace_paths(scene: mi.Scene, emitter, photons: int, index=None, max_depth: int = 8,
                 seed: int = 0, band=(360.0, 830.0)) -> PhotonPaths:
-    """Trace ``photons`` paths from one emitter and record the hit triangles (no AD).
+    """Trace ``photons`` paths from one emitter and record the hit elements (no AD).
 
-    ``emitter``: an emitter of ``scene`` (object, id or index). ``index``: the
-    :class:`~mitsuba_veg.integrators.photon_irradiance.SceneIndex` of the scene (built if None).
-    ``band`` [nm]: the photon power is the emitter's spectral power integrated over the band (four
-    stratified wavelengths per photon, as the integrator does), so that ``replay`` gives band
-    irradiance [W m-2].
+    The integrator's own kernel in its "weights" mode
+    (:meth:`~mitsuba_veg.integrators.photon_irradiance.PhotonIrradianceIntegrator.trace_paths`):
+    the same emission, intersection and element tables as the plain pass; every photon goes on
+    (cosine-weighted, two-sided) up to ``max_depth`` hits, and the element and side of each
+    hit are recorded, so that :func:`replay` gives the flux for any albedos (module docstring).
+
+    Parameters
+    ----------
+    scene : mi.Scene
+        The scene (loaded with ``optimize=False``).
+    emitter : mi.Emitter or str or int
+        An emitter of ``scene``: the object, its id or its index.
+    photons : int
+        Photons to trace, 16 .. 2^26.
+    index : SceneIndex, optional
+        The :class:`~mitsuba_veg.integrators.photon_irradiance.SceneIndex` of the scene (built
+        if None).
+    max_depth : int
+        Hits per photon, 1 .. 64.
+    seed : int
+        Random seed (same seed, same paths).
+    band : tuple of float
+        (min_nm, max_nm) [nm]: the photon power is the emitter's spectral power integrated over
+        the band (four stratified wavelengths per photon, as the integrator does), so that
+        :func:`replay` gives band flux [W] and :func:`irradiance` band irradiance [W m-2].
+
+    Returns
+    -------
+    PhotonPaths
+        The recorded paths: ``w0`` [W] per photon (Float64), ``elem`` and ``front`` per depth,
+        ``rays`` (ray casts made), ``seconds`` (wall time [s]).
     """
-    import time
-
-
     check_range("photons", photons, 16, 2**26, fix="a photon count such as 200000")
     check_range("max_depth", max_depth, 1, 64)
-    t0 = time.perf_counter()
-    index = SceneIndex.build(scene) if index is None else index
-    em, name = _emitter(scene, emitter)
-    n = int(photons)
-    integ = PhotonIrradianceIntegrator()
-    sampler = mi.load_dict({"type": "independent"})
-    sampler.seed(int(seed) & 0x7FFFFFFF, n)
-    idx = dr.arange(mi.UInt32, n)
-    lo, hi = float(band[0]), float(band[1])
+    try:
+        lo, hi = float(band[0]), float(band[1])
+    except (TypeError, ValueError, IndexError):
+        raise ParameterError("band", band, "(min_nm, max_nm) with 0 < min < max") from None
     if not 0 < lo < hi:
         raise ParameterError("band", band, "(min_nm, max_nm) with 0 < min < max")
-    rng = np.random.default_rng(seed)
-    lam = []
-    for k in range(4):  # stratified wavelengths (golden-ratio sequence, random shift)
-        bits = idx * dr.opaque(mi.UInt32, 2654435769) + \
-            dr.opaque(mi.UInt32, int(rng.integers(0, 2**32)))
-        u = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
-        lam.append(dr.opaque(mi.Float, lo) + dr.opaque(mi.Float, hi - lo) * u)
-    wav = mi.Spectrum(*lam)
-    m = int(math.isqrt(n))
-    o, d, w, time_ = integ._emit(scene, em, index, sampler, wav, mi.Bool(True), strata=(idx, m))
-    wm = (w[0] + w[1] + w[2] + w[3]) * dr.opaque(mi.Float, 0.25 * (hi - lo) / n)
-    wm = dr.select(dr.isfinite(wm), wm, 0.0) * dr.full(mi.Float, 1.0, n)
-    F64 = _f64()
-    w0 = F64(wm)
-    ray = mi.Ray3f(o, d, time_, wav)
-    active = wm > 0
-    dr.eval(w0, ray, active)
-    elems, fronts = [], []
-    rays = 0
-    for _ in range(int(max_depth)):
-        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=False, active=active)
-        hit = active & si.is_valid()
-        sid = dr.reinterpret_array(mi.UInt32, si.shape)
-        e = dr.gather(mi.UInt32, index.lookup, sid, hit) + si.prim_index
-        e = dr.select(hit, e, mi.UInt32(_INVALID))
-        front = hit & (dr.dot(si.n, ray.d) <= 0)
-        # diffuse reflection on the side that was hit (mirrors the integrator's two-sided rule)
-        wi = si.to_local(-ray.d)
-        flip = wi.z < 0
-        wo = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
-        wo = dr.select(flip, mi.Vector3f(wo.x, wo.y, -wo.z), wo)
-        ray = si.spawn_ray(si.to_world(wo))
-        rays += int(dr.count(active)[0]) if dr.width(active) else 0
-        active = hit
-        dr.eval(e, front, ray, active)
-        elems.append(e)
-        fronts.append(front)
-        if not bool(dr.any(active)[0]):
-            break
-    return PhotonPaths(emitter=name, photons=n, max_depth=int(max_depth), band=(lo, hi), w0=w0,
-                       elem=elems, front=fronts, n_elements=index.n_elements,
-                       areas=np.asarray(index.areas, float), seconds=time.perf_counter() - t0,
-                       rays=rays)
+    index = SceneIndex.build(scene) if index is None else index
+    em, name = _emitter(scene, emitter)
+    rec = PhotonIrradianceIntegrator().trace_paths(scene, em, int(photons), seed=int(seed),
+                                                   max_depth=int(max_depth), band=(lo, hi),
+                                                   index=index)
+    return PhotonPaths(emitter=name, photons=rec.photons, max_depth=rec.max_depth,
+                       band=(lo, hi), w0=_f64()(rec.w0), elem=rec.elem, front=rec.front,
+                       n_elements=index.n_elements, areas=np.asarray(index.areas, float),
+                       seconds=rec.seconds, rays=rec.rays)
 
 
 def replay(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
-    """Flux per element [W] of the recorded paths for per-element ``albedo`` (Float64 of width
-    n_elements, may carry gradients) and emitter ``strength`` (a number or width-1 Float64).
+    """Flux per element [W] of the recorded paths for per-element albedos.
 
-    Differentiable with Dr.Jit AD in both modes. ``side``: "front", "back" or "both".
+    P_0 = s_e w_0, flux(e_k) += P_k, P_{k+1} = P_k a(e_k) (module docstring), evaluated with
+    Dr.Jit gathers and scatter-adds: differentiable with Dr.Jit AD in both modes.
+
+    Parameters
+    ----------
+    paths : PhotonPaths
+        Paths from :func:`trace_paths`.
+    albedo : Float64
+        Albedo of every element [-], width ``paths.n_elements`` (may carry gradients).
+    strength : float or Float64
+        Emitter strength factor s_e [-] (a number or a width-1 array, may carry gradients).
+    side : str
+        ``"front"``, ``"back"`` or ``"both"``: the hits recorded.
+
+    Returns
+    -------
+    Float64
+        Flux per element [W] (band power, see :func:`trace_paths`).
     """
     F64 = type(albedo) if dr.is_array_v(albedo) else _f64()
     if side not in ("front", "back", "both"):
@@ -180,7 +188,24 @@ def replay(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
 
 
 def irradiance(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
-    """Irradiance per element [W m-2] = :func:`replay` / element area."""
+    """Irradiance per element [W m-2] = :func:`replay` / element area.
+
+    Parameters
+    ----------
+    paths : PhotonPaths
+        Paths from :func:`trace_paths`.
+    albedo : Float64
+        Albedo of every element [-], width ``paths.n_elements`` (may carry gradients).
+    strength : float or Float64
+        Emitter strength factor [-].
+    side : str
+        ``"front"``, ``"back"`` or ``"both"``.
+
+    Returns
+    -------
+    Float64
+        Irradiance per element [W m-2].
+    """
     F64 = type(albedo) if dr.is_array_v(albedo) else _f64()
     inv_area = F64(1.0 / np.maximum(paths.areas, 1e-30))
     return replay(paths, albedo, strength, side) * inv_area
@@ -188,9 +213,28 @@ def irradiance(paths: PhotonPaths, albedo, strength=1.0, side: str = "front"):
 
 def albedo_array(n_elements: int, base, overrides: dict | None = None, slices: dict | None = None,
                  dtype=None):
-    """Per-element albedo: ``base`` (array or number) with ``{shape_id: value}`` overrides on
-    the elements ``slices[shape_id]`` (values may be Dr.Jit scalars with gradients); ``dtype``
-    the Dr.Jit float type (default Float64)."""
+    """Per-element albedo: ``base`` with ``{shape_id: value}`` overrides.
+
+    Parameters
+    ----------
+    n_elements : int
+        Elements of the scene index.
+    base : float or array_like
+        Albedo of every element [-] (a number or one value per element).
+    overrides : dict, optional
+        ``{shape_id: value}`` albedo [-] of a shape's elements (values may be Dr.Jit scalars
+        with gradients).
+    slices : dict, optional
+        ``{shape_id: slice}`` of the elements of each overridden shape (required with
+        ``overrides``).
+    dtype : type, optional
+        The Dr.Jit float type (default Float64).
+
+    Returns
+    -------
+    Float64
+        Albedo per element [-].
+    """
     F64 = dtype or _f64()
     a = F64(np.broadcast_to(np.asarray(base, float), (n_elements,)).copy())
     if overrides:

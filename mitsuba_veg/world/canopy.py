@@ -19,7 +19,7 @@ triangles), so stage, fall and leaf-out are exact day by day in the light. Verti
 - during leaf-out: blades grow from their centre in steps of 0.1 of their size, and the mesh
   follows when 2 % of the shown leaves have a new blade size or 7 days after the first change
   (:attr:`Canopy.min_change`, :attr:`Canopy.max_lag_days`);
-- when 10 % of the leaves are hidden with their blades still in the mesh
+- when 25 % of the leaves are hidden with their blades still in the mesh
   (:attr:`Canopy.max_hidden_blades`): a photon crossing a hidden blade costs one more ray cast,
   so in autumn, every few days of leaf fall, and for the bare winter the hidden blades are
   collapsed to points.
@@ -39,7 +39,7 @@ from ..foliage.pigments import stage_from_tau
 from ..integrators.photon_irradiance import HIDDEN, SURFACE
 from ..meshes import make_mesh
 
-#: bark reflectance: 0.08 at 400 nm rising to 0.30 at 830 nm (a grey-brown bark)
+#: bark reflectance: 0.07 at 360 nm rising to 0.30 at 830 nm (7 values 78 nm apart; grey-brown)
 _BARK = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
          "values": "0.07, 0.08, 0.11, 0.15, 0.20, 0.26, 0.30"}
 
@@ -115,15 +115,40 @@ class Canopy:
 
     # ---- the scene's shapes -------------------------------------------------------------
     def bin_stage(self, b: int) -> float:
-        """Ishikura stage at the centre of bin ``b`` (1 .. 7)."""
+        """Ishikura stage at the centre of bin ``b`` (1 .. 7).
+
+        Parameters
+        ----------
+        b : int
+            Stage bin, 0 .. bins − 1.
+
+        Returns
+        -------
+        float
+            Stage [-]: 1 + 6 (b + 0.5) / bins (1 with a single bin).
+        """
         return 1.0 + 6.0 * (b + 0.5) / self.bins if self.bins > 1 else 1.0
 
     def shapes(self, full_leaf: bool = False) -> dict:
         """Mitsuba meshes: ``trees_bark`` and ``trees_leaves`` with every blade at full size.
 
         The leaf mesh's own BSDF is the first stage bin's; without the daily tables
-        (:meth:`trace_tables`) every leaf is shown with it, green (``full_leaf``: a summer
-        light study). In the world loop the tables hide the leaves until they are out.
+        (:meth:`trace_tables`) every leaf is shown with it, green (``full_leaf``: a summer light
+        study). In the world loop the tables hide the leaves until they are out. Builds the
+        ``bins`` stage BSDFs (:attr:`stage_bsdfs`) and resets the blades to full size.
+
+        Parameters
+        ----------
+        full_leaf : bool
+            Show every leaf in the daily tables from the start (default False: all hidden until the
+            first :meth:`update`).
+
+        Returns
+        -------
+        dict
+            ``{shape id: mitsuba.Mesh}``: ``trees_bark`` (two-sided diffuse, grey-brown bark
+            reflectance) when any tree has wood, ``trees_leaves`` when any has leaves
+            (vertices [m]).
         """
 
         out = {}
@@ -151,7 +176,18 @@ class Canopy:
 
     # ---- daily update -------------------------------------------------------------------
     def leaf_bins(self, tau: np.ndarray) -> np.ndarray:
-        """Bin of each leaf from its autumn logical time τ (stage 1 + 6 τ)."""
+        """Bin of each leaf from its autumn logical time τ (stage 1 + 6 τ).
+
+        Parameters
+        ----------
+        tau : numpy.ndarray
+            (n_leaves,) autumn logical time τ [-] (clipped to [0, 1]).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_leaves,) stage bin (int) in 0 .. bins − 1.
+        """
         s = stage_from_tau(np.clip(tau, 0.0, 1.0))
         return np.minimum(((s - 1.0) / 6.0 * self.bins).astype(np.int64), self.bins - 1)
 
@@ -216,14 +252,44 @@ class Canopy:
 
     # ---- checkpoints --------------------------------------------------------------------
     def state(self, prefix: str = "canopy_") -> dict:
-        """The mesh's state (blade sizes, update clocks) for a checkpoint: a resumed run must
-        show the same blades and update on the same days as an uninterrupted one."""
+        """The mesh's state (blade sizes, update clocks) for a checkpoint.
+
+        A resumed run must show the same blades and update on the same days as an uninterrupted one.
+
+        Parameters
+        ----------
+        prefix : str
+            Prefix of the keys (default ``"canopy_"``).
+
+        Returns
+        -------
+        dict
+            ``prefix + "scale"``: (n_leaves,) blade size in the mesh [-] (0..1); ``prefix +
+            "clocks"``: (5,) int64 update clocks: days of pending growth, days since the last vertex
+            update, hidden blades still in the mesh at the last count, days that count has not
+            changed, leaf-mesh updates so far.
+        """
         clocks = np.array([self._lag, self._since, self._stale_prev, self._stale_days,
                            self.mesh_updates], np.int64)
         return {prefix + "scale": self._scale.copy(), prefix + "clocks": clocks}
 
     def load_state(self, d: dict, params, prefix: str = "canopy_") -> None:
-        """Restore :meth:`state` (and the blades in the light scene)."""
+        """Restore :meth:`state` (and the blades in the light scene).
+
+        Parameters
+        ----------
+        d : dict
+            A checkpoint holding the keys of :meth:`state`.
+        params : mi.SceneParameters
+            ``mi.traverse`` of the light scene (the blades are written through it when they differ).
+        prefix : str
+            Prefix of the keys (default ``"canopy_"``).
+
+        Raises
+        ------
+        ValueError
+            When the saved blade sizes do not have one value per leaf.
+        """
         scale = np.asarray(d[prefix + "scale"], float)
         if scale.shape != (self.n_leaves,):
             raise ValueError(f"{prefix}scale: {scale.shape} != ({self.n_leaves},)")
@@ -233,8 +299,18 @@ class Canopy:
          self.mesh_updates) = (int(x) for x in np.asarray(d[prefix + "clocks"]))
 
     def trace_tables(self) -> tuple[dict, dict]:
-        """The day's ``modes`` and ``bsdf_override`` for the photon pass (per leaf triangle:
-        HIDDEN unless the leaf is shown; the BSDF of its stage bin)."""
+        """The day's ``modes`` and ``bsdf_override`` for the photon pass.
+
+        Per leaf triangle: HIDDEN unless the leaf is shown, else SURFACE; the BSDF of its stage bin.
+
+        Returns
+        -------
+        modes : dict
+            ``{"trees_leaves": (triangles,) uint32 mode}`` (empty without leaves or before
+            :meth:`shapes`).
+        bsdf_override : dict
+            ``{"trees_leaves": (stage BSDFs, (triangles,) bin index)}`` (empty likewise).
+        """
         if self.n_leaves == 0 or not self.stage_bsdfs:
             return {}, {}
         mode = np.where(self._shown, SURFACE, HIDDEN).astype(np.uint32)[self.face_leaf]
@@ -242,20 +318,51 @@ class Canopy:
                 {LEAF_MESH: (self.stage_bsdfs, self._bin[self.face_leaf])})
 
     def displayed_area(self) -> np.ndarray:
-        """Blade area of each leaf as the light scene shows it now [m2] (0 when hidden)."""
+        """Blade area of each leaf as the light scene shows it now [m2] (0 when hidden).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_leaves,) one-sided blade area [m2]: full area × (blade size in the mesh)².
+        """
         return np.where(self._shown, self.area * self._scale ** 2, 0.0)
 
     # ---- light per leaf -----------------------------------------------------------------
     def leaf_triangle_flux(self, res) -> np.ndarray:
-        """Flux on every leaf triangle from a photon-pass result [W], shape (emitters,
-        triangles, 2 components, 2 sides, bands); :attr:`face_leaf` gives the leaf of each."""
+        """Flux on every leaf triangle from a photon-pass result [W].
+
+        :attr:`face_leaf` gives the leaf of each triangle.
+
+        Parameters
+        ----------
+        res : PhotonIrradianceResult
+            The day's photon pass.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (emitters, triangles, 2 components, 2 sides, bands) [W].
+        """
         if self.n_leaves == 0:
             return np.zeros((len(res.emitters), 0) + res.flux.shape[2:])
         return res.shape_flux(LEAF_MESH)
 
     def leaf_flux(self, tri_flux: np.ndarray) -> np.ndarray:
-        """Flux incident on each leaf [W] from the fluxes of its triangles (rows in the order
-        of :meth:`leaf_slice`, any trailing axes); returns (n_leaves, ...)."""
+        """Flux incident on each leaf [W] from the fluxes of its triangles.
+
+        A leaf's triangles are consecutive in the leaf mesh: one segmented sum.
+
+        Parameters
+        ----------
+        tri_flux : numpy.ndarray
+            (triangles, ...) flux per leaf triangle [W], rows in the leaf mesh's triangle order
+            (:attr:`face_leaf`), any trailing axes.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_leaves, ...) flux per leaf [W].
+        """
         f = np.asarray(tri_flux)
         if self.n_leaves == 0:
             return np.zeros((0,) + f.shape[1:])

@@ -44,6 +44,23 @@ class PhenologyParams:
     fall_sigma: float = 0.1         # log-sd of φ
 
     def validate(self, source: str | None = None) -> "PhenologyParams":
+        """Check every field's range (days of year 1-366, leaf-out 1-180 days, the autumn model's).
+
+        Parameters
+        ----------
+        source : str, optional
+            Scenario file named in the error message.
+
+        Returns
+        -------
+        PhenologyParams
+            ``self``, unchanged.
+
+        Raises
+        ------
+        ParameterError
+            When a field is out of range.
+        """
         check_range("phenology.leaf_out_doy", self.leaf_out_doy, 1, 366, source=source)
         check_range("phenology.leaf_out_days", self.leaf_out_days, 1, 180, source=source)
         check_range("phenology.autumn_onset_doy", self.autumn_onset_doy, 1, 366, source=source)
@@ -51,12 +68,27 @@ class PhenologyParams:
         return self
 
     def autumn(self) -> AutumnParams:
+        """The autumn model's parameters (paper 003 §3.3) of these settings.
+
+        Returns
+        -------
+        AutumnParams
+            ``insolation_full`` [MJ m-2], ``time_weight`` [-], ``days_full`` [days], ``rate_sigma``,
+            ``fall_tau``, ``fall_sigma`` [-] from these fields; leaf fall on, no pigment variation.
+        """
         return AutumnParams(insolation_full=self.insolation_full, time_weight=self.time_weight,
                             days_full=self.days_full, rate_sigma=self.rate_sigma,
                             pigment_sigma=0.0, fall=True, fall_tau=self.fall_tau,
                             fall_sigma=self.fall_sigma)
 
     def to_dict(self) -> dict:
+        """The parameters as a plain dict (``dataclasses.asdict``).
+
+        Returns
+        -------
+        dict
+            Field name -> value (units as in the class).
+        """
         return asdict(self)
 
 
@@ -82,8 +114,17 @@ class Phenology:
 
     # ---- one day ------------------------------------------------------------------------
     def start_of_day(self, date: _dt.date) -> None:
-        """Leaf-out (blade size) for ``date``; a new leaf-out season resets last year's
-        autumn (fallen leaves grow again, green)."""
+        """Leaf-out (blade size) for ``date``.
+
+        Blades grow as a smoothstep of (doy − (leaf_out_doy + shift)) / leaf_out_days; a new
+        leaf-out season (day ``leaf_out_doy``) resets last year's autumn (fallen leaves grow again,
+        green).
+
+        Parameters
+        ----------
+        date : datetime.date
+            The simulated day.
+        """
         p = self.params
         doy = date.timetuple().tm_yday
         x = np.clip((doy - (p.leaf_out_doy + self.shift)) / p.leaf_out_days, 0.0, 1.0)
@@ -99,8 +140,22 @@ class Phenology:
         self.grown = np.where(self.fallen, 0.0, np.maximum(self.grown, x * x * (3 - 2 * x)))
 
     def end_of_day(self, date: _dt.date, insolation_mj: np.ndarray) -> np.ndarray:
-        """Add the day's insolation of each leaf [MJ m-2] (after the autumn onset), update τ and
-        leaf fall. Returns the leaves that fell today (bool)."""
+        """Add the day's insolation of each leaf (after the autumn onset), update τ and leaf fall.
+
+        Only leaves on the tree accumulate, from ``autumn_onset_doy`` until the next leaf-out.
+
+        Parameters
+        ----------
+        date : datetime.date
+            The simulated day.
+        insolation_mj : numpy.ndarray
+            (n,) the day's insolation of each leaf [MJ m-2] (negative values count as 0).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool: the leaves that fell today.
+        """
         doy = date.timetuple().tm_yday
         p = self.params
         autumn = doy >= p.autumn_onset_doy or doy < p.leaf_out_doy
@@ -119,6 +174,7 @@ class Phenology:
     # ---- views --------------------------------------------------------------------------
     @property
     def tau(self) -> np.ndarray:
+        """Autumn logical time τ ∈ [0, 1] per leaf [-] (τ_raw clipped)."""
         return np.clip(self.tau_raw, 0.0, 1.0)
 
     @property
@@ -133,9 +189,38 @@ class Phenology:
 
     # ---- checkpoints --------------------------------------------------------------------
     def to_numpy(self, prefix: str = "phen_") -> dict:
+        """The leaves' state for a checkpoint.
+
+        Parameters
+        ----------
+        prefix : str
+            Prefix of the keys (default ``"phen_"``).
+
+        Returns
+        -------
+        dict
+            ``{prefix + field: (n,) array}`` for :attr:`FIELDS`: H [MJ m-2], t [days], tau_raw [-],
+            fallen (bool), grown [-] (blade size 0..1), rate [-], fall_threshold [-].
+        """
         return {prefix + k: np.asarray(getattr(self, k)) for k in self.FIELDS}
 
     def load_numpy(self, d: dict, prefix: str = "phen_") -> None:
+        """Restore the state saved by :meth:`to_numpy`.
+
+        Parameters
+        ----------
+        d : dict
+            A checkpoint holding the keys of :meth:`to_numpy`.
+        prefix : str
+            Prefix of the keys (default ``"phen_"``).
+
+        Raises
+        ------
+        ValueError
+            When a saved array does not have one value per leaf.
+        KeyError
+            When a field is missing.
+        """
         for k in self.FIELDS:
             v = np.asarray(d[prefix + k])
             if v.shape != (self.n,):

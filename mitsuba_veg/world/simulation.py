@@ -30,10 +30,12 @@ from __future__ import annotations
 
 import functools
 import time
+from types import MappingProxyType
 
 import mitsuba as mi
 import numpy as np
 
+from ..climate import solar_declination
 from ..errors import ParameterError
 from ..foliage import leaf_spectra
 from ..light.photon import band_range
@@ -50,11 +52,27 @@ from .trees import build_trees
 
 @functools.lru_cache(maxsize=1024)
 def band_shapes(latitude: float, day_of_year: int) -> dict:
-    """Band-mean spectral irradiance per W m-2 of broadband (300-4000 nm) irradiance [nm-1] of
-    clear-sky beam and diffuse light at the day's noon sun (SPCTRAL2): ``{"beam": {band: s},
-    "diffuse": {...}}``. Multiplied by a broadband daily mean [W m-2] they give the band-mean
-    spectral irradiance [W m-2 nm-1]."""
-    dec = 23.45 * np.sin(np.radians(360.0 * (284 + day_of_year) / 365.0))
+    """Band-mean spectral irradiance per W m-2 of broadband irradiance [nm-1], beam and diffuse.
+
+    Clear-sky beam and diffuse light (broadband: 300-4000 nm) at the day's noon sun (SPCTRAL2).
+    Multiplied by a broadband daily mean [W m-2] they give the band-mean spectral irradiance
+    [W m-2 nm-1]. The noon elevation is 90° − |latitude − declination| (declination of
+    :func:`mitsuba_veg.climate.solar_declination`, FAO-56), at least 1°. Cached.
+
+    Parameters
+    ----------
+    latitude : float
+        Site latitude [degrees].
+    day_of_year : int
+        Day of the year (1-366).
+
+    Returns
+    -------
+    mapping
+        Read-only ``{"beam": {band: s}, "diffuse": {...}}`` for the bands of
+        :data:`mitsuba_veg.daily.BANDS`, s [nm-1] (0 when the component is 0).
+    """
+    dec = float(np.degrees(solar_declination(day_of_year)))
     el = float(np.clip(90.0 - abs(latitude - dec), 1.0, 90.0))
     s = clear_sky_spectra(el, day_of_year=day_of_year)
     out = {}
@@ -65,7 +83,8 @@ def band_shapes(latitude: float, day_of_year: int) -> dict:
             lo, hi = band_range(b)
             m = (s.wavelengths >= lo) & (s.wavelengths <= hi)
             out[comp][b] = float(arr[m].mean()) / total if total > 0 else 0.0
-    return out
+    # read-only views: the cache hands the same object to every caller
+    return MappingProxyType({k: MappingProxyType(v) for k, v in out.items()})
 
 
 class WorldSimulation(MossSimulation):
@@ -136,6 +155,17 @@ class WorldSimulation(MossSimulation):
 
     # ---- a day --------------------------------------------------------------------------
     def step(self) -> dict:
+        """Simulate one day: the leaves (phenology, canopy tables), then light, soil and moss.
+
+        Returns
+        -------
+        dict
+            The day's record (:meth:`MossSimulation.step`) plus ``trees`` (per tree: leaves,
+            leaves on the tree, mean stage [-], absorbed PAR [W] and the ground under its
+            crown), ``ground_open`` (area [m2], PAR [W m-2], R:FR [-], moss cover [-],
+            S [W m-2], Ts [K], rhs [-]) and, with sensors, ``sensors`` (mean PPFD
+            [µmol m-2 s-1], DLI [mol m-2 d-1], R:FR [-]).
+        """
         t0 = time.perf_counter()
         date = self._date(self.day)
         self.phen.start_of_day(date)
@@ -150,6 +180,29 @@ class WorldSimulation(MossSimulation):
         return super().step()
 
     def light(self, day: int, counts: np.ndarray):
+        """The day's light: one photon pass over terrain, buildings, wood and leaves.
+
+        The parent's pass (:meth:`MossSimulation.light`), then per leaf and per ground
+        triangle the band irradiances [W m-2] (unit-spectrum emitters scaled by the day's beam
+        and diffuse irradiance times :func:`band_shapes`), the leaves' insolation S_leaf
+        [W m-2] (advances the phenology by S_leaf × 86 400 s), and the sensors' readings.
+
+        Parameters
+        ----------
+        day : int
+            Simulated day (0-based).
+        counts : numpy.ndarray
+            Live moss per triangle (its cover sets the albedo).
+
+        Returns
+        -------
+        S : numpy.ndarray
+            Daily-mean insolation per triangle [W m-2].
+        f_sun, f_sky : numpy.ndarray
+            Sun and sky fractions per triangle [-] (per unit horizontal beam and diffuse).
+        res : PhotonIrradianceResult
+            The photon pass.
+        """
         S, f_sun, f_sky, res = super().light(day, counts)
         t0 = time.perf_counter()
         date = self._date(day)
@@ -226,7 +279,16 @@ class WorldSimulation(MossSimulation):
         return sensors_mod.SensorReadings.from_watts(self.sensors, watts).values
 
     def write_sensors(self) -> str | None:
-        """``sensors_daily.csv`` of the run so far (None without sensors): daily means."""
+        """``sensors_daily.csv`` of the run so far: daily means.
+
+        Tidy table (time, sensor, band, component, value, unit): PPFD, red and far-red photon flux
+        densities [µmol m-2 s-1], R:FR [-] and shortwave [W m-2].
+
+        Returns
+        -------
+        str or None
+            The path written; None without sensors (or before the first day).
+        """
         if self.sensors is None or not self.sensor_days:
             return None
         times = [self._date(d).isoformat() for d in range(len(self.sensor_days))]
@@ -324,6 +386,23 @@ class WorldSimulation(MossSimulation):
                                  "same world (its leaves)", f"use --fresh ({e})") from None
 
     def summary(self, resumed=False) -> dict:
+        """The run's summary: the moss loop's, with the world's trees and the sensors.
+
+        Adds ``world`` (trees with model, position [m], leaves, crown radius and centre [m], leaf
+        elements and triangles, leaf-mesh updates, stage bins, phenology, tree build time [s]), the
+        leaves' time per day [s], and ``sensors`` (file, per-sensor mean DLI [mol m-2 d-1] and R:FR
+        [-] of the first 100).
+
+        Parameters
+        ----------
+        resumed : bool
+            Whether the run was resumed from a checkpoint.
+
+        Returns
+        -------
+        dict
+            The summary.
+        """
         s = super().summary(resumed)
         s["world"] = {"trees": [{"name": wt.name, "model": wt.model,
                                  "position": wt.position.tolist(),

@@ -56,19 +56,35 @@ class WorldTree:
 
     @property
     def leaf_centre(self) -> np.ndarray:
+        """(m, 3) centre of each leaf element's blade [m] (mean of its corners)."""
         return self.leaf_vertices.mean(axis=1)
 
     def crown_centre(self) -> np.ndarray:
-        """Horizontal centre (x, z) of the crown [m]: the mean of the leaves (the trunk's base
-        when there are none); a tree beside a wall has it off its trunk."""
+        """Horizontal centre (x, z) of the crown [m].
+
+        The mean of the leaves (the trunk's base when there are none); a tree beside a wall has it
+        off its trunk.
+
+        Returns
+        -------
+        numpy.ndarray
+            (2,) x and z [m].
+        """
         c = self.leaf_centre
         if len(c) == 0:
             return self.position[[0, 2]].astype(float)
         return c[:, [0, 2]].mean(axis=0)
 
     def crown_radius(self) -> float:
-        """Horizontal radius of the crown around its centre [m] (90th percentile of the leaves'
-        distances)."""
+        """Horizontal radius of the crown around its centre [m].
+
+        90th percentile of the leaves' horizontal distances from :meth:`crown_centre`.
+
+        Returns
+        -------
+        float
+            Radius [m] (0 without leaves).
+        """
         c = self.leaf_centre
         if len(c) == 0:
             return 0.0
@@ -109,8 +125,35 @@ def _obstacles(base_scene, built: list[WorldTree]):
 
 def build_trees(entries, base_scene, root: Path, source: str | None = None,
                 progress: bool = False) -> list[WorldTree]:
-    """Build the ``[[trees]]`` entries (already checked against the scenario schema) in order,
-    each in the light of the scene and of the trees before it."""
+    """Build the ``[[trees]]`` entries in order, each in the light of the scene and earlier trees.
+
+    The entries are already checked against the scenario schema (models in the module
+    docstring).
+
+    Parameters
+    ----------
+    entries : list of dict
+        The scenario's ``[[trees]]`` tables (None or empty: no trees).
+    base_scene : mi.Scene
+        The scenario's light scene (terrain, buildings): obstacles of the growth and
+        non-growth models.
+    root : pathlib.Path
+        Folder of the scenario (``file`` / ``leaves_file`` of mesh trees are relative to it).
+    source : str, optional
+        Scenario file named in error messages.
+    progress : bool
+        Progress bar of the growth model (default False).
+
+    Returns
+    -------
+    list of WorldTree
+        One tree per entry, in order.
+
+    Raises
+    ------
+    ParameterError
+        When an entry's model, parameters or mesh file are invalid.
+    """
     out: list[WorldTree] = []
     for i, cfg in enumerate(entries or []):
         name = str(cfg.get("name", f"tree{i}"))
@@ -181,8 +224,24 @@ def _mesh_tree(name, cfg, pos, root: Path, field_, source) -> WorldTree:
 
 
 def scene_with_trees(scenario, scene, bins: int = 4):
-    """``scene`` (the scenario's, with its emitters) plus the scenario's ``[[trees]]`` in full
-    green leaf (for light studies of a world scenario). Returns (scene, tree shape ids)."""
+    """``scene`` plus the scenario's ``[[trees]]`` in full green leaf (light studies of a world).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The loaded scenario (its ``[[trees]]``, folder and path).
+    scene : mi.Scene
+        The scenario's scene, with its emitters.
+    bins : int
+        Autumn-stage bins of the :class:`Canopy` (default 4; all leaves use the first, green).
+
+    Returns
+    -------
+    scene : mi.Scene
+        A new scene with the shapes and emitters of ``scene`` and the trees' meshes.
+    tree_ids : list of str
+        Shape ids of the trees (``trees_bark``, ``trees_leaves``).
+    """
 
     trees = build_trees(scenario.get("trees"), scene, scenario.root, str(scenario.path))
     shapes = Canopy(trees, bins).shapes(full_leaf=True)
