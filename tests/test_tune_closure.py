@@ -84,7 +84,8 @@ def ensemble_20_days(tmp_path_factory):
 def test_near_field_closer_to_discrete_mean(tmp_path, ensemble_20_days):
     report = [10, 20]
     mf, nf = ratios(20, 250_000, tmp_path, report, ensemble_20_days[0])
-    # measured (8 seeds, 250 k photons, SPCTRAL2 sun path): total mean-field 1.035 / 1.187,
+    # measured (8 seeds, 250 k photons, Meinel sun-path weights, before
+    # main's 06870f2; the bounds also held after merging it): total mean-field 1.035 / 1.187,
     # near-field 1.016 / 1.091; under the roof mean-field 0.938 / 1.018, near-field
     # 0.915 / 0.941
     assert np.all(np.abs(nf[:, 0] - 1) < 0.10), nf
@@ -100,7 +101,8 @@ def test_near_field_with_the_runs_light(ensemble_20_days):
     cover, f_sun, f_sky = ensemble_20_days
     rel = relaxed_with_runs_light(20, range(8), f_sun, f_sky)
     r = rel[[9, 19]] / cover.mean(0)[[9, 19]]
-    # measured: total 1.016 / 1.059, under the roof 0.962 / 0.954
+    # measured (Meinel sun-path weights, before main's 06870f2; passed after merging it):
+    # total 1.016 / 1.059, under the roof 0.962 / 0.954
     assert np.all(np.abs(r - 1) < 0.10), r
 
 
@@ -138,7 +140,8 @@ def test_near_field_after_the_capacity_with_the_runs_light(tmp_path):
                                         photons=1_000_000, light_every=15,
                                         overrides=[f"light.seed={s}"]), "near-field")
                    for s in seeds], axis=0)[rep] / disc[rep]
-    # measured (experiments/tune_closure.py --discrete-light / --per-seed on the same runs):
+    # measured (experiments/tune_closure.py --discrete-light / --per-seed on the same runs,
+    # Meinel sun-path weights, before main's 06870f2; this test passed then, not re-run after):
     # runs' light total 1.015-1.048, under the roof 0.899-0.924; own light under the roof
     # 0.718-0.779
     assert np.all(np.abs(runs[:, 0] - 1) < 0.06), runs
@@ -150,7 +153,8 @@ def test_near_field_after_the_capacity_with_the_runs_light(tmp_path):
 def test_near_field_40_days_full_light(tmp_path):
     report = [10, 20, 30, 40]
     mf, nf = ratios(40, 1_000_000, tmp_path, report)
-    # measured (experiments/tune_closure.py --days 40 on the same 8 seeds, SPCTRAL2 sun path):
+    # measured (experiments/tune_closure.py --days 40 on the same 8 seeds, Meinel sun-path
+    # weights, before main's 06870f2):
     # total mean-field 0.988 / 1.088 / 1.227 / 1.273, near-field 0.971 / 1.000 / 1.054 / 1.166;
     # under the roof near-field 0.876 / 0.818 / 0.840 / 0.918 (mean-field 0.898 / 0.886 /
     # 0.943 / 0.949)
