@@ -7,6 +7,17 @@ per region and in total: the discrete mean (and the standard error of the mean) 
 model's ratio to it. The largest deviation per closure over the reported days is printed last.
 
     python experiments/tune_closure.py --ensemble out/tune_ensemble --closures mean-field,near-field
+
+``--discrete-light``: instead of its own up-front photon passes, the relaxed model is run once
+per seed of the ensemble with that run's weather (``light.seed``) and the very light the run
+computed every day (its photon noise and moss albedo included, ``smooth.with_daily_light``),
+and the mean of those relaxed runs is compared: what is left is the life cycle and the spatial
+closure (``--light-mean``: all relaxed runs get the mean of the runs' daily light, so the
+photon noise is averaged away but the moss albedo stays). ``--per-seed``: one relaxed run per seed with that run's weather (the rain days follow
+``light.seed``) and the relaxed model's own light passes. ``--light-check``: only compare the
+runs' daily light with the relaxed model's passes (area means per region and shape, the
+photon noise between runs). ``--save FILE`` keeps the relaxed
+series (npz).
 """
 from __future__ import annotations
 
@@ -23,6 +34,7 @@ sys.path.insert(0, str(ROOT))
 import drjit as dr  # noqa: E402
 
 from mitsuba_veg import tune  # noqa: E402
+from mitsuba_veg.tune import smooth  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -36,16 +48,99 @@ def load_ensemble(folder: Path) -> dict:
     alive = np.array([r["alive"] for r in runs])
     settings = json.loads((folder / "settings.json").read_text())
     return {"n": len(runs), "names": names, "regions": reg, "total": tot, "alive": alive,
-            "settings": settings, "counts": np.array([r["counts"] for r in runs])}
+            "settings": settings, "files": files,
+            "seeds": [int(f.stem.split("_")[1]) for f in files],
+            "propagules": np.array([r["propagules"] for r in runs]),
+            "events": np.array([r["events"] for r in runs])}
 
 
 def relaxed_series(model, params=None) -> dict:
     with dr.suspend_grad():
-        out = model.run(params, record=True)
+        out = model.run(params, record=True, maps_every=1)
     names = sorted(out.history[0]["regions"])
-    return {"regions": np.array([[h["regions"][k] for k in names] for h in out.history]),
-            "total": np.array([h["covered_area_m2"] for h in out.history]),
-            "alive": np.array([h["moss_alive"] for h in out.history]), "names": names}
+    h = out.history
+    data = model.data
+    shapes = sorted(data.shape_slices)
+    cov = np.array([out.maps[d + 1] for d in range(len(h))]) * data.areas     # day, triangle
+    return {"shapes": np.array([[cov[d, data.shape_slices[k]].sum() for k in shapes]
+                                for d in range(len(h))]), "shape_names": shapes,"regions": np.array([[r["regions"][k] for k in names] for r in h]),
+            "total": np.array([r["covered_area_m2"] for r in h]),
+            "alive": np.array([r["moss_alive"] for r in h]),
+            "propagules": np.array([r["propagules"] for r in h]),
+            "germinated": np.array([r["events"]["germinated"] for r in h]),
+            "settled": np.array([r["events"]["settled"] for r in h]), "names": names}
+
+
+def mean_series(series: list) -> dict:
+    """The mean of relaxed series (one per seed)."""
+    out = {k: np.mean([r[k] for r in series], axis=0) for k in series[0]
+           if k not in ("names", "shape_names")}
+    out["names"] = series[0]["names"]
+    out["shape_names"] = series[0]["shape_names"]
+    return out
+
+
+def shape_table(ens: dict, rel: dict, data, every: int, label: str) -> None:
+    """Covered area per shape: discrete mean (from the runs' moss per triangle) / relaxed."""
+    names = rel["shape_names"]
+    cap = data.areas
+    disc = []
+    for f in ens["files"]:
+        c = np.load(f)["counts"][:rel["total"].shape[0]].astype(float)          # day, triangle
+        cov = np.minimum(c * data.cell ** 2, cap)
+        disc.append([[cov[d, data.shape_slices[k]].sum() for k in names]
+                     for d in range(cov.shape[0])])
+    dm = np.mean(disc, 0)
+    print(f"{label}: covered area per shape [m2], discrete mean / relaxed ratio")
+    for d in range(every, dm.shape[0] + 1, every):
+        print(f"{d:4d} " + "  ".join(f"{k} {dm[d - 1, j]:.4f} / "
+                                     f"{rel['shapes'][d - 1, j] / max(dm[d - 1, j], 1e-12):5.3f}"
+                                     for j, k in enumerate(names)))
+
+
+def light_table(ens: dict, data, days=(5, 30, 60, 100, 150, 200, 299)) -> None:
+    """The runs' daily light against the relaxed model's own passes, per region and shape:
+    area means of f_sun and f_sky (mean of the runs / relaxed), the median over triangles of
+    the coefficient of variation of f_sun between the runs, the share of (run, triangle) with
+    no sun photon."""
+    L = data.light
+    a = data.areas
+    groups = dict(data.regions)
+    for k, sl in data.shape_slices.items():
+        m = np.zeros(data.n, bool)
+        m[sl] = True
+        groups[k] = m & data.living
+    print("light: group day: f_sun runs / relaxed (ratio), f_sky runs / relaxed (ratio), "
+          "CV of f_sun between runs, no-sun share")
+    for d in days:
+        if d >= data.days:
+            continue
+        fs = np.array([np.load(f)["f_sun"][d] for f in ens["files"]])
+        fk = np.array([np.load(f)["f_sky"][d] for f in ens["files"]])
+        k0, k1, w = L.weights(d)
+        rs = (1 - w) * L.f_sun[k0] + w * L.f_sun[k1]
+        for g, m in groups.items():
+            am = a[m] / a[m].sum()
+            ds, dk = (fs[:, m] @ am).mean(), (fk[:, m] @ am).mean()
+            r_s, r_k = rs[m] @ am, L.f_sky[m] @ am
+            mu, sd = fs[:, m].mean(0), fs[:, m].std(0)
+            cv = np.median(sd[mu > 0] / mu[mu > 0]) if (mu > 0).any() else float("nan")
+            print(f"  {g:10s} {d:3d}: sun {ds:.4f} / {r_s:.4f} ({r_s / ds:.3f})  sky {dk:.4f} / "
+                  f"{r_k:.4f} ({r_k / dk:.3f})  CV {cv:.2f}  no sun {(fs[:, m] == 0).mean():.2f}")
+
+
+def events_table(ens: dict, rel: dict, every: int, label: str) -> None:
+    """Moss alive, waiting propagules and germinations per day: discrete mean and relaxed."""
+    ev = ens.get("events")
+    if ev is None:
+        return
+    days = ens["total"].shape[1]
+    print(f"{label}: discrete mean / relaxed: moss alive, propagules waiting, germinated a day")
+    for d in range(every, days + 1, every):
+        i = d - 1
+        print(f"{d:4d}  alive {ens['alive'][:, i].mean():8.0f} / {rel['alive'][i]:8.0f}   "
+              f"waiting {ens['propagules'][:, i].mean():7.0f} / {rel['propagules'][i]:7.0f}   "
+              f"germinated {ev[:, i, 0].mean():6.0f} / {rel['germinated'][i]:6.0f}")
 
 
 def compare(ens: dict, rel: dict, every: int, label: str, floor: float = 0.0) -> float:
@@ -92,23 +187,77 @@ def main():
     ap.add_argument("--days", type=int, default=0, help="compare the first days only")
     ap.add_argument("--floor", type=float, default=0.0,
                     help="ignore region-days whose discrete mean is below this [m2]")
+    ap.add_argument("--discrete-light", action="store_true",
+                    help="run the relaxed model per seed with that run's weather and daily light")
+    ap.add_argument("--light-mean", action="store_true",
+                    help="with --discrete-light: every relaxed run gets the mean of the runs' "
+                         "daily light (photon noise averaged over the seeds)")
+    ap.add_argument("--by-shape", action="store_true",
+                    help="also print the covered area per shape (ground, roof, wall ...)")
+    ap.add_argument("--light-check", action="store_true",
+                    help="only compare the runs' daily light with the relaxed model's passes")
+    ap.add_argument("--per-seed", action="store_true",
+                    help="run the relaxed model per seed with that run's weather (own light)")
+    ap.add_argument("--save", default="", help="write the relaxed series to this npz file")
     a = ap.parse_args()
     ens = load_ensemble(Path(a.ensemble))
     st = ens["settings"]
     days = a.days or ens["total"].shape[1]
-    for k in ("regions", "total", "alive"):
+    for k in ("regions", "total", "alive", "propagules", "events"):
         ens[k] = ens[k][:, :days]
     species = st["species"].split(",")
-    data = tune.prepare(SCEN, days=days, species=species, photons=a.photons,
-                        light_every=a.light_every,
-                        overrides=list(st.get("set", [])))
+    over = list(st.get("set", []))
+    if a.light_check:
+        light_table(ens, tune.prepare(SCEN, days=days, species=species, photons=a.photons,
+                                      light_every=a.light_every, overrides=over))
+        return
+    if a.discrete_light or a.per_seed:
+        # one relaxed run per seed: that seed's weather (rain days), and its recorded daily
+        # light (--discrete-light) or the relaxed model's own passes (seeded with it)
+        datas = []
+        for f, s in zip(ens["files"], ens["seeds"]):
+            ov = over + [f"light.seed={s}"]
+            if a.discrete_light:
+                if a.light_mean:
+                    if f == ens["files"][0]:
+                        fs = np.mean([np.load(g)["f_sun"][:days] for g in ens["files"]], 0)
+                        fk = np.mean([np.load(g)["f_sky"][:days] for g in ens["files"]], 0)
+                else:
+                    rec = np.load(f)
+                    fs, fk = rec["f_sun"][:days], rec["f_sky"][:days]
+                base = tune.prepare(SCEN, days=days, species=species, photons=10_000,
+                                    light_every=days, overrides=ov)
+                datas.append(smooth.with_daily_light(base, fs, fk))
+            else:
+                datas.append(tune.prepare(SCEN, days=days, species=species, photons=a.photons,
+                                          light_every=a.light_every, overrides=ov))
+    else:
+        datas = [tune.prepare(SCEN, days=days, species=species, photons=a.photons,
+                              light_every=a.light_every, overrides=over)]
+    saved = {}
     for cl in a.closures.split(","):
         for z in (a.near_cells.split(",") if cl == "near-field" else ["kernel"]):
-            model = tune.SmoothMossModel(data, temperature=a.temperature, closure=cl,
-                                         near_cells=None if z == "kernel" else float(z),
-                                         near_scale=a.near_scale)
+            series = []
+            for data in datas:
+                model = tune.SmoothMossModel(data, temperature=a.temperature, closure=cl,
+                                             near_cells=None if z == "kernel" else float(z),
+                                             near_scale=a.near_scale)
+                series.append(relaxed_series(model))
+            rel = mean_series(series)
             lab = f"{cl}{' z = ' + z if cl == 'near-field' else ''} (t = {a.temperature:g})"
-            compare(ens, relaxed_series(model), a.every, lab, a.floor)
+            if a.discrete_light:
+                lab += f", daily light and weather of the {len(datas)} runs"
+            elif a.per_seed:
+                lab += f", weather of the {len(datas)} runs"
+            compare(ens, rel, a.every, lab, a.floor)
+            events_table(ens, rel, a.every, lab)
+            if a.by_shape:
+                shape_table(ens, rel, datas[0], a.every, lab)
+            for k, v in rel.items():
+                if k not in ("names", "shape_names"):
+                    saved[f"{cl}_{z}_{k}"] = v
+    if a.save:
+        np.savez_compressed(a.save, **saved)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,9 @@
 Runs :class:`mitsuba_veg.daily.MossSimulation` of the moss garden for ``--days`` days with
 ``--photons`` photons a day, once per seed (``light.seed`` = seed: light, rain days, placement
 and dispersal all change), and stores per seed and day the moss per triangle, the region cover,
-the events and the histogram of moss neighbours of the live moss (the clump rule's input), in
+the events, the histogram of moss neighbours of the live moss (the clump rule's input) and the
+day's light (sun and sky fractions f_sun, f_sky per triangle, float32: the relaxed model can be
+driven with the very light of each run, ``tune_closure.py --discrete-light``), in
 ``OUT/seed_<s>.npz``. ``experiments/tune_closure.py`` compares the relaxed model against it.
 
     python experiments/tune_discrete_ensemble.py --seeds 0-7 --days 60 --photons 100000 \
@@ -48,8 +50,11 @@ def run_seed(seed: int, days: int, photons: int, species: list[str], extra=()) -
         sim.setup()
         sim.initialise()
         counts, regions, alive, cover, nbh, ev, prop = [], [], [], [], [], [], []
+        f_sun, f_sky = [], []
         for _ in range(days):
             rec = sim.step()
+            f_sun.append(np.asarray(sim.last["f_sun"], np.float32))
+            f_sky.append(np.asarray(sim.last["f_sky"], np.float32))
             c = sim.counts()
             counts.append(c.astype(np.uint16))
             regions.append([rec["regions"][k] for k in sorted(sim.regions)])
@@ -64,7 +69,8 @@ def run_seed(seed: int, days: int, photons: int, species: list[str], extra=()) -
             nbh.append(np.bincount(np.minimum(nb, 26), minlength=27))
         return {"counts": np.array(counts), "regions": np.array(regions),
                 "region_names": np.array(sorted(sim.regions)), "alive": np.array(alive), "propagules": np.array(prop),
-                "cover": np.array(cover), "events": np.array(ev), "nb_hist": np.array(nbh)}
+                "cover": np.array(cover), "events": np.array(ev), "nb_hist": np.array(nbh),
+                "f_sun": np.array(f_sun), "f_sky": np.array(f_sky)}
 
 
 def main():

@@ -7,7 +7,6 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-import mitsuba_veg  # noqa: F401  (variant)
 from mitsuba_veg.moss.species import SPECIES
 from mitsuba_veg.tune import relax
 from mitsuba_veg.tune.lifecycle import discrete_life_cycle, relaxed_life_cycle
@@ -129,3 +128,38 @@ def test_relaxation_converges_to_the_discrete_life_cycle(environment, discrete):
     assert errs[2]["moss"] < 0.01 and errs[2]["spores"] < 0.01
     assert errs[2]["gemmae_total"] < 0.01 and errs[2]["spores_total"] < 0.01
     assert errs[2]["gemmae"] < 0.05
+
+
+def test_expired_propagules_free_their_spots_the_same_day():
+    """A gemma that fails its last test (age L1 + 1 = 61) is gone before the day's newcomers
+    settle, in the relaxed ring as in ``MossPopulation.live_day`` (the capacity's room)."""
+    import mitsuba as mi
+    from mitsuba_veg.moss.population import GEMMA as KIND_GEMMA, PROPAGULE, MossPopulation, \
+        SpeciesTable
+    from mitsuba_veg.moss.species import PARAMETER_FIELDS
+    from mitsuba_veg.tune.lifecycle import CohortLifeCycle, species_fitness
+    sp = SPECIES["bryum_argenteum"]
+    n, days = 3, 66
+    S = np.full(n, 5000.0, np.float32)        # far above the light range: G ~ 0, no germination
+    Ts, rhs = np.full(n, 290.0, np.float32), np.full(n, 1.0, np.float32)
+    pop = MossPopulation(64, SpeciesTable([sp]))
+    z = mi.Float(np.zeros(n, np.float32))
+    pop.add(PROPAGULE, mi.UInt32(np.zeros(n, np.uint32)), KIND_GEMMA,
+            mi.UInt32(np.arange(n, dtype=np.uint32)), mi.Point3f(z, z, z),
+            mi.Vector3f(z, z, z), 0.0)
+    life = CohortLifeCycle(n, days, 0.0, precision="float64")
+    s = life.seed_propagules(life.empty(), "gemma", np.ones(n))
+    p = {f: float(getattr(sp, f)) for f in PARAMETER_FIELDS}
+    G = species_fitness(p, F64(Ts), F64(rhs), F64(S))
+    disc, rel = [], []
+    for d in range(days):
+        _, _, ev = pop.live_day(mi.Float(S), mi.Float(Ts), mi.Float(rhs))
+        assert ev.germinated == 0
+        disc.append(pop.count(PROPAGULE))
+        s, Gm, Dg, _ = life.live(s, G, p, d)
+        rel.append(float(np.sum(np.asarray(life.waiting(s)))))   # what the day's room sees
+        life.produce(s, Gm, Dg)
+        life.push(s, "gemma", np.zeros(n), d)
+        life.push(s, "spore", np.zeros(n), d)
+    assert disc[59] == n and disc[60] == 0          # tested at age 61 on day 60, then freed
+    assert rel == pytest.approx(disc)

@@ -51,15 +51,39 @@ class Kernel:
 
     @property
     def nnz(self) -> int:
+        """Number of stored (source, destination) pairs.
+
+        Returns
+        -------
+        int
+            The non-zeros of the sparse matrix.
+        """
         return len(self.weight)
 
     def kept(self) -> np.ndarray:
-        """Per source triangle: the fraction of its propagules that land on a living surface."""
+        """Per source triangle: the fraction of its propagules that land on a living surface.
+
+        Returns
+        -------
+        numpy.ndarray
+            (triangles,) fraction [-] (the parent's own spot left out).
+        """
         return np.bincount(self.src, self.weight, minlength=self.n_elements)
 
     def apply(self, produced):
-        """Expected arrivals per element for ``produced`` propagules per element (Dr.Jit Float64,
-        differentiable)."""
+        """Expected arrivals per element for ``produced`` propagules per element.
+
+        Parameters
+        ----------
+        produced : Dr.Jit float array
+            (triangles,) propagules released on each triangle [-] (AD-tracked or not).
+
+        Returns
+        -------
+        Dr.Jit float array
+            (triangles,) expected arrivals ``sum_j K[j -> i] produced_j`` [-], differentiable
+            in ``produced``.
+        """
         t = type(produced)
         if self._dr is None or self._dr[0] is not t:
             u = dr.uint32_array_t(t)
@@ -73,7 +97,24 @@ class Kernel:
 
 def random_points(index, elems: np.ndarray, rng: np.random.Generator):
     """Uniform random points on the given elements (triangles of ``index.geometry``) and their
-    unit normals, as NumPy arrays (n, 3)."""
+    unit normals.
+
+    Parameters
+    ----------
+    index : SceneIndex
+        The photon pass's scene index (its ``geometry``, ``normals`` and shape slices).
+    elems : numpy.ndarray
+        (n,) global element (triangle) indices, one point each.
+    rng : numpy.random.Generator
+        Source of the random numbers.
+
+    Returns
+    -------
+    pts : numpy.ndarray
+        (n, 3) points [m].
+    nrm : numpy.ndarray
+        (n, 3) unit normals of their triangles [-].
+    """
     elems = np.asarray(elems, np.int64)
     u = rng.random((len(elems), 2))
     flip = u.sum(1) > 1
@@ -99,6 +140,37 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
     wins the priority rule), so such landings are left out of K. On the moss garden that is 25 %
     of the gemmae and 42 % of the spores (half of them leave into the cone below the surface and
     stop right at the parent).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        The light scene (propagules are traced against it).
+    index : SceneIndex
+        Its element index (shape lookup, geometry, normals).
+    living : numpy.ndarray
+        (triangles,) bool: where moss may live (sources; landings elsewhere are lost).
+    kind : str
+        ``"gemma"`` or ``"spore"``.
+    distance : float
+        Flight distance k (gemma) or l (spore) of eqs 3.22-3.23 [m].
+    samples : int
+        Releases per living source triangle.
+    seed : int
+        Seed of the NumPy generator.
+    grid : SpotGrid, optional
+        The run's spot grid (own-spot landings left out, ``near_cells`` estimated).
+    batch : int
+        Releases traced at a time.
+
+    Returns
+    -------
+    Kernel
+        The sparse kernel (weights: multiples of 1 / samples).
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``kind``.
     """
     if kind not in ("gemma", "spore"):
         raise ValueError(f"kind must be 'gemma' or 'spore', not {kind!r}")
@@ -152,7 +224,22 @@ def near_cells(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
     """Per source element, the effective number of landing cells 1 / sum_k p_k^2 (p_k: the
     share of its landed propagules in the cell at offset k from the parent's), from the sampled
     landings; sum_k p_k^2 is estimated without bias as (sum n_k^2 - N) / (N (N - 1)). NaN where
-    fewer than two landings (or no repeated cell: then z is large) were sampled."""
+    fewer than two landings (or no repeated cell: then z is large) were sampled.
+
+    Parameters
+    ----------
+    src : numpy.ndarray
+        (landings,) source element of each landed propagule.
+    offset : numpy.ndarray
+        (landings,) code of the landing cell's offset from the parent's cell (17^3 codes).
+    n : int
+        Number of elements.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) effective number of landing cells z [cells] (NaN where not estimable).
+    """
     key = src.astype(np.int64) * (17 ** 3) + offset
     uniq, cnt = np.unique(key, return_counts=True)
     owner = uniq // (17 ** 3)

@@ -53,7 +53,23 @@ SPORE_THRESHOLD = 2.0     # G_moss from which growing moss release spores (popul
 
 
 def real_type(precision: str = "float32"):
-    """The Dr.Jit AD float type of the active backend for ``"float32"`` or ``"float64"``."""
+    """The Dr.Jit AD float type of the active backend for ``"float32"`` or ``"float64"``.
+
+    Parameters
+    ----------
+    precision : str
+        ``"float32"`` or ``"float64"``.
+
+    Returns
+    -------
+    type
+        The Dr.Jit float array type (AD-enabled) of the active Mitsuba variant.
+
+    Raises
+    ------
+    ValueError
+        For another precision.
+    """
     if precision not in ("float32", "float64"):
         raise ValueError(f"precision must be 'float32' or 'float64', not {precision!r}")
     return dr.float64_array_t(mi.Float) if precision == "float64" else dr.float32_array_t(mi.Float)
@@ -73,15 +89,54 @@ class SpeciesState:
     FIELDS = ("n", "B", "K", "cum", "pg", "ps")
 
     def arrays(self) -> list:
+        """The state's arrays in the order of ``FIELDS``.
+
+        Returns
+        -------
+        list
+            ``[n, B, K, cum, pg, ps]`` (Dr.Jit float arrays).
+        """
         return [getattr(self, f) for f in self.FIELDS]
 
     @staticmethod
     def from_arrays(a: list, *sizes) -> "SpeciesState":
+        """The state from its arrays (inverse of :meth:`arrays`).
+
+        Parameters
+        ----------
+        a : list
+            ``[n, B, K, cum, pg, ps]`` (further entries are ignored).
+        *sizes : int
+            Ignored (kept for callers that pass the ring sizes).
+
+        Returns
+        -------
+        SpeciesState
+            The state.
+        """
         return SpeciesState(*a[:6])
 
 
 def species_fitness(p: dict, Ts, rhs, S):
-    """Daily fitness G of eq 3.17 for species parameters ``p`` (numbers or Dr.Jit scalars)."""
+    """Daily fitness G of eq 3.17 for species parameters ``p`` (numbers or Dr.Jit scalars).
+
+    Parameters
+    ----------
+    p : dict
+        Species parameters by name (``T0, T1, nT, rh0, rh1, nrh, S0, S1, nS``; temperatures
+        [K], humidity [-], insolation [W m-2], tolerances [-]).
+    Ts : Dr.Jit float array
+        Surface temperature per element [K].
+    rhs : Dr.Jit float array
+        Surface relative humidity per element [-].
+    S : Dr.Jit float array
+        Daily-mean insolation per element [W m-2].
+
+    Returns
+    -------
+    Dr.Jit float array
+        G per element [-].
+    """
     return fitness(Ts, p["T0"], p["T1"], p["nT"]) * fitness(rhs, p["rh0"], p["rh1"], p["nrh"]) \
         * fitness(S, p["S0"], p["S1"], p["nS"])
 
@@ -114,10 +169,24 @@ class CohortLifeCycle:
 
     @property
     def arrays_per_species(self) -> int:
+        """Arrays in a :class:`SpeciesState`.
+
+        Returns
+        -------
+        int
+            6.
+        """
         return 6
 
     # ---- construction -----------------------------------------------------------------------
     def empty(self) -> SpeciesState:
+        """A species with no moss and no propagules.
+
+        Returns
+        -------
+        SpeciesState
+            Zero arrays (cohorts and ring slots of every element).
+        """
         T, n = self.T, self.n
         st = SpeciesState(dr.zeros(T, n * self.C), dr.zeros(T, n * self.C),
                           dr.zeros(T, n * self.C), dr.zeros(T, n), dr.zeros(T, n * self.Rg),
@@ -130,7 +199,22 @@ class CohortLifeCycle:
 
     def seed_moss(self, s: SpeciesState, density, growth: float) -> SpeciesState:
         """Put ``density`` (per element) of established moss with G_moss = ``growth`` into the
-        initial cohort (c = 0), its gemma counter at floor(growth / 0.5) as in population.py."""
+        initial cohort (c = 0), its gemma counter at floor(growth / 0.5) as in population.py.
+
+        Parameters
+        ----------
+        s : SpeciesState
+            The state (modified and returned).
+        density : array_like or Dr.Jit float array
+            Moss per spot on each element [-].
+        growth : float
+            Their G_moss [-].
+
+        Returns
+        -------
+        SpeciesState
+            ``s``.
+        """
         first = self.slot_C == 0
         s.n = dr.select(first, s.n + dr.repeat(self._arr(density), self.C), s.n)
         s.B = dr.select(first, -float(growth), s.B)
@@ -138,12 +222,45 @@ class CohortLifeCycle:
         return s
 
     def seed_propagules(self, s: SpeciesState, kind: str, density) -> SpeciesState:
-        """Add propagules made yesterday (tested first on day 0, with L = 1)."""
+        """Add propagules made yesterday (tested first on day 0, with L = 1).
+
+        Parameters
+        ----------
+        s : SpeciesState
+            The state (modified and returned).
+        kind : str
+            ``"gemma"`` or ``"spore"``.
+        density : array_like or Dr.Jit float array
+            Propagules per spot on each element [-].
+
+        Returns
+        -------
+        SpeciesState
+            ``s``.
+        """
         return self.push(s, kind, density, -1, add=True)
 
     def push(self, s: SpeciesState, kind: str, density, day: int, add: bool = False):
-        """Store the propagules of ``kind`` made on ``day`` in their ring slot (``add``: add to
-        what is there instead of replacing the slot's old, expired content)."""
+        """Store the propagules of ``kind`` made on ``day`` in their ring slot.
+
+        Parameters
+        ----------
+        s : SpeciesState
+            The state (modified and returned).
+        kind : str
+            ``"gemma"`` or ``"spore"``.
+        density : array_like or Dr.Jit float array
+            Propagules per spot on each element [-].
+        day : int
+            The day they were made (0-based; -1: before the first day).
+        add : bool
+            Add to what the slot holds instead of replacing its old, expired content.
+
+        Returns
+        -------
+        SpeciesState
+            ``s``.
+        """
         if kind == "gemma":
             R, slot, arr = self.Rg, self.slot_g, s.pg
         else:
@@ -159,23 +276,102 @@ class CohortLifeCycle:
 
     # ---- queries ----------------------------------------------------------------------------
     def moss(self, s: SpeciesState):
+        """Moss per spot of each element, all cohorts.
+
+        Parameters
+        ----------
+        s : SpeciesState
+            The state.
+
+        Returns
+        -------
+        Dr.Jit float array
+            (elements,) moss per spot [-].
+        """
         return dr.block_sum(s.n, self.C)
 
     def waiting(self, s: SpeciesState):
+        """Waiting propagules (gemmae and spores) per spot of each element.
+
+        Parameters
+        ----------
+        s : SpeciesState
+            The state.
+
+        Returns
+        -------
+        Dr.Jit float array
+            (elements,) propagules per spot [-].
+        """
         return dr.block_sum(s.pg, self.Rg) + dr.block_sum(s.ps, self.Rs)
 
     def ring(self, R: int, day: int, L0: float, L1: float):
-        """Per slot of a ring of R slots on ``day``: g(L, L0, L1, 1) of eq 3.24 for its age L,
-        as a NumPy array (slot j holds what was made on the latest day b < day, b = j mod R)."""
+        """Per slot of a ring of R slots on ``day``: g(L, L0, L1, 1) of eq 3.24 for its age L
+        (slot j holds what was made on the latest day b < day, b = j mod R).
+
+        Parameters
+        ----------
+        R : int
+            Slots in the ring.
+        day : int
+            The day (0-based).
+        L0, L1 : float
+            Germination window of eq 3.24 [day].
+
+        Returns
+        -------
+        numpy.ndarray
+            (R,) g(L) [-].
+        """
         L = ((day - 1 - np.arange(R)) % R) + 1.0
         return np.asarray(fitness(L, L0, L1, 1.0), float)
+
+    def alive_after(self, R: int, day: int, L1: float):
+        """Per slot of a ring of R slots on ``day``: 1 if what is left there after the
+        germination test may wait on (age L <= L1), 0 if it expires today (L > L1).
+
+        Parameters
+        ----------
+        R : int
+            Slots in the ring.
+        day : int
+            The day (0-based).
+        L1 : float
+            Upper end of the germination window [day].
+
+        Returns
+        -------
+        numpy.ndarray
+            (R,) 0 or 1.
+        """
+        L = ((day - 1 - np.arange(R)) % R) + 1.0
+        return (L <= L1).astype(float)
 
     # ---- the day ----------------------------------------------------------------------------
     def live(self, s: SpeciesState, G, p: dict, day: int):
         """Steps 1-2 of ``day``: germination, the new cohort, growth and death.
 
-        G: the day's fitness per element (eq 3.17); p: species parameters. Returns
-        (new state, G_moss per cohort, G - tau_g per element, germinated per element).
+        Parameters
+        ----------
+        s : SpeciesState
+            The state at the start of the day.
+        G : Dr.Jit float array
+            The day's fitness per element (eq 3.17) [-].
+        p : dict
+            Species parameters by name (``alpha_g, tau_g, tau_b, tau_d`` used here) [-].
+        day : int
+            The day (0-based).
+
+        Returns
+        -------
+        state : SpeciesState
+            The new state.
+        Gm : Dr.Jit float array
+            G_moss per cohort [-].
+        Dg : Dr.Jit float array
+            G - tau_g per element [-] (the sign of the growth D).
+        germinated : Dr.Jit float array
+            Germinated per spot of each element [-].
         """
         T, n, C, t = self.T, self.n, self.C, self.t
         Dg = G - p["tau_g"]                       # D / alpha_g: the sign of D (eq 3.20)
@@ -186,7 +382,10 @@ class CohortLifeCycle:
         gls = dr.tile(T(self.ring(self.Rs, day, SPORE_L0, SPORE_L1)), n)
         germ_g = s.pg * relax.heaviside(dr.repeat(G, self.Rg) * glg - p["tau_b"], t)
         germ_s = s.ps * relax.heaviside(dr.repeat(G, self.Rs) * gls - p["tau_b"], t)
-        pg, ps = s.pg - germ_g, s.ps - germ_s
+        # what failed in the slot of age L1 + 1 has expired: its spots are free *today*, before
+        # the day's newcomers settle (population.py frees them in live_day)
+        pg = (s.pg - germ_g) * dr.tile(T(self.alive_after(self.Rg, day, GEMMA_L1)), n)
+        ps = (s.ps - germ_s) * dr.tile(T(self.alive_after(self.Rs, day, SPORE_L1)), n)
         ngerm = dr.block_sum(germ_g, self.Rg) + dr.block_sum(germ_s, self.Rs)
         # 2. the day's cohort starts at G_moss = 0; then growth (eqs 3.20-3.21) and death
         is_new = self.slot_C == dr.opaque(dr.uint32_array_t(T), 1 + day // self.cohort_days)
@@ -212,8 +411,24 @@ class CohortLifeCycle:
     def produce(self, s: SpeciesState, Gm, Dg, surface=1.0):
         """Steps 3-4: gemmae and spores made per spot of each element (updates ``s.K``).
 
-        surface: per element, the share of moss on the surface of a clump (only those release
-        gemmae; the counter of the others moves on, as in population.py).
+        Parameters
+        ----------
+        s : SpeciesState
+            The state after :meth:`live` (its ``K`` is updated).
+        Gm : Dr.Jit float array
+            G_moss per cohort [-].
+        Dg : Dr.Jit float array
+            G - tau_g per element [-].
+        surface : float or Dr.Jit float array
+            Per element, the share of moss on the surface of a clump [-] (only those release
+            gemmae; the counter of the others moves on, as in population.py).
+
+        Returns
+        -------
+        gemmae : Dr.Jit float array
+            Gemmae made per spot of each element [-].
+        spores : Dr.Jit float array
+            Spores made per spot of each element [-].
         """
         t = self.t
         steps = relax.soft_floor(dr.maximum(Gm, 0.0) * (1.0 / GEMMA_STEP), t / GEMMA_STEP)
@@ -229,9 +444,28 @@ class CohortLifeCycle:
 def relaxed_life_cycle(species, env, start, t: float, growth0: float = 1.0,
                        precision: str = "float64") -> dict:
     """One species on n triangles for the days of ``env`` = (S [W m-2], Ts [K], rhs [-]), each
-    an array [days, n], without space (no landing): ``start`` = (moss, gemmae, spores) per
-    triangle, the moss at G_moss = ``growth0``. Returns per day and triangle the moss alive and
-    the gemmae and spores made (arrays [days, n])."""
+    an array [days, n], without space (no landing).
+
+    Parameters
+    ----------
+    species : Species
+        The species.
+    env : tuple of numpy.ndarray
+        (S [W m-2], Ts [K], rhs [-]), each (days, n).
+    start : tuple of array_like
+        (moss, gemmae, spores) per triangle at the start [-].
+    t : float
+        Temperature of the relaxation [-] (0: exact).
+    growth0 : float
+        G_moss of the initial moss [-].
+    precision : str
+        ``"float32"`` or ``"float64"``.
+
+    Returns
+    -------
+    dict
+        ``moss`` (alive), ``gemmae``, ``spores`` (made): arrays (days, n) [-].
+    """
     (S, Ts, rhs), (m0, g0, s0) = env, start
     days, n = S.shape
     T = real_type(precision)
@@ -257,7 +491,26 @@ def relaxed_life_cycle(species, env, start, t: float, growth0: float = 1.0,
 
 def discrete_life_cycle(species, env, start, growth0: float = 1.0,
                         capacity: int = 4096) -> dict:
-    """The same with the discrete population (``MossPopulation.live_day``, individuals)."""
+    """The same with the discrete population (``MossPopulation.live_day``, individuals).
+
+    Parameters
+    ----------
+    species : Species
+        The species.
+    env : tuple of numpy.ndarray
+        (S [W m-2], Ts [K], rhs [-]), each (days, n).
+    start : tuple of array_like
+        (moss, gemmae, spores) per triangle at the start (integers) [-].
+    growth0 : float
+        G_moss of the initial moss [-].
+    capacity : int
+        Slots of the population.
+
+    Returns
+    -------
+    dict
+        ``moss`` (alive), ``gemmae``, ``spores`` (parents that day): arrays (days, n) [-].
+    """
     (S, Ts, rhs), (m0, g0, s0) = env, start
     days, n = S.shape
     pop = MossPopulation(capacity, SpeciesTable([species]))

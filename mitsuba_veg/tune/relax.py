@@ -34,6 +34,20 @@ def heaviside(x, t, strict: bool = True):
     ``t = 0`` (a Python number) gives the exact indicator as 0/1 of the type of ``x``.
     Evaluated as ``(1 + tanh(x / 2t)) / 2``: no overflow for any ``x / t`` and a smooth
     derivative everywhere.
+
+    Parameters
+    ----------
+    x : Dr.Jit float array
+        The quantity whose sign is tested [-] (units of the fitness G).
+    t : float or Dr.Jit float (width 1)
+        Temperature of the relaxation [-] (same units as ``x``); 0 selects the exact indicator.
+    strict : bool
+        ``[x > 0]`` (True) or ``[x >= 0]`` (False); only matters at t = 0.
+
+    Returns
+    -------
+    Dr.Jit float array
+        ``H_t(x)`` in [0, 1], of the type of ``x``.
     """
     if _is_zero(t):
         m = (x > 0) if strict else (x >= 0)
@@ -48,6 +62,18 @@ def soft_floor(x, t):
     Only the three steps nearest to ``x`` are evaluated (the others are 0 or 1 to within
     ``exp(-1/t)``, i.e. 2e-9 at t = 0.05); ``t = 0`` gives ``floor(x)`` exactly. Steps are at
     k = 1, 2, ... only, so ``soft_floor(0) ~ 0`` (no step sits at the origin).
+
+    Parameters
+    ----------
+    x : Dr.Jit float array
+        Values >= 0 [-].
+    t : float or Dr.Jit float (width 1)
+        Temperature of each step [-] (units of ``x``); 0: the exact ``floor``.
+
+    Returns
+    -------
+    Dr.Jit float array
+        The relaxed ``floor(x)`` [-].
     """
     n = dr.floor(x)
     if _is_zero(t):
@@ -65,6 +91,20 @@ def binomial_tail(p, n: int, k: int):
     Used for the clump rule: a moss is *inside a clump* (no gemmae) when at least k of its
     neighbour cells hold moss; with neighbour cells occupied independently with the moss density
     p of its triangle, that probability is the binomial tail.
+
+    Parameters
+    ----------
+    p : Dr.Jit float array
+        Probability of each trial [-] (clipped to [0, 1]).
+    n : int
+        Number of trials.
+    k : int
+        Smallest number of successes counted.
+
+    Returns
+    -------
+    Dr.Jit float array
+        P(X >= k) [-], of the type of ``p``.
     """
     if k <= 0:
         return dr.full(type(p), 1.0, dr.width(p))
@@ -83,6 +123,16 @@ def settle_fraction(a):
 
     ``a`` propagules landing uniformly on a triangle's spots (Poisson) leave ``1 - exp(-a)`` of
     its free spots taken; each arrival settles with probability ``free * (1 - e^-a) / a``.
+
+    Parameters
+    ----------
+    a : Dr.Jit float array
+        Arrivals per spot [-] (>= 0).
+
+    Returns
+    -------
+    Dr.Jit float array
+        ``(1 - exp(-a)) / a`` [-] (1 at a = 0).
     """
     small = a < 1e-4
     safe = dr.select(small, 1.0, a)

@@ -39,6 +39,7 @@ Usage::
 from __future__ import annotations
 
 import copy
+import dataclasses
 import datetime as _dt
 import time
 from dataclasses import dataclass, field
@@ -59,7 +60,7 @@ from .lifecycle import (GEMMA_STEP, SPORE_THRESHOLD, CohortLifeCycle, SpeciesSta
                         real_type, species_fitness)
 from .photon_ad import PhotonPaths, albedo_array, irradiance, trace_paths
 
-__all__ = ["ModelData", "LightSetup", "prepare", "SmoothMossModel", "State", "SpeciesState",
+__all__ = ["ModelData", "LightSetup", "prepare", "with_daily_light", "SmoothMossModel", "State", "SpeciesState",
            "RunResult", "CLIMATE_PARAMS", "GEMMA_STEP", "SPORE_THRESHOLD", "NEIGHBOUR_CELLS"]
 
 #: spatial closures of :class:`SmoothMossModel` (docs/tuning.md)
@@ -72,6 +73,13 @@ _ALIASES = {"climate.temperature": "T", "climate.humidity": "rh"}
 
 
 def U32():
+    """The Dr.Jit unsigned 32-bit integer array type of the active variant.
+
+    Returns
+    -------
+    type
+        ``UInt32`` matching ``mi.Float``.
+    """
     return dr.uint32_array_t(mi.Float)
 
 
@@ -94,9 +102,25 @@ class LightSetup:
     paths_sky: PhotonPaths | None = None
     photons: int = 0
     seconds: float = 0.0
+    #: per light day, the sky fractions (None: the one ``f_sky`` on every day); set by
+    #: :func:`with_daily_light`
+    f_sky_days: list | None = None
 
     def weights(self, day: int):
-        """(k0, k1, w): day's fractions = (1 - w) f[k0] + w f[k1]."""
+        """Which passes light ``day``, and how they are interpolated.
+
+        Parameters
+        ----------
+        day : int
+            The day (0-based).
+
+        Returns
+        -------
+        k0, k1 : int
+            The passes before and after ``day``.
+        w : float
+            Weight [-]: the day's fractions are (1 - w) f[k0] + w f[k1].
+        """
         ds = self.days
         if day <= ds[0]:
             return 0, 0, 0.0
@@ -104,6 +128,45 @@ class LightSetup:
             if ds[k] <= day <= ds[k + 1]:
                 return k, k + 1, (day - ds[k]) / float(ds[k + 1] - ds[k])
         return len(ds) - 1, len(ds) - 1, 0.0
+
+
+def with_daily_light(data: "ModelData", f_sun, f_sky) -> "ModelData":
+    """A copy of ``data`` whose light is given for every day (e.g. recorded in a discrete run).
+
+    The discrete run makes a new photon pass every day, with its own photon noise and the
+    day's moss albedo; driving the relaxed model with that very light (and the run's weather,
+    ``prepare(..., overrides=["light.seed=<s>"])``) leaves only the life cycle and the spatial
+    closure to compare (``experiments/tune_closure.py --discrete-light``). The light is then a
+    fixed input: albedo and emitter strengths cannot be tuned through it (the emitter
+    strengths still scale it).
+
+    Parameters
+    ----------
+    data : ModelData
+        The prepared scenario (its ``days`` and triangles).
+    f_sun, f_sky : array_like
+        (days, triangles) sun and sky fractions of the unit horizontal beam and diffuse
+        irradiance [-], front side, as ``MossSimulation.light`` returns them.
+
+    Returns
+    -------
+    ModelData
+        A shallow copy with a :class:`LightSetup` holding one pass per day.
+
+    Raises
+    ------
+    ParameterError
+        If the arrays are not (at least ``data.days``, ``data.n``).
+    """
+    f_sun = np.asarray(f_sun, float)
+    f_sky = np.asarray(f_sky, float)
+    for name, a in (("f_sun", f_sun), ("f_sky", f_sky)):
+        if a.ndim != 2 or a.shape[0] < data.days or a.shape[1] != data.n:
+            raise ParameterError(name, a.shape, f"(>= {data.days}, {data.n}) (days, triangles)")
+    days = list(range(data.days))
+    light = LightSetup(days, [f_sun[d] for d in days], f_sky[0], None, None, 0, 0.0,
+                       [f_sky[d] for d in days])
+    return dataclasses.replace(data, light=light)
 
 
 @dataclass
@@ -137,6 +200,13 @@ class ModelData:
 
     @property
     def ground_mask(self) -> np.ndarray:
+        """The triangles of the ground shape (``terrain.ground``).
+
+        Returns
+        -------
+        numpy.ndarray
+            (triangles,) bool.
+        """
         m = np.zeros(self.n, bool)
         gid = self.scenario.get("terrain.ground", "ground")
         if gid in self.shape_slices:
@@ -152,10 +222,37 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     :func:`~mitsuba_veg.daily.prepare_site`, so they are the discrete run's), the
     dispersal kernels and the up-front light.
 
-    species: list of species keys replacing ``moss.species``; photons: per light pass (default
-    the scenario's ``light.photons``); light_every: days between sun-path passes;
-    differentiable_light: keep the photon paths so that albedo and emitter strengths can be
-    tuned (memory: ~ photons x max_depth x 5 bytes per pass).
+    Parameters
+    ----------
+    scenario : Scenario or path-like
+        The scenario, or its TOML file.
+    days : int, optional
+        Days to prepare [d] (default: the scenario's ``simulation.days``).
+    overrides : sequence of str
+        Scenario overrides ``"section.key=value"`` (when ``scenario`` is a path); the weather
+        (rain days) follows ``light.seed`` as in the discrete run.
+    species : list of str, optional
+        Species keys replacing ``moss.species``.
+    photons : int, optional
+        Photons per light pass (default: the scenario's ``light.photons``).
+    light_every : int
+        Days between sun-path passes [d] (interpolated linearly in between).
+    max_depth : int, optional
+        Path depth of the passes (default: the scenario's ``light.max_depth``).
+    kernel_samples : tuple of int
+        Releases per living triangle for the (gemma, spore) dispersal kernels.
+    differentiable_light : bool
+        Keep the photon paths so that albedo and emitter strengths can be tuned (memory:
+        ~ photons x max_depth x 5 bytes per pass).
+    seed : int, optional
+        Seed of the kernels and passes (default: the scenario's ``light.seed``).
+    progress : bool
+        Show a progress bar over the passes.
+
+    Returns
+    -------
+    ModelData
+        Everything the relaxed model needs.
     """
 
     t0 = time.perf_counter()
@@ -241,6 +338,13 @@ class State:
     pair: object = None       # (n_el) near-field closure: neighbour-pair density (or None)
 
     def arrays(self) -> list:
+        """All state arrays: O, each species' (:meth:`SpeciesState.arrays`), the pairs if any.
+
+        Returns
+        -------
+        list
+            Dr.Jit float arrays.
+        """
         out = [self.O]
         for s in self.species:
             out += s.arrays()
@@ -249,6 +353,20 @@ class State:
         return out
 
     def with_arrays(self, arrays, day=None) -> "State":
+        """A state of this layout from arrays (inverse of :meth:`arrays`).
+
+        Parameters
+        ----------
+        arrays : list
+            As :meth:`arrays` returns them.
+        day : int, optional
+            Days done (default: this state's).
+
+        Returns
+        -------
+        State
+            The new state.
+        """
         k = self.per_species
         n_sp = len(self.species)
         sp = [SpeciesState.from_arrays(arrays[1 + k * i:1 + k * (i + 1)])
@@ -257,11 +375,25 @@ class State:
         return State(self.day if day is None else day, arrays[0], sp, k, pair)
 
     def detached(self) -> "State":
+        """A copy without gradient tracking (opaque arrays).
+
+        Returns
+        -------
+        State
+            The detached state.
+        """
         arr = [dr.detach(a) for a in self.arrays()]
         dr.make_opaque(arr)  # literals (e.g. zero slots) must not enter kernels as constants
         return self.with_arrays(arr)
 
     def nbytes(self) -> int:
+        """Memory held by the state's arrays.
+
+        Returns
+        -------
+        int
+            Bytes.
+        """
         return sum(dr.width(a) * (8 if dr.type_v(a) == dr.VarType.Float64 else 4)
                    for a in self.arrays())
 
@@ -278,6 +410,20 @@ class RunResult:
     seconds: float = 0.0
 
     def covered_area(self, data: ModelData, mask=None) -> float:
+        """Covered area of the run's end.
+
+        Parameters
+        ----------
+        data : ModelData
+            The prepared scenario (triangle areas).
+        mask : numpy.ndarray, optional
+            (triangles,) bool: sum over these only.
+
+        Returns
+        -------
+        float
+            Covered area [m2].
+        """
         c = np.asarray(self.cover) * data.areas
         return float(c[mask].sum() if mask is not None else c.sum())
 
@@ -380,7 +526,14 @@ class SmoothMossModel:
 
     # ---- parameters -------------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
-        """Names accepted in ``params`` (see :meth:`resolve`)."""
+        """Names accepted in ``params`` (see :meth:`resolve`).
+
+        Returns
+        -------
+        list of str
+            Species parameters (``<species>.<field>``, and ``<field>`` with one species),
+            climate (``T``, ``rh``), ``albedo.<shape>``, ``strength.sun``/``strength.sky``.
+        """
         names = []
         for k in self.data.species_keys:
             names += [f"{k}.{f}" for f in PARAMETER_FIELDS]
@@ -416,7 +569,18 @@ class SmoothMossModel:
         raise ParameterError("params", name, "one of " + ", ".join(self.parameter_names()))
 
     def default_value(self, name: str) -> float:
-        """The scenario's value of a parameter."""
+        """The scenario's value of a parameter.
+
+        Parameters
+        ----------
+        name : str
+            A name of :meth:`parameter_names`.
+
+        Returns
+        -------
+        float
+            Its value in the scenario (units of the parameter).
+        """
         c = self._canonical(name)
         if c[0] == "climate":
             return float(getattr(self.data.climate, CLIMATE_PARAMS[c[1]]))
@@ -427,6 +591,24 @@ class SmoothMossModel:
         return float(getattr(self.data.species[c[1]], c[2]))
 
     def resolve(self, params: dict | None) -> Resolved:
+        """Species, climate, albedo and emitter values for one evaluation.
+
+        Parameters
+        ----------
+        params : dict or None
+            ``{name: value}`` overriding the scenario's values (numbers, or width-1 Dr.Jit
+            floats with gradients).
+
+        Returns
+        -------
+        Resolved
+            The values (numbers become opaque Dr.Jit scalars: no recompilation).
+
+        Raises
+        ------
+        ParameterError
+            For an unknown name.
+        """
         sp = [{f: float(getattr(s, f)) for f in PARAMETER_FIELDS} for s in self.data.species]
         dT, drh, albedo, strength = 0.0, 0.0, {}, {}
         for name, v in (params or {}).items():
@@ -449,12 +631,30 @@ class SmoothMossModel:
 
     # ---- light ------------------------------------------------------------------------------
     def light(self, P: Resolved):
-        """(list of f_sun per light day, f_sky) as Float64 arrays; differentiable w.r.t. albedo
-        (replays of the recorded paths) and emitter strengths."""
+        """The sun and sky fractions, differentiable w.r.t. albedo (replays of the recorded
+        paths) and emitter strengths.
+
+        Parameters
+        ----------
+        P : Resolved
+            The evaluation's values.
+
+        Returns
+        -------
+        sun : list
+            f_sun per light day [-] (Dr.Jit float arrays over the triangles).
+        sky : Dr.Jit float array or list
+            f_sky [-] (a list per light day with :func:`with_daily_light`).
+
+        Raises
+        ------
+        ParameterError
+            For albedo parameters without recorded paths.
+        """
         T = self.T
         L = self.data.light
         if P.albedo:
-            if L.paths_sky is None or L.paths_sun is None:
+            if L.paths_sky is None or L.paths_sun is None or L.f_sky_days is not None:
                 raise ParameterError("params", list(P.albedo),
                                      "albedo parameters need prepare(..., "
                                      "differentiable_light=True)")
@@ -467,27 +667,49 @@ class SmoothMossModel:
             sky = irradiance(L.paths_sky, a) / (L.paths_sky.band[1] - L.paths_sky.band[0])
         else:
             sun = [T(f) for f in L.f_sun]
-            sky = T(L.f_sky)
+            sky = T(L.f_sky) if L.f_sky_days is None else [T(f) for f in L.f_sky_days]
         s_sun, s_sky = P.strength.get("sun", 1.0), P.strength.get("sky", 1.0)
         if not (isinstance(s_sun, float) and s_sun == 1.0):
             sun = [f * s_sun for f in sun]
         if not (isinstance(s_sky, float) and s_sky == 1.0):
-            sky = sky * s_sky
+            sky = [f * s_sky for f in sky] if isinstance(sky, list) else sky * s_sky
         return sun, sky
 
     def insolation(self, day: int, light):
-        """S per element on ``day`` [W m-2] (daily mean)."""
+        """S per element on ``day`` (daily mean).
+
+        Parameters
+        ----------
+        day : int
+            The day (0-based).
+        light : tuple
+            (sun, sky) of :meth:`light`.
+
+        Returns
+        -------
+        Dr.Jit float array
+            S = B f_sun + D f_sky per triangle [W m-2].
+        """
         T = self.T
         sun, sky = light
         k0, k1, w = self.data.light.weights(day)
         fs = sun[k0] if k0 == k1 else sun[k0] * dr.opaque(T, 1.0 - w) + sun[k1] * dr.opaque(T, w)
+        if isinstance(sky, list):     # a sky pass per light day (with_daily_light)
+            sky = sky[k0] if k0 == k1 else \
+                sky[k0] * dr.opaque(T, 1.0 - w) + sky[k1] * dr.opaque(T, w)
         wd = self._weather
         return fs * dr.opaque(T, wd["beam"][day]) + sky * dr.opaque(T, wd["diffuse"][day])
 
     # ---- state ------------------------------------------------------------------------------
     def initial_state(self) -> State:
         """Day 0: saturated buckets, the initial moss as expected densities (area-weighted random
-        points, species drawn uniformly: ``initial / n_species`` each, G_moss = initial_growth)."""
+        points, species drawn uniformly: ``initial / n_species`` each, G_moss = initial_growth).
+
+        Returns
+        -------
+        State
+            The state of day 0.
+        """
         T = self.T
         dens = self.initial / self.n_sp * self.area_frac / self.data.M
         sp = [self.life.seed_moss(self.life.empty(), dens, self.initial_growth)
@@ -503,7 +725,30 @@ class SmoothMossModel:
     # ---- one day ----------------------------------------------------------------------------
     def environment(self, st: State, P: Resolved, light):
         """The day's light and soil (eqs 3.2-3.16, bucket 3.6) with the moss density at the start
-        of the day; returns (S, Ts, rhs, theta, O of the next day)."""
+        of the day.
+
+        Parameters
+        ----------
+        st : State
+            The state at the start of the day.
+        P : Resolved
+            The evaluation's values.
+        light : tuple
+            (sun, sky) of :meth:`light`.
+
+        Returns
+        -------
+        S : Dr.Jit float array
+            Insolation [W m-2].
+        Ts : Dr.Jit float array
+            Surface temperature [K].
+        rhs : Dr.Jit float array
+            Surface relative humidity [-].
+        theta : Dr.Jit float array
+            Soil water content at the start of the day [-].
+        O : Dr.Jit float array
+            Bucket water of the next day [mm].
+        """
         T = self.T
         d = st.day
         wd = self._weather
@@ -536,6 +781,22 @@ class SmoothMossModel:
         random placement, w = rho². (Propagules that expire on a day are removed from the ring
         by ``push`` after this update, so their pairs are not thinned; only the clip to
         [rho², rho] on the next day bounds them.)
+
+        Parameters
+        ----------
+        st : State
+            The state at the start of the day.
+        P : Resolved
+            The evaluation's values.
+        light : tuple
+            (sun, sky) of :meth:`light`.
+        record : dict, optional
+            Filled with the day's S, Ts, rhs, theta, moss density and events.
+
+        Returns
+        -------
+        State
+            The state at the end of the day.
         """
         T = self.T
         d, n, M, life = st.day, self.n, self.M, self.life
@@ -647,18 +908,53 @@ class SmoothMossModel:
 
     # ---- outputs ----------------------------------------------------------------------------
     def moss_density(self, st: State):
+        """Moss per spot of each triangle, all species.
+
+        Parameters
+        ----------
+        st : State
+            The state.
+
+        Returns
+        -------
+        Dr.Jit float array
+            (triangles,) moss per spot [-].
+        """
         c = dr.zeros(self.T, self.n)
         for s in st.species:
             c += self.life.moss(s)
         return c
 
     def cover(self, st: State):
-        """Covered fraction of each triangle: min(moss x size², area) / area (as daily/day.py)."""
+        """Covered fraction of each triangle: min(moss x size², area) / area (as daily/day.py).
+
+        Parameters
+        ----------
+        st : State
+            The state.
+
+        Returns
+        -------
+        Dr.Jit float array
+            (triangles,) covered fraction [-].
+        """
         c = self.moss_density(st)
         a = self.areas
         return dr.minimum(c * self.M * self.cell2, a) / a
 
     def propagules(self, st: State):
+        """Waiting propagules per spot of each triangle, all species and kinds.
+
+        Parameters
+        ----------
+        st : State
+            The state.
+
+        Returns
+        -------
+        Dr.Jit float array
+            (triangles,) propagules per spot [-].
+        """
         p = dr.zeros(self.T, self.n)
         for s in st.species:
             p += self.life.waiting(s)
@@ -697,9 +993,33 @@ class SmoothMossModel:
             progress: bool = False) -> RunResult:
         """Run ``days`` days (default the model's) from ``state`` (default day 0).
 
-        params: ``{name: value}`` (numbers, or width-1 Float64 with gradients enabled to
-        differentiate); record: per-day summary like the discrete run's ``days_record``;
-        maps_every: keep per-element cover every so many days (NumPy) in ``maps``.
+        Parameters
+        ----------
+        params : dict, optional
+            ``{name: value}`` (numbers, or width-1 Dr.Jit floats with gradients enabled to
+            differentiate).
+        days : int, optional
+            Days to run [d] (default: to the model's last day).
+        state : State, optional
+            Start state (default: :meth:`initial_state`).
+        record : bool
+            Keep a per-day summary like the discrete run's ``days_record`` in ``history``.
+        maps_every : int
+            Keep the per-triangle cover every so many days (NumPy) in ``maps`` (0: never).
+        light : tuple, optional
+            (sun, sky) of :meth:`light` (default: computed from ``params``).
+        progress : bool
+            Show a progress bar.
+
+        Returns
+        -------
+        RunResult
+            The end state, cover and moss density (AD-tracked), history, maps, seconds.
+
+        Raises
+        ------
+        ParameterError
+            If the run would go past the model's days.
         """
         t0 = time.perf_counter()
         P = self.resolve(params)
