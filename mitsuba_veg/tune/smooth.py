@@ -72,17 +72,6 @@ CLIMATE_PARAMS = {"T": "temperature", "rh": "humidity"}
 _ALIASES = {"climate.temperature": "T", "climate.humidity": "rh"}
 
 
-def U32():
-    """The Dr.Jit unsigned 32-bit integer array type of the active variant.
-
-    Returns
-    -------
-    type
-        ``UInt32`` matching ``mi.Float``.
-    """
-    return dr.uint32_array_t(mi.Float)
-
-
 # ------------------------------------------------------------------------------------------
 # Static inputs from a scenario
 # ------------------------------------------------------------------------------------------
