@@ -8,7 +8,9 @@ the gradient. One parameter at a time from -30 % and +30 % starts, then jointly 
 For T1 the +-30 % is of its range T1 - T0 (25 K). ``--tree X,Z`` adds a 3 m Weber-Penn aspen
 to the scenario and makes the target (and the fit's discrete runs) with WorldSimulation: the
 tree shades the ground; the relaxed surrogate has no tree. ``--report 10,20,30``: the target
-is the maps of those days (a time series).
+is the maps of those days (a time series). ``--eval NAME=V,...`` (repeatable) prints the
+discrete loss of the fit's seeds at those values and stops, or with ``--eval-then-fit`` goes on
+to the fits.
 
     python experiments/tune_discrete_fit.py --params S1,T1,alpha_g --days 30 --photons 250000
     python experiments/tune_discrete_fit.py --params strength.sky --joint 0
@@ -47,7 +49,18 @@ from mitsuba_veg.scenario import Scenario, load_scenario  # noqa: E402
 
 
 def seeds_arg(s: str) -> list[int]:
-    """Seeds from ``"A-B"`` (inclusive) or ``"a,b,c"``."""
+    """Seeds from ``"A-B"`` (inclusive) or ``"a,b,c"``.
+
+    Parameters
+    ----------
+    s : str
+        The seeds.
+
+    Returns
+    -------
+    list of int
+        The seed numbers.
+    """
     if "-" in s:
         a, b = s.split("-")
         return list(range(int(a), int(b) + 1))
@@ -55,6 +68,7 @@ def seeds_arg(s: str) -> list[int]:
 
 
 def main():
+    """Build the targets of the windows, then run ``--eval`` or the fits (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenario", default=str(ROOT / "scenes" / "moss_garden" / "scenario.toml"))
     ap.add_argument("--species", default="bryum_argenteum")
@@ -82,6 +96,8 @@ def main():
                     "box corners; e.g. to continue a fit)")
     ap.add_argument("--eval", action="append", default=[],
                     help="only print the discrete loss (fit seeds) at NAME=V,NAME=V points")
+    ap.add_argument("--eval-then-fit", action="store_true", help="after --eval, run the fits "
+                    "as without it (same targets and set-up)")
     ap.add_argument("--window", action="append", default=[],
                     help="NAME:START_DATE:T_AIR of one experiment (repeatable; START_DATE or "
                     "T_AIR may be empty: the scenario's); default: one, the scenario")
@@ -154,7 +170,8 @@ def main():
                              + ", ".join(f"{x:.3e}" for x in ls)
                              + f"; covered on day {report[-1]} {np.mean(r.total[:, -1]):.4f} m2)")
             print(f"discrete loss at {th}: {tot:.4e} = " + "; ".join(parts), flush=True)
-        return
+        if not a.eval_then_fit:
+            return
     scale = {p: parameter_scale(sm, p) for p in names}
     box = {p: 0.3 * (scale[p] if p in ("T1", "T0") else truth[p]) for p in names}
     rows = []

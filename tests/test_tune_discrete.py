@@ -21,15 +21,43 @@ DAYS, PHOTONS = 15, 100_000
 
 @pytest.fixture(scope="module")
 def dm():
+    """The discrete model of the test set (15 days, 100 k photons, seeds 0-3).
+
+    Returns
+    -------
+    DiscreteMossModel
+        The model.
+    """
     return DiscreteMossModel(SCEN, DAYS, species=SP, seeds=range(4), photons=PHOTONS)
 
 
 @pytest.fixture(scope="module")
 def base(dm):
+    """Runs of seeds 0 and 1 at the table values, reported on days 10 and 15.
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model.
+
+    Returns
+    -------
+    DiscreteResult
+        The runs.
+    """
     return dm.run({}, report=[10, 15], seeds=[0, 1])
 
 
 def test_common_random_numbers_and_parameters(dm, base):
+    """The same seeds give identical runs, and the parameters reach the runs.
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model.
+    base : DiscreteResult
+        Its runs at the table values.
+    """
     again = dm.run({}, report=[10, 15], seeds=[0, 1])
     assert np.array_equal(again.cover, base.cover)           # same seeds: identical runs
     assert base.cover.shape == (2, 2, dm.n)
@@ -44,6 +72,13 @@ def test_common_random_numbers_and_parameters(dm, base):
 
 
 def test_bad_parameters(dm):
+    """Unknown names, invalid values and days past the run are refused.
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model.
+    """
     with pytest.raises(ParameterError, match="S2"):
         dm.run({"S2": 1.0})
     with pytest.raises(ParameterError, match="albedo.moon"):
@@ -57,6 +92,15 @@ def test_bad_parameters(dm):
 
 
 def test_patches(dm, base):
+    """Patch labels, the area-weighted patch cover, and a zero loss against itself.
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model.
+    base : DiscreteResult
+        Its runs at the table values.
+    """
     data_c = np.asarray(base.cover[0, -1])
     cen = np.zeros((dm.n, 3))
     lab = patch_labels(cen, dm.shape_slices, np.ones(dm.n, bool), 0.2)
@@ -71,6 +115,13 @@ def test_patches(dm, base):
 
 @pytest.fixture(scope="module")
 def surrogate():
+    """The relaxed model of the test set (near field, t = 0.02).
+
+    Returns
+    -------
+    SmoothMossModel
+        The model.
+    """
     data = tune.prepare(SCEN, days=DAYS, species=SP, photons=PHOTONS, light_every=15)
     return tune.SmoothMossModel(data, temperature=0.02, closure="near-field")
 
@@ -78,7 +129,17 @@ def surrogate():
 @pytest.mark.slow
 def test_fit_discrete_recovers_alpha_g(dm, surrogate, tmp_path):
     """alpha_g from -30 %: target = mean of 4 discrete runs on seeds 100-103 (~3 min on 2
-    shared cores: each iteration runs the 4 discrete runs and a 25-step relaxed fit)."""
+    shared cores: each iteration runs the 4 discrete runs and a 25-step relaxed fit).
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model (seeds 0-3).
+    surrogate : SmoothMossModel
+        The relaxed model.
+    tmp_path : pathlib.Path
+        Output folder.
+    """
     tm = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=range(100, 104), photons=PHOTONS)
     target = tm.run({}).mean()
     res = fit_discrete(dm, surrogate, target, ["alpha_g"], init={"alpha_g": 0.21},
@@ -92,6 +153,15 @@ def test_fit_discrete_recovers_alpha_g(dm, surrogate, tmp_path):
 
 
 def test_fit_discrete_arguments(dm, surrogate):
+    """No parameters, no iterations, an unknown loss and a target of the wrong size are refused.
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model.
+    surrogate : SmoothMossModel
+        The relaxed model.
+    """
     t = np.zeros(dm.n)
     with pytest.raises(ParameterError):
         fit_discrete(dm, surrogate, t, [], iterations=1)
@@ -105,7 +175,13 @@ def test_fit_discrete_arguments(dm, surrogate):
 
 def test_fit_discrete_experiments_plumbing(surrogate):
     """Several experiments: the summed discrete loss is the weighted sum of the experiments'
-    losses, each the single experiment's; the record names every experiment."""
+    losses, each the single experiment's; the record names every experiment.
+
+    Parameters
+    ----------
+    surrogate : SmoothMossModel
+        The relaxed model.
+    """
     dm1 = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[0], photons=PHOTONS)
     tm = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[100], photons=PHOTONS)
     target = tm.to_layout(tm.run({}).mean(), surrogate.data.shape_slices)
@@ -128,7 +204,13 @@ def test_fit_discrete_experiments_plumbing(surrogate):
 
 def test_inner_fit_sums_weighted_terms(monkeypatch):
     """The inner Adam fit minimises the weighted sum of its terms: with two quadratic terms
-    (a fake gradient for value_and_grad) it ends at their weighted mean."""
+    (a fake gradient for value_and_grad) it ends at their weighted mean.
+
+    Parameters
+    ----------
+    monkeypatch : pytest.MonkeyPatch
+        Replaces value_and_grad.
+    """
     from mitsuba_veg.tune import discrete as disc
     from mitsuba_veg.tune.grad import GradResult
     import mitsuba as mi
@@ -149,6 +231,15 @@ def test_inner_fit_sums_weighted_terms(monkeypatch):
 
 
 def test_fit_discrete_experiments_arguments(dm, surrogate):
+    """Empty lists, repeated names, zero weights and malformed experiments are refused.
+
+    Parameters
+    ----------
+    dm : DiscreteMossModel
+        The discrete model.
+    surrogate : SmoothMossModel
+        The relaxed model.
+    """
     t = np.zeros(dm.n)
     with pytest.raises(ParameterError, match="at least one"):
         fit_discrete_experiments([], ["S1"])
@@ -159,3 +250,51 @@ def test_fit_discrete_experiments_arguments(dm, surrogate):
         fit_discrete_experiments([DiscreteExperiment(dm, surrogate, t, "a", 0.0)], ["S1"])
     with pytest.raises(ParameterError, match="experiments"):
         fit_discrete_experiments([(dm, surrogate)], ["S1"])
+
+
+def test_patch_loss_gradient_smooth_at_empty_patches():
+    """The inner fit's loss at the iterate: the relaxed cover shifted by the defect D - R
+    puts patches without discrete moss at c = 0 +- float32 rounding. Its gradient must not
+    depend on that rounding (four evaluations whose shifts differ by ~1e-7 relative agree to
+    1e-3) and must agree with central differences of patch_loss_value (float64) within 2 %.
+    With the former hard clip max(c, 0) and sqrt(c + 1e-6), empty patches with a target
+    switched their slope (~500) on or off with the rounding's sign, while the central
+    difference saw half of it."""
+    import drjit as dr
+    from mitsuba_veg.tune.discrete import _patch_loss
+    from mitsuba_veg.tune.lifecycle import real_type
+    T = real_type("float32")
+    rng = np.random.default_rng(3)
+    n_p, per = 40, 10
+    n = n_p * per
+    labels = np.repeat(np.arange(n_p), per)
+    areas = rng.uniform(1e-3, 4e-3, n)
+    R0 = rng.uniform(0.01, 0.3, n).astype(np.float32).astype(float)
+    k = rng.uniform(-1.0, 1.0, n).astype(np.float32).astype(float)
+    p0 = 0.3
+
+    def relaxed(p):                                   # the "relaxed model" in float64
+        return R0 * np.exp(p * k)
+    empty = labels < n_p // 2                          # no discrete moss on half the patches
+    D = np.where(empty, 0.0, rng.uniform(0.0, 0.2, n))
+    target = patch_cover(rng.uniform(0.0, 0.05, n), areas, labels)
+    target[: n_p // 4] = 0.0                           # empty in the target too
+    assert np.sum(np.abs(target[empty[::per]])) > 0
+
+    def grad(noise):
+        # the forward run's R differs from the adjoint's cover by float32 rounding
+        R = relaxed(p0) * (1 + noise)
+        lf = _patch_loss(T(D - R), areas, labels, target, "sqrt", T)
+        p = T(p0)
+        dr.enable_grad(p)
+        loss = lf(T(R0) * dr.exp(p * T(k)), None, None, None)
+        dr.backward(loss)
+        return float(np.asarray(dr.grad(p))[0])
+    gs = [grad(rng.normal(0, 1e-7, n)) for _ in range(4)]
+    shift = D - relaxed(p0)
+    h = 1e-5
+    fd = (patch_loss_value(relaxed(p0 + h) + shift, areas, labels, target)
+          - patch_loss_value(relaxed(p0 - h) + shift, areas, labels, target)) / (2 * h)
+    assert abs(fd) > 1e-3                              # a gradient to compare
+    assert np.allclose(gs, gs[0], rtol=1e-3, atol=0), gs
+    assert gs[0] == pytest.approx(fd, rel=0.02), (gs, fd)

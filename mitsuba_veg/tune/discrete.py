@@ -417,6 +417,38 @@ def patch_cover(cover, areas, labels) -> np.ndarray:
     return c / np.maximum(a, 1e-30)
 
 
+# The sqrt loss's transform of a patch cover c: sqrt(smax(c) + SQRT_FLOOR) with the smooth
+# max smax(c) = (c + sqrt(c^2 + SMOOTH_WIDTH^2)) / 2 of c and 0. In the inner fit c is the
+# relaxed cover shifted by the discrete defect, R(theta) + D(theta_k) - R(theta_k): on patches
+# without discrete moss it sits at 0 +- float32 rounding at theta_k. A hard clip max(c, 0)
+# switches such a patch's gradient on or off with the sign of the rounding, and the slope of
+# sqrt(c + 1e-6) there (500) let those patches dominate: repeated adjoint calls at one point
+# gave gradients of different sign (docs/tuning.md). The smooth max has slope 1/2 at 0 and
+# differs from max(c, 0) by at most SMOOTH_WIDTH / 2; the floor is the cover resolution (one
+# 1 cm2 individual per m2 of patch; a 16-seed mean on a 0.2 m patch resolves ~1.6e-4), which
+# bounds the slope of the sqrt by 1 / (2 sqrt(1e-4)) = 50. The target gets the same transform,
+# so a cover equal to the target has zero loss.
+SMOOTH_WIDTH = 1e-4
+SQRT_FLOOR = 1e-4
+
+
+def _sqrt_cover(c):
+    """sqrt(smooth max(c, 0) + SQRT_FLOOR) of a patch cover (NumPy), see SMOOTH_WIDTH.
+
+    Parameters
+    ----------
+    c : ndarray
+        Covered fraction per patch [-].
+
+    Returns
+    -------
+    ndarray
+        The transformed cover [-].
+    """
+    cs = 0.5 * (c + np.sqrt(c * c + SMOOTH_WIDTH ** 2))
+    return np.sqrt(cs + SQRT_FLOOR)
+
+
 def _patch_loss(shift, areas, labels, target_patch, kind: str, T):
     """Loss of the shifted relaxed cover, aggregated to patches (Dr.Jit, differentiable)."""
     n_p = len(target_patch)
@@ -428,12 +460,17 @@ def _patch_loss(shift, areas, labels, target_patch, kind: str, T):
     w = T(np.append(pa / pa.sum(), 0.0))
     tg = T(np.append(target_patch, 0.0))
 
+    if kind == "sqrt":
+        g_tg = T(np.append(_sqrt_cover(np.asarray(target_patch, float)), 0.0))
+
     def loss(cover, target, weights, model):
         pc = dr.zeros(T, n_p + 1)
         dr.scatter_add(pc, (cover + shift) * a_dr, idx)
-        c = dr.maximum(pc * inv, 0.0)
+        c = pc * inv
         if kind == "sqrt":
-            d = dr.sqrt(c + 1e-6) - dr.sqrt(tg + 1e-6)
+            # smooth max(c, 0) and the sqrt floor of _sqrt_cover (the reason is there)
+            cs = 0.5 * (c + dr.sqrt(c * c + SMOOTH_WIDTH ** 2))
+            d = dr.sqrt(cs + SQRT_FLOOR) - g_tg
         else:
             d = c - tg
         return dr.sum(d * d * w)
@@ -455,7 +492,8 @@ def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> 
     target_patch : ndarray
         (patches,) target covered fraction per patch [-].
     kind : {"sqrt", "mse"}
-        Squared difference of the square roots or of the fractions.
+        Squared difference of the square roots (of the smooth maximum of the cover and 0 plus
+        a floor, as the fit's Dr.Jit loss: see ``SMOOTH_WIDTH``) or of the fractions.
 
     Returns
     -------
@@ -467,7 +505,7 @@ def patch_loss_value(cover, areas, labels, target_patch, kind: str = "sqrt") -> 
     pa = np.bincount(labels[ok], weights=areas[ok], minlength=len(c))
     w = pa / pa.sum()
     if kind == "sqrt":
-        d = np.sqrt(np.maximum(c, 0) + 1e-6) - np.sqrt(target_patch + 1e-6)
+        d = _sqrt_cover(c) - _sqrt_cover(np.asarray(target_patch, float))
     else:
         d = c - target_patch
     return float(np.sum(w * d * d))
