@@ -34,7 +34,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..errors import ParameterError, SceneError, check_range
+from ..errors import ParameterError, SceneError
 from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
 
 __all__ = ["PhotonPaths", "trace_paths", "replay", "irradiance"]
@@ -79,21 +79,6 @@ class PhotonPaths:
         return self.photons * (8 + len(self.elem) * 5)
 
 
-def _emitter(scene, emitter):
-    ems = scene.emitters()
-    if isinstance(emitter, (int, np.integer)):
-        if not 0 <= emitter < len(ems):
-            raise ParameterError("emitter", emitter, f"0..{len(ems) - 1}")
-        return ems[int(emitter)], ems[int(emitter)].id() or f"emitter{int(emitter)}"
-    if isinstance(emitter, str):
-        for e in ems:
-            if e.id() == emitter:
-                return e, emitter
-        raise ParameterError("emitter", emitter, f"one of {[e.id() for e in ems]}",
-                             "give the emitter an id in the scene")
-    return emitter, emitter.id() or "emitter"
-
-
 def trace_paths(scene: mi.Scene, emitter, photons: int, index=None, max_depth: int = 8,
                 seed: int = 0, band=(360.0, 830.0)) -> PhotonPaths:
     """Trace ``photons`` paths from one emitter and record the hit elements (no AD).
@@ -130,21 +115,12 @@ def trace_paths(scene: mi.Scene, emitter, photons: int, index=None, max_depth: i
         The recorded paths: ``w0`` [W] per photon (Float64), ``elem`` and ``front`` per depth,
         ``rays`` (ray casts made), ``seconds`` (wall time [s]).
     """
-    check_range("photons", photons, 16, 2**26, fix="a photon count such as 200000")
-    check_range("max_depth", max_depth, 1, 64)
-    try:
-        lo, hi = float(band[0]), float(band[1])
-    except (TypeError, ValueError, IndexError):
-        raise ParameterError("band", band, "(min_nm, max_nm) with 0 < min < max") from None
-    if not 0 < lo < hi:
-        raise ParameterError("band", band, "(min_nm, max_nm) with 0 < min < max")
+    # validation (photons, max_depth, band, emitter) and tracing are the integrator's
     index = SceneIndex.build(scene) if index is None else index
-    em, name = _emitter(scene, emitter)
-    rec = PhotonIrradianceIntegrator().trace_paths(scene, em, int(photons), seed=int(seed),
-                                                   max_depth=int(max_depth), band=(lo, hi),
-                                                   index=index)
-    return PhotonPaths(emitter=name, photons=rec.photons, max_depth=rec.max_depth,
-                       band=(lo, hi), w0=_f64()(rec.w0), elem=rec.elem, front=rec.front,
+    rec = PhotonIrradianceIntegrator().trace_paths(scene, emitter, photons, seed=seed,
+                                                   max_depth=max_depth, band=band, index=index)
+    return PhotonPaths(emitter=rec.emitter, photons=rec.photons, max_depth=rec.max_depth,
+                       band=rec.band, w0=_f64()(rec.w0), elem=rec.elem, front=rec.front,
                        n_elements=index.n_elements, areas=np.asarray(index.areas, float),
                        seconds=rec.seconds, rays=rec.rays)
 
