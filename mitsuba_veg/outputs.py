@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -84,13 +85,47 @@ def folder_kind(path) -> str | None:
     return None
 
 
+#: how long a folder whose lock holder is exiting is waited for [s]
+EXITING_GRACE_S = 30.0
+
+
+def _process_exiting(pid: str) -> bool:
+    """Whether local process ``pid`` is exiting: its main thread has ended (state Z or X in
+    ``/proc/PID/stat``) while other threads still close down. A process killed with SIGKILL
+    keeps its files, and so the folder's lock, until its last thread has gone (Dr.Jit's thread
+    pool takes a moment), so a run started at once after a kill would find the folder busy."""
+    try:
+        stat = Path(f"/proc/{int(pid)}/stat").read_text()
+    except (OSError, ValueError):
+        return False           # not a local process (or no /proc): a real holder
+    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
+
+
+def _flock_unless_held(fcntl, fh) -> bool:
+    """Take an exclusive ``flock`` on ``fh``; wait up to :data:`EXITING_GRACE_S` while its holder
+    (the pid written in the file) is exiting. Returns False if another process holds it."""
+    t0 = time.monotonic()
+    while True:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            fh.seek(0)
+            if not _process_exiting(fh.read().strip()) or \
+                    time.monotonic() - t0 > EXITING_GRACE_S:
+                return False
+            time.sleep(0.02)
+
+
 class OutputFolder:
     """An output folder claimed by one command.
 
     The folder is created if needed, checked to be writable, marked with its kind
     (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an advisory ``flock`` the kernel
     drops when the process ends, also on SIGKILL) so that a second process writing into it is
-    refused instead of interleaving. Use as a context manager or call :meth:`release`.
+    refused instead of interleaving. A holder that is exiting (killed, its threads still closing
+    down) is waited for, up to :data:`EXITING_GRACE_S`. Use as a context manager or call
+    :meth:`release`.
 
     Parameters
     ----------
@@ -132,9 +167,7 @@ class OutputFolder:
         try:
             import fcntl
             self._fh = open(p / LOCK, "a+")
-            try:
-                fcntl.flock(self._fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
+            if not _flock_unless_held(fcntl, self._fh):
                 self._fh.seek(0)
                 other = self._fh.read().strip() or "?"
                 self._fh.close()

@@ -2,6 +2,7 @@
 a second writer is refused by the folder's lock, --fresh clears what an earlier run left, and
 Ctrl-C ends with a checkpoint and a short message."""
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -134,6 +135,51 @@ def test_second_writer_is_refused_by_the_lock(tmp_path):
                         "--quiet", "--set", "light.photons=20000"], capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+
+
+#: takes a folder's lock, then ends its main thread alone (as a SIGKILLed multi-threaded process
+#: does first) while another thread keeps the process, and so the lock, for HOLD seconds
+EXITING_HOLDER = textwrap.dedent("""
+    import ctypes, os, sys, threading, time
+    from mitsuba_veg.outputs import OutputFolder
+    folder = OutputFolder(sys.argv[1], "run")   # held: the lock lives with the object
+    hold = float(sys.argv[2])
+    threading.Thread(target=lambda: (time.sleep(hold), os._exit(0))).start()
+    print("locked", flush=True)
+    ctypes.CDLL(None, use_errno=True).syscall(60 if os.uname().machine == "x86_64" else 93, 0)
+""")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc and SYS_exit")
+def test_a_folder_whose_holder_is_exiting_is_waited_for(tmp_path, monkeypatch):
+    """A process killed while it holds a folder keeps the lock until its last thread has
+    gone; a run started at once (a sweep resuming, a retried task) waits for that instead of
+    failing, and a live holder is still refused at once."""
+    from mitsuba_veg import outputs
+    from mitsuba_veg.errors import ParameterError
+    out = tmp_path / "run"
+    holder = subprocess.Popen([sys.executable, "-c", EXITING_HOLDER, str(out), "3"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        t0 = time.monotonic()
+        while Path(f"/proc/{holder.pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+            assert time.monotonic() - t0 < 10, "the holder's main thread did not end"
+            time.sleep(0.01)
+        assert outputs._process_exiting(str(holder.pid))
+        monkeypatch.setattr(outputs, "EXITING_GRACE_S", 0.2)
+        with pytest.raises(ParameterError, match=f"process {holder.pid} holds it"):
+            outputs.OutputFolder(out, "run")           # past the grace: refused, named
+        monkeypatch.setattr(outputs, "EXITING_GRACE_S", 30.0)
+        t0 = time.monotonic()
+        folder = outputs.OutputFolder(out, "run")      # waits for the exiting holder
+        waited = time.monotonic() - t0
+        folder.release()
+        assert 0.5 < waited < 10, waited
+    finally:
+        holder.kill()
+        holder.wait()
+    assert not outputs._process_exiting(str(os.getpid()))
 
 
 def test_fresh_run_clears_what_an_earlier_run_left(tmp_path):

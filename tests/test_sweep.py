@@ -145,8 +145,9 @@ def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
     df = mv.sweep(f, out, client=client, progress=False, plots=False)
     m = json.loads((out / "sweep.json").read_text())
     statuses = {r["status"] for r in m["runs"]}
-    assert "skipped" in statuses and "done" in statuses
-    assert any(r["resumed"] for r in m["runs"] if r["status"] == "done")
+    seen = [(r["run"], r["status"], r["resumed"], r["error"]) for r in m["runs"]]
+    assert "skipped" in statuses and "done" in statuses, seen
+    assert any(r["resumed"] for r in m["runs"] if r["status"] == "done"), seen
     pd.testing.assert_frame_equal(comparable(df), comparable(ref))
 
 
