@@ -103,6 +103,11 @@ def main():
                     "T_AIR may be empty: the scenario's); default: one, the scenario")
     ap.add_argument("--tol", type=float, default=0.01)
     ap.add_argument("--lr", type=float, default=0.08)
+    ap.add_argument("--accept", default="always", choices=["always", "decrease"],
+                    help="outer step: take every step, or only (halved) steps that lower the "
+                    "discrete loss")
+    ap.add_argument("--backtrack", type=int, default=2, help="step halvings with --accept "
+                    "decrease")
     ap.add_argument("--out", default="out/tune_discrete_fit")
     a = ap.parse_args()
     out = Path(a.out)
@@ -179,7 +184,8 @@ def main():
     def one(params, init):
         r = fit_discrete_experiments(exps, params, init=init, iterations=a.iterations,
                                      steps=a.steps, patch=a.patch, tol=a.tol,
-                                     lr=a.lr, verbose=True)
+                                     lr=a.lr, verbose=True, accept=a.accept,
+                                     backtrack=a.backtrack)
         err = {k: (r.values[k] - truth[k]) / truth[k] for k in params}
         err_s = {k: (r.values[k] - truth[k]) / scale[k] for k in params}
         rows.append({"params": params, "init": init, "fitted": r.values, "err_rel": err,

@@ -202,6 +202,54 @@ def test_fit_discrete_experiments_plumbing(surrogate):
     assert it["covered_m2_discrete"] == pytest.approx(2 * e["a"]["covered_m2_discrete"])
 
 
+def test_safeguarded_outer_step(surrogate, monkeypatch):
+    """accept="decrease": a step that raises the discrete loss is halved ``backtrack`` times,
+    then the fit stops where it was; a step that lowers it is taken whole. "always" takes
+    every step. The inner fit is replaced by a fixed proposal (bare-ground target: the loss
+    rises with alpha_g).
+
+    Parameters
+    ----------
+    surrogate : SmoothMossModel
+        The relaxed model.
+    monkeypatch : pytest.MonkeyPatch
+        Replaces the inner fit.
+    """
+    from mitsuba_veg.tune import discrete as disc
+    dm1 = DiscreteMossModel(SCEN, DAYS, species=SP, seeds=[0], photons=PHOTONS)
+    bare = np.zeros(surrogate.data.areas.shape)
+    proposal = {}
+    monkeypatch.setattr(disc, "_inner_adam",
+                        lambda terms, params, theta, *a: (dict(proposal), 0.0))
+    kw = dict(init={"alpha_g": 0.3}, iterations=3, steps=1)
+
+    proposal["alpha_g"] = 0.6                           # more growth: worse on bare ground
+    up = fit_discrete(dm1, surrogate, bare, ["alpha_g"], accept="decrease", backtrack=2, **kw)
+    first = up.iterations[0]
+    assert [t["step"] for t in first["trials"]] == [1.0, 0.5, 0.25]
+    assert [t["params"]["alpha_g"] for t in first["trials"]] == pytest.approx([0.6, 0.45,
+                                                                               0.375])
+    assert all(t["discrete_loss"] > first["discrete_loss"] for t in first["trials"])
+    assert first["step"] == 0.0 and len(up.iterations) == 2        # stopped, then the final row
+    assert up.values["alpha_g"] == 0.3 and up.discrete_loss == first["discrete_loss"]
+
+    always = fit_discrete(dm1, surrogate, bare, ["alpha_g"], accept="always", **kw)
+    assert always.values["alpha_g"] == 0.6 and always.discrete_loss > first["discrete_loss"]
+    assert "trials" not in always.iterations[0]
+
+    proposal["alpha_g"] = 0.15                          # less growth: better, taken whole
+    down = fit_discrete(dm1, surrogate, bare, ["alpha_g"], accept="decrease", iterations=1,
+                        init={"alpha_g": 0.3}, steps=1)
+    assert down.iterations[0]["step"] == 1.0 and len(down.iterations[0]["trials"]) == 1
+    assert down.values["alpha_g"] == 0.15
+    assert down.discrete_loss == down.iterations[0]["trials"][0]["discrete_loss"] \
+        < first["discrete_loss"]
+    with pytest.raises(ParameterError, match="accept"):
+        fit_discrete(dm1, surrogate, bare, ["alpha_g"], accept="sometimes")
+    with pytest.raises(ParameterError, match="backtrack"):
+        fit_discrete(dm1, surrogate, bare, ["alpha_g"], backtrack=-1)
+
+
 def test_inner_fit_sums_weighted_terms(monkeypatch):
     """The inner Adam fit minimises the weighted sum of its terms: with two quadratic terms
     (a fake gradient for value_and_grad) it ends at their weighted mean.

@@ -601,8 +601,8 @@ class DiscreteExperiment:
 def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: dict | None = None,
                  iterations: int = 5, steps: int = 25, lr: float = 0.08, lr_final: float = 0.05,
                  loss: str = "sqrt", patch: float = 0.2, tol: float = 0.01,
-                 scales: dict | None = None, out=None,
-                 verbose: bool = False) -> DiscreteFitResult:
+                 scales: dict | None = None, out=None, verbose: bool = False,
+                 accept: str = "always", backtrack: int = 2) -> DiscreteFitResult:
     """Fit parameters of the *discrete* model to ``target`` by defect correction (module
     docstring).
 
@@ -645,6 +645,10 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
         Folder for ``fitted_discrete.json``.
     verbose : bool
         Print one line per outer iteration.
+    accept : {"always", "decrease"}
+        Outer step rule (:func:`fit_discrete_experiments`).
+    backtrack : int
+        Step halvings tried with ``accept="decrease"``.
 
     Returns
     -------
@@ -655,14 +659,16 @@ def fit_discrete(discrete: DiscreteMossModel, surrogate, target, params, init: d
     return fit_discrete_experiments([DiscreteExperiment(discrete, surrogate, target)], params,
                                     init=init, iterations=iterations, steps=steps, lr=lr,
                                     lr_final=lr_final, loss=loss, patch=patch, tol=tol,
-                                    scales=scales, out=out, verbose=verbose)
+                                    scales=scales, out=out, verbose=verbose, accept=accept,
+                                    backtrack=backtrack)
 
 
 def fit_discrete_experiments(experiments, params, init: dict | None = None,
                              iterations: int = 5, steps: int = 25, lr: float = 0.08,
                              lr_final: float = 0.05, loss: str = "sqrt", patch: float = 0.2,
                              tol: float = 0.01, scales: dict | None = None, out=None,
-                             verbose: bool = False) -> DiscreteFitResult:
+                             verbose: bool = False, accept: str = "always",
+                             backtrack: int = 2) -> DiscreteFitResult:
     """Fit shared parameters of the *discrete* model to several experiments at once (defect
     correction, module docstring): the loss is the weighted sum over the experiments of each
     one's mean patch loss over its target days.
@@ -672,6 +678,14 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
     sum of the shifted relaxed losses. Parameters acting differently in the experiments (T1 in
     a cool and a warm season: below the temperature optimum a higher T1 lowers the fitness,
     above it raises it) are separated where one map alone leaves them on a ridge.
+
+    With ``accept="decrease"`` the outer step is safeguarded: the step to the inner fit's end
+    is taken only if the discrete loss there is below the current one, else the half step, the
+    quarter step ... (``backtrack`` halvings); if none lowers it the fit stops where it is.
+    The relaxed step (the defect frozen at the iterate) can run further along a ridge than the
+    discrete model follows; this keeps each iterate the best the fit has seen, at the price of
+    a discrete ensemble per rejected trial. ``"always"`` takes every step (plain defect
+    correction).
 
     Parameters
     ----------
@@ -702,12 +716,18 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
         Folder for ``fitted_discrete.json``.
     verbose : bool
         Print one line per outer iteration.
+    accept : {"always", "decrease"}
+        Take every outer step, or only steps (or halved steps) that lower the discrete loss.
+    backtrack : int
+        Step halvings tried after a rejected full step (``accept="decrease"``), >= 0.
 
     Returns
     -------
     DiscreteFitResult
-        ``values`` (the last iterate), the per-iteration record (parameters, summed discrete
-        loss, inner loss, per-experiment losses and covered areas under ``"experiments"``;
+        ``values`` (the last iterate; with ``"decrease"`` the one of lowest discrete loss), the
+        per-iteration record (parameters, summed discrete loss, inner loss, with
+        ``"decrease"`` the ``trials`` of the step and ``step``: the accepted fraction, 0 when
+        none was; per-experiment losses and covered areas under ``"experiments"``;
         ``covered_m2_discrete`` / ``covered_m2_relaxed`` summed over the experiments on their
         last target day) and the summed discrete loss at ``values``.
     """
@@ -719,6 +739,11 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
         raise ParameterError("steps", steps, ">= 1")
     if loss not in ("sqrt", "mse"):
         raise ParameterError("loss", loss, "'sqrt' or 'mse'")
+    if accept not in ("always", "decrease"):
+        raise ParameterError("accept", accept, "'always' or 'decrease'")
+    if isinstance(backtrack, bool) or not isinstance(backtrack, (int, np.integer)) \
+            or backtrack < 0:
+        raise ParameterError("backtrack", backtrack, "an integer >= 0")
     exps = []
     for i, e in enumerate(list(experiments)):
         if not isinstance(e, DiscreteExperiment):
@@ -784,8 +809,8 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
                               float(np.sum(D[s["days"][-1]] * data.areas))}
         return Ds, total, rec
 
+    Ds, ld, rec = discrete_eval(theta)
     for k in range(iterations):
-        Ds, ld, rec = discrete_eval(theta)
         terms, cov_r = [], 0.0
         for s, D in zip(setups, Ds):
             data, sm = s["sm"].data, s["sm"]
@@ -801,11 +826,10 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
             cov_r += c
         new, inner = _inner_adam(terms, params, theta, scale, bnd, steps, lr, lr_final)
         move = max(abs(new[p] - theta[p]) / scale[p] for p in params)
-        rows.append({"iteration": k, "params": dict(theta), "discrete_loss": ld,
-                     "covered_m2_discrete": sum(v["covered_m2_discrete"] for v in rec.values()),
-                     "covered_m2_relaxed": cov_r, "experiments": rec,
-                     "inner_loss": inner, "next": dict(new), "move": move,
-                     "seconds": time.perf_counter() - t0})
+        row = {"iteration": k, "params": dict(theta), "discrete_loss": ld,
+               "covered_m2_discrete": sum(v["covered_m2_discrete"] for v in rec.values()),
+               "covered_m2_relaxed": cov_r, "experiments": rec,
+               "inner_loss": inner, "next": dict(new), "move": move}
         if verbose:
             cov = "; ".join(f"{nm}: discrete {v['covered_m2_discrete']:.4f} / relaxed "
                             f"{v['covered_m2_relaxed']:.4f} m2 (loss {v['discrete_loss']:.3e})"
@@ -814,10 +838,32 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
                                                     for p in params)
                   + f"; discrete loss {ld:.3e}; covered on the last target day: {cov}; "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
-        theta = new
-        if move < tol:
+        if accept == "always":
+            rows.append({**row, "seconds": time.perf_counter() - t0})
+            theta = new
+            Ds, ld, rec = discrete_eval(theta)
+            if move < tol:
+                break
+            continue
+        # safeguarded step: the full step, then halved ones, while the discrete loss rises
+        trials, taken = [], 0.0
+        for h in range(backtrack + 1):
+            frac = 0.5 ** h
+            cand = {p: theta[p] + frac * (new[p] - theta[p]) for p in params}
+            Dc, lc, rc = discrete_eval(cand)
+            trials.append({"step": frac, "params": cand, "discrete_loss": lc})
+            if verbose:
+                print(f"    step {frac:g}: discrete loss {lc:.3e} "
+                      f"({'accepted' if lc < ld else 'rejected'}); "
+                      f"{time.perf_counter() - t0:.0f} s", flush=True)
+            if lc < ld:
+                taken = frac
+                theta, Ds, ld, rec = cand, Dc, lc, rc
+                break
+        rows.append({**row, "trials": trials, "step": taken,
+                     "seconds": time.perf_counter() - t0})
+        if taken == 0.0 or taken * move < tol:
             break
-    Ds, ld, rec = discrete_eval(theta)
     rows.append({"iteration": len(rows), "params": dict(theta), "discrete_loss": ld,
                  "covered_m2_discrete": sum(v["covered_m2_discrete"] for v in rec.values()),
                  "experiments": rec, "seconds": time.perf_counter() - t0})
@@ -837,6 +883,7 @@ def fit_discrete_experiments(experiments, params, init: dict | None = None,
                                                   "target_days": s["days"],
                                                   "weight": s["weight"]} for s in setups],
                                  "seeds": first["dm"].seeds, "days": first["dm"].days,
+                                 "accept": accept, "backtrack": backtrack,
                                  "seconds": res.seconds}, indent=1))
         res.files["fitted"] = str(p)
     return res
