@@ -184,6 +184,9 @@ def main():
                     help="z of the near-field closure (list; 'kernel': from the gemma kernel)")
     ap.add_argument("--near-scale", type=float, default=1.0,
                     help="factor on the kernel's z (near-field closure)")
+    ap.add_argument("--near-overlap", default="kernel",
+                    help="theta of the near-field triplet term (list; 'kernel': from the gemma "
+                         "kernel, 0: the plain pair approximation)")
     ap.add_argument("--days", type=int, default=0, help="compare the first days only")
     ap.add_argument("--floor", type=float, default=0.0,
                     help="ignore region-days whose discrete mean is below this [m2]")
@@ -236,15 +239,19 @@ def main():
                               light_every=a.light_every, overrides=over)]
     saved = {}
     for cl in a.closures.split(","):
-        for z in (a.near_cells.split(",") if cl == "near-field" else ["kernel"]):
+        nf = cl == "near-field"
+        for z, th in [(z, th) for z in (a.near_cells.split(",") if nf else ["kernel"])
+                      for th in (a.near_overlap.split(",") if nf else ["kernel"])]:
             series = []
             for data in datas:
                 model = tune.SmoothMossModel(data, temperature=a.temperature, closure=cl,
                                              near_cells=None if z == "kernel" else float(z),
-                                             near_scale=a.near_scale)
+                                             near_scale=a.near_scale,
+                                             near_overlap=None if th == "kernel" else float(th))
                 series.append(relaxed_series(model))
             rel = mean_series(series)
-            lab = f"{cl}{' z = ' + z if cl == 'near-field' else ''} (t = {a.temperature:g})"
+            lab = (f"{cl}{f' z = {z}, theta = {th}' if nf else ''} "
+                   f"(t = {a.temperature:g})")
             if a.discrete_light:
                 lab += f", daily light and weather of the {len(datas)} runs"
             elif a.per_seed:
@@ -255,7 +262,7 @@ def main():
                 shape_table(ens, rel, datas[0], a.every, lab)
             for k, v in rel.items():
                 if k not in ("names", "shape_names"):
-                    saved[f"{cl}_{z}_{k}"] = v
+                    saved[f"{cl}_{z}_{th}_{k}"] = v
     if a.save:
         np.savez_compressed(a.save, **saved)
 

@@ -169,8 +169,20 @@ def test_closure_arguments():
         tune.SmoothMossModel(data, closure="pairs")
     with pytest.raises(ParameterError):
         tune.SmoothMossModel(data, closure="near-field", near_cells=40)
+    with pytest.raises(ParameterError, match="near_overlap"):
+        tune.SmoothMossModel(data, closure="near-field", near_overlap=1.5)
     z = data.kernels["gemma"].near_cells
     assert np.nanmin(z) >= 1 and 10 < np.nanmedian(z) < 26      # cells within 2 cm
+    th = data.kernels["gemma"].near_overlap
+    assert np.nanmin(th) >= 0 and np.nanmax(th) <= 1 and 0.1 < np.nanmedian(th) < 0.6
+    # theta = 0 is the plain pair approximation: a gemma's other neighbours occupied with q10,
+    # fewer pairs than with shared neighbours occupied as next to its parent, so less settles
+    d20 = tune.prepare(SCEN, days=20, species=["bryum_argenteum"], photons=10_000)
+    runs = [tune.SmoothMossModel(d20, temperature=0.0, closure="near-field",
+                                 near_overlap=th).run(None).state for th in (0.0, 1.0)]
+    plain, tri = ([float(np.sum(np.asarray(x))) for x in (st.pair, m.moss_density(st))]
+                  for st, m in zip(runs, [tune.SmoothMossModel(d20, closure="near-field")] * 2))
+    assert tri[0] > plain[0] and tri[1] < plain[1], (plain, tri)
     m = tune.SmoothMossModel(data, temperature=0.0, closure="near-field")
     st = m.run(None).state
     assert st.pair is not None and len(st.arrays()) == 1 + 6 + 1
@@ -203,3 +215,25 @@ def test_fit_s1_to_discrete_mean(tmp_path):
     res = tune.fit(model, np.mean(maps, axis=0), params=["S1"], init={"S1": 42.0}, steps=80,
                    out=None, progress=False)
     assert abs(res.values["S1"] / 60.0 - 1) < 0.05, res.values
+
+
+def test_near_overlap_of_uniform_kernels():
+    """theta of ``dispersal.near_overlap`` against exact shares: landing uniformly in the 8
+    cells around the parent's (a square lattice's Moore neighbourhood), a cell at an edge
+    offset shares 4 of its 7 other neighbours with the parent, at a corner 2: theta = 3 / 7;
+    landing only at the 4 edge cells, a cell shares none of its 3 others: theta = 0. z
+    (``near_cells``) is 8 and 4."""
+    from mitsuba_veg.tune.dispersal import near_cells, near_overlap
+
+    def code(o):
+        return sum((o[k] + 8) * 17 ** k for k in range(3))
+    rng = np.random.default_rng(1)
+    moore = [(dx, dy, 0) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if (dx, dy) != (0, 0)]
+    edges = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0)]
+    for offs, theta, z in ((moore, 3 / 7, 8.0), (edges, 0.0, 4.0)):
+        codes = np.array([code(o) for o in offs])
+        src = np.repeat(np.arange(4), 3000)
+        off = codes[rng.integers(0, len(offs), len(src))]
+        assert near_overlap(src, off, 5)[:4] == pytest.approx(theta, abs=0.02)
+        assert near_cells(src, off, 5)[:4] == pytest.approx(z, rel=0.03)
+        assert np.isnan(near_overlap(src, off, 5)[4])          # no landings sampled

@@ -45,6 +45,10 @@ class Kernel:
     #: propagules land, 1 / sum_k p_k^2 over the landing cells' offsets k (the near-field
     #: closure's z; NaN where fewer than two landings were sampled); None if not estimated
     near_cells: np.ndarray | None = None
+    #: per source element: the share of a landing cell's other z - 1 neighbour cells that are
+    #: also neighbours of the parent's cell (weighted by the landing probabilities; the
+    #: near-field closure's triplet term); NaN where not estimable; None if not estimated
+    near_overlap: np.ndarray | None = None
 
     def __post_init__(self):
         self._dr = None
@@ -213,11 +217,86 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
     dst = np.concatenate(dsts)
     key = src * n + dst
     uniq, counts = np.unique(key, return_counts=True)
-    near = None
+    near = overlap = None
     if grid is not None:
-        near = near_cells(src, np.concatenate(offs), n)
+        off = np.concatenate(offs)
+        near = near_cells(src, off, n)
+        overlap = near_overlap(src, off, n)
     return Kernel(kind, float(distance), int(samples), (uniq // n).astype(np.int64),
-                  (uniq % n).astype(np.int64), counts / float(samples), n, near)
+                  (uniq % n).astype(np.int64), counts / float(samples), n, near, overlap)
+
+
+def _offset_counts(src: np.ndarray, offset: np.ndarray, n: int):
+    """Per source element the landed count in each cell offset: ``(owner, code, count, N)``
+    (sorted by owner and code) and the landings per element."""
+    key = src.astype(np.int64) * (17 ** 3) + offset
+    uniq, cnt = np.unique(key, return_counts=True)
+    return uniq // (17 ** 3), uniq % (17 ** 3), cnt.astype(float), \
+        np.bincount(src, minlength=n).astype(float), uniq
+
+
+def near_overlap(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
+    """Per source element, the share theta of a landing cell's other neighbour cells that are
+    also neighbours of the parent's cell, weighted by the kernel's landing probabilities p_k
+    (k: offset from the parent's cell):
+
+        theta = z / (z - 1) * sum_(k, m) p_k p_m p_(k + m) / sum_k p_k^2,   z = 1 / sum_k p_k^2
+
+    (a cell c = parent + k; its neighbour c + m is the parent's neighbour with weight
+    p_(k + m); for a uniform kernel over z cells this is |N and (N - k)| / (z - 1) averaged over
+    k). The triple sum is estimated without bias from the sampled landings: ordered triples of
+    distinct landings with o_i + o_j = o_l, (sum_(a, b) n_a n_b n_(a + b) - sum_a n_a n_(2a)) /
+    (N (N - 1) (N - 2)) (the parent's own cell is never a landing cell, so only i = j
+    coincides); sum p_k^2 as in :func:`near_cells`. NaN where fewer than three landings or no
+    repeated cell.
+
+    Parameters
+    ----------
+    src : numpy.ndarray
+        (landings,) source element of each landed propagule.
+    offset : numpy.ndarray
+        (landings,) code of the landing cell's offset from the parent's cell (17^3 codes).
+    n : int
+        Number of elements.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) overlap theta in [0, 1] [-] (NaN where not estimable).
+    """
+    owner, code, cnt, N, key = _offset_counts(src, offset, n)
+    # pairs (a, b) of offsets of the same owner
+    start = np.searchsorted(owner, np.arange(n))
+    size = np.bincount(owner, minlength=n)
+    reps = size[owner]                                   # each entry pairs with its group
+    ia = np.repeat(np.arange(len(owner)), reps)
+    grp_start = start[owner][ia]
+    within = np.arange(len(ia)) - np.repeat(np.cumsum(reps) - reps, reps)
+    ib = grp_start + within
+
+    def decode(c):
+        return np.stack([(c // 17 ** k) % 17 - 8 for k in range(3)], -1)
+
+    def lookup(o, vec):
+        """Count of owner o's landings at offset vec (0 outside the coded range)."""
+        ok = np.all(np.abs(vec) <= 8, -1)
+        c = ((np.clip(vec, -8, 8) + 8) * np.array([1, 17, 17 ** 2])).sum(-1)
+        k = o * 17 ** 3 + c
+        pos = np.clip(np.searchsorted(key, k), 0, len(key) - 1)
+        return np.where(ok & (key[pos] == k), cnt[pos], 0.0)
+
+    va, vb = decode(code[ia]), decode(code[ib])
+    triple = np.bincount(owner[ia], cnt[ia] * cnt[ib] * lookup(owner[ia], va + vb),
+                         minlength=n)
+    va = decode(code)
+    triple -= np.bincount(owner, cnt * lookup(owner, 2 * va), minlength=n)
+    s2 = np.bincount(owner, cnt ** 2, minlength=n) - N
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sum_p2 = s2 / (N * (N - 1))
+        t = (triple / (N * (N - 1) * (N - 2))) / sum_p2
+        z = 1.0 / sum_p2
+        theta = np.where((N >= 3) & (s2 > 0) & (z > 1), t * z / (z - 1), np.nan)
+    return np.clip(theta, 0.0, 1.0)
 
 
 def near_cells(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
@@ -240,11 +319,8 @@ def near_cells(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
     numpy.ndarray
         (n,) effective number of landing cells z [cells] (NaN where not estimable).
     """
-    key = src.astype(np.int64) * (17 ** 3) + offset
-    uniq, cnt = np.unique(key, return_counts=True)
-    owner = uniq // (17 ** 3)
-    N = np.bincount(src, minlength=n).astype(float)
-    s2 = np.bincount(owner, cnt.astype(float) ** 2, minlength=n)
+    owner, _, cnt, N, _ = _offset_counts(src, offset, n)
+    s2 = np.bincount(owner, cnt ** 2, minlength=n)
     num = s2 - N
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where((N >= 2) & (num > 0), N * (N - 1) / num, np.nan)

@@ -22,7 +22,9 @@ Same physics as the discrete run (``daily/day.py``), with three changes (docs/tu
    pair approximation: per triangle the density of occupied neighbour-cell pairs, so that a
    gemma (which lands within ``gemma_distance`` of its parent) finds its cell free with
    probability 1 - q, q = P(a neighbour cell of an occupied cell is occupied), instead of the
-   triangle's 1 - occupancy, and the clump rule uses q (docs/tuning.md).
+   triangle's 1 - occupancy, and the clump rule uses q; a newcomer's pairs count the
+   neighbours it shares with its parent (triplets, the overlap of the gemma kernel with its
+   own shift, ``Kernel.near_overlap``) (docs/tuning.md).
 
 The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
 ``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
@@ -443,15 +445,18 @@ class SmoothMossModel:
     or ``"near-field"`` (pair approximation for the gemmae, see :meth:`step`); near_cells: z of
     the pair approximation, the number of cells around a parent's cell that its gemmae land in
     [cells] (None: per triangle from the gemma kernel, ``Kernel.near_cells``: 1 / sum p_k^2 of
-    the landing cells, ~22 on the garden's ground); near_scale: factor on that z [-].
-    Raises ParameterError for an unknown closure or z outside [1, 26].
+    the landing cells, ~22 on the garden's ground); near_scale: factor on that z [-];
+    near_overlap: theta of the triplet term, the share of a newcomer's other neighbour cells
+    that are also its parent's neighbours [-] (None: per triangle from the gemma kernel,
+    ``Kernel.near_overlap``, ~0.6 on the garden; 0: the plain pair approximation).
+    Raises ParameterError for an unknown closure, z outside [1, 26] or theta outside [0, 1].
     """
 
     def __init__(self, data: ModelData, temperature: float = 0.05, cohort_days: int = 1,
                  dispersal: bool = True, capacity: bool = True, external: bool = True,
                  days: int | None = None, precision: str = "float32",
                  closure: str = "mean-field", near_cells: float | None = None,
-                 near_scale: float = 1.0):
+                 near_scale: float = 1.0, near_overlap: float | None = None):
         if closure not in CLOSURES:
             raise ParameterError("closure", closure, "one of " + ", ".join(CLOSURES))
         self.closure = closure
@@ -486,6 +491,7 @@ class SmoothMossModel:
         self.capacity = float(cfg["capacity"])
         self.near_scale = float(near_scale)
         self.near_cells = self._near_cells(near_cells)
+        self.near_overlap = self._near_overlap(near_overlap)
         self.interval = int(cfg["external_spore_interval"])
         self.clump = int(cfg["clump_neighbours"])
         self.initial = float(min(cfg["initial"], cfg["capacity"]))
@@ -512,6 +518,25 @@ class SmoothMossModel:
         ok = np.isfinite(k)
         k = np.where(ok, k, np.median(k[ok]) if ok.any() else 8.0)
         return self.T(np.clip(k * self.near_scale, 1.0, 26.0))
+
+    def _near_overlap(self, theta):
+        """theta of the near-field closure's triplet term per element: a number, or (None) the
+        gemma kernel's estimate (NaN: the median)."""
+        if self.closure != "near-field":
+            return None
+        if theta is not None:
+            theta = float(theta)
+            if not (0.0 <= theta <= 1.0):
+                raise ParameterError("near_overlap", theta, "0 <= theta <= 1 (a share)")
+            return dr.opaque(self.T, theta)
+        k = self.data.kernels["gemma"].near_overlap
+        if k is None:
+            raise ParameterError("near_overlap", None, "a number, or a gemma kernel estimated "
+                                 "with the spot grid (prepare() does that)")
+        k = np.asarray(k, float)
+        ok = np.isfinite(k)
+        k = np.where(ok, k, np.median(k[ok]) if ok.any() else 0.0)
+        return self.T(np.clip(k, 0.0, 1.0))
 
     # ---- parameters -------------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
@@ -765,8 +790,11 @@ class SmoothMossModel:
         propagule; occupancy rho per spot): losses of the day thin the occupants independently
         (w *= s², s = surviving share); q = w / rho; a gemma settles in a free cell with
         probability 1 - q (its parent is next to it), a spore with 1 - rho; each newcomer adds
-        its pairs, 2/z (1 + (z - 1) q10) per gemma (the parent plus the other neighbours) and
-        2 q10 per spore, q10 = (rho - w) / (1 - rho); w is kept in [rho², rho]. The start is the
+        its pairs, 2/z (1 + (z - 1) q_g) per gemma (the parent plus the other neighbours) and
+        2 q10 per spore, q10 = (rho - w) / (1 - rho); a share theta (``near_overlap``) of a
+        gemma's other neighbours are its parent's neighbours too, occupied with q q10 / rho
+        (triplets by Kirkwood superposition), the rest with q10: q_g = theta q q10 / rho +
+        (1 - theta) q10; w is kept in [rho², rho]. The start is the
         random placement, w = rho². (Propagules that expire on a day are removed from the ring
         by ``push`` after this update, so their pairs are not thinned; only the clip to
         [rho², rho] on the next day bounds them.)
@@ -884,7 +912,13 @@ class SmoothMossModel:
                 s_tot += ns_
             occ_new = occ_live + g_tot + s_tot
             q10 = dr.clip((occ_live - pair) / dr.maximum(1.0 - occ_live, 1e-12), 0.0, 1.0)
-            new_pair = pair + (2.0 / z) * (g_tot * (1.0 + (z - 1.0) * q10) + s_tot * z * q10)
+            # triplets: a share theta of a gemma's other neighbours are its parent's neighbours
+            # too, occupied with P(occ | next to the occupied parent and the free cell), taken
+            # as q q10 / rho (Kirkwood superposition); the rest with q10
+            th = self.near_overlap
+            q_sh = dr.clip(q * q10 / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
+            q_g = th * q_sh + (1.0 - th) * q10
+            new_pair = pair + (2.0 / z) * (g_tot * (1.0 + (z - 1.0) * q_g) + s_tot * z * q10)
             new_pair = dr.clip(new_pair, occ_new * occ_new, occ_new)
         out = State(d + 1, O, new_sp, st.per_species, new_pair)
         # opaque, not just evaluated: a slot that is still a literal 0 would enter the kernels as
