@@ -63,7 +63,8 @@ def relaxed_series(model, params=None) -> dict:
     shapes = sorted(data.shape_slices)
     cov = np.array([out.maps[d + 1] for d in range(len(h))]) * data.areas     # day, triangle
     return {"shapes": np.array([[cov[d, data.shape_slices[k]].sum() for k in shapes]
-                                for d in range(len(h))]), "shape_names": shapes,"regions": np.array([[r["regions"][k] for k in names] for r in h]),
+                                for d in range(len(h))]), "shape_names": shapes,
+            "triangles": cov,"regions": np.array([[r["regions"][k] for k in names] for r in h]),
             "total": np.array([r["covered_area_m2"] for r in h]),
             "alive": np.array([r["moss_alive"] for r in h]),
             "propagules": np.array([r["propagules"] for r in h]),
@@ -96,6 +97,40 @@ def shape_table(ens: dict, rel: dict, data, every: int, label: str) -> None:
         print(f"{d:4d} " + "  ".join(f"{k} {dm[d - 1, j]:.4f} / "
                                      f"{rel['shapes'][d - 1, j] / max(dm[d - 1, j], 1e-12):5.3f}"
                                      for j, k in enumerate(names)))
+
+
+FACES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0),
+         "+z": (0, 0, 1), "-z": (0, 0, -1)}
+
+
+def face_table(ens: dict, rel: dict, data, every: int, label: str) -> None:
+    """Covered area per shape and face (triangles whose normal is within 25 deg of an axis;
+    the rest: "other"): discrete mean / relaxed ratio."""
+    groups = {}
+    normals = np.asarray(data.index.normals, float)
+    for k, sl in sorted(data.shape_slices.items()):
+        idx = np.arange(sl.start, sl.stop)
+        taken = np.zeros(len(idx), bool)
+        for f, v in FACES.items():
+            m = (normals[idx] @ np.array(v, float)) > np.cos(np.radians(25))
+            if m.any():
+                groups[f"{k} {f}"] = idx[m]
+            taken |= m
+        if (~taken).any():
+            groups[f"{k} other"] = idx[~taken]
+    disc = []
+    for f in ens["files"]:
+        c = np.load(f)["counts"][:rel["total"].shape[0]].astype(float)
+        disc.append(np.minimum(c * data.cell ** 2, data.areas))
+    dm = np.mean(disc, 0)                                   # day, triangle
+    print(f"{label}: covered area per shape and face [m2] (area), discrete mean / relaxed ratio")
+    def ratio(d, i):
+        a, b = dm[d - 1, i].sum(), rel["triangles"][d - 1, i].sum()
+        return "    -" if max(a, b) < 1e-4 else f"{b / max(a, 1e-12):5.3f}"   # < one moss
+    for d in range(every, dm.shape[0] + 1, every):
+        print(f"{d:4d} " + "  ".join(
+            f"{g} ({data.areas[i].sum():.2f}) {dm[d - 1, i].sum():.4f} / {ratio(d, i)}"
+            for g, i in groups.items()))
 
 
 def light_table(ens: dict, data, days=(5, 30, 60, 100, 150, 200, 299)) -> None:
@@ -197,6 +232,8 @@ def main():
                          "daily light (photon noise averaged over the seeds)")
     ap.add_argument("--by-shape", action="store_true",
                     help="also print the covered area per shape (ground, roof, wall ...)")
+    ap.add_argument("--by-face", action="store_true",
+                    help="also print the covered area per shape and face (normal direction)")
     ap.add_argument("--light-check", action="store_true",
                     help="only compare the runs' daily light with the relaxed model's passes")
     ap.add_argument("--per-seed", action="store_true",
@@ -260,8 +297,10 @@ def main():
             events_table(ens, rel, a.every, lab)
             if a.by_shape:
                 shape_table(ens, rel, datas[0], a.every, lab)
+            if a.by_face:
+                face_table(ens, rel, datas[0], a.every, lab)
             for k, v in rel.items():
-                if k not in ("names", "shape_names"):
+                if k not in ("names", "shape_names", "triangles"):
                     saved[f"{cl}_{z}_{th}_{k}"] = v
     if a.save:
         np.savez_compressed(a.save, **saved)

@@ -365,7 +365,7 @@ class _Forest:
         self.blocked += int((~ok & (c_len > 1e-9)).sum())
 
 
-def _auto_engine(n_spheres: int, engine: str) -> str:
+def _auto_engine(engine: str) -> str:
     if engine != "auto":
         return engine
     # measured (benchmarks/trees_growth.py): the Dr.Jit grid walk counts the same spheres as
@@ -377,7 +377,7 @@ def _auto_engine(n_spheres: int, engine: str) -> str:
 def _light(forest, p, sky, env, alphas, engine):
     pos = forest.tip_positions()
     return leaf_sphere_light(pos, p.leaf_radius * p.unit, sky, alphas, env,
-                             _auto_engine(len(pos), engine), p.ray_cutoff)
+                             _auto_engine(engine), p.ray_cutoff)
 
 
 def grow_forest(positions, params: GrowthParams | None = None, generations: int = 10,

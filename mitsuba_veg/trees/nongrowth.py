@@ -43,7 +43,7 @@ RULES = ("death", "heliotropism")
 class DeformResult:
     """What :func:`deform` did: trees, per-rule statistics and timings."""
 
-    trees: list
+    trees: object                 # the deformed Tree, or list of Trees, as deform was given
     stats: list = field(default_factory=list)
     seconds: float = 0.0
 
