@@ -503,40 +503,33 @@ class SmoothMossModel:
     def _near_cells(self, z):
         """z of the near-field closure per element: a number, or (None) the gemma kernel's
         effective number of landing cells around the parent's cell (NaN: the median)."""
-        if self.closure != "near-field":
-            return None
-        if z is not None:
-            z = float(z)
-            if not (1.0 <= z <= 26.0):
-                raise ParameterError("near_cells", z, "1 <= z <= 26 (cells around a cell)")
-            return dr.opaque(self.T, z)
-        k = self.data.kernels["gemma"].near_cells
-        if k is None:
-            raise ParameterError("near_cells", None, "a number, or a gemma kernel estimated "
-                                 "with the spot grid (prepare() does that)")
-        k = np.asarray(k, float)
-        ok = np.isfinite(k)
-        k = np.where(ok, k, np.median(k[ok]) if ok.any() else 8.0)
-        return self.T(np.clip(k * self.near_scale, 1.0, 26.0))
+        return self._near_field_value("near_cells", z, 1.0, 26.0, "cells around a cell", 8.0,
+                                      self.near_scale)
 
     def _near_overlap(self, theta):
         """theta of the near-field closure's triplet term per element: a number, or (None) the
         gemma kernel's estimate (NaN: the median)."""
+        return self._near_field_value("near_overlap", theta, 0.0, 1.0, "a share", 0.0)
+
+    def _near_field_value(self, name, value, lo, hi, what, fallback, scale=1.0):
+        """A near-field closure quantity: ``value`` if given (checked against [lo, hi]), else
+        the gemma kernel's per-element estimate ``Kernel.<name>`` (NaN: its median; none
+        finite: ``fallback``) times ``scale``, clipped to [lo, hi]. None without the closure."""
         if self.closure != "near-field":
             return None
-        if theta is not None:
-            theta = float(theta)
-            if not (0.0 <= theta <= 1.0):
-                raise ParameterError("near_overlap", theta, "0 <= theta <= 1 (a share)")
-            return dr.opaque(self.T, theta)
-        k = self.data.kernels["gemma"].near_overlap
+        if value is not None:
+            value = float(value)
+            if not (lo <= value <= hi):
+                raise ParameterError(name, value, f"{lo:g} <= {name} <= {hi:g} ({what})")
+            return dr.opaque(self.T, value)
+        k = getattr(self.data.kernels["gemma"], name)
         if k is None:
-            raise ParameterError("near_overlap", None, "a number, or a gemma kernel estimated "
-                                 "with the spot grid (prepare() does that)")
+            raise ParameterError(name, None, "a number, or a gemma kernel estimated with the "
+                                 "spot grid (prepare() does that)")
         k = np.asarray(k, float)
         ok = np.isfinite(k)
-        k = np.where(ok, k, np.median(k[ok]) if ok.any() else 0.0)
-        return self.T(np.clip(k, 0.0, 1.0))
+        k = np.where(ok, k, np.median(k[ok]) if ok.any() else fallback)
+        return self.T(np.clip(k * scale, lo, hi))
 
     # ---- parameters -------------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
