@@ -222,6 +222,9 @@ def main():
     ap.add_argument("--near-overlap", default="kernel",
                     help="theta of the near-field triplet term (list; 'kernel': from the gemma "
                          "kernel, 0: the plain pair approximation)")
+    ap.add_argument("--local-arrivals", default="1",
+                    help="near field: settle fraction of gemmae from the arrivals next to their "
+                         "parents (list of 0/1)")
     ap.add_argument("--days", type=int, default=0, help="compare the first days only")
     ap.add_argument("--floor", type=float, default=0.0,
                     help="ignore region-days whose discrete mean is below this [m2]")
@@ -277,17 +280,19 @@ def main():
     saved = {}
     for cl in a.closures.split(","):
         nf = cl == "near-field"
-        for z, th in [(z, th) for z in (a.near_cells.split(",") if nf else ["kernel"])
-                      for th in (a.near_overlap.split(",") if nf else ["kernel"])]:
+        for z, th, la in [(z, th, la) for z in (a.near_cells.split(",") if nf else ["kernel"])
+                          for th in (a.near_overlap.split(",") if nf else ["kernel"])
+                          for la in (a.local_arrivals.split(",") if nf else ["0"])]:
             series = []
             for data in datas:
                 model = tune.SmoothMossModel(data, temperature=a.temperature, closure=cl,
                                              near_cells=None if z == "kernel" else float(z),
                                              near_scale=a.near_scale,
-                                             near_overlap=None if th == "kernel" else float(th))
+                                             near_overlap=None if th == "kernel" else float(th),
+                                             local_arrivals=la == "1")
                 series.append(relaxed_series(model))
             rel = mean_series(series)
-            lab = (f"{cl}{f' z = {z}, theta = {th}' if nf else ''} "
+            lab = (f"{cl}{f' z = {z}, theta = {th}, local arrivals {la}' if nf else ''} "
                    f"(t = {a.temperature:g})")
             if a.discrete_light:
                 lab += f", daily light and weather of the {len(datas)} runs"
@@ -301,7 +306,7 @@ def main():
                 face_table(ens, rel, datas[0], a.every, lab)
             for k, v in rel.items():
                 if k not in ("names", "shape_names", "triangles"):
-                    saved[f"{cl}_{z}_{th}_{k}"] = v
+                    saved[f"{cl}_{z}_{th}_{la}_{k}"] = v
     if a.save:
         np.savez_compressed(a.save, **saved)
 

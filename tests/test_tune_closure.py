@@ -183,6 +183,12 @@ def test_closure_arguments():
     plain, tri = ([float(np.sum(np.asarray(x))) for x in (st.pair, m.moss_density(st))]
                   for st, m in zip(runs, [tune.SmoothMossModel(d20, closure="near-field")] * 2))
     assert tri[0] > plain[0] and tri[1] < plain[1], (plain, tri)
+    # gemmae competing with the arrivals next to their parents settle less than with the
+    # triangle's mean arrivals
+    cover = [float(np.sum(np.asarray(tune.SmoothMossModel(
+        d20, temperature=0.0, closure="near-field", local_arrivals=la).run(None).cover)
+        * d20.areas)) for la in (False, True)]
+    assert cover[1] < cover[0], cover
     m = tune.SmoothMossModel(data, temperature=0.0, closure="near-field")
     st = m.run(None).state
     assert st.pair is not None and len(st.arrays()) == 1 + 6 + 1

@@ -24,7 +24,8 @@ Same physics as the discrete run (``daily/day.py``), with three changes (docs/tu
    probability 1 - q, q = P(a neighbour cell of an occupied cell is occupied), instead of the
    triangle's 1 - occupancy, and the clump rule uses q; a newcomer's pairs count the
    neighbours it shares with its parent (triplets, the overlap of the gemma kernel with its
-   own shift, ``Kernel.near_overlap``) (docs/tuning.md).
+   own shift, ``Kernel.near_overlap``), and a gemma competes for its cell with the arrivals
+   next to its parent rather than the triangle's mean (docs/tuning.md).
 
 The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
 ``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
@@ -448,7 +449,10 @@ class SmoothMossModel:
     the landing cells, ~22 on the garden's ground); near_scale: factor on that z [-];
     near_overlap: theta of the triplet term, the share of a newcomer's other neighbour cells
     that are also its parent's neighbours [-] (None: per triangle from the gemma kernel,
-    ``Kernel.near_overlap``, ~0.6 on the garden; 0: the plain pair approximation).
+    ``Kernel.near_overlap``, 0.19-0.28 on the garden; 0: the plain pair approximation);
+    local_arrivals: the near field's gemmae compete for a free cell with the arrivals next to
+    their parents (arrival-weighted over their origins), not with the triangle's mean arrivals
+    (False: the mean, as before).
     Raises ParameterError for an unknown closure, z outside [1, 26] or theta outside [0, 1].
     """
 
@@ -456,7 +460,8 @@ class SmoothMossModel:
                  dispersal: bool = True, capacity: bool = True, external: bool = True,
                  days: int | None = None, precision: str = "float32",
                  closure: str = "mean-field", near_cells: float | None = None,
-                 near_scale: float = 1.0, near_overlap: float | None = None):
+                 near_scale: float = 1.0, near_overlap: float | None = None,
+                 local_arrivals: bool = True):
         if closure not in CLOSURES:
             raise ParameterError("closure", closure, "one of " + ", ".join(CLOSURES))
         self.closure = closure
@@ -492,6 +497,7 @@ class SmoothMossModel:
         self.near_scale = float(near_scale)
         self.near_cells = self._near_cells(near_cells)
         self.near_overlap = self._near_overlap(near_overlap)
+        self.local_arrivals = bool(local_arrivals)
         self.interval = int(cfg["external_spore_interval"])
         self.clump = int(cfg["clump_neighbours"])
         self.initial = float(min(cfg["initial"], cfg["capacity"]))
@@ -787,7 +793,10 @@ class SmoothMossModel:
         2 q10 per spore, q10 = (rho - w) / (1 - rho); a share theta (``near_overlap``) of a
         gemma's other neighbours are its parent's neighbours too, occupied with q q10 / rho
         (triplets by Kirkwood superposition), the rest with q10: q_g = theta q q10 / rho +
-        (1 - theta) q10; w is kept in [rho², rho]. The start is the
+        (1 - theta) q10; a gemma competes for its free cell with g (1 + (z - 1) q_g m) / z
+        arrivals a day (g: gemmae per moss, m: the moss share of the occupants, at its origin,
+        arrival-weighted), not with the triangle's mean (``local_arrivals``); w is kept in
+        [rho², rho]. The start is the
         random placement, w = rho². (Propagules that expire on a day are removed from the ring
         by ``push`` after this update, so their pairs are not thinned; only the clip to
         [rho², rho] on the next day bounds them.)
@@ -861,6 +870,28 @@ class SmoothMossModel:
             # near field: a gemma lands next to its parent, where a cell is free with
             # probability 1 - q (pair closure) instead of the triangle's 1 - occ
             acc_g = dr.maximum(1.0 - q, 0.0) * sf if near else acc
+            if near and self.local_arrivals:
+                # ... and where its siblings and the gemmae of its parent's neighbours land
+                # too: per cell next to a parent, g (1 + (z - 1) q_g m) / z arrivals a day (g:
+                # gemmae per moss, m: moss share of the occupants), not the triangle's mean
+                # A / M; each gemma carries its origin's value (arrival-weighted by the kernel)
+                z, th = self.near_cells, self.near_overlap
+                q10 = dr.clip((occ_live - pair) / dr.maximum(1.0 - occ_live, 1e-12), 0.0, 1.0)
+                q_sh = dr.clip(q * q10 / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
+                q_g = th * q_sh + (1.0 - th) * q10
+                ms = dr.clip(c_after / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
+                g_all, a_g = dr.zeros(T, n), dr.zeros(T, n)
+                for g, a in zip(made_g, arr_g):
+                    g_all += g
+                    a_g += a
+                per_moss = g_all / dr.maximum(M * c_after, 1e-12)
+                a_src = per_moss * (1.0 + (z - 1.0) * q_g * ms) / z
+                k = self.data.kernels["gemma"]
+                a_loc = k.apply(g_all * a_src) / dr.maximum(a_g, 1e-12)
+                a_loc = dr.maximum(a_loc, a_g / M)                # at least the mean
+                a_s = A - a_g
+                sf_g = relax.settle_fraction(a_loc + a_s / M) / M
+                acc_g = dr.maximum(1.0 - q, 0.0) * sf_g
             scale_g = scale_s = 1.0
             if self.capacity_on:
                 # the discrete run settles the day's gemmae first, then the spores, while free
