@@ -24,13 +24,13 @@ ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 
 
-def discrete_ensemble(days, photons, seeds, tmp, light=False):
+def discrete_ensemble(days, photons, seeds, tmp, light=False, species=("bryum_argenteum",)):
     """Per seed and day: covered area in total and under the roof [m2] (``light``: also the
     runs' daily sun and sky fractions per triangle)."""
     out, f_sun, f_sky = [], [], []
     for s in seeds:
         scn = load_scenario(SCEN, [f"light.photons={photons}", f"light.seed={s}",
-                                   "moss.species=['bryum_argenteum']",
+                                   f"moss.species={list(species)!r}",
                                    "simulation.checkpoint_every=0"])
         sim = MossSimulation(scn, tmp, days=days, progress=False)
         sim.setup()
@@ -49,11 +49,12 @@ def discrete_ensemble(days, photons, seeds, tmp, light=False):
     return np.array(out)                      # seed, day, (total, under_roof)
 
 
-def relaxed_with_runs_light(days, seeds, f_sun, f_sky, closure="near-field"):
+def relaxed_with_runs_light(days, seeds, f_sun, f_sky, closure="near-field",
+                            species=("bryum_argenteum",)):
     """The relaxed model once per seed with that run's weather and daily light; the mean."""
     out = []
     for i, s in enumerate(seeds):
-        base = tune.prepare(SCEN, days=days, species=["bryum_argenteum"], photons=10_000,
+        base = tune.prepare(SCEN, days=days, species=list(species), photons=10_000,
                             light_every=days, overrides=[f"light.seed={s}"])
         out.append(relaxed(smooth.with_daily_light(base, f_sun[i], f_sky[i]), closure))
     return np.mean(out, axis=0)
@@ -147,6 +148,27 @@ def test_near_field_after_the_capacity_with_the_runs_light(tmp_path):
     assert np.all(np.abs(runs[:, 0] - 1) < 0.06), runs
     assert np.all(np.abs(runs[:, 1] - 1) < 0.11), runs
     assert np.all(own[:, 1] < 0.85), own
+
+
+@pytest.mark.slow
+def test_garden_300_days_with_the_runs_light(tmp_path):
+    """The paper's garden (3 species, 300 days, 1 M photons, 8 seeds): the near field driven by
+    each run's weather and daily light is within 10 % of the discrete mean in total and under
+    the roof on every reported day but one: the total on day 40, the spread phase, where
+    isolated clusters on the wall's shaded back grow too fast in a local closure (docs/
+    tuning.md; ~10 min on 2 cores)."""
+    days, seeds = 300, range(8)
+    sp = ("bryum_argenteum", "hypnum_plumaeforme", "polytrichum")
+    cover, f_sun, f_sky = discrete_ensemble(days, 1_000_000, seeds, tmp_path, light=True,
+                                            species=sp)
+    rep = np.array([20, 40, 60, 100, 140, 200, 300]) - 1
+    r = relaxed_with_runs_light(days, seeds, f_sun, f_sky, species=sp)[rep] / cover.mean(0)[rep]
+    # measured (experiments/tune_closure.py --discrete-light on the same 8 seeds, b4a1d50):
+    # total 1.048 / 1.189 / 1.019 / 1.046 / 1.029 / 1.033 / 1.027, under the roof 0.963 /
+    # 1.059 / 0.907 / 0.940 / 0.922 / 0.917 / 0.918
+    assert np.all(np.abs(r[:, 1] - 1) < 0.10), r
+    assert np.all(np.abs(np.delete(r[:, 0], 1) - 1) < 0.10), r
+    assert 1.0 < r[1, 0] < 1.25, r
 
 
 @pytest.mark.slow
