@@ -847,6 +847,11 @@ class SmoothMossModel:
             pair = dr.clip(st.pair * surv * surv, occ * occ, occ)
             q = dr.select(occ > 1e-9, pair / dr.maximum(occ, 1e-12), occ)   # P(nb occ | occ)
             q_moss = q * c_after / dr.maximum(occ, 1e-12)                   # ... holds moss
+            # a newcomer gemma's other neighbours: occupied with q10 = P(occ | nb free), and
+            # the share theta it shares with its parent with q q10 / rho (triplets, Kirkwood)
+            q10 = dr.clip((occ - pair) / dr.maximum(1.0 - occ, 1e-12), 0.0, 1.0)
+            q_sh = dr.clip(q * q10 / dr.maximum(occ, 1e-12), 0.0, 1.0)
+            q_g = self.near_overlap * q_sh + (1.0 - self.near_overlap) * q10
             surface = 1.0 - relax.binomial_tail(dr.clip(q_moss, 0.0, 1.0), NEIGHBOUR_CELLS,
                                                 self.clump)
             occ_live = occ
@@ -875,10 +880,7 @@ class SmoothMossModel:
                 # too: per cell next to a parent, g (1 + (z - 1) q_g m) / z arrivals a day (g:
                 # gemmae per moss, m: moss share of the occupants), not the triangle's mean
                 # A / M; each gemma carries its origin's value (arrival-weighted by the kernel)
-                z, th = self.near_cells, self.near_overlap
-                q10 = dr.clip((occ_live - pair) / dr.maximum(1.0 - occ_live, 1e-12), 0.0, 1.0)
-                q_sh = dr.clip(q * q10 / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
-                q_g = th * q_sh + (1.0 - th) * q10
+                z = self.near_cells
                 ms = dr.clip(c_after / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
                 g_all, a_g = dr.zeros(T, n), dr.zeros(T, n)
                 for g, a in zip(made_g, arr_g):
@@ -935,13 +937,6 @@ class SmoothMossModel:
                 g_tot += ng
                 s_tot += ns_
             occ_new = occ_live + g_tot + s_tot
-            q10 = dr.clip((occ_live - pair) / dr.maximum(1.0 - occ_live, 1e-12), 0.0, 1.0)
-            # triplets: a share theta of a gemma's other neighbours are its parent's neighbours
-            # too, occupied with P(occ | next to the occupied parent and the free cell), taken
-            # as q q10 / rho (Kirkwood superposition); the rest with q10
-            th = self.near_overlap
-            q_sh = dr.clip(q * q10 / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
-            q_g = th * q_sh + (1.0 - th) * q10
             new_pair = pair + (2.0 / z) * (g_tot * (1.0 + (z - 1.0) * q_g) + s_tot * z * q10)
             new_pair = dr.clip(new_pair, occ_new * occ_new, occ_new)
         out = State(d + 1, O, new_sp, st.per_species, new_pair)
