@@ -200,10 +200,13 @@ def test_closure_arguments():
     # theta = 0 is the plain pair approximation: a gemma's other neighbours occupied with q10,
     # fewer pairs than with shared neighbours occupied as next to its parent, so less settles
     d20 = tune.prepare(SCEN, days=20, species=["bryum_argenteum"], photons=10_000)
-    runs = [tune.SmoothMossModel(d20, temperature=0.0, closure="near-field",
-                                 near_overlap=th).run(None).state for th in (0.0, 1.0)]
-    plain, tri = ([float(np.sum(np.asarray(x))) for x in (st.pair, m.moss_density(st))]
-                  for st, m in zip(runs, [tune.SmoothMossModel(d20, closure="near-field")] * 2))
+    sums = []
+    for th in (0.0, 1.0):
+        m = tune.SmoothMossModel(d20, temperature=0.0, closure="near-field", near_overlap=th)
+        st = m.run(None).state
+        sums.append((float(np.sum(np.asarray(st.pair))),
+                     float(np.sum(np.asarray(m.moss_density(st))))))
+    plain, tri = sums
     assert tri[0] > plain[0] and tri[1] < plain[1], (plain, tri)
     # gemmae competing with the arrivals next to their parents settle less than with the
     # triangle's mean arrivals
