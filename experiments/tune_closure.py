@@ -225,6 +225,10 @@ def main():
     ap.add_argument("--local-arrivals", default="1",
                     help="near field: settle fraction of gemmae from the arrivals next to their "
                          "parents (list of 0/1)")
+    ap.add_argument("--siblings", default="1",
+                    help="near field: a parent's fixed point (its z from two gemmae released "
+                         "there, and spores landing beside it where its gemmae land) (list "
+                         "of 0/1; 0: z from the whole triangle, spores anywhere)")
     ap.add_argument("--days", type=int, default=0, help="compare the first days only")
     ap.add_argument("--floor", type=float, default=0.0,
                     help="ignore region-days whose discrete mean is below this [m2]")
@@ -280,19 +284,22 @@ def main():
     saved = {}
     for cl in a.closures.split(","):
         nf = cl == "near-field"
-        for z, th, la in [(z, th, la) for z in (a.near_cells.split(",") if nf else ["kernel"])
-                          for th in (a.near_overlap.split(",") if nf else ["kernel"])
-                          for la in (a.local_arrivals.split(",") if nf else ["0"])]:
+        for z, th, la, sb in [(z, th, la, sb)
+                              for z in (a.near_cells.split(",") if nf else ["kernel"])
+                              for th in (a.near_overlap.split(",") if nf else ["kernel"])
+                              for la in (a.local_arrivals.split(",") if nf else ["0"])
+                              for sb in (a.siblings.split(",") if nf else ["0"])]:
             series = []
             for data in datas:
                 model = tune.SmoothMossModel(data, temperature=a.temperature, closure=cl,
                                              near_cells=None if z == "kernel" else float(z),
                                              near_scale=a.near_scale,
                                              near_overlap=None if th == "kernel" else float(th),
-                                             local_arrivals=la == "1")
+                                             local_arrivals=la == "1",
+                                             siblings=sb == "1")
                 series.append(relaxed_series(model))
             rel = mean_series(series)
-            lab = (f"{cl}{f' z = {z}, theta = {th}, local arrivals {la}' if nf else ''} "
+            lab = (f"{cl}{f' z = {z}, theta = {th}, local arrivals {la}, siblings {sb}' if nf else ''} "
                    f"(t = {a.temperature:g})")
             if a.discrete_light:
                 lab += f", daily light and weather of the {len(datas)} runs"

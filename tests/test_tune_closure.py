@@ -154,21 +154,21 @@ def test_near_field_after_the_capacity_with_the_runs_light(tmp_path):
 def test_garden_300_days_with_the_runs_light(tmp_path):
     """The paper's garden (3 species, 300 days, 1 M photons, 8 seeds): the near field driven by
     each run's weather and daily light is within 10 % of the discrete mean in total and under
-    the roof on every reported day but one: the total on day 40, the spread phase, where
-    isolated clusters on the wall's shaded back grow too fast in a local closure (docs/
-    tuning.md; ~10 min on 2 cores)."""
+    the roof on every reported day but one: the total on day 40, the spread phase (1.11; with
+    16 seeds 1.107, the discrete mean's s.e. 5.8 %; docs/tuning.md; ~10 min on 2 cores)."""
     days, seeds = 300, range(8)
     sp = ("bryum_argenteum", "hypnum_plumaeforme", "polytrichum")
     cover, f_sun, f_sky = discrete_ensemble(days, 1_000_000, seeds, tmp_path, light=True,
                                             species=sp)
     rep = np.array([20, 40, 60, 100, 140, 200, 300]) - 1
     r = relaxed_with_runs_light(days, seeds, f_sun, f_sky, species=sp)[rep] / cover.mean(0)[rep]
-    # measured (experiments/tune_closure.py --discrete-light on the same 8 seeds, b4a1d50):
-    # total 1.048 / 1.189 / 1.019 / 1.046 / 1.029 / 1.033 / 1.027, under the roof 0.963 /
-    # 1.059 / 0.907 / 0.940 / 0.922 / 0.917 / 0.918
+    # measured (experiments/tune_closure.py --discrete-light on the same 8 seeds, siblings):
+    # total 1.008 / 1.111 / 1.037 / 1.052 / 1.033 / 1.033 / 1.027, under the roof 0.963 /
+    # 1.063 / 0.986 / 0.991 / 0.963 / 0.957 / 0.959 (without siblings: total 1.189 on day 40,
+    # under the roof 0.907-0.940 after it)
     assert np.all(np.abs(r[:, 1] - 1) < 0.10), r
     assert np.all(np.abs(np.delete(r[:, 0], 1) - 1) < 0.10), r
-    assert 1.0 < r[1, 0] < 1.25, r
+    assert 1.0 < r[1, 0] < 1.15, r
 
 
 @pytest.mark.slow
@@ -268,3 +268,55 @@ def test_near_overlap_of_uniform_kernels():
         assert near_overlap(src, off, 5)[:4] == pytest.approx(theta, abs=0.02)
         assert near_cells(src, off, 5)[:4] == pytest.approx(z, rel=0.03)
         assert np.isnan(near_overlap(src, off, 5)[4])          # no landings sampled
+
+
+def test_pooled_share_sums_the_gemma_neighbourhood():
+    """``dispersal.pooled_share``: same / both over the element and the elements its gemmae
+    reach (each once, whatever the weight), NaN below ``min_pairs``."""
+    from mitsuba_veg.tune.dispersal import Kernel, pooled_share
+    # 0 -> 0, 1 (twice the weight: still once), 2 -> 2, 3 -> nothing
+    k = Kernel("gemma", 0.02, 4, np.array([0, 0, 1, 2]), np.array([0, 1, 0, 2]),
+               np.array([0.25, 0.5, 0.25, 0.25]), 4)
+    same = np.array([2.0, 6.0, 1.0, 0.0])
+    both = np.array([10.0, 20.0, 4.0, 30.0])
+    out = pooled_share(k, same, both, min_pairs=20.0)
+    assert out[0] == pytest.approx(8.0 / 30.0)          # itself and 1
+    assert out[1] == pytest.approx(8.0 / 30.0)          # itself and 0
+    assert np.isnan(out[2])                             # 4 pairs only
+    assert out[3] == 0.0                                # 30 pairs, none shared a cell
+
+
+def test_siblings_of_a_fixed_parent():
+    """The near field seen from a parent's fixed point (``siblings=True``, the default): on the
+    wall's back a gemma hops a few mm into the wall, so a parent reaches about half the cells
+    its triangle's gemmae do (z ~5 against ~11) and a spore that stays on the wall lands
+    where that parent's gemmae land (a third of the pairs share a cell); on the ground a
+    parent reaches as many cells as its triangle, and most spores land far. The back of the
+    wall grows slower, the ground as before."""
+    data = tune.prepare(SCEN, days=25, species=["bryum_argenteum"], photons=10_000)
+    nrm = data.index.normals
+
+    def face(shape, axis, sign):
+        sl = data.shape_slices[shape]
+        i = np.arange(sl.start, sl.stop)
+        return i[(nrm[i, axis] * sign > 0.9) & data.living[i]]
+    back, ground = face("wall", 2, -1), face("ground", 1, 1)
+    kg, ks = data.kernels["gemma"], data.kernels["spore"]
+    with np.errstate(divide="ignore"):
+        z_loc = 1.0 / kg.sibling_share
+    # measured: z 11.0 / 22.5 (triangle), 5.3 / 26.1 (fixed point); spore pairs sharing a cell
+    # 0.36 / 0.024; spores landing far 0.0 / 0.84
+    assert np.nanmedian(z_loc[back]) < 0.7 * np.nanmedian(kg.near_cells[back])
+    assert 0.8 < np.nanmedian(z_loc[ground]) / np.nanmedian(kg.near_cells[ground]) < 1.3
+    assert np.nanmedian(ks.sibling_share[back]) > 0.2
+    assert np.nanmedian(ks.sibling_share[ground]) < 0.08
+    assert np.nanmedian(ks.far_share[back]) < 0.05 < 0.6 < np.nanmedian(ks.far_share[ground])
+    moss = {}
+    for sb in (False, True):
+        m = tune.SmoothMossModel(data, temperature=0.0, closure="near-field", siblings=sb)
+        with dr.suspend_grad():
+            c = np.asarray(m.run(None).moss_density) * data.M
+        moss[sb] = (c[back].sum(), c[ground].sum())
+    # measured: back 181.8 -> 137.2, ground 286.3 -> 286.9
+    assert moss[True][0] < 0.85 * moss[False][0], moss
+    assert moss[True][1] == pytest.approx(moss[False][1], rel=0.03), moss

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..moss.propagules import land, spore_direction, uniform_sphere
 
-__all__ = ["Kernel", "dispersal_kernel", "random_points"]
+__all__ = ["Kernel", "dispersal_kernel", "random_points", "sibling_overlap", "pooled_share"]
 
 
 @dataclass
@@ -49,6 +49,16 @@ class Kernel:
     #: also neighbours of the parent's cell (weighted by the landing probabilities; the
     #: near-field closure's triplet term); NaN where not estimable; None if not estimated
     near_overlap: np.ndarray | None = None
+    #: per source element: the share of its landings (other than the parent's own spot) that
+    #: fall outside the gemmae's reach of its parent's cell, more than ``near_radius`` cells
+    #: away along an axis (the far field, where a landing cell is occupied with the
+    #: triangle's mean occupancy); None if not estimated
+    far_share: np.ndarray | None = None
+    #: per source element: the probability that this propagule and a gemma released from the
+    #: same point land in the same cell, given both landed (:func:`sibling_overlap`, pooled
+    #: over the element's gemma neighbourhood: :func:`pooled_share`); for the gemma kernel its
+    #: inverse is the number of cells a parent at a fixed point reaches; None if not estimated
+    sibling_share: np.ndarray | None = None
 
     def __post_init__(self):
         self._dr = None
@@ -135,7 +145,8 @@ def random_points(index, elems: np.ndarray, rng: np.random.Generator):
 
 
 def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: float,
-                     samples: int = 64, seed: int = 0, grid=None, batch: int = 1 << 21) -> Kernel:
+                     samples: int = 64, seed: int = 0, grid=None, batch: int = 1 << 21,
+                     near_radius: int | None = None) -> Kernel:
     """Monte-Carlo dispersal kernel of ``kind`` ``"gemma"`` (eq 3.22) or ``"spore"`` (eq 3.23)
     over the living elements of ``scene`` (``samples`` releases per living source triangle).
 
@@ -162,9 +173,13 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
     seed : int
         Seed of the NumPy generator.
     grid : SpotGrid, optional
-        The run's spot grid (own-spot landings left out, ``near_cells`` estimated).
+        The run's spot grid (own-spot landings left out, ``near_cells``, ``near_overlap`` and,
+        with ``near_radius``, ``far_share`` estimated).
     batch : int
         Releases traced at a time.
+    near_radius : int, optional
+        The gemmae's reach [cells]: landings more than this many cells from the parent's cell
+        along an axis count as far (``far_share``).
 
     Returns
     -------
@@ -217,13 +232,127 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
     dst = np.concatenate(dsts)
     key = src * n + dst
     uniq, counts = np.unique(key, return_counts=True)
-    near = overlap = None
+    near = overlap = far = None
     if grid is not None:
         off = np.concatenate(offs)
         near = near_cells(src, off, n)
         overlap = near_overlap(src, off, n)
+        if near_radius is not None:
+            dk = np.stack([(off // 17 ** k) % 17 - 8 for k in range(3)], -1)
+            out = np.abs(dk).max(-1) > int(near_radius)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                far = np.bincount(src, out, n) / np.bincount(src, minlength=n)
     return Kernel(kind, float(distance), int(samples), (uniq // n).astype(np.int64),
-                  (uniq % n).astype(np.int64), counts / float(samples), n, near, overlap)
+                  (uniq % n).astype(np.int64), counts / float(samples), n, near, overlap, far)
+
+
+def _release(scene, index, living, grid, pts, nrm, kind, distance, rng):
+    """Landing cell key (int64) and whether it counts (landed on a living surface, not the
+    parent's own spot) of one propagule of ``kind`` released from each point."""
+    m = len(pts)
+    P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
+    N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
+    r = rng.random((m, 3)).astype(np.float32)
+    u = mi.Point2f(mi.Float(r[:, 0]), mi.Float(r[:, 1]))
+    d = spore_direction(N, u, mi.Float(r[:, 2])) if kind == "spore" else uniform_sphere(u)
+    landed, elem, p, _ = land(scene, index.lookup, P + N * 2e-3, d, float(distance),
+                              mi.Bool(True))
+    landed &= grid.index(p) != grid.index(P)
+    ok = np.asarray(landed)
+    el = np.asarray(elem).astype(np.int64)
+    ok &= (el >= 0) & (el < index.n_elements)
+    ok[ok] &= living[el[ok]]
+    return np.asarray(grid.index(p)).astype(np.int64), ok
+
+
+def sibling_overlap(scene, index, living: np.ndarray, grid, kind: str, distance: float,
+                    gemma_distance: float, samples: int = 128, seed: int = 0,
+                    batch: int = 1 << 20) -> tuple[np.ndarray, np.ndarray]:
+    """Per source element: how often a propagule of ``kind`` and a gemma released from the
+    *same* point land in the same cell (both landed, neither in the parent's own spot).
+
+    The kernel's ``near_cells`` pools the parent's position over the whole triangle; a parent
+    stays at one point, and where the landings are short next to the cell's size (on a wall a
+    gemma hops a few mm into the surface) it reaches only the few cells beside that point, the
+    same ones every day: its offspring crowd there. For two gemmae this share is
+    ``sum_k p_k(x)^2`` averaged over the parent's point x, the inverse of the cells a parent
+    reaches; for a spore and a gemma it says how often a spore lands where the parent's gemmae
+    land (near field) rather than anywhere.
+
+    Parameters
+    ----------
+    scene, index : mitsuba.Scene, SceneIndex
+        The light scene and its element index.
+    living : numpy.ndarray
+        (triangles,) bool: where moss may live.
+    grid : SpotGrid
+        The run's spot grid.
+    kind : str
+        ``"gemma"`` or ``"spore"``: the first propagule's kind.
+    distance : float
+        Its flight distance [m].
+    gemma_distance : float
+        The gemma's flight distance k of eq 3.22 [m].
+    samples : int
+        Release points per living source triangle (two propagules each).
+    seed : int
+        Seed of the NumPy generator.
+    batch : int
+        Release points traced at a time.
+
+    Returns
+    -------
+    same : numpy.ndarray
+        (triangles,) pairs in the same cell [-] (counts).
+    both : numpy.ndarray
+        (triangles,) pairs where both landed [-] (counts).
+    """
+    if kind not in ("gemma", "spore"):
+        raise ValueError(f"kind must be 'gemma' or 'spore', not {kind!r}")
+    n = index.n_elements
+    living = np.asarray(living, bool)
+    rng = np.random.default_rng([seed, 0 if kind == "gemma" else 1, 2])
+    src_all = np.repeat(np.flatnonzero(living), samples)
+    same = np.zeros(n)
+    both = np.zeros(n)
+    for start in range(0, len(src_all), batch):
+        src = src_all[start:start + batch]
+        pts, nrm = random_points(index, src, rng)
+        pts = pts + nrm * 1e-4
+        ca, oka = _release(scene, index, living, grid, pts, nrm, kind, distance, rng)
+        cb, okb = _release(scene, index, living, grid, pts, nrm, "gemma", gemma_distance, rng)
+        b = oka & okb
+        both += np.bincount(src, b, n)
+        same += np.bincount(src, b & (ca == cb), n)
+    return same, both
+
+
+def pooled_share(kernel: Kernel, same: np.ndarray, both: np.ndarray,
+                 min_pairs: float = 20.0) -> np.ndarray:
+    """``same / both`` per element, pooled over the element and the elements its propagules
+    reach by ``kernel`` (the same surface within a flight: a few samples per triangle are too
+    few on their own); NaN where fewer than ``min_pairs`` pairs landed.
+
+    Parameters
+    ----------
+    kernel : Kernel
+        The neighbourhood (the gemma kernel).
+    same, both : numpy.ndarray
+        (triangles,) counts of :func:`sibling_overlap`.
+    min_pairs : float
+        Least pooled pairs for an estimate.
+
+    Returns
+    -------
+    numpy.ndarray
+        (triangles,) share in [0, 1] [-] (NaN where not estimable).
+    """
+    n = kernel.n_elements
+    nb = kernel.src != kernel.dst
+    s = same + np.bincount(kernel.src[nb], same[kernel.dst[nb]], n)
+    b = both + np.bincount(kernel.src[nb], both[kernel.dst[nb]], n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(b >= min_pairs, s / b, np.nan)
 
 
 def _offset_counts(src: np.ndarray, offset: np.ndarray, n: int):

@@ -24,8 +24,10 @@ Same physics as the discrete run (``daily/day.py``), with three changes (docs/tu
    probability 1 - q, q = P(a neighbour cell of an occupied cell is occupied), instead of the
    triangle's 1 - occupancy, and the clump rule uses q; a newcomer's pairs count the
    neighbours it shares with its parent (triplets, the overlap of the gemma kernel with its
-   own shift, ``Kernel.near_overlap``), and a gemma competes for its cell with the arrivals
-   next to its parent rather than the triangle's mean (docs/tuning.md).
+   own shift, ``Kernel.near_overlap``), a gemma competes for its cell with the arrivals
+   next to its parent rather than the triangle's mean, and the near field is the one a parent
+   reaches from its fixed point, where its spores that stay close land too
+   (``Kernel.sibling_share``, ``Kernel.far_share``; docs/tuning.md).
 
 The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
 ``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
@@ -43,6 +45,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 import datetime as _dt
 import time
 from dataclasses import dataclass, field
@@ -58,7 +61,7 @@ from ..light.sunpath import day_sun_path
 from ..moss.species import PARAMETER_FIELDS
 from ..scenario import Scenario, load_scenario
 from . import relax
-from .dispersal import dispersal_kernel
+from .dispersal import dispersal_kernel, pooled_share, sibling_overlap
 from .lifecycle import (GEMMA_STEP, SPORE_THRESHOLD, CohortLifeCycle, SpeciesState,
                         real_type, species_fitness)
 from .photon_ad import PhotonPaths, albedo_array, irradiance, trace_paths
@@ -261,14 +264,20 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
 
     t1 = time.perf_counter()
     cfg = sim.moss_cfg
+    k_g, k_s = float(cfg["gemma_distance"]), float(cfg["spore_distance"])
+    # the gemmae's reach [cells]: a gemma lands at most k from its parent, plus the cell it
+    # starts in
+    reach = int(math.ceil(k_g / sim.grid_cell())) + 1
     kernels = {
-        "gemma": dispersal_kernel(sim.scene, idx, sim.living, "gemma",
-                                  float(cfg["gemma_distance"]), int(kernel_samples[0]), seed,
-                                  sim.grid),
-        "spore": dispersal_kernel(sim.scene, idx, sim.living, "spore",
-                                  float(cfg["spore_distance"]), int(kernel_samples[1]), seed,
-                                  sim.grid),
+        "gemma": dispersal_kernel(sim.scene, idx, sim.living, "gemma", k_g,
+                                  int(kernel_samples[0]), seed, sim.grid, near_radius=reach),
+        "spore": dispersal_kernel(sim.scene, idx, sim.living, "spore", k_s,
+                                  int(kernel_samples[1]), seed, sim.grid, near_radius=reach),
     }
+    for kind, dist in (("gemma", k_g), ("spore", k_s)):
+        same, both = sibling_overlap(sim.scene, idx, sim.living, sim.grid, kind, dist, k_g,
+                                     2 * int(kernel_samples[0]), seed)
+        kernels[kind].sibling_share = pooled_share(kernels["gemma"], same, both)
     timings["kernels"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
@@ -452,7 +461,11 @@ class SmoothMossModel:
     ``Kernel.near_overlap``, 0.19-0.28 on the garden; 0: the plain pair approximation);
     local_arrivals: the near field's gemmae compete for a free cell with the arrivals next to
     their parents (arrival-weighted over their origins), not with the triangle's mean arrivals
-    (False: the mean, as before).
+    (False: the mean, as before); siblings: the near field seen from a parent's fixed point,
+    z = 1 / ``Kernel.sibling_share`` of the gemma kernel (the cells a parent at one point
+    reaches; where not estimable, ``near_cells``) and spores that land beside their parent
+    finding the cells its gemmae reach occupied (``far_share`` and ``sibling_share`` of the
+    spore kernel; False: z pooled over the triangle, every spore sees the mean occupancy).
     Raises ParameterError for an unknown closure, z outside [1, 26] or theta outside [0, 1].
     """
 
@@ -461,7 +474,7 @@ class SmoothMossModel:
                  days: int | None = None, precision: str = "float32",
                  closure: str = "mean-field", near_cells: float | None = None,
                  near_scale: float = 1.0, near_overlap: float | None = None,
-                 local_arrivals: bool = True):
+                 local_arrivals: bool = True, siblings: bool = True):
         if closure not in CLOSURES:
             raise ParameterError("closure", closure, "one of " + ", ".join(CLOSURES))
         self.closure = closure
@@ -495,9 +508,11 @@ class SmoothMossModel:
         cfg = data.moss_cfg
         self.capacity = float(cfg["capacity"])
         self.near_scale = float(near_scale)
+        self.siblings = bool(siblings)
         self.near_cells = self._near_cells(near_cells)
         self.near_overlap = self._near_overlap(near_overlap)
         self.local_arrivals = bool(local_arrivals)
+        self.spore_near = self._spore_near()
         self.interval = int(cfg["external_spore_interval"])
         self.clump = int(cfg["clump_neighbours"])
         self.initial = float(min(cfg["initial"], cfg["capacity"]))
@@ -511,6 +526,22 @@ class SmoothMossModel:
         effective number of landing cells around the parent's cell (NaN: the median)."""
         return self._near_field_value("near_cells", z, 1.0, 26.0, "cells around a cell", 8.0,
                                       self.near_scale)
+
+    def _spore_near(self):
+        """(far share, sibling share) of the spore kernel per element for the near field of
+        the spores, or None (no closure, ``siblings=False``, or a kernel without them)."""
+        if self.closure != "near-field" or not self.siblings:
+            return None
+        k = self.data.kernels["spore"]
+        if k.far_share is None or k.sibling_share is None:
+            return None
+        out = []
+        for v, fallback in ((k.far_share, 1.0), (k.sibling_share, 0.0)):
+            v = np.asarray(v, float)
+            ok = np.isfinite(v)
+            v = np.where(ok, v, np.median(v[ok]) if ok.any() else fallback)
+            out.append(self.T(np.clip(v, 0.0, 1.0)))
+        return tuple(out)
 
     def _near_overlap(self, theta):
         """theta of the near-field closure's triplet term per element: a number, or (None) the
@@ -529,6 +560,13 @@ class SmoothMossModel:
                 raise ParameterError(name, value, f"{lo:g} <= {name} <= {hi:g} ({what})")
             return dr.opaque(self.T, value)
         k = getattr(self.data.kernels["gemma"], name)
+        sib = self.data.kernels["gemma"].sibling_share
+        if name == "near_cells" and self.siblings and sib is not None:
+            # the cells a parent at its fixed point reaches: 1 / P(two of its gemmae share one)
+            with np.errstate(divide="ignore"):
+                loc = 1.0 / np.asarray(sib, float)
+            base = np.asarray(k, float) if k is not None else np.full(len(loc), np.nan)
+            k = np.where(np.isfinite(loc), loc, base)
         if k is None:
             raise ParameterError(name, None, "a number, or a gemma kernel estimated with the "
                                  "spot grid (prepare() does that)")
@@ -796,8 +834,11 @@ class SmoothMossModel:
         (1 - theta) q10; a gemma competes for its free cell with g (1 + (z - 1) q_g m) / z
         arrivals a day (g: gemmae per moss, m: the moss share of the occupants, at its origin,
         arrival-weighted), not with the triangle's mean (``local_arrivals``); w is kept in
-        [rho², rho]. The start is the
-        random placement, w = rho². (Propagules that expire on a day are removed from the ring
+        [rho², rho]. With ``siblings`` z is the number of cells a parent reaches from its
+        point, and a spore arrival finds its cell occupied with min(1 - f, q z P) + f rho (f:
+        the spore kernel's far share, P: the chance that it lands in the cell of a gemma from
+        the same point); those that settle near their parent add pairs as gemmae. The start
+        is the random placement, w = rho². (Propagules that expire on a day are removed from the ring
         by ``push`` after this update, so their pairs are not thinned; only the clip to
         [rho², rho] on the next day bounds them.)
 
@@ -863,6 +904,8 @@ class SmoothMossModel:
             made_g.append(gem * M)
             made_s.append(spo * M)
         # ---- landing (expected: the kernels of eqs 3.22-3.23) and one individual per spot
+        sn_share = None
+        s_near = dr.zeros(T, n)             # spores settled beside their parent
         if self.dispersal:
             arr_g = [self.data.kernels["gemma"].apply(g) for g in made_g]
             arr_s = [self.data.kernels["spore"].apply(x) for x in made_s]
@@ -894,6 +937,17 @@ class SmoothMossModel:
                 a_s = A - a_g
                 sf_g = relax.settle_fraction(a_loc + a_s / M) / M
                 acc_g = dr.maximum(1.0 - q, 0.0) * sf_g
+            acc_s = acc
+            if near and self.spore_near is not None:
+                # spores: those that land beside their parent (1 - far) land where its gemmae
+                # land, occupied with q z P (P: a spore and a gemma from one point share a
+                # cell), the far ones occupied with rho
+                far, p_sib = self.spore_near
+                sf_n = sf_g if self.local_arrivals else sf
+                near_free = dr.maximum((1.0 - far) - dr.minimum(1.0 - far,
+                                                               q * self.near_cells * p_sib), 0.0)
+                acc_s = near_free * sf_n + far * free * sf
+                sn_share = near_free * sf_n / dr.maximum(acc_s, 1e-12)
             scale_g = scale_s = 1.0
             if self.capacity_on:
                 # the discrete run settles the day's gemmae first, then the spores, while free
@@ -902,13 +956,16 @@ class SmoothMossModel:
                 want_g, want_s = dr.zeros(T, n), dr.zeros(T, n)
                 for a, b in zip(arr_g, arr_s):
                     want_g += a * acc_g
-                    want_s += b * acc
+                    want_s += b * acc_s
                 wg, ws = dr.sum(M * want_g), dr.sum(M * want_s)
                 scale_g = dr.minimum(1.0, room / dr.maximum(wg, 1e-12))
                 room_s = dr.maximum(room - wg * scale_g, 0.0)
                 scale_s = dr.minimum(1.0, room_s / dr.maximum(ws, 1e-12))
             new_g = [a * acc_g * scale_g for a in arr_g]
-            new_s = [a * acc * scale_s for a in arr_s]
+            new_s = [a * acc_s * scale_s for a in arr_s]
+            if sn_share is not None:
+                for x in new_s:
+                    s_near += x * sn_share
             for ng, ns_ in zip(new_g, new_s):
                 settled.append(ng + ns_)
                 occ = occ + ng + ns_
@@ -937,7 +994,10 @@ class SmoothMossModel:
                 g_tot += ng
                 s_tot += ns_
             occ_new = occ_live + g_tot + s_tot
-            new_pair = pair + (2.0 / z) * (g_tot * (1.0 + (z - 1.0) * q_g) + s_tot * z * q10)
+            # (spores that settled beside their parent count as its gemmae do; the external
+            # spore lands anywhere)
+            new_pair = pair + (2.0 / z) * ((g_tot + s_near) * (1.0 + (z - 1.0) * q_g)
+                                           + (s_tot - s_near) * z * q10)
             new_pair = dr.clip(new_pair, occ_new * occ_new, occ_new)
         out = State(d + 1, O, new_sp, st.per_species, new_pair)
         # opaque, not just evaluated: a slot that is still a literal 0 would enter the kernels as
@@ -945,7 +1005,8 @@ class SmoothMossModel:
         dr.make_opaque(out.arrays())
         if record is not None:
             record.update(S=S, Ts=Ts, rhs=rhs, theta=theta, c=c_after, germinated=germinated,
-                          gemmae=made_g, spores=made_s, arrived=arr_g + arr_s, settled=settled)
+                          gemmae=made_g, spores=made_s, arrived=arr_g + arr_s, settled=settled,
+                          settled_gemmae=new_g if self.dispersal else [])
         return out
 
     # ---- outputs ----------------------------------------------------------------------------
