@@ -299,8 +299,8 @@ def main():
                                              siblings=sb == "1")
                 series.append(relaxed_series(model))
             rel = mean_series(series)
-            lab = (f"{cl}{f' z = {z}, theta = {th}, local arrivals {la}, siblings {sb}' if nf else ''} "
-                   f"(t = {a.temperature:g})")
+            nf_lab = f" z = {z}, theta = {th}, local arrivals {la}, siblings {sb}" if nf else ""
+            lab = f"{cl}{nf_lab} (t = {a.temperature:g})
             if a.discrete_light:
                 lab += f", daily light and weather of the {len(datas)} runs"
             elif a.per_seed:

@@ -45,8 +45,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 import datetime as _dt
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -838,9 +838,9 @@ class SmoothMossModel:
         point, and a spore arrival finds its cell occupied with min(1 - f, q z P) + f rho (f:
         the spore kernel's far share, P: the chance that it lands in the cell of a gemma from
         the same point); those that settle near their parent add pairs as gemmae. The start
-        is the random placement, w = rho². (Propagules that expire on a day are removed from the ring
-        by ``push`` after this update, so their pairs are not thinned; only the clip to
-        [rho², rho] on the next day bounds them.)
+        is the random placement, w = rho². (Propagules that expire on a day are removed from
+        the ring by ``push`` after this update, so their pairs are not thinned; only the clip
+        to [rho², rho] on the next day bounds them.)
 
         Parameters
         ----------
