@@ -300,7 +300,7 @@ def main():
                 series.append(relaxed_series(model))
             rel = mean_series(series)
             nf_lab = f" z = {z}, theta = {th}, local arrivals {la}, siblings {sb}" if nf else ""
-            lab = f"{cl}{nf_lab} (t = {a.temperature:g})
+            lab = f"{cl}{nf_lab} (t = {a.temperature:g})"
             if a.discrete_light:
                 lab += f", daily light and weather of the {len(datas)} runs"
             elif a.per_seed:
