@@ -203,23 +203,7 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
         src = src_all[start:start + batch]
         m = len(src)
         pts, nrm = random_points(index, src, rng)
-        pts = pts + nrm * 1e-4  # individuals sit 0.1 mm off the surface (daily/day.py)
-        P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
-        N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
-        r = rng.random((m, 3)).astype(np.float32)
-        u = mi.Point2f(mi.Float(r[:, 0]), mi.Float(r[:, 1]))
-        if kind == "spore":
-            d = spore_direction(N, u, mi.Float(r[:, 2]))
-        else:
-            d = uniform_sphere(u)
-        landed, elem, p, _ = land(scene, index.lookup, P + N * 2e-3, d, float(distance),
-                                  mi.Bool(True))
-        if grid is not None:
-            landed &= grid.index(p) != grid.index(P)
-        ok = np.asarray(landed)
-        el = np.asarray(elem).astype(np.int64)
-        ok &= (el >= 0) & (el < n)
-        ok[ok] &= living[el[ok]]
+        ok, el, p, P = _fly(scene, index, living, grid, pts, nrm, kind, distance, rng)
         srcs.append(src[ok])
         dsts.append(el[ok])
         if grid is not None:  # landing cell relative to the parent's cell (17^3 offsets)
@@ -246,10 +230,13 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
                   (uniq % n).astype(np.int64), counts / float(samples), n, near, overlap, far)
 
 
-def _release(scene, index, living, grid, pts, nrm, kind, distance, rng):
-    """Landing cell key (int64) and whether it counts (landed on a living surface, not the
-    parent's own spot) of one propagule of ``kind`` released from each point."""
+def _fly(scene, index, living, grid, pts, nrm, kind, distance, rng):
+    """One propagule of ``kind`` released from each point ``pts`` (on normals ``nrm``; lifted
+    0.1 mm, as individuals sit in daily/day.py): whether it counts (landed on a living surface
+    and, with a ``grid``, not in the parent's own spot), its element, landing point and the
+    release point (both Dr.Jit points)."""
     m = len(pts)
+    pts = pts + nrm * 1e-4
     P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
     N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
     r = rng.random((m, 3)).astype(np.float32)
@@ -257,12 +244,13 @@ def _release(scene, index, living, grid, pts, nrm, kind, distance, rng):
     d = spore_direction(N, u, mi.Float(r[:, 2])) if kind == "spore" else uniform_sphere(u)
     landed, elem, p, _ = land(scene, index.lookup, P + N * 2e-3, d, float(distance),
                               mi.Bool(True))
-    landed &= grid.index(p) != grid.index(P)
+    if grid is not None:
+        landed &= grid.index(p) != grid.index(P)
     ok = np.asarray(landed)
     el = np.asarray(elem).astype(np.int64)
     ok &= (el >= 0) & (el < index.n_elements)
     ok[ok] &= living[el[ok]]
-    return np.asarray(grid.index(p)).astype(np.int64), ok
+    return ok, el, p, P
 
 
 def sibling_overlap(scene, index, living: np.ndarray, grid, kind: str, distance: float,
@@ -318,12 +306,12 @@ def sibling_overlap(scene, index, living: np.ndarray, grid, kind: str, distance:
     for start in range(0, len(src_all), batch):
         src = src_all[start:start + batch]
         pts, nrm = random_points(index, src, rng)
-        pts = pts + nrm * 1e-4
-        ca, oka = _release(scene, index, living, grid, pts, nrm, kind, distance, rng)
-        cb, okb = _release(scene, index, living, grid, pts, nrm, "gemma", gemma_distance, rng)
+        oka, _, pa, _ = _fly(scene, index, living, grid, pts, nrm, kind, distance, rng)
+        okb, _, pb, _ = _fly(scene, index, living, grid, pts, nrm, "gemma", gemma_distance, rng)
         b = oka & okb
+        same_cell = np.asarray(grid.index(pa) == grid.index(pb))
         both += np.bincount(src, b, n)
-        same += np.bincount(src, b & (ca == cb), n)
+        same += np.bincount(src, b & same_cell, n)
     return same, both
 
 

@@ -443,6 +443,14 @@ class Resolved:
 # ------------------------------------------------------------------------------------------
 # The model
 # ------------------------------------------------------------------------------------------
+def _filled(v, fallback: float) -> np.ndarray:
+    """Per-element estimate ``v`` with its NaNs replaced by the median of the finite values
+    (``fallback`` if none is finite)."""
+    v = np.asarray(v, float)
+    ok = np.isfinite(v)
+    return np.where(ok, v, np.median(v[ok]) if ok.any() else fallback)
+
+
 class SmoothMossModel:
     """Relaxed daily soil + moss model over ``data`` (see module docstring).
 
@@ -523,9 +531,18 @@ class SmoothMossModel:
 
     def _near_cells(self, z):
         """z of the near-field closure per element: a number, or (None) the gemma kernel's
-        effective number of landing cells around the parent's cell (NaN: the median)."""
+        effective number of landing cells around the parent's cell, with ``siblings`` those
+        a parent reaches from its fixed point, 1 / ``sibling_share`` where estimable (NaN:
+        the median)."""
+        k = self.data.kernels["gemma"]
+        est = k.near_cells
+        if self.siblings and k.sibling_share is not None:
+            with np.errstate(divide="ignore"):
+                loc = 1.0 / np.asarray(k.sibling_share, float)
+            base = np.asarray(est, float) if est is not None else np.full(len(loc), np.nan)
+            est = np.where(np.isfinite(loc), loc, base)
         return self._near_field_value("near_cells", z, 1.0, 26.0, "cells around a cell", 8.0,
-                                      self.near_scale)
+                                      self.near_scale, est)
 
     def _spore_near(self):
         """(far share, sibling share) of the spore kernel per element for the near field of
@@ -535,23 +552,19 @@ class SmoothMossModel:
         k = self.data.kernels["spore"]
         if k.far_share is None or k.sibling_share is None:
             return None
-        out = []
-        for v, fallback in ((k.far_share, 1.0), (k.sibling_share, 0.0)):
-            v = np.asarray(v, float)
-            ok = np.isfinite(v)
-            v = np.where(ok, v, np.median(v[ok]) if ok.any() else fallback)
-            out.append(self.T(np.clip(v, 0.0, 1.0)))
-        return tuple(out)
+        return (self.T(np.clip(_filled(k.far_share, 1.0), 0.0, 1.0)),
+                self.T(np.clip(_filled(k.sibling_share, 0.0), 0.0, 1.0)))
 
     def _near_overlap(self, theta):
         """theta of the near-field closure's triplet term per element: a number, or (None) the
         gemma kernel's estimate (NaN: the median)."""
-        return self._near_field_value("near_overlap", theta, 0.0, 1.0, "a share", 0.0)
+        return self._near_field_value("near_overlap", theta, 0.0, 1.0, "a share", 0.0, 1.0,
+                                      self.data.kernels["gemma"].near_overlap)
 
-    def _near_field_value(self, name, value, lo, hi, what, fallback, scale=1.0):
+    def _near_field_value(self, name, value, lo, hi, what, fallback, scale, estimate):
         """A near-field closure quantity: ``value`` if given (checked against [lo, hi]), else
-        the gemma kernel's per-element estimate ``Kernel.<name>`` (NaN: its median; none
-        finite: ``fallback``) times ``scale``, clipped to [lo, hi]. None without the closure."""
+        the per-element ``estimate`` from the kernels (NaN: its median; none finite:
+        ``fallback``) times ``scale``, clipped to [lo, hi]. None without the closure."""
         if self.closure != "near-field":
             return None
         if value is not None:
@@ -559,21 +572,10 @@ class SmoothMossModel:
             if not (lo <= value <= hi):
                 raise ParameterError(name, value, f"{lo:g} <= {name} <= {hi:g} ({what})")
             return dr.opaque(self.T, value)
-        k = getattr(self.data.kernels["gemma"], name)
-        sib = self.data.kernels["gemma"].sibling_share
-        if name == "near_cells" and self.siblings and sib is not None:
-            # the cells a parent at its fixed point reaches: 1 / P(two of its gemmae share one)
-            with np.errstate(divide="ignore"):
-                loc = 1.0 / np.asarray(sib, float)
-            base = np.asarray(k, float) if k is not None else np.full(len(loc), np.nan)
-            k = np.where(np.isfinite(loc), loc, base)
-        if k is None:
+        if estimate is None:
             raise ParameterError(name, None, "a number, or a gemma kernel estimated with the "
                                  "spot grid (prepare() does that)")
-        k = np.asarray(k, float)
-        ok = np.isfinite(k)
-        k = np.where(ok, k, np.median(k[ok]) if ok.any() else fallback)
-        return self.T(np.clip(k * scale, lo, hi))
+        return self.T(np.clip(_filled(estimate, fallback) * scale, lo, hi))
 
     # ---- parameters -------------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
