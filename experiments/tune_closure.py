@@ -229,6 +229,10 @@ def main():
                     help="near field: a parent's fixed point (its z from two gemmae released "
                          "there, and spores landing beside it where its gemmae land) (list "
                          "of 0/1; 0: z from the whole triangle, spores anywhere)")
+    ap.add_argument("--moss-pairs", default="1",
+                    help="near field: the propagules see the occupancy around a moss (the "
+                         "pairs whose first cell holds moss) (list of 0/1; 0: around the mean "
+                         "occupant)")
     ap.add_argument("--days", type=int, default=0, help="compare the first days only")
     ap.add_argument("--floor", type=float, default=0.0,
                     help="ignore region-days whose discrete mean is below this [m2]")
@@ -284,11 +288,12 @@ def main():
     saved = {}
     for cl in a.closures.split(","):
         nf = cl == "near-field"
-        for z, th, la, sb in [(z, th, la, sb)
-                              for z in (a.near_cells.split(",") if nf else ["kernel"])
-                              for th in (a.near_overlap.split(",") if nf else ["kernel"])
-                              for la in (a.local_arrivals.split(",") if nf else ["0"])
-                              for sb in (a.siblings.split(",") if nf else ["0"])]:
+        for z, th, la, sb, mp in [(z, th, la, sb, mp)
+                                  for z in (a.near_cells.split(",") if nf else ["kernel"])
+                                  for th in (a.near_overlap.split(",") if nf else ["kernel"])
+                                  for la in (a.local_arrivals.split(",") if nf else ["0"])
+                                  for sb in (a.siblings.split(",") if nf else ["0"])
+                                  for mp in (a.moss_pairs.split(",") if nf else ["0"])]:
             series = []
             for data in datas:
                 model = tune.SmoothMossModel(data, temperature=a.temperature, closure=cl,
@@ -296,10 +301,11 @@ def main():
                                              near_scale=a.near_scale,
                                              near_overlap=None if th == "kernel" else float(th),
                                              local_arrivals=la == "1",
-                                             siblings=sb == "1")
+                                             siblings=sb == "1", moss_pairs=mp == "1")
                 series.append(relaxed_series(model))
             rel = mean_series(series)
-            nf_lab = f" z = {z}, theta = {th}, local arrivals {la}, siblings {sb}" if nf else ""
+            nf_lab = (f" z = {z}, theta = {th}, local arrivals {la}, siblings {sb}, "
+                      f"moss pairs {mp}") if nf else ""
             lab = f"{cl}{nf_lab} (t = {a.temperature:g})"
             if a.discrete_light:
                 lab += f", daily light and weather of the {len(datas)} runs"

