@@ -91,6 +91,11 @@ def main():
     ap.add_argument("--report", default=None, help="target days, e.g. 10,20,30 (a time series "
                     "of maps; default: the last day)")
     ap.add_argument("--closure", default="near-field")
+    ap.add_argument("--siblings", type=int, default=1, choices=(0, 1),
+                    help="near-field surrogate: a parent's fixed point (SmoothMossModel siblings)")
+    ap.add_argument("--moss-pairs", type=int, default=1, choices=(0, 1),
+                    help="near-field surrogate: the occupancy seen from a moss (moss_pairs); "
+                         "--siblings 0 --moss-pairs 0 is the surrogate of b4a1d50")
     ap.add_argument("--temperature", type=float, default=0.02)
     ap.add_argument("--init", default=None, help="a joint start NAME=V,NAME=V (instead of "
                     "box corners; e.g. to continue a fit)")
@@ -135,7 +140,8 @@ def main():
         scn = Scenario(scn.path, d)
         data = tune.prepare(scn, days=a.days, species=species, photons=a.photons,
                             light_every=15, differentiable_light=light)
-        sm = tune.SmoothMossModel(data, temperature=a.temperature, closure=a.closure)
+        sm = tune.SmoothMossModel(data, temperature=a.temperature, closure=a.closure,
+                                  siblings=bool(a.siblings), moss_pairs=bool(a.moss_pairs))
         dm = DiscreteMossModel(scn, a.days, species=species, seeds=seeds_arg(a.seeds),
                                photons=a.photons, world=world)
         if truth is None:
