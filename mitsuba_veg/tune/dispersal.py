@@ -222,12 +222,16 @@ def dispersal_kernel(scene, index, living: np.ndarray, kind: str, distance: floa
         near = near_cells(src, off, n)
         overlap = near_overlap(src, off, n)
         if near_radius is not None:
-            dk = np.stack([(off // 17 ** k) % 17 - 8 for k in range(3)], -1)
-            out = np.abs(dk).max(-1) > int(near_radius)
+            out = np.abs(_decode_offset(off)).max(-1) > int(near_radius)
             with np.errstate(divide="ignore", invalid="ignore"):
                 far = np.bincount(src, out, n) / np.bincount(src, minlength=n)
     return Kernel(kind, float(distance), int(samples), (uniq // n).astype(np.int64),
                   (uniq % n).astype(np.int64), counts / float(samples), n, near, overlap, far)
+
+
+def _decode_offset(code: np.ndarray) -> np.ndarray:
+    """(..., 3) cell offsets [cells] from the 17^3 codes of ``dispersal_kernel``."""
+    return np.stack([(code // 17 ** k) % 17 - 8 for k in range(3)], -1)
 
 
 def _fly(scene, index, living, grid, pts, nrm, kind, distance, rng):
@@ -391,9 +395,6 @@ def near_overlap(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
     within = np.arange(len(ia)) - np.repeat(np.cumsum(reps) - reps, reps)
     ib = grp_start + within
 
-    def decode(c):
-        return np.stack([(c // 17 ** k) % 17 - 8 for k in range(3)], -1)
-
     def lookup(o, vec):
         """Count of owner o's landings at offset vec (0 outside the coded range)."""
         ok = np.all(np.abs(vec) <= 8, -1)
@@ -402,10 +403,10 @@ def near_overlap(src: np.ndarray, offset: np.ndarray, n: int) -> np.ndarray:
         pos = np.clip(np.searchsorted(key, k), 0, len(key) - 1)
         return np.where(ok & (key[pos] == k), cnt[pos], 0.0)
 
-    va, vb = decode(code[ia]), decode(code[ib])
+    va, vb = _decode_offset(code[ia]), _decode_offset(code[ib])
     triple = np.bincount(owner[ia], cnt[ia] * cnt[ib] * lookup(owner[ia], va + vb),
                          minlength=n)
-    va = decode(code)
+    va = _decode_offset(code)
     triple -= np.bincount(owner, cnt * lookup(owner, 2 * va), minlength=n)
     s2 = np.bincount(owner, cnt ** 2, minlength=n) - N
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -924,8 +924,8 @@ class SmoothMossModel:
                 pair_m = dr.clip(pair_m, dr.maximum(pair - (occ - c_after), 0.0),
                                  dr.minimum(c_after, pair))
                 q_par = dr.select(c_after > 1e-9, pair_m / dr.maximum(c_after, 1e-12), q)
-            # P(a neighbour holds moss | the cell does)
-            q_moss = q_par * c_after / dr.maximum(occ, 1e-12)
+            ms = dr.clip(c_after / dr.maximum(occ, 1e-12), 0.0, 1.0)   # moss share m
+            q_moss = q_par * ms                     # P(a neighbour holds moss | the cell does)
             # a newcomer gemma's other neighbours: occupied with q10 = P(occ | nb free), and
             # the share theta it shares with its parent with q q10 / rho (triplets, Kirkwood)
             q10 = dr.clip((occ - pair) / dr.maximum(1.0 - occ, 1e-12), 0.0, 1.0)
@@ -962,7 +962,6 @@ class SmoothMossModel:
                 # gemmae per moss, m: moss share of the occupants), not the triangle's mean
                 # A / M; each gemma carries its origin's value (arrival-weighted by the kernel)
                 z = self.near_cells
-                ms = dr.clip(c_after / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
                 g_all, a_g = dr.zeros(T, n), dr.zeros(T, n)
                 for g, a in zip(made_g, arr_g):
                     g_all += g
@@ -1041,10 +1040,9 @@ class SmoothMossModel:
             if pair_m is not None:
                 # a newcomer's moss neighbours: a gemma's parent and the moss share m of its
                 # other occupied neighbours
-                m_sh = dr.clip(c_after / dr.maximum(occ_live, 1e-12), 0.0, 1.0)
                 new_pair_m = pair_m + (1.0 / z) * (
-                    (g_tot + s_near) * (1.0 + (z - 1.0) * q_g * m_sh)
-                    + (s_tot - s_near) * z * q10 * m_sh)
+                    (g_tot + s_near) * (1.0 + (z - 1.0) * q_g * ms)
+                    + (s_tot - s_near) * z * q10 * ms)
                 new_pair_m = dr.clip(new_pair_m, dr.maximum(new_pair - (occ_new - c_after), 0.0),
                                      dr.minimum(c_after, new_pair))
         out = State(d + 1, O, new_sp, st.per_species, new_pair, new_pair_m)
