@@ -16,7 +16,7 @@ import numpy as np
 
 import mitsuba_veg as mv
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.daily import MossSimulation
+from mitsuba_veg.daily import Simulation
 
 SCEN = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -46,7 +46,7 @@ def part_b(out, capacity=1_000_000, initial=900_000, days=20):
     are reported; days 0-1 compile the kernels."""
     scn = load_scenario(SCEN, ["light.photons=1000000", f"moss.capacity={capacity}",
                                f"moss.initial={initial}", "moss.size=0.0015"])
-    sim = MossSimulation(scn, out, days=days, progress=False)
+    sim = Simulation(scn, out, days=days, progress=False)
     sim.out.mkdir(parents=True, exist_ok=True)
     sim.setup()
     sim.initialise()

@@ -33,29 +33,51 @@ from mitsuba_veg.light import validation as V  # noqa: E402
 
 
 def world_scene(start="2026-07-01"):
-    """The benchmark world's light scene on ``start`` and its integrator with the day's leaf
-    tables (see benchmarks/world_year.py)."""
+    """The benchmark world's light scene on ``start`` and a photon pass with the day's leaf,
+    albedo and record tables (see benchmarks/world_year.py): (scene, pass, simulation)."""
     import shutil
     import tempfile
     from pathlib import Path
 
+    from mitsuba_veg.daily import Simulation
     from mitsuba_veg.scenario import load_scenario
-    from mitsuba_veg.world import WorldSimulation
     from world_year import EXTRA
     root = Path(__file__).resolve().parent.parent
     tmp = Path(tempfile.mkdtemp())
     shutil.copytree(root / "scenes" / "courtyard", tmp / "courtyard")
     f = tmp / "courtyard" / "scenario.toml"
     f.write_text(f.read_text().replace("[phenology]", EXTRA + "\n[phenology]", 1))
-    sim = WorldSimulation(load_scenario(f, [f'simulation.start_date="{start}"']), tmp / "run",
-                          days=1, progress=False)
+    sim = Simulation(load_scenario(f, [f'simulation.start_date="{start}"']), tmp / "run",
+                     days=1, progress=False)
     sim.setup()
     sim.initialise()
     sim.step()          # sets the day's sun path and the leaf tables
     shutil.rmtree(tmp, ignore_errors=True)
+    sl = sim.index.shape_slice('trees_bark')
     print(f"world: {sim.canopy.n_leaves:,d} leaves ({len(sim.canopy.tri):,d} triangles), "
-          f"bark {sim.index.shape_slice('trees_bark').stop - sim.index.shape_slice('trees_bark').start:,d} triangles")
-    return sim.scene, sim.integrator
+          f"bark {sl.stop - sl.start:,d} triangles")
+    return sim.scene, WorldPass(sim), sim
+
+
+class WorldPass:
+    """The world's photon pass as the daily pipeline traces it: the integrator's ``trace`` with
+    the light stage's device tables (albedo, leaf stages and modes, recorded shapes) and the
+    day's photon split."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.integ = sim.site.integrator
+        self.tables = sim.pipeline.light.tables
+        self.counts = sim.pipeline.light.counts[0]
+
+    def trace(self, scene, photons=1_000_000, seed=0, **kw):
+        from mitsuba_veg.daily.config import BANDS
+        counts = None if photons != int(self.counts.sum()) else self.counts
+        return self.integ.trace(scene, photons=photons, seed=seed, bands=BANDS,
+                                tables=self.tables, counts=counts, **kw)
+
+    def __getattr__(self, name):
+        return getattr(self.integ, name)
 
 
 def load(name):
@@ -119,8 +141,8 @@ def main():
     a = ap.parse_args()
     scene = load(a.scene)
     integ = PhotonIrradianceIntegrator()
-    if isinstance(scene, tuple):      # the world: its integrator holds the day's leaf tables
-        scene, integ = scene
+    if isinstance(scene, tuple):      # the world: its pass holds the day's leaf tables
+        scene, integ, _ = scene
     index = SceneIndex.build(scene)
     print(f"scene {a.scene}: {index.n_elements} elements ({len(index.instances)} instances), "
           f"{len(scene.emitters())} emitters, variant {mi.variant()}, {os.cpu_count()} CPU "

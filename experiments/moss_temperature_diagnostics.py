@@ -15,7 +15,7 @@ import mitsuba as mi
 
 from mitsuba_veg.moss.fitness_model import fitness
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.daily import MossSimulation
+from mitsuba_veg.daily import Simulation
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -23,7 +23,7 @@ SCENARIO = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "
 def diagnose(T, days, photons, capacity):
     scn = load_scenario(SCENARIO, [f"climate.temperature={T}", f"light.photons={photons}",
                                    f"moss.capacity={capacity}"])
-    sim = MossSimulation(scn, f"/tmp/moss_diag_{T}", days=days, progress=False)
+    sim = Simulation(scn, f"/tmp/moss_diag_{T}", days=days, progress=False)
     sim.out.mkdir(parents=True, exist_ok=True)
     sim.setup()
     sim.initialise()

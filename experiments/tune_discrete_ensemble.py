@@ -1,6 +1,6 @@
 """An ensemble of discrete moss runs (different seeds) for comparing the relaxed model against.
 
-Runs :class:`mitsuba_veg.daily.MossSimulation` of the moss garden for ``--days`` days with
+Runs :class:`mitsuba_veg.daily.Simulation` of the moss garden for ``--days`` days with
 ``--photons`` photons a day, once per seed (``light.seed`` = seed: light, rain days, placement
 and dispersal all change), and stores per seed and day the moss per triangle, the region cover,
 the events, the histogram of moss neighbours of the live moss (the clump rule's input) and the
@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from mitsuba_veg.moss.population import MOSS  # noqa: E402
 from mitsuba_veg.scenario import load_scenario  # noqa: E402
-from mitsuba_veg.daily import MossSimulation  # noqa: E402
+from mitsuba_veg.daily import Simulation  # noqa: E402
 
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
 
@@ -46,7 +46,7 @@ def run_seed(seed: int, days: int, photons: int, species: list[str], extra=()) -
           "simulation.checkpoint_every=0"] + list(extra)
     scn = load_scenario(SCEN, ov)
     with tempfile.TemporaryDirectory() as tmp:
-        sim = MossSimulation(scn, tmp, days=days, progress=False)
+        sim = Simulation(scn, tmp, days=days, progress=False)
         sim.setup()
         sim.initialise()
         counts, regions, alive, cover, nbh, ev, prop = [], [], [], [], [], [], []

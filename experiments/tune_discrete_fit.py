@@ -6,7 +6,7 @@ scenario's (true) values, or with ``--truth NAME=VALUE`` changed; the fit runs t
 model on other seeds (``--seeds``, common random numbers) and the relaxed model (near field) for
 the gradient. One parameter at a time from -30 % and +30 % starts, then jointly from box corners.
 For T1 the +-30 % is of its range T1 - T0 (25 K). ``--tree X,Z`` adds a 3 m Weber-Penn aspen
-to the scenario and makes the target (and the fit's discrete runs) with WorldSimulation: the
+to the scenario and makes the target (and the fit's discrete runs) with the scenario's trees in the daily pipeline: the
 tree shades the ground; the relaxed surrogate has no tree. ``--report 10,20,30``: the target
 is the maps of those days (a time series). ``--eval NAME=V,...`` (repeatable) prints the
 discrete loss of the fit's seeds at those values and stops, or with ``--eval-then-fit`` goes on
@@ -85,7 +85,7 @@ def main():
     ap.add_argument("--iterations", type=int, default=5)
     ap.add_argument("--steps", type=int, default=25)
     ap.add_argument("--tree", default=None, help="world target: add a Weber-Penn aspen at "
-                    "X,Z [m] (3 m tall) to the scenario and run WorldSimulation")
+                    "X,Z [m] (3 m tall) to the scenario and run it with the trees in the light")
     ap.add_argument("--start-date", default=None, help="simulation.start_date override")
     ap.add_argument("--patch", type=float, default=0.2)
     ap.add_argument("--report", default=None, help="target days, e.g. 10,20,30 (a time series "

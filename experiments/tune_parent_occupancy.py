@@ -1,6 +1,6 @@
 """How often a propagule's landing cell is taken, around a moss and around a waiting propagule.
 
-The discrete side (``MossSimulation``, the moss garden, one seed): on the given days, 16
+The discrete side (``Simulation``, the moss garden, one seed): on the given days, 16
 virtual gemmae are released from the point of every moss and of every waiting propagule
 (``land`` as the day's release does, 2 mm off the surface); the share whose landing cell
 (another cell than the parent's, on a living triangle) holds an individual is printed per face.
@@ -28,7 +28,7 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
 from mitsuba_veg import tune  # noqa: E402
-from mitsuba_veg.daily import MossSimulation  # noqa: E402
+from mitsuba_veg.daily import Simulation  # noqa: E402
 from mitsuba_veg.moss.propagules import land, uniform_sphere  # noqa: E402
 from mitsuba_veg.scenario import load_scenario  # noqa: E402
 from mitsuba_veg.tune import smooth  # noqa: E402
@@ -54,11 +54,12 @@ def faces_of(normals, slices, living):
 def discrete(seed: int, days: list[int], photons: int) -> None:
     scn = load_scenario(SCEN, [f"light.photons={photons}", f"light.seed={seed}",
                                f"moss.species={SPECIES!r}", "simulation.checkpoint_every=0"])
-    sim = MossSimulation(scn, Path(tempfile.mkdtemp()), days=max(days), progress=False)
+    sim = Simulation(scn, Path(tempfile.mkdtemp()), days=max(days), progress=False)
     sim.setup()
     sim.initialise()
     n = sim.index.n_elements
-    living = np.asarray(sim.living, bool)
+    living = np.zeros(n, bool)
+    living[:sim.site.n_terrain] = sim.site.living
     slices = {sid: sim.index.shape_slice(sid) for sid in sim.index.geometry}
     faces = faces_of(sim.index.normals, slices, living)
     rng = np.random.default_rng(1)

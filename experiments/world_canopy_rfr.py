@@ -49,26 +49,27 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     import mitsuba_veg  # noqa: F401
     from mitsuba_veg.scenario import load_scenario
-    from mitsuba_veg.world import WorldSimulation
-    from mitsuba_veg.world.simulation import band_shapes
+    from mitsuba_veg.daily import Simulation, band_shapes
     for half in a.half:
         tmp = Path(tempfile.mkdtemp())
         scen = layer_scenario(tmp, half)
         for depth in a.depth:
             scn = load_scenario(scen, [f"light.photons={a.photons}", f"light.max_depth={depth}",
                                        "moss.initial=50"])
-            sim = WorldSimulation(scn, tmp / f"run{depth}", days=1, progress=False)
+            sim = Simulation(scn, tmp / f"run{depth}", days=1, progress=False)
             sim.setup()
             sim.initialise()
             sim.step()
-            cen = sim.index.centroids[sim.ground_slice]
+            cen = sim.index.centroids[sim.site.ground_slice]
             mid = np.hypot(cen[:, 0], cen[:, 2]) < 1.0
-            g, gs = sim.ground_bands, sim.ground_sky_bands
+            light = sim.last["light"]
+            g = {k: np.asarray(v) for k, v in light.ground.items()}
+            gs = {k: np.asarray(v) for k, v in light.ground_sky.items()}
             sun = {k: g[k] - gs[k] for k in g}
 
             def rfr(bands):
                 return bands["red"][mid].sum() * 660 / (bands["far_red"][mid].sum() * 730)
-            sh = band_shapes(float(scn.get("site.latitude")), sim._date(0).timetuple().tm_yday)
+            sh = band_shapes(float(scn.get("site.latitude")), sim.date(0).timetuple().tm_yday)
             B, D = sim.weather.beam[0], sim.weather.diffuse[0]
             par_open = (B * sh["beam"]["par"] + D * sh["diffuse"]["par"]) * 300.0
             open_rfr = ((B * sh["beam"]["red"] + D * sh["diffuse"]["red"]) * 660

@@ -77,6 +77,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from mitsuba_veg.arrays import host_array, zero_index
+from mitsuba_veg.arrays import opaque as _opaque
 from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
 from mitsuba_veg.meshes import triangle_geometry
@@ -155,6 +157,32 @@ def fixed_point_scale(photons: int, hits: int, pmax: float) -> tuple[float, floa
     unit = min(2.0 ** 40, cap / 16.0)
     scale = unit / pmax if pmax > 0 and math.isfinite(pmax) else 1.0
     return scale, cap
+
+
+def split_photons(power, photons: int) -> np.ndarray:
+    """Photons per emitter: ``photons`` shared in proportion to each emitter's power towards
+    the geometry, each at least 5 % of them (evenly when no power is known).
+
+    Parameters
+    ----------
+    power : array_like
+        (emitters,) power of each emitter towards the geometry [W].
+    photons : int
+        Total photons.
+
+    Returns
+    -------
+    numpy.ndarray
+        (emitters,) int64 photon counts, each >= 1.
+    """
+    power = np.asarray(power, dtype=np.float64).reshape(-1)
+    if not np.all(np.isfinite(power)) or power.sum() <= 0:
+        share = np.full(len(power), 1.0 / len(power))
+    else:
+        share = power / power.sum()
+        share = np.maximum(share, 0.05 if len(power) > 1 else 1.0)
+        share /= share.sum()
+    return np.maximum(np.round(share * photons).astype(np.int64), 1)
 
 
 def band_range(band) -> tuple[float, float]:
@@ -254,11 +282,25 @@ def scene_index(scene: mi.Scene) -> "SceneIndex":
 # --------------------------------------------------------------------------------------------
 # Scene analysis: one flat element index over all shapes (triangles of meshes, 1 per other shape)
 # --------------------------------------------------------------------------------------------
-def _reg_id(obj) -> int:
+def registry_id(obj) -> int:
     """JIT registry id of a Mitsuba shape or BSDF (what ``dr.reinterpret_array`` of a pointer
-    array gives; 0 is the null pointer)."""
+    array gives; 0 is the null pointer): the key of the photon pass's per-element tables.
+
+    Parameters
+    ----------
+    obj : mi.Shape or mi.BSDF
+        The object.
+
+    Returns
+    -------
+    int
+        Its registry id.
+    """
     ptr = mi.ShapePtr(obj) if isinstance(obj, mi.Shape) else mi.BSDFPtr(obj)
     return int(np.asarray(dr.reinterpret_array(mi.UInt32, ptr))[0])
+
+
+_reg_id = registry_id
 
 
 class _Children(mi.TraversalCallback):
@@ -358,6 +400,17 @@ class SceneIndex:
     group_bsdf: mi.UInt32 | None = None
     #: the distinct BSDFs of the shapes that photons can hit: [(registry id, BSDF)]
     bsdf_objects: list = field(default_factory=list)
+    #: scenes without instances: registry id of a top-level shape -> 1 where its hits need
+    #: the full interaction (vertex normals, spatially varying BSDF); None: none or (with
+    #: instances) every hit when :attr:`needs_full_interaction`
+    full_lookup: mi.UInt32 | None = None
+    #: :attr:`normals` on the device for the kernel (flat, 3 per element)
+    kernel_normals: mi.Float | None = None
+
+    def __post_init__(self):
+        if self.kernel_normals is None:
+            self.kernel_normals = mi.Float(np.ascontiguousarray(self.normals, np.float32)
+                                           .ravel())
 
     @staticmethod
     def build(scene: mi.Scene) -> "SceneIndex":
@@ -392,13 +445,18 @@ class SceneIndex:
         bbox = mi.ScalarBoundingBox3f()
         offset = 0
 
-        def note_bsdf(sh):
+        full_shapes: set[int] = set()   # top-level shapes whose hits need the full interaction
+
+        def note_bsdf(sh) -> bool:
             nonlocal needs_full
             b = sh.bsdf()
+            varying = False
             if b is not None:
                 bsdf_of[_reg_id(sh)] = _reg_id(b)
                 bsdf_objs.setdefault(_reg_id(b), b)
-                needs_full = needs_full or _spatially_varying(b)
+                varying = _spatially_varying(b)
+                needs_full = needs_full or varying
+            return varying
 
         group_layout = {}  # group name -> (local offsets, triangle data in local space)
         g_base, g_local, g_bsdf, inst_base = {}, [], [], {}
@@ -457,7 +515,8 @@ class SceneIndex:
                 cents.append(c)
                 geometry[sid] = (v, f)
                 reg_offset[_reg_id(sh)] = offset
-                note_bsdf(sh)
+                if note_bsdf(sh) or sh.has_vertex_normals():
+                    full_shapes.add(_reg_id(sh))
                 smooth = smooth or sh.has_vertex_normals()
             else:
                 counts.append(1)
@@ -468,7 +527,8 @@ class SceneIndex:
                 single[sid] = sh.class_name()
                 reg_offset[_reg_id(sh)] = offset
                 analytic.append((_reg_id(sh), sh))
-                note_bsdf(sh)
+                if note_bsdf(sh):
+                    full_shapes.add(_reg_id(sh))
             offset += counts[-1]
             # aim at geometry that can receive light: not at emitter shapes (e.g. a distant
             # area "sun") nor at sensor shapes
@@ -492,6 +552,12 @@ class SceneIndex:
         gbase = np.zeros(n_reg, dtype=np.uint32)
         for r, b in inst_base.items():
             gbase[r] = b
+        # without instances, only hits on the listed shapes need the full interaction
+        full_lookup = None
+        if not instances and full_shapes:
+            fl = np.zeros(n_reg, dtype=np.uint32)
+            fl[sorted(full_shapes)] = 1
+            full_lookup = mi.UInt32(fl)
         return SceneIndex(ids, offsets, counts, np.concatenate(areas), np.concatenate(normals),
                           np.concatenate(cents), mi.UInt32(lookup), bbox, int(counts.sum()),
                           geometry, single, instances,
@@ -499,7 +565,7 @@ class SceneIndex:
                           mi.UInt32(blook), analytic, needs_full, mi.UInt32(gbase),
                           mi.UInt32(np.array(g_local + [0], np.uint32)),
                           mi.UInt32(np.array(g_bsdf + [0], np.uint32)),
-                          sorted(bsdf_objs.items(), key=lambda kv: kv[0]))
+                          sorted(bsdf_objs.items(), key=lambda kv: kv[0]), full_lookup)
 
     @staticmethod
     def _group_of(inst, groups) -> str:
@@ -558,31 +624,118 @@ class SceneIndex:
 # --------------------------------------------------------------------------------------------
 # Result
 # --------------------------------------------------------------------------------------------
-@dataclass
 class PhotonIrradianceResult:
     """Per-element flux of a photon pass and what can be derived from it.
 
     ``flux[e, i, c, s, b]`` is the photon power [W] that hit element ``i`` (a triangle) on side
     ``s`` (0 front, 1 back) for emitter ``e``, component ``c`` (0 direct = first hit, 1 indirect =
     after >= 1 diffuse bounce) and band ``b``. Irradiance = flux / area.
+
+    The pass leaves its tallies on the device (64-bit fixed-point sums and one unit [W] per
+    emitter): :meth:`device_flux` reads any part of them as a Dr.Jit expression (a daily loop
+    feeds its soil and moss without a host round trip), while :attr:`flux` and the
+    bookkeeping (``emitted``, ``escaped``, ``absorbed``, ``truncated`` [W] per emitter and
+    band, ``rays_traced``) are read back once, on first use.
     """
 
-    index: SceneIndex
-    bands: tuple[str, ...]
-    band_ranges: tuple[tuple[float, float], ...]
-    emitters: tuple[str, ...]
-    flux: np.ndarray
-    photons: np.ndarray            # photons traced per emitter
-    rays_traced: int               # ray casts made (every call of ray_intersect, per lane)
-    emitted: np.ndarray            # [e, b] power leaving the emitters towards the geometry [W]
-    escaped: np.ndarray            # [e, b] power that left the scene without a hit [W]
-    absorbed: np.ndarray           # [e, b] power absorbed at hits (Russian roulette) [W]
-    truncated: np.ndarray          # [e, b] power still travelling at max_depth / indirect off [W]
-    seconds: float = 0.0
-    settings: dict = field(default_factory=dict)
-    #: row of :attr:`flux` of every element, -1 where the element was not recorded
-    #: (``trace(..., record=...)``); None: every element recorded, row = element
-    rows: np.ndarray | None = None
+    def __init__(self, index, bands, band_ranges, emitters, flux=None, photons=None,
+                 rays_traced=None, emitted=None, escaped=None, absorbed=None, truncated=None,
+                 seconds: float = 0.0, settings: dict | None = None, rows=None, device=None):
+        self.index = index
+        self.bands = tuple(bands)
+        self.band_ranges = tuple(band_ranges)
+        self.emitters = tuple(emitters)
+        self.photons = np.asarray(photons) if photons is not None else None
+        self.seconds = seconds
+        self.settings = dict(settings or {})
+        #: row of :attr:`flux` of every element, -1 where the element was not recorded
+        #: (``trace(..., record=...)``); None: every element recorded, row = element
+        self.rows = rows
+        #: the pass's tallies on the device (:class:`DeviceTallies`), or None
+        self.device = device
+        self._flux = flux
+        self._book = None if emitted is None else (emitted, escaped, absorbed, truncated,
+                                                   rays_traced)
+
+    # ---- host views, read back on first use ------------------------------------------------
+    @property
+    def flux(self) -> np.ndarray:
+        """Flux [W], shape (emitters, recorded elements, 2 components, 2 sides, bands)."""
+        if self._flux is None:
+            self._flux = self.device.host_flux()
+        return self._flux
+
+    def _bookkeeping(self):
+        if self._book is None:
+            self._book = self.device.host_bookkeeping()
+        return self._book
+
+    @property
+    def emitted(self) -> np.ndarray:
+        """[e, b] power leaving the emitters towards the geometry [W]."""
+        return self._bookkeeping()[0]
+
+    @property
+    def escaped(self) -> np.ndarray:
+        """[e, b] power that left the scene without a hit [W]."""
+        return self._bookkeeping()[1]
+
+    @property
+    def absorbed(self) -> np.ndarray:
+        """[e, b] power absorbed at hits (Russian roulette) [W]."""
+        return self._bookkeeping()[2]
+
+    @property
+    def truncated(self) -> np.ndarray:
+        """[e, b] power still travelling at ``max_depth`` / with indirect light off [W]."""
+        return self._bookkeeping()[3]
+
+    @property
+    def rays_traced(self) -> int:
+        """Ray casts made (every call of ``ray_intersect``, per lane)."""
+        return int(self._bookkeeping()[4])
+
+    @property
+    def n_rows(self) -> int:
+        """Recorded elements (rows of :attr:`flux`)."""
+        return self.index.n_elements if self.rows is None else int((self.rows >= 0).sum())
+
+    def device_flux(self, emitter: int, band: int, rows, component: str = "total",
+                    side: str = "front"):
+        """Flux of accumulator ``rows`` [W] as a Dr.Jit expression (nothing is read back).
+
+        Parameters
+        ----------
+        emitter : int
+            Emitter index (in :attr:`emitters`).
+        band : int
+            Band index (in :attr:`bands`).
+        rows : mi.UInt32
+            Accumulator rows (elements, or :attr:`rows` of them with ``record``).
+        component : str
+            ``"direct"``, ``"indirect"`` or ``"total"``.
+        side : str
+            ``"front"``, ``"back"`` or ``"both"``.
+
+        Returns
+        -------
+        mi.Float64
+            Flux [W] per row.
+        """
+        comps = (0, 1) if component == "total" else (COMPONENTS.index(component),)
+        sides = (0, 1) if side == "both" else (SIDES.index(side),)
+        return self.device.flux(emitter, band, rows, comps, sides)
+
+    def device_bookkeeping(self):
+        """The bookkeeping on the device (nothing is read back).
+
+        Returns
+        -------
+        tuple
+            (book, rays): ``mi.Float64`` of (emitters, 4, bands) [W] flattened (emitted,
+            escaped, absorbed, truncated) and ``mi.UInt64`` ray casts per emitter.
+        """
+        return self.device.bookkeeping()
 
     def _rows(self, sl: slice, shape_id: str = "") -> slice:
         """Rows of :attr:`flux` of the elements ``sl`` (a whole recorded shape)."""
@@ -906,6 +1059,235 @@ class PhotonIrradianceResult:
             np.savez_compressed(tmp, **data)
 
 
+class DeviceTallies:
+    """The tallies of a photon pass on the device, per band group of 4 slots.
+
+    ``acc[g]`` holds the group's flux of every (emitter, row, component, side, slot) as 64-bit
+    fixed-point sums (``unit[g]``: watts per unit, one per emitter) or, after several batches,
+    as watts (``unit[g]`` None). ``book[g]`` holds (emitted, escaped, absorbed, truncated)
+    per (emitter, slot) the same way; ``rays`` the ray casts per emitter.
+    """
+
+    def __init__(self, n_emitters: int, n_rows: int, groups: list, n_bands: int):
+        self.E, self.n_rec, self.groups, self.n_bands = n_emitters, n_rows, groups, n_bands
+        self.acc = [None] * len(groups)
+        self.unit = [None] * len(groups)
+        self.book = [None] * len(groups)
+        self.book_unit = [None] * len(groups)
+        self.rays = None
+
+    def _where(self, band: int):
+        for g_i, group in enumerate(self.groups):
+            if band in group:
+                return g_i, group.index(band)
+        raise IndexError(band)
+
+    def add_batch(self, g_i: int, acc, unit, book, rays) -> None:
+        """Add one kernel launch's tallies (fixed point with ``unit`` per emitter).
+
+        Parameters
+        ----------
+        g_i : int
+            Band group.
+        acc, book : mi.UInt64
+            The launch's fixed-point flux and bookkeeping.
+        unit : mi.Float64
+            Watts per fixed-point unit, one per emitter.
+        rays : mi.UInt64
+            Ray casts per emitter.
+        """
+        if self.acc[g_i] is None:
+            self.acc[g_i], self.unit[g_i], self.book[g_i] = acc, unit, book
+        else:
+            # several launches: sum in watts (each launch has its own fixed-point unit)
+            self.acc[g_i] = self._watts(self.acc[g_i], self.unit[g_i], self.n_rec * 16) + \
+                self._watts(acc, unit, self.n_rec * 16)
+            self.book[g_i] = self._watts(self.book[g_i], self.unit[g_i], 4 * _SLOTS) + \
+                self._watts(book, unit, 4 * _SLOTS)
+            self.unit[g_i] = None
+            dr.eval(self.acc[g_i], self.book[g_i])
+        if g_i == 0:
+            self.rays = rays if self.rays is None else self.rays + rays
+
+    @staticmethod
+    def _watts(x, unit, per_emitter: int):
+        if unit is None:
+            return x
+        e = dr.arange(mi.UInt32, dr.width(x)) // per_emitter
+        return mi.Float64(x) * dr.gather(mi.Float64, unit, e)
+
+    def flux(self, emitter: int, band: int, rows, comps, sides):
+        """Flux [W] of ``rows`` (mi.Float64 expression), summed over ``comps`` and ``sides``.
+
+        Parameters
+        ----------
+        emitter, band : int
+            Emitter and band index.
+        rows : mi.UInt32
+            Rows.
+        comps, sides : tuple of int
+            Components (0 direct, 1 indirect) and sides (0 front, 1 back) to add.
+
+        Returns
+        -------
+        mi.Float64
+            Flux per row [W].
+        """
+        g_i, slot = self._where(band)
+        acc = self.acc[g_i]
+        base = (rows + emitter * self.n_rec) * 4
+        out = None
+        for c in comps:
+            for sd in sides:
+                v = dr.gather(type(acc), acc, (base + (c * 2 + sd)) * _SLOTS + slot)
+                v = mi.Float64(v)
+                out = v if out is None else out + v
+        if self.unit[g_i] is not None:
+            # (an opaque index: a literal one would make Dr.Jit copy the value at once)
+            out = out * dr.gather(mi.Float64, self.unit[g_i], zero_index() + emitter)
+        return out
+
+    def bookkeeping(self):
+        """(book [W] as mi.Float64 (emitters x 4 x bands), rays per emitter as mi.UInt64).
+
+        Returns
+        -------
+        tuple
+            The device arrays.
+        """
+        parts = []
+        for g_i, group in enumerate(self.groups):
+            w = self._watts(self.book[g_i], self.unit[g_i], 4 * _SLOTS)
+            parts.append((w, group))
+        return parts, self.rays
+
+    def host_flux(self) -> np.ndarray:
+        """All flux read back [W]: (emitters, rows, 2, 2, bands).
+
+        Returns
+        -------
+        numpy.ndarray
+            The flux array.
+        """
+        out = np.zeros((self.E, self.n_rec, 2, 2, self.n_bands))
+        for g_i, group in enumerate(self.groups):
+            a = np.asarray(self.acc[g_i]).reshape(self.E, self.n_rec, 2, 2, _SLOTS)
+            if self.unit[g_i] is not None:
+                u = np.asarray(self.unit[g_i], dtype=np.float64)
+                a = a.astype(np.float64) * u[:, None, None, None, None]
+            out[..., group] = a[..., :len(group)]
+        return out
+
+    def host_bookkeeping(self):
+        """(emitted, escaped, absorbed, truncated) [W] (emitters, bands) and the ray casts.
+
+        Returns
+        -------
+        tuple
+            Four NumPy arrays and an int.
+        """
+        book = np.zeros((4, self.E, self.n_bands))
+        for g_i, group in enumerate(self.groups):
+            b = np.asarray(self._watts(self.book[g_i], self.unit[g_i], 4 * _SLOTS),
+                           dtype=np.float64).reshape(self.E, 4, _SLOTS)
+            book[:, :, group] = np.moveaxis(b, 1, 0)[:, :, :len(group)]
+        rays = int(np.asarray(self.rays, dtype=np.uint64).sum())
+        return book[0], book[1], book[2], book[3], rays
+
+
+class LaneSampler:
+    """Independent uniform numbers, one PCG32 stream per lane, seeded from a stream number
+    and the lane's index (TEA-scrambled): the photon pass's random numbers.
+
+    A Dr.Jit struct rather than a Mitsuba ``Sampler`` object: it is plain state of the launch
+    (a loop variable of the random walk), so a frozen launch (``dr.freeze``) replays with a new
+    seed; a new Mitsuba object per launch would change the JIT registry that a recording is
+    keyed on, and one kept from launch to launch would be an input holding stale state.
+
+    Parameters
+    ----------
+    seed : mi.UInt32 or int, optional
+        Stream number (width 1).
+    n : int
+        Lanes.
+    """
+
+    DRJIT_STRUCT = {"rng": mi.PCG32}
+
+    def __init__(self, seed=None, n: int = 0):
+        if seed is None:
+            self.rng = mi.PCG32()
+            return
+        idx = dr.arange(mi.UInt32, n)
+        v0, v1 = mi.sample_tea_32(mi.UInt32(seed) * dr.full(mi.UInt32, 1, n), idx)
+        self.rng = mi.PCG32(size=n, initstate=(mi.UInt64(v0) << 32) | mi.UInt64(v1),
+                            initseq=mi.UInt64(idx))
+
+    def next_1d(self, active=True):
+        """A uniform number in [0, 1) per lane.
+
+        Parameters
+        ----------
+        active : mi.Bool or bool
+            Lanes that draw (the others keep their state).
+
+        Returns
+        -------
+        mi.Float
+            The numbers.
+        """
+        return self.rng.next_float32(active)
+
+    def next_2d(self, active=True):
+        """Two uniform numbers in [0, 1) per lane.
+
+        Parameters
+        ----------
+        active : mi.Bool or bool
+            Lanes that draw.
+
+        Returns
+        -------
+        mi.Point2f
+            The numbers.
+        """
+        a = self.rng.next_float32(active)
+        b = self.rng.next_float32(active)
+        return mi.Point2f(a, b)
+
+
+@dataclass
+class LaunchInputs:
+    """The per-call numbers of one kernel launch as device arrays (kernel inputs): ``pu``
+    UInt32 (wavelength shifts, first lane, emitter offsets and strata, max depth, stream), ``pf``
+    Float (band ranges and widths, strata and photon-count reciprocals, fixed-point cap) and
+    ``zero`` (an evaluated 0: the index base of their gathers). Made by
+    :meth:`PhotonIrradianceIntegrator.launch_inputs`."""
+
+    pu: object
+    pf: object
+    zero: object
+
+
+@dataclass
+class PassTables:
+    """The per-element tables of a photon pass, on the device (see ``trace``).
+
+    Built by :meth:`PhotonIrradianceIntegrator.pass_tables`; a daily loop builds them once and
+    replaces the arrays that change (``modes``, ``bsdf_table``, ``refl``) every day: new
+    contents, same kernel.
+    """
+
+    rows: np.ndarray | None          # host: accumulator row per element, -1 not recorded
+    row_arr: object                  # mi.UInt32 per element (_NO_ROW: not recorded) or None
+    n_rec: int                       # recorded elements
+    modes: object                    # mi.UInt32 per element (SURFACE/SENSOR/HIDDEN) or None
+    bsdf_table: object               # mi.UInt32 BSDF registry id per element (0: own) or None
+    bsdfs: list                      # [(registry id, BSDF)] the kernel dispatches to
+    refl: list                       # per band group: mi.Float (elements x 4) or None
+    slot_of: object = None           # mi.UInt32: BSDF registry id -> position in ``bsdfs``
+
+
 @dataclass
 class PhotonPathRecord:
     """The paths of one emitter's photons traced in the "weights" mode (no AD).
@@ -1032,6 +1414,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         check_range("seed", self.seed, 0, 2**31 - 1)
         check_range("batch", self.batch, 1024, None)
         self.result: PhotonIrradianceResult | None = None  # the last pass
+        self._frozen = None   # the frozen launch (trace(..., frozen=True))
         #: element modes and per-triangle BSDF choices used by :meth:`trace` when its own
         #: arguments are None (a daily loop sets them before each pass)
         self.modes: dict | None = None
@@ -1140,7 +1523,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
               reflectance: dict | None = None, emitters=None, batch: int | None = None,
               progress: bool = False, modes: dict | None = None,
               bsdf_override: dict | None = None, record=None,
-              mode: str | None = None) -> PhotonIrradianceResult:
+              mode: str | None = None, tables: "PassTables | None" = None,
+              counts=None, frozen: bool = False) -> PhotonIrradianceResult:
         """Trace a photon pass over ``scene`` and return per-element fluxes.
 
         Arguments left at None take the plugin's properties.
@@ -1198,8 +1582,24 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             ``reflectance`` override; the same expectation for reflecting surfaces, no
             transmission: a leaf's transmitted light is left out).
 
+        tables : PassTables, optional
+            Per-element tables already on the device (:meth:`pass_tables`); replaces
+            ``reflectance``, ``modes``, ``bsdf_override`` and ``record``.
+        counts : sequence of int, optional
+            Photons per traced emitter (default: ``photons`` shared by the power each emitter
+            sends towards the geometry, measured by a small pilot pass and read back).
+        frozen : bool
+            Replay the launch's recorded kernels (``dr.freeze``) instead of tracing its Python
+            again (a daily loop: the same scene and tables every day, new contents). Python
+            emitters and BSDFs in the scene must list their arrays in ``DRJIT_STRUCT`` (the
+            package's do).
+
         Arguments left at None also fall back to the plugin's attributes :attr:`modes`,
-        :attr:`bsdf_override` and :attr:`record` (a simulation sets them before its passes).
+        :attr:`bsdf_override` and :attr:`record`.
+
+        All emitters are traced in one kernel launch (per band group and batch of ``batch``
+        photons): lanes ``[c_0 + ... + c_(k-1), ... + c_k)`` carry emitter ``k``'s photons. The
+        tallies stay on the device (:class:`DeviceTallies`) until the result is read.
 
         Returns
         -------
@@ -1245,81 +1645,134 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                              "daylight(...)) or any Mitsuba emitter")
         em_idx = self._select_emitters(all_emitters, emitters)
         em_names = tuple(all_emitters[i].id() or f"emitter{i}" for i in em_idx)
+        ems = [all_emitters[i] for i in em_idx]
 
-        n_el, n_b = index.n_elements, len(bands)
+        n_b = len(bands)
         groups = [list(range(i, min(i + _SLOTS, n_b))) for i in range(0, n_b, _SLOTS)]
-        refl = self._reflectance_table(index, reflectance, n_b)
-        mode_arr = self._mode_table(index, modes)
-        bsdf_arr, bsdfs = self._bsdf_table(index, bsdf_override)
-        rows, row_arr = self._record_table(index, record)
-        n_rec = n_el if rows is None else int((rows >= 0).sum())
-
-        # photon budget per emitter: proportional to the power each sends at the geometry
-        pilots = [self._pilot_power(scene, all_emitters[i], index, ranges[0]) for i in em_idx]
-        dr.eval(pilots)  # one launch for all emitters, then deterministic reductions
-        power = np.array([_scalar(dr.mean(p)) for p in pilots]) * (ranges[0][1] - ranges[0][0])
-        if not np.all(np.isfinite(power)) or power.sum() <= 0:
-            share = np.full(len(em_idx), 1.0 / len(em_idx))
-        else:
-            share = power / power.sum()
-            share = np.maximum(share, 0.05 if len(em_idx) > 1 else 1.0)
-            share /= share.sum()
-        counts = np.maximum(np.round(share * photons).astype(np.int64), 1)
-
-        book = np.zeros((4, len(em_idx), n_b))  # emitted, escaped, absorbed, truncated
-        # flux [W] of every (emitter, band group) on the device, read back once at the end
-        dev = [[None] * len(groups) for _ in em_idx]
-        rays = 0
+        if tables is None:
+            tables = self.pass_tables(scene, n_b, reflectance=reflectance, modes=modes,
+                                      bsdf_override=bsdf_override, record=record)
+        if counts is None:
+            counts = self.photon_counts(scene, ems, photons, ranges[0])
+        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        if len(counts) != len(ems) or np.any(counts < 1):
+            raise ParameterError("counts", counts.tolist(), f"{len(ems)} photon counts >= 1 "
+                                 "(one per traced emitter)")
+        n_total = int(counts.sum())
+        dev = DeviceTallies(len(ems), tables.n_rec, groups, n_b)
         bar = None
         if progress:
             from tqdm.auto import tqdm
-            bar = tqdm(total=int(counts.sum()) * len(groups), unit="photon", unit_scale=True,
+            bar = tqdm(total=n_total * len(groups), unit="photon", unit_scale=True,
                        desc="photons")
-        for e_i, e in enumerate(em_idx):
-            emitter = all_emitters[e]
-            for g_i, group in enumerate(groups):
-                slot_ranges = [ranges[b] for b in group]
-                slot_ranges += [slot_ranges[0]] * (_SLOTS - len(slot_ranges))
-                refl_g = None if refl is None else refl[:, group + [group[0]] * (_SLOTS - len(group))]
-                if refl_g is not None:   # one upload for all batches of the group
-                    refl_g = mi.Float(np.ascontiguousarray(refl_g, np.float32).ravel())
-                done = 0
-                while done < counts[e_i]:
-                    n = int(min(batch, counts[e_i] - done))
-                    # a distinct, reproducible stream per (seed, emitter, band group, batch)
-                    stream = (((seed * 31 + e) * 17 + g_i) * 1_000_003 + done // batch) & 0x7FFFFFFF
-                    acc, bk, r = self._pass(scene, emitter, index, n, int(counts[e_i]), stream,
-                                            slot_ranges, refl_g, max_depth, indirect,
-                                            mode_arr, bsdf_arr, bsdfs, row_arr, n_rec, mode,
-                                            len(group))
-                    # fixed point -> watts on the device (both threads), summed over batches
-                    # in a fixed order (deterministic). A plain add: a scatter_add into one
-                    # buffer for all emitters and groups cost 20-30 ms per pass of 1.3 M
-                    # entries (its atomics), a conversion in numpy 80 ms.
-                    q, unit = acc
-                    w = mi.Float64(q) * dr.opaque(mi.Float64, unit)
-                    prev = dev[e_i][g_i]
-                    dev[e_i][g_i] = w if prev is None else prev + w
-                    dr.eval(dev[e_i][g_i])
-                    book[:, e_i, group] += bk[:, :len(group)]
-                    rays += r
-                    done += n
-                    if bar is not None:
-                        bar.update(n)
+        for g_i, group in enumerate(groups):
+            slot_ranges = [ranges[b] for b in group]
+            slot_ranges += [slot_ranges[0]] * (_SLOTS - len(slot_ranges))
+            done = 0
+            while done < n_total:
+                n = int(min(batch, n_total - done))
+                # a distinct, reproducible stream per (seed, first emitter, band group, batch)
+                stream = (((seed * 31 + em_idx[0]) * 17 + g_i) * 1_000_003 + done // batch) \
+                    & 0x7FFFFFFF
+                acc, unit, book, rays = self._pass(
+                    scene, ems, index, done, n, counts, stream, slot_ranges, tables.refl[g_i],
+                    max_depth, indirect, tables, mode, len(group), frozen=frozen)
+                dev.add_batch(g_i, acc, unit, book, rays)
+                done += n
+                if bar is not None:
+                    bar.update(n)
         if bar is not None:
             bar.close()
-        # read back: a view of the device buffer (no copy) for one emitter and one band group
-        dev = [[np.asarray(x).reshape(n_rec, 2, 2, _SLOTS) for x in row] for row in dev]
-        flux = [row[0] if len(groups) == 1 else np.concatenate(row, axis=-1) for row in dev]
-        flux = (flux[0][None] if len(flux) == 1 else np.stack(flux))[..., :n_b]
         res = PhotonIrradianceResult(
-            index=index, bands=names, band_ranges=ranges, emitters=em_names, flux=flux,
-            photons=counts, rays_traced=int(rays), emitted=book[0], escaped=book[1],
-            absorbed=book[2], truncated=book[3], seconds=_time.perf_counter() - t0,
+            index=index, bands=names, band_ranges=ranges, emitters=em_names,
+            photons=counts, seconds=_time.perf_counter() - t0,
             settings=dict(photons=photons, seed=seed, max_depth=max_depth, indirect=indirect,
-                          bands=list(names), mode=mode), rows=rows)
+                          bands=list(names), mode=mode), rows=tables.rows, device=dev)
         self.result = res
         return res
+
+    def pass_tables(self, scene: mi.Scene, n_bands: int, reflectance: dict | None = None,
+                    modes: dict | None = None, bsdf_override: dict | None = None,
+                    record=None) -> PassTables:
+        """The per-element tables of a pass, uploaded to the device (see :meth:`trace`).
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene.
+        n_bands : int
+            Bands of the pass (the reflectance table has one column per band).
+        reflectance, modes, bsdf_override, record : optional
+            As for :meth:`trace`.
+
+        Returns
+        -------
+        PassTables
+            The device tables.
+        """
+        index = scene_index(scene)
+        groups = [list(range(i, min(i + _SLOTS, n_bands))) for i in range(0, n_bands, _SLOTS)]
+        refl = self._reflectance_table(index, reflectance, n_bands)
+        refl_g = []
+        for group in groups:
+            if refl is None:
+                refl_g.append(None)
+                continue
+            cols = refl[:, group + [group[0]] * (_SLOTS - len(group))]
+            refl_g.append(mi.Float(np.ascontiguousarray(cols, np.float32).ravel()))
+        mode_arr = self._mode_table(index, modes)
+        bsdf_arr, bsdfs = self._bsdf_table(index, bsdf_override)
+        rows, row_arr = self._record_table(index, record)
+        n_rec = index.n_elements if rows is None else int((rows >= 0).sum())
+        return PassTables(rows, row_arr, n_rec, mode_arr, bsdf_arr, bsdfs, refl_g,
+                          switch_table(bsdfs))
+
+    def photon_counts(self, scene: mi.Scene, emitters, photons: int, band) -> np.ndarray:
+        """Photons per emitter: ``photons`` shared by the power each emitter sends towards the
+        geometry (a 4096-sample pilot per emitter, read back), each at least 5 % of them.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene.
+        emitters : sequence of mi.Emitter
+            The emitters to trace.
+        photons : int
+            Total photons.
+        band : tuple of float
+            (min, max) [nm] of the band the power is measured in.
+
+        Returns
+        -------
+        numpy.ndarray
+            (emitters,) int64 photon counts (each >= 1).
+        """
+        index = scene_index(scene)
+        pilots = [self._pilot_power(scene, e, index, band) for e in emitters]
+        dr.eval(pilots)  # one launch for all emitters, then deterministic reductions
+        power = np.array([_scalar(dr.mean(p)) for p in pilots]) * (band[1] - band[0])
+        return split_photons(power, photons)
+
+    def pilot_power(self, scene: mi.Scene, emitter, band) -> float:
+        """The power an emitter sends towards the geometry in ``band`` [W] (the 4096-sample
+        pilot of :meth:`photon_counts`, read back).
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene.
+        emitter : mi.Emitter
+            One of its emitters.
+        band : tuple of float
+            (min, max) [nm].
+
+        Returns
+        -------
+        float
+            Estimated power [W].
+        """
+        p = self._pilot_power(scene, emitter, scene_index(scene), band)
+        return _scalar(dr.mean(p)) * (band[1] - band[0])
 
     def trace_paths(self, scene: mi.Scene, emitter, photons: int, seed: int = 0,
                     max_depth: int = 8, band=(360.0, 830.0),
@@ -1376,9 +1829,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             em, name = all_em[i], all_em[i].id() or f"emitter{i}"
         n, depth_max = int(photons), int(max_depth)
         stream = int(seed) & 0x7FFFFFFF
-        sampler, ray, _, w = self._photons(scene, em, index, n, n, stream, [(lo, hi)] * _SLOTS)
+        inp = self.launch_inputs(n, [n], 0, stream, [(lo, hi)] * _SLOTS)
+        sampler, ray, _, w, _ = self._photons(scene, [em], index, n, inp)
         # initial power [W]: the 4 band wavelengths' estimates averaged
-        w0 = (w[0] + w[1] + w[2] + w[3]) * dr.opaque(mi.Float, 0.25 * (hi - lo) / n)
+        w0 = (w[0] + w[1] + w[2] + w[3]) * _opaque(mi.Float, 0.25 * (hi - lo) / n)
         w0 = dr.select(dr.isfinite(w0), w0, 0.0) * dr.full(mi.Float, 1.0, n)
         active = w0 > 0
         dr.eval(w0, ray, active)
@@ -1386,16 +1840,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         lane = dr.arange(mi.UInt32, n)
         _, rays_lane, _, _ = self._loop(
             scene, sampler, ray, mi.Spectrum(w0), active, mi.UInt32(0),
-            dr.opaque(mi.UInt32, depth_max), None, dr.zeros(mi.Spectrum, n),
+            _opaque(mi.UInt32, depth_max), None, dr.zeros(mi.Spectrum, n),
             dr.zeros(mi.Spectrum, n), index, self._tables(index), None, False,
             mi.Float(1.0), mi.Float(1.0), None, None, index.bsdf_objects, None, weights=True,
-            paths=paths, lane=lane, n_lanes=dr.opaque(mi.UInt32, n))
+            paths=paths, lane=lane, n_lanes=_opaque(mi.UInt32, n))
         dr.eval(paths, rays_lane)
         rays = int(_scalar(dr.sum(_UInt64(rays_lane))))
         cast = int(_scalar(dr.max(rays_lane))) if n else 0   # deepest cast: depths recorded
         elems, fronts = [], []
         for k in range(cast):
-            v = dr.gather(mi.UInt32, paths, lane + dr.opaque(mi.UInt32, k * n))
+            v = dr.gather(mi.UInt32, paths, lane + _opaque(mi.UInt32, k * n))
             valid = v != _NO_ROW
             e = dr.select(valid, v >> 1, _NO_ROW)
             front = valid & ((v & 1) == 0)
@@ -1588,28 +2042,19 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             it.wavelengths = wav
             ds, w = emitter.sample_direction(it, sampler.next_2d(), active)
             d = -ds.d  # photons travel away from the source
-            frame = mi.Frame3f(d)
-            # project the 8 box corners on (s, t, d); the rectangle covers the box's shadow
-            smin = tmin = dmin = mi.Float(1e30)
-            smax = tmax = mi.Float(-1e30)
-            for cx in (bmin[0], bmax[0]):
-                for cy in (bmin[1], bmax[1]):
-                    for cz in (bmin[2], bmax[2]):
-                        c = mi.Vector3f(float(cx), float(cy), float(cz))
-                        ps, pt, pd = dr.dot(c, frame.s), dr.dot(c, frame.t), dr.dot(c, d)
-                        smin, smax = dr.minimum(smin, ps), dr.maximum(smax, ps)
-                        tmin, tmax = dr.minimum(tmin, pt), dr.maximum(tmax, pt)
-                        dmin = dr.minimum(dmin, pd)
-            pad = 1e-4 * radius  # keeps photons grazing the box's faces
-            smin, tmin, smax, tmax = smin - pad, tmin - pad, smax + pad, tmax + pad
+            frame, smin, smax, tmin, tmax, dmin = _aim_rectangle(d, bmin, bmax, radius)
             u = sampler.next_2d()
             if strata is not None:
                 # jittered-grid stratification of the origins over the rectangle: the direct
-                # light of a sun is then almost noise-free
-                idx, m = strata
-                m_u = dr.opaque(mi.UInt32, m)
+                # light of a sun is then almost noise-free. ``strata`` = (index, m) or (index,
+                # m, 1/m) with per-lane device arrays (several emitters in one launch)
+                if len(strata) == 3:
+                    idx, m_u, inv_m = strata
+                else:
+                    idx, m = strata
+                    m_u, inv_m = _opaque(mi.UInt32, m), _opaque(mi.Float, 1.0 / m)
                 cell = mi.Point2f(mi.Float(idx % m_u), mi.Float(idx // m_u))
-                u = dr.select(idx < m_u * m_u, (cell + u) * dr.opaque(mi.Float, 1.0 / m), u)
+                u = dr.select(idx < m_u * m_u, (cell + u) * inv_m, u)
             su = dr.lerp(smin, smax, u.x)
             tv = dr.lerp(tmin, tmax, u.y)
             o = frame.s * su + frame.t * tv + d * (dmin - 0.01 * radius - 1e-3)
@@ -1659,99 +2104,204 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         return p, d, I / pdf, time
 
     # the kernel -----------------------------------------------------------------------------
-    def _photons(self, scene, emitter, index, n, n_total, stream, slot_ranges):
-        """The photons of one kernel launch, unevaluated: (sampler, ray, power, weight).
+    @staticmethod
+    def launch_inputs(n: int, counts, start: int, stream: int, slot_ranges,
+                      cap: float = 0.0, max_depth: int = 1) -> "LaunchInputs":
+        """Every number of one launch that may change from call to call (photon split, stream,
+        bands, fixed-point cap), in two host copies: kernel inputs, not literals.
 
-        ``power`` [W] per photon and band slot (emitter weight x band width / ``n_total``),
-        ``weight`` the emitter's raw sample weight (:meth:`_emit`) [W nm-1 x photons].
+        Parameters
+        ----------
+        n : int
+            Photons of the launch.
+        counts : sequence of int
+            Photons per emitter over the whole pass.
+        start : int
+            First lane of the launch in the pass.
+        stream : int
+            Random stream (seeds the sampler and the band wavelengths' shifts).
+        slot_ranges : sequence of (float, float)
+            Band of each of the 4 wavelength slots [nm].
+        cap : float
+            Largest single fixed-point record (:func:`fixed_point_scale`).
+        max_depth : int
+            Most hits per photon.
+
+        Returns
+        -------
+        LaunchInputs
+            The arrays (see :class:`LaunchInputs`).
         """
-        sampler = mi.load_dict({"type": "independent"})
-        sampler.seed(stream, n)
+        counts = [int(c) for c in counts]
+        E = len(counts)
+        shifts = np.random.default_rng(stream).integers(0, 2**32, size=_SLOTS, dtype=np.uint64)
+        m_e = [int(math.isqrt(n)) if E == 1 else int(math.isqrt(c)) for c in counts]
+        cum = np.cumsum(counts)
+        pu = [int(v) for v in shifts] + [int(start)] + [int(c) for c in cum[:-1]] + m_e + \
+            [int(max_depth), int(stream) & 0xFFFFFFFF]
+        pf = [lo for lo, _ in slot_ranges] + [hi - lo for lo, hi in slot_ranges] + \
+            [1.0 / m for m in m_e] + [1.0 / c for c in counts] + [float(cap)]
+        return LaunchInputs(host_array(mi.UInt32, pu), host_array(mi.Float, pf), zero_index())
+
+    def _photons(self, scene, emitters, index, n, inp: "LaunchInputs", slot_ranges_n=_SLOTS):
+        """One launch's photons (lanes of the pass ``inp`` describes; the lanes
+        ``[c_0 + .. + c_(k-1), .. + c_k)`` of the pass are emitter ``k``'s), unevaluated:
+        (sampler, ray, power, weight, emitter per lane or None for a single emitter).
+
+        ``power`` [W] per photon and band slot (emitter weight x band width / its photon
+        count), ``weight`` the emitter's raw sample weight (:meth:`_emit`) [W nm-1 x photons].
+        Every per-pass number (counts, offsets, stream) comes from ``inp``'s arrays: a new
+        day's photon split compiles nothing, and the launch can be frozen.
+        """
+        if isinstance(emitters, mi.Emitter):
+            emitters = [emitters]
+        E = len(emitters)
+        zero = inp.zero
+
+        def pu(j):
+            return dr.gather(mi.UInt32, inp.pu, zero + j)
+
+        def pf(j):
+            return dr.gather(mi.Float, inp.pf, zero + j)
+        o_m, o_im, o_in = 5 + (E - 1), 2 * _SLOTS, 2 * _SLOTS + E
+        sampler = LaneSampler(pu(o_m + E + 1), n)
         idx = dr.arange(mi.UInt32, n)
         # Band wavelengths from a randomly shifted Weyl (golden-ratio) sequence over the photon
         # index, in exact 32-bit fixed point: evenly spread over each band (low variance), each
         # photon's wavelength uniform (unbiased), and, unlike index-ordered strata, not
         # correlated with the jittered-grid origin strata (which also follow the index).
-        shifts = np.random.default_rng(stream).integers(0, 2**32, size=_SLOTS, dtype=np.uint64)
         lam, widths = [], []
-        for k, (lo, hi) in enumerate(slot_ranges):
-            bits = idx * dr.opaque(mi.UInt32, 2654435769) + dr.opaque(mi.UInt32, int(shifts[k]))
-            uk = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
-            lam.append(dr.opaque(mi.Float, lo) + dr.opaque(mi.Float, hi - lo) * uk)
-            widths.append(hi - lo)
+        for k in range(_SLOTS):
+            bits = idx * 2654435769 + pu(k)
+            uk = mi.Float(bits >> 8) * (2.0 ** -24)
+            lam.append(pf(k) + pf(_SLOTS + k) * uk)
+            widths.append(pf(_SLOTS + k))
         wav = mi.Spectrum(*lam)
         active = mi.Bool(True)
-        m = int(math.isqrt(n))
-        o, d, w, time = self._emit(scene, emitter, index, sampler, wav, active,
-                                   strata=(idx, m))
+        if E == 1:
+            # strata over this launch's lanes (a batch covers the whole rectangle)
+            o, d, w, time = self._emit(scene, emitters[0], index, sampler, wav, active,
+                                       strata=(idx, pu(o_m), pf(o_im)))
+            inv_n = pf(o_in)
+            e_lane = None
+        else:
+            g = idx + pu(4)
+            e_lane = dr.zeros(mi.UInt32, n)
+            first = dr.zeros(mi.UInt32, n)
+            m_u = pu(o_m) * dr.full(mi.UInt32, 1, n)
+            inv_m = pf(o_im) * dr.full(mi.Float, 1.0, n)
+            inv_n = pf(o_in) * dr.full(mi.Float, 1.0, n)
+            for k in range(1, E):
+                c_k = pu(5 + k - 1)
+                on = g >= c_k
+                e_lane = dr.select(on, mi.UInt32(k), e_lane)
+                first = dr.select(on, c_k, first)
+                m_u = dr.select(on, pu(o_m + k), m_u)
+                inv_m = dr.select(on, pf(o_im + k), inv_m)
+                inv_n = dr.select(on, pf(o_in + k), inv_n)
+            j = g - first
+            o = d = w = time = None
+            for k, em in enumerate(emitters):
+                on = e_lane == k
+                ok, dk, wk, tk = self._emit(scene, em, index, sampler, wav, on,
+                                            strata=(j, m_u, inv_m))
+                if o is None:
+                    o, d, w, time = mi.Point3f(ok), mi.Vector3f(dk), mi.Spectrum(wk), tk
+                else:
+                    o = dr.select(on, ok, o)
+                    d = dr.select(on, dk, d)
+                    w = dr.select(on, mi.Spectrum(wk), w)
+                    time = dr.select(on, tk, time)
         # power per photon [W]: spectral power x band width / photons of this emitter
-        throughput = mi.Spectrum(
-            *[w[k] * dr.opaque(mi.Float, widths[k] / n_total) for k in range(_SLOTS)])
+        throughput = mi.Spectrum(*[w[k] * (widths[k] * inv_n) for k in range(_SLOTS)])
         # (a sun's weight is the same for all photons: broadcast it to one value per photon)
         throughput = mi.Spectrum(dr.select(dr.isfinite(throughput), throughput, 0.0)) \
             * dr.full(mi.Float, 1.0, n)
         ray = mi.Ray3f(o, d, time, wav)
-        return sampler, ray, throughput, w
+        return sampler, ray, throughput, w, e_lane
 
-    def _pass(self, scene, emitter, index, n, n_total, stream, slot_ranges, refl, max_depth,
-              indirect, modes=None, bsdf_table=None, bsdfs=None, rows=None, n_rec=None,
-              mode="roulette", slots=_SLOTS):
-        """One kernel launch of ``n`` photons of one emitter (see :meth:`_loop`); ``slots``:
-        the band slots that are read back (the first ``slots`` of 4)."""
-        sampler, ray, throughput, _ = self._photons(scene, emitter, index, n, n_total, stream,
-                                                    slot_ranges)
-        n_el = index.n_elements
-        # Fixed-point accumulation: integer atomics are associative, so the result does not
-        # depend on the order in which threads add (float atomics would differ in the last bits
-        # from run to run, and a resumed simulation must be bit-identical).
-        # emission and its reductions in one kernel (the initial power before the loop uses it)
-        pk = [dr.max(throughput[k], mode="symbolic") for k in range(_SLOTS)]
-        dr.eval(throughput, ray, pk)
-        pmax = max(_scalar(p) for p in pk)
-        emitted = [dr.sum(throughput[k]) for k in range(_SLOTS)]
+    def _pass(self, scene, emitters, index, start, n, counts, stream, slot_ranges, refl,
+              max_depth, indirect, tables: PassTables, mode="roulette", slots=_SLOTS,
+              frozen: bool = False):
+        """One kernel launch: lanes ``start .. start + n - 1`` of the pass (every traced
+        emitter, :meth:`_photons`), the random walk of :meth:`_loop`. Returns the fixed-point
+        tallies (acc, unit per emitter, book, rays per emitter), all on the device.
+
+        ``frozen``: replay the launch's recorded kernels (``dr.freeze``) instead of tracing
+        its Python again; every input is an argument of :meth:`_launch` (the scene, the
+        emitters and BSDFs, the tables, the launch's numbers), so a day with other numbers,
+        tables and sun path replays the same recording.
+        """
         hits = 1 if not indirect else max_depth
-        scale, cap = fixed_point_scale(n, hits, pmax)
-        acc = dr.zeros(_UInt64, (n_el if n_rec is None else n_rec) * 2 * 2 * _SLOTS)
-        refl_arr = refl if refl is None or isinstance(refl, mi.Float) else \
-            mi.Float(np.ascontiguousarray(refl, np.float32).ravel())
+        _, cap = fixed_point_scale(n, hits, 1.0)
+        inp = self.launch_inputs(n, counts, start, stream, slot_ranges, cap, max_depth)
+        args = (scene, list(emitters), index, tables, refl, inp, int(n), len(counts),
+                int(max_depth), bool(indirect), mode, int(slots), float(cap))
+        if frozen:
+            if self._frozen is None:
+                self._frozen = dr.freeze(PhotonIrradianceIntegrator._launch, warn_after=50)
+            return self._frozen(self, *args)
+        return self._launch(*args)
+
+    def _launch(self, scene, emitters, index, tables, refl, inp, n, E, max_depth, indirect,
+                mode, slots, cap):
+        """The kernels of one launch (see :meth:`_pass`): a function of its arguments only."""
+        sampler, ray, throughput, _, e_lane = self._photons(scene, emitters, index, n, inp)
+        big = min(2.0 ** 40, cap / 16.0)
+        # the largest initial power per emitter (bits of non-negative floats order like them)
+        peak = dr.maximum(dr.maximum(throughput[0], throughput[1]),
+                          dr.maximum(throughput[2], throughput[3]))
+        pmax_bits = dr.zeros(mi.UInt32, E)
+        e_or0 = mi.UInt32(0) if e_lane is None else e_lane
+        dr.scatter_reduce(dr.ReduceOp.Max, pmax_bits, dr.reinterpret_array(mi.UInt32, peak),
+                          e_or0, mode=dr.ReduceMode.Local)
+        dr.eval(throughput, ray, pmax_bits, *([] if e_lane is None else [e_lane]))
+        pm = mi.Float64(dr.reinterpret_array(mi.Float, pmax_bits))
+        good = (pm > 0) & dr.isfinite(pm)
+        # the scale the kernel uses (float32) and its exact inverse: the unit [W]
+        scale_e = mi.Float(dr.select(good, big / pm, 1.0))
+        unit = 1.0 / mi.Float64(scale_e)
+        scale = dr.gather(mi.Float, scale_e, e_or0)
+        acc = dr.zeros(_UInt64, E * tables.n_rec * 2 * 2 * _SLOTS)
+        book = dr.zeros(_UInt64, E * 4 * _SLOTS)
+        rays = dr.zeros(_UInt64, E)
+        # in memory before the loop (a zero literal would be allocated twice by it)
+        dr.make_opaque(acc, book, rays)
+        zero = inp.zero
+        capf = dr.gather(mi.Float, inp.pf, zero + (2 * _SLOTS + 2 * E))
+        max_d = dr.gather(mi.UInt32, inp.pu, zero + (5 + (E - 1) + E))
+        # emitted power, fixed point per (emitter, slot), in the launch that traces
+        for k in range(_SLOTS):
+            q = _UInt64(dr.round(dr.minimum(throughput[k] * scale, capf)))
+            dr.scatter_add(book, q, e_or0 * (4 * _SLOTS) + k, mode=dr.ReduceMode.Local)
         esc = dr.zeros(mi.Spectrum, n)
         absd = dr.zeros(mi.Spectrum, n)
-        depth = mi.UInt32(0)
         active = dr.any(throughput > 0)
-        max_d = dr.opaque(mi.UInt32, max_depth)
-        tables = self._tables(index)
-
-        throughput_left, rays_lane, esc, absd = self._loop(
-            scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd, index,
-            tables, refl_arr, not indirect, dr.opaque(mi.Float, scale),
-            dr.opaque(mi.Float, cap), modes, bsdf_table,
-            index.bsdf_objects if bsdfs is None else bsdfs, rows, weights=mode == "weights",
-            slots=slots)
-        # one kernel: evaluate every output of the symbolic loop together (evaluating them one by
-        # one would re-run the loop for each); the bookkeeping sums are read back in one go
-        dr.eval(acc, throughput_left, rays_lane, esc, absd)
-        # bookkeeping: deterministic (evaluated) reductions; rays as an exact integer sum
-        sums = emitted + [dr.sum(x[k]) for x in (esc, absd, throughput_left) for k in range(_SLOTS)]
-        vals = np.array([_scalar(s) for s in sums] + [_scalar(dr.sum(_UInt64(rays_lane)))],
-                        dtype=np.float64)
-        bk = vals[:4 * _SLOTS].reshape(4, _SLOTS)
-        # fixed-point sums (on the device) and their unit [W]
-        return (acc, 1.0 / scale), bk, int(vals[-1])
+        thr_left, rays_lane, esc, absd = self._loop(
+            scene, sampler, ray, throughput, active, mi.UInt32(0), max_d, acc, esc, absd,
+            index, index.kernel_normals, refl, not indirect, scale, capf, tables.modes,
+            tables.bsdf_table, tables.bsdfs, tables.row_arr, weights=mode == "weights",
+            slots=slots, e_lane=e_lane, n_rec=tables.n_rec, slot_of=tables.slot_of)
+        for j, x in enumerate((esc, absd, thr_left)):
+            for k in range(_SLOTS):
+                q = _UInt64(dr.round(dr.minimum(x[k] * scale, capf)))
+                dr.scatter_add(book, q, e_or0 * (4 * _SLOTS) + (j + 1) * _SLOTS + k,
+                               mode=dr.ReduceMode.Local)
+        dr.scatter_add(rays, _UInt64(rays_lane), e_or0, mode=dr.ReduceMode.Local)
+        # one kernel: the loop and every tally it feeds
+        dr.eval(acc, book, rays, unit)
+        return acc, unit, book, rays
 
     @staticmethod
     def _tables(index):
         """Per-element geometric normals (flat array, 3 per element) for the kernel."""
-        cached = getattr(index, "_kernel_tables", None)
-        if cached is None:
-            cached = mi.Float(np.ascontiguousarray(index.normals, np.float32).ravel())
-            index._kernel_tables = cached
-        return cached
+        return index.kernel_normals
 
     @dr.syntax
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
               index, normals, refl_arr, one_hit, scale, cap, modes=None, bsdf_table=None,
               bsdfs=(), rows=None, weights=False, paths=None, lane=None, n_lanes=None,
-              slots=_SLOTS):
+              slots=_SLOTS, e_lane=None, n_rec=0, slot_of=None):
         """The random walk: one symbolic loop (a single kernel), in one of two modes.
 
         ``weights=False`` ("roulette", paper 000 §3.4): at a hit the BSDF is sampled and the
@@ -1780,12 +2330,27 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         recorded elements have a place in ``acc``. All tables are device arrays outside the
         loop state: new contents, same kernel. Only the first ``slots`` band slots are added
         to ``acc`` (a pass of fewer than 4 bands makes fewer atomic adds per hit).
+
+        ``scale`` is the fixed-point scale per lane (an array: one per emitter); with
+        ``e_lane`` (the emitter of each lane) emitter k's records go to rows
+        ``k n_rec + row``. A hit on the mesh triangle that the photon last left is a
+        self-intersection of the spawned ray (a planar triangle cannot be hit again by a ray
+        that left it; it happened on OptiX on instanced surfaces): it is crossed like a hidden
+        element, unrecorded, without a bounce. Hits on meshes with vertex normals (scenes
+        without instances) use Mitsuba's full surface interaction for the BSDF's shading
+        frame; every other hit a minimal one built from the element's geometric normal.
         """
         nrays = mi.UInt32(0)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
         lookup, blookup = index.lookup, index.bsdf_lookup
         has_instances = len(index.instances) > 0
-        full = index.needs_full_interaction
+        full_lookup = index.full_lookup
+        # every hit needs the full interaction (a spatially varying BSDF in an instanced scene),
+        # or only hits on the shapes listed in ``full_lookup``
+        full = index.needs_full_interaction and full_lookup is None
+        some_full = full_lookup is not None
+        has_e = e_lane is not None
+        prev = dr.full(mi.UInt32, _NO_ROW, dr.width(throughput))
         # read-only objects stay out of the loop state: traversing a scene with 1,000
         # instances for it cost ~0.1 s per pass
         has_modes = modes is not None
@@ -1795,11 +2360,12 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         has_paths = paths is not None
         # registry id of a BSDF -> its position in ``bsdfs`` (len(bsdfs): none of them)
         use_switch = len(bsdfs) >= _SWITCH_BSDFS
-        slot_of, samplers, evals = self._switch_targets(bsdfs, bsdf_ctx) if use_switch \
+        slot_of, samplers, evals = self._switch_targets(bsdfs, bsdf_ctx, slot_of) if use_switch \
             else (None, None, None)
         while dr.hint(active, label="veg_photon_irradiance",
                       exclude=[scene, index, bsdfs, lookup, blookup, normals, modes,
-                               bsdf_table, rows, slot_of, samplers, evals]):
+                               bsdf_table, rows, slot_of, samplers, evals, full_lookup,
+                               e_lane]):
             pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             nrays += dr.select(active, mi.UInt32(1), mi.UInt32(0))
             hit = active & pi.is_valid()
@@ -1819,9 +2385,12 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                                   + dr.gather(mi.UInt32, index.group_local, slot, in_inst), 0)
                 bsdf_id = dr.select(in_inst, dr.gather(mi.UInt32, index.group_bsdf, slot, in_inst),
                                     bsdf_id)
+            analytic = mi.Bool(False)
             if dr.hint(full, mode='scalar'):
                 si = pi.compute_surface_interaction(ray, mi.RayFlags.All, hit)
                 ng = mi.Vector3f(si.n)
+                for reg, shape in index.analytic:
+                    analytic = analytic | (hit & (sid == reg))
             else:
                 ng = mi.Vector3f(dr.gather(mi.Float, normals, elem * 3, hit),
                                  dr.gather(mi.Float, normals, elem * 3 + 1, hit),
@@ -1831,25 +2400,28 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     si_a = shape.compute_surface_interaction(ray, pi, mi.RayFlags.Minimal, on)
                     ng = dr.select(on, si_a.n, ng)
                     elem = dr.select(on, dr.gather(mi.UInt32, lookup, sid, on), elem)
+                    analytic = analytic | on
 
             if dr.hint(has_override, mode='scalar'):
                 # the element's own BSDF choice (e.g. a leaf's autumn stage) where it has one
                 ov_id = dr.gather(mi.UInt32, bsdf_table, elem, hit)
                 bsdf_id = dr.select(ov_id != 0, ov_id, bsdf_id)
 
-            rec, passing = mi.Bool(hit), mi.Bool(False)
+            # the triangle the photon just left, hit again: a self-intersection (docstring)
+            again = hit & (elem == prev) & ~analytic
+            rec, passing = hit & ~again, mi.Bool(again)
             if dr.hint(has_modes, mode='scalar'):
                 # sensors record and pass; hidden elements only pass; surfaces go on below
                 mode = dr.gather(mi.UInt32, modes, elem, hit)
-                passing = hit & (mode != SURFACE)
-                rec = hit & (mode != HIDDEN)
-                # the photon goes on from the hit point in its direction, offset off the
-                # element along its normal (as Mitsuba's spawn_ray) so it does not hit it again
-                p_hit = ray(pi.t)
-                off = (1.0 + dr.max(dr.abs(p_hit))) * mi.math.RayEpsilon
-                pass_o = p_hit + ng * dr.select(dr.dot(ng, ray.d) > 0, off, -off)
-                pass_ray = mi.Ray3f(pass_o, ray.d, ray.time, ray.wavelengths)
-                hit = hit & ~passing
+                passing = passing | (hit & (mode != SURFACE))
+                rec = rec & (mode != HIDDEN)
+            # the photon goes on from the hit point in its direction, offset off the
+            # element along its normal (as Mitsuba's spawn_ray) so it does not hit it again
+            p_hit = ray(pi.t)
+            off = (1.0 + dr.max(dr.abs(p_hit))) * mi.math.RayEpsilon
+            pass_o = p_hit + ng * dr.select(dr.dot(ng, ray.d) > 0, off, -off)
+            pass_ray = mi.Ray3f(pass_o, ray.d, ray.time, ray.wavelengths)
+            hit = hit & ~passing
 
             # record the incident power at the hit element: [elem][comp][side][slot]
             back = dr.dot(ng, ray.d) > 0
@@ -1859,6 +2431,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             if dr.hint(has_rows, mode='scalar'):
                 row = dr.gather(mi.UInt32, rows, elem, rec)
                 rec = rec & (row != _NO_ROW)
+            if dr.hint(has_e, mode='scalar'):
+                row = row + e_lane * n_rec
             if dr.hint(has_acc, mode='scalar'):
                 base = ((row * 2 + comp) * 2 + side) * _SLOTS
                 for k in range(slots):   # band slots beyond the pass's bands: not read back
@@ -1873,8 +2447,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
             if dr.hint(one_hit, mode='scalar'):
                 active = mi.Bool(passing)
-                if dr.hint(has_modes, mode='scalar'):
-                    ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
+                ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
             else:
                 if dr.hint(full, mode='scalar'):
                     # mirror back-face hits so that every surface reflects on both sides
@@ -1894,6 +2467,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     si.shape = pi.shape
                     si.instance = pi.instance
                     si.prim_index = pi.prim_index
+                    if dr.hint(some_full, mode='scalar'):
+                        # meshes with vertex normals: Mitsuba's interaction (shading frame)
+                        need = hit & (dr.gather(mi.UInt32, full_lookup, sid, hit) != 0)
+                        si_f = pi.compute_surface_interaction(ray, mi.RayFlags.All, need)
+                        si = dr.select(need, si_f, si)
                     si.wi = si.sh_frame.to_local(-ray.d)
                     flip = si.wi.z < 0
                     si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
@@ -1958,22 +2536,20 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 ray = si.spawn_ray(si.to_world(wo_local))
                 depth += 1
                 active = go & (depth < max_d)
-                if dr.hint(has_modes, mode='scalar'):
-                    # a crossed sensor/hidden element costs no bounce
-                    ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
-                    depth = dr.select(passing, depth - 1, depth)
-                    active = active | passing
+                # a crossed sensor/hidden element (or a self-intersection) costs no bounce
+                ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
+                depth = dr.select(passing, depth - 1, depth)
+                active = active | passing
+                prev = dr.select(hit, elem, prev)
         return throughput, nrays, esc, absd
 
     @classmethod
-    def _switch_targets(cls, bsdfs, ctx):
+    def _switch_targets(cls, bsdfs, ctx, slot_of=None):
         """What the kernel's ``dr.switch`` over ``bsdfs`` needs: a device table from a BSDF's
-        registry id to its position in ``bsdfs`` (len(bsdfs) for any other id), and the
+        registry id to its position in ``bsdfs`` (:func:`switch_table`, unless given), and the
         ``sample`` and ``eval`` functions of each BSDF."""
-        regs = [int(r) for r, _ in bsdfs]
-        table = np.full(max(regs + [0]) + 1, len(bsdfs), dtype=np.uint32)
-        table[regs] = np.arange(len(regs), dtype=np.uint32)
-        return (mi.UInt32(table), [cls._bsdf_sample(b, ctx) for _, b in bsdfs],
+        return (switch_table(bsdfs) if slot_of is None else slot_of,
+                [cls._bsdf_sample(b, ctx) for _, b in bsdfs],
                 [cls._bsdf_eval(b, ctx) for _, b in bsdfs])
 
     @staticmethod
@@ -1990,6 +2566,73 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         def evaluate(si, wo, active):
             return mi.Spectrum(bsdf.eval(ctx, si, wo, active))
         return evaluate
+
+
+def switch_table(bsdfs) -> mi.UInt32:
+    """Device table from a BSDF's registry id to its position in ``bsdfs`` (``len(bsdfs)``
+    for any other id): the index of the kernel's ``dr.switch`` over them.
+
+    Parameters
+    ----------
+    bsdfs : list of (int, mi.BSDF)
+        The BSDFs the kernel dispatches to, with their registry ids.
+
+    Returns
+    -------
+    mi.UInt32
+        The table.
+    """
+    regs = [int(r) for r, _ in bsdfs]
+    table = np.full(max(regs + [0]) + 1, len(bsdfs), dtype=np.uint32)
+    table[regs] = np.arange(len(regs), dtype=np.uint32)
+    return mi.UInt32(table)
+
+
+def _aim_rectangle(d, bmin, bmax, radius):
+    """The rectangle, perpendicular to the photon direction ``d``, that covers the shadow of
+    the box [bmin, bmax]: (frame, smin, smax, tmin, tmax, dmin) in the frame of ``d`` (the 8
+    corners projected, padded by 1e-4 of the box's half diagonal ``radius``)."""
+    frame = mi.Frame3f(d)
+    smin = tmin = dmin = mi.Float(1e30)
+    smax = tmax = mi.Float(-1e30)
+    for cx in (bmin[0], bmax[0]):
+        for cy in (bmin[1], bmax[1]):
+            for cz in (bmin[2], bmax[2]):
+                c = mi.Vector3f(float(cx), float(cy), float(cz))
+                ps, pt, pd = dr.dot(c, frame.s), dr.dot(c, frame.t), dr.dot(c, d)
+                smin, smax = dr.minimum(smin, ps), dr.maximum(smax, ps)
+                tmin, tmax = dr.minimum(tmin, pt), dr.maximum(tmax, pt)
+                dmin = dr.minimum(dmin, pd)
+    pad = 1e-4 * radius  # keeps photons grazing the box's faces
+    return frame, smin - pad, smax + pad, tmin - pad, tmax + pad, dmin
+
+
+def aim_area(index: "SceneIndex", directions) -> np.ndarray:
+    """Area of the photon pass's aiming rectangle for parallel light along each direction:
+    what one photon of a directional emitter represents (its weight is the emitter's
+    irradiance times this area) [m2].
+
+    Parameters
+    ----------
+    index : SceneIndex
+        The scene's index (its aim box).
+    directions : array_like
+        (n, 3) unit directions the photons travel in.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) rectangle areas [m2] (one kernel for all directions).
+    """
+    dd = np.asarray(directions, np.float32).reshape(-1, 3)
+    if len(dd) == 0:
+        return np.zeros(0)
+    bb = index.aim_bbox
+    bmin, bmax = np.array(bb.min), np.array(bb.max)
+    radius = max(0.5 * float(np.linalg.norm(bmax - bmin)), 1e-6)
+    d = mi.Vector3f(*[mi.Float(dd[:, k]) for k in range(3)])
+    _, smin, smax, tmin, tmax, _ = _aim_rectangle(d, bmin, bmax, radius)
+    return np.asarray((smax - smin) * (tmax - tmin), dtype=np.float64)
 
 
 def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active, slot_of=None, evals=None):

@@ -242,7 +242,7 @@ SNAPSHOT_DIR = "snapshots"
 
 # ---- writing snapshots during a run -------------------------------------------------------------
 class SnapshotWriter:
-    """``on_day`` hook for :meth:`mitsuba_veg.daily.MossSimulation.run` that writes moss snapshots.
+    """``on_day`` hook for :meth:`mitsuba_veg.daily.Simulation.run` that writes moss snapshots.
 
     Writes the living moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days
     (default: the run's ``frame_every``) and on the last day (a world adds every leaf's state).
@@ -263,9 +263,9 @@ class SnapshotWriter:
             extra = None
             phen = getattr(sim, "phen", None)
             if phen is not None:   # a world: every leaf's state (the render draws it)
-                extra = {"leaf_tau": phen.tau.astype(np.float16),
-                         "leaf_grown": phen.grown.astype(np.float16),
-                         "leaf_on": phen.on_tree}
+                extra = {"leaf_tau": np.asarray(phen.tau).astype(np.float16),
+                         "leaf_grown": np.asarray(phen.grown).astype(np.float16),
+                         "leaf_on": np.asarray(phen.on_tree)}
             write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
                            date=rec.get("date"), extra=extra)
 
@@ -353,7 +353,7 @@ class DayFrames:
 
     Parameters
     ----------
-    sim : MossSimulation
+    sim : Simulation
         The simulation (its ``out`` folder holds ``maps/``).
     """
 
@@ -376,7 +376,7 @@ class DayFrames:
 
         Parameters
         ----------
-        sim : MossSimulation
+        sim : Simulation
             The running simulation (its index, population, ``last`` day's fields and trees).
         rec : dict
             The day's record (``day``, ``date``, ``moss_alive``, ``propagules``,

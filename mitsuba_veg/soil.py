@@ -43,6 +43,7 @@ from typing import Any, NamedTuple
 import drjit as dr
 import numpy as np
 
+from . import arrays
 from .errors import ParameterError
 
 __all__ = [
@@ -55,7 +56,8 @@ __all__ = [
     "soil_depth", "bucket_capacity", "water_content", "bucket_step", "BucketStep", "SoilState",
     "evaporation_F", "evaporation_efficiency", "e_sat", "q_sat", "dq_sat_dT",
     "surface_temperature_offset", "latent_heat_flux", "evaporation_rate", "surface_humidity",
-    "surface_state", "SurfaceState", "linearisation_error",
+    "surface_state", "SurfaceState", "linearisation_error", "ElementGeology", "insolation",
+    "soil_day", "SoilDay",
 ]
 
 # ------------------------------------------------------------------------------------------
@@ -132,99 +134,12 @@ def geology_code(name: str) -> int:
 
 
 # ------------------------------------------------------------------------------------------
-# Backend dispatch: NumPy or Dr.Jit, decided by the inputs
+# Backend dispatch: NumPy or Dr.Jit, decided by the inputs (mitsuba_veg.arrays)
 # ------------------------------------------------------------------------------------------
-def _is_dr(x) -> bool:
-    return dr.is_array_v(x)
-
-
-def _dr_type(*xs):
-    """The Dr.Jit floating-point array type among ``xs`` (first one found), else None."""
-    for x in xs:
-        if _is_dr(x):
-            t = type(x)
-            return t if dr.is_float_v(t) else dr.float32_array_t(t)
-    return None
-
-
-def _prep(*xs):
-    """Bring the inputs onto one backend.
-
-    With any Dr.Jit input, NumPy arrays are converted to that Dr.Jit type and NumPy scalars to
-    Python floats (Dr.Jit broadcasts them; a NumPy scalar on the left of a Dr.Jit array would
-    turn the result into a NumPy array); otherwise everything becomes a float64 NumPy array.
-    Composite functions pass their sub-results through here again before combining them.
-    """
-    t = _dr_type(*xs)
-    if t is None:
-        return tuple(np.asarray(x, dtype=np.float64) for x in xs)
-    out = []
-    for x in xs:
-        if _is_dr(x) or type(x) in (int, float):
-            out.append(x)
-        else:
-            a = np.asarray(x, dtype=np.float64)
-            out.append(float(a) if a.ndim == 0 else t(a.ravel()))
-    return tuple(out)
-
-
-def _finish(x):
-    """NumPy 0-d arrays -> NumPy scalars; everything else unchanged."""
-    if isinstance(x, np.ndarray) and x.ndim == 0:
-        return x[()]
-    return x
-
-
-# Dr.Jit's transcendental functions do not reliably propagate NaN: on width-1 arrays, fused into
-# a kernel with other work, exp2(10 * log2(NaN)) gave -1.1e10 (Float) or 2.2e307 (Float64), and
-# power(NaN, Float(10)) gave -1.8e38 (Dr.Jit 1.5.0, LLVM). The NaN policy of this module is made
-# explicit with a select.
-def _nan_keep(x, r):
-    return dr.select(dr.isnan(x), x, r)
-
-
-def _exp(x):
-    return _nan_keep(x, dr.exp(x)) if _is_dr(x) else np.exp(x)
-
-
-def _abs(x):
-    return dr.abs(x) if _is_dr(x) else np.abs(x)
-
-
-def _where(cond, a, b):
-    if _is_dr(cond) or _is_dr(a) or _is_dr(b):
-        return dr.select(cond, a, b)
-    return np.where(cond, a, b)
-
-
-def _maximum(a, b):
-    """max(a, b) that keeps a NaN in ``a`` (``a < b`` is False for NaN)."""
-    return _where(a < b, b, a)
-
-
-def _minimum(a, b):
-    """min(a, b) that keeps a NaN in ``a``."""
-    return _where(a > b, b, a)
-
-
-def _power(x, y):
-    """x**y for x >= 0 (or NaN); NaN in x or y gives NaN on both backends."""
-    if _is_dr(x) or _is_dr(y):
-        r = dr.power(x, y)
-        if _is_dr(y) or (isinstance(y, float) and math.isnan(y)):
-            r = _nan_keep(y, r)
-        return _nan_keep(x, r) if _is_dr(x) else r
-    return np.power(x, y)
-
-
-def _safe_power(base, expo):
-    """``base**expo`` for ``base >= 0`` with a finite derivative at 0 (double-``where``).
-
-    ``0**expo = 0``; NaN in ``base`` stays NaN. Negative bases must be clamped by the caller.
-    """
-    zero = base == 0
-    safe = _where(zero, 1.0, base)
-    return _where(zero, 0.0, _power(safe, expo))
+_is_dr, _dr_type, _prep, _finish = arrays.is_dr, arrays.float_type, arrays.prep, arrays.finish
+_nan_keep, _exp, _abs, _where = arrays.nan_keep, arrays.exp, arrays.abs_, arrays.where
+_maximum, _minimum, _power, _safe_power = (arrays.maximum, arrays.minimum, arrays.power,
+                                           arrays.safe_power)
 
 
 def _as_codes(geology) -> np.ndarray:
@@ -246,6 +161,54 @@ def _as_codes(geology) -> np.ndarray:
     return g
 
 
+class ElementGeology:
+    """Geology codes of many elements, checked once, with their table 3.4 parameters cached per
+    array type.
+
+    Every function of this module that takes ``geology`` accepts one: a daily loop on Dr.Jit
+    arrays then neither uploads the codes nor reads them back to check them every day.
+
+    Parameters
+    ----------
+    codes : array_like of int
+        Geology code per element (0 humus, 1 sand, 2 asphalt).
+
+    Raises
+    ------
+    ParameterError
+        If a code is not 0, 1 or 2.
+    """
+
+    def __init__(self, codes):
+        self.codes = _as_codes(codes).reshape(-1)
+        self._cache: dict = {}
+
+    def __len__(self) -> int:
+        return len(self.codes)
+
+    def parameters(self, t=None):
+        """(F1 [m], F2 [-], theta_SAT [m3 m-3]) per element, as NumPy float64 (``t`` None) or
+        as arrays of the Dr.Jit type ``t`` (cached).
+
+        Parameters
+        ----------
+        t : type, optional
+            A Dr.Jit float array type.
+
+        Returns
+        -------
+        tuple
+            The three parameter arrays.
+        """
+        if t is None:
+            return tuple(_GEO_COLS[f][self.codes] for f in ("F1", "F2", "theta_sat"))
+        if t not in self._cache:
+            vals = tuple(t(_GEO_COLS[f][self.codes]) for f in ("F1", "F2", "theta_sat"))
+            dr.eval(vals)
+            self._cache[t] = vals
+        return self._cache[t]
+
+
 def geology_parameters(geology, *like):
     """Per-element ``(F1, F2, theta_SAT)`` of table 3.4 for geology codes ``geology``.
 
@@ -255,7 +218,7 @@ def geology_parameters(geology, *like):
 
     Parameters
     ----------
-    geology : array_like of int or drjit array
+    geology : array_like of int or drjit array or ElementGeology
         Geology codes (0 humus, 1 sand, 2 asphalt); integral floats are accepted.
     *like : array_like or drjit array
         Other inputs of the caller; the first Dr.Jit array among them sets the result type.
@@ -274,6 +237,8 @@ def geology_parameters(geology, *like):
     ParameterError
         If a code is not an integer in {0, 1, 2} (or is NaN / infinite).
     """
+    if isinstance(geology, ElementGeology):
+        return geology.parameters(_dr_type(*like))
     codes = _as_codes(geology)
     t = _dr_type(*like, geology)
     if t is None:
@@ -858,3 +823,77 @@ def surface_state(S, T, rh, U, A, theta, geology, C_H) -> SurfaceState:
     if _is_dr(dT) and not _is_dr(beta):  # beta depends on theta, C_H, U only: same kind as Ts
         beta = type(dT)(beta)
     return SurfaceState(_finish(T + dT), _finish(rhs), _finish(lE), _finish(beta))
+
+
+class SoilDay(NamedTuple):
+    """One day of the soil model of one set of elements (:func:`soil_day`)."""
+    surface: SurfaceState  #: Ts [K], rhs [-], iotaE [W m-2], beta [-] of the day
+    theta: Any             #: soil water content at the start of the day [m3 m-3]
+    O: Any                 #: water stored at the end of the day [mm]
+
+
+def insolation(beam, diffuse, f_sun, f_sky):
+    """Daily-mean insolation of elements from their sun and sky fractions:
+    ``S = B f_sun + D f_sky`` [W m-2] (paper 000 §3.4-3.5 with the photon pass's fractions).
+
+    ``f_sun`` and ``f_sky`` are the element's irradiance under a unit daily-mean horizontal beam
+    and a unit horizontal diffuse irradiance (the photon pass with unit emitters), so the day's
+    broadband beam B and diffuse D scale them.
+
+    Parameters
+    ----------
+    beam, diffuse : float or array_like or drjit array
+        Daily-mean horizontal beam B and diffuse D irradiance [W m-2].
+    f_sun, f_sky : array_like or drjit array
+        Sun and sky fractions per element [-].
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        S [W m-2] per element.
+    """
+    beam, diffuse, f_sun, f_sky = _prep(beam, diffuse, f_sun, f_sky)
+    return _finish(beam * f_sun + diffuse * f_sky)
+
+
+def soil_day(O, S, T, rh, U, A, P, h, geology, C_H) -> SoilDay:
+    """One day of the soil heat and water model, paper 000 §3.7 order (eqs 3.2-3.16, 3.6-3.8).
+
+    theta = O/h (the water left at the end of the previous day), then the surface state of the
+    day (:func:`surface_state`), its evaporation (:func:`evaporation_rate`) and the bucket
+    (:func:`bucket_step`). The one implementation of the chain: the daily run (Dr.Jit arrays of
+    its backend) and the relaxed, differentiable model of ``tune`` both call it.
+
+    Parameters
+    ----------
+    O : array_like or drjit array
+        Water stored at the end of the previous day [mm].
+    S : array_like or drjit array
+        Daily-mean insolation [W m-2].
+    T : float or array_like or drjit array
+        Air temperature [K].
+    rh : float or array_like or drjit array
+        Relative humidity of the air [-].
+    U : float or array_like or drjit array
+        Wind speed [m s-1].
+    A : float or array_like or drjit array
+        Sunshine ratio [-].
+    P : float or array_like or drjit array
+        Precipitation of the day [mm].
+    h : array_like or drjit array
+        Soil depth [mm].
+    geology : array_like of int or drjit array or ElementGeology
+        Geology codes (0 humus, 1 sand, 2 asphalt).
+    C_H : array_like or drjit array
+        Bulk transfer coefficient [-] (eq 3.5, from the moss density).
+
+    Returns
+    -------
+    SoilDay
+        The surface state, theta at the start of the day [m3 m-3] and the water stored at the
+        end of the day [mm].
+    """
+    theta = water_content(O, h)
+    st = surface_state(S, T, rh, U, A, theta, geology, C_H)
+    O_next = bucket_step(O, evaporation_rate(st.lE), P, h, geology).O
+    return SoilDay(st, theta, O_next)

@@ -10,7 +10,7 @@ import numpy as np
 import mitsuba_veg as mv
 from mitsuba_veg.moss.fitness_model import fitness
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.daily import MossSimulation
+from mitsuba_veg.daily import Simulation
 
 SCEN = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 FAST = ["light.photons=100000", "simulation.checkpoint_every=0"]
@@ -36,7 +36,7 @@ def test_indirect_light_spreads_moss_under_the_roof(tmp_path):
 
 def _run(T, days, tmp):
     scn = load_scenario(SCEN, FAST + [f"climate.temperature={T}", "moss.capacity=100000"])
-    sim = MossSimulation(scn, tmp, days=days, progress=False)
+    sim = Simulation(scn, tmp, days=days, progress=False)
     sim.out.mkdir(parents=True, exist_ok=True)
     sim.setup()
     sim.initialise()

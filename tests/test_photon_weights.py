@@ -85,8 +85,7 @@ def _reference_paths(scene, idx, emitter, n, seed, max_depth, band=(360.0, 830.0
     independent reference: emission by the integrator, transport written separately."""
     integ = P.PhotonIrradianceIntegrator()
     em = [e for e in scene.emitters() if e.id() == emitter][0]
-    sampler = mi.load_dict({"type": "independent"})
-    sampler.seed(seed, n)
+    sampler = P.LaneSampler(seed, n)        # the pass's own random numbers
     idx_l = dr.arange(mi.UInt32, n)
     lo, hi = band
     rng = np.random.default_rng(seed)

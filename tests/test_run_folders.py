@@ -25,7 +25,8 @@ CLI = [sys.executable, "-c", "import sys; from mitsuba_veg.cli import main; "
 DRIVER = textwrap.dedent('''
     import os, signal, sys
     import numpy as np
-    import mitsuba_veg.daily.day as simulation
+    import mitsuba_veg.daily.checkpoint as checkpoint
+    import mitsuba_veg.daily.pipeline as pipeline
     import mitsuba_veg.outputs as outputs
     moment = sys.argv[1]
 
@@ -33,20 +34,20 @@ DRIVER = textwrap.dedent('''
         os.kill(os.getpid(), signal.SIGKILL)
 
     if moment == "between_checkpoints":
-        step = simulation.MossSimulation.step
+        step = pipeline.Simulation.step
         def patched(self):
             if self.day == 5:          # day 5 done, the last checkpoint holds day 3
                 die()
             return step(self)
-        simulation.MossSimulation.step = patched
+        pipeline.Simulation.step = patched
     elif moment == "checkpoint_write":
-        save = simulation.MossSimulation.save_checkpoint
-        def patched(self):
-            if self.day == 6:          # half of checkpoint.tmp.npz written, then killed
-                (self.out / "checkpoint.tmp.npz").write_bytes(b"PK\\x03\\x04" + b"\\0" * 500)
+        save = checkpoint.save
+        def patched(sim):
+            if sim.day == 6:           # half of checkpoint.tmp.npz written, then killed
+                (sim.out / "checkpoint.tmp.npz").write_bytes(b"PK\\x03\\x04" + b"\\0" * 500)
                 die()
-            return save(self)
-        simulation.MossSimulation.save_checkpoint = patched
+            return save(sim)
+        checkpoint.save = patched
     elif moment == "map_write":
         write = outputs.DayFrames.write_day
         def patched(self, sim, rec):

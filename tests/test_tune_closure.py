@@ -1,6 +1,6 @@
 """The near-field (pair) closure of the relaxed model against an ensemble of discrete runs.
 
-The discrete runs (``MossSimulation``, Bryum argenteum on the moss garden, 8 seeds) and the
+The discrete runs (``Simulation``, Bryum argenteum on the moss garden, 8 seeds) and the
 relaxed model (t = 0) start from the same scenario; the covered area in total and under the
 roof is compared on reported days while the moss spreads. The mean-field closure grows
 up to 1.3x faster than the discrete mean there (docs/tuning.md); the near-field closure must be
@@ -18,7 +18,7 @@ from mitsuba_veg import tune
 from mitsuba_veg.tune import smooth
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.scenario import load_scenario
-from mitsuba_veg.daily import MossSimulation
+from mitsuba_veg.daily import Simulation
 
 ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenes" / "moss_garden" / "scenario.toml"
@@ -32,7 +32,7 @@ def discrete_ensemble(days, photons, seeds, tmp, light=False, species=("bryum_ar
         scn = load_scenario(SCEN, [f"light.photons={photons}", f"light.seed={s}",
                                    f"moss.species={list(species)!r}",
                                    "simulation.checkpoint_every=0"])
-        sim = MossSimulation(scn, tmp, days=days, progress=False)
+        sim = Simulation(scn, tmp, days=days, progress=False)
         sim.setup()
         sim.initialise()
         rows, fs, fk = [], [], []
@@ -240,7 +240,7 @@ def test_fit_s1_to_discrete_mean(tmp_path):
         scn = load_scenario(SCEN, [f"light.photons={photons}", f"light.seed={s}",
                                    "moss.species=['bryum_argenteum']",
                                    "simulation.checkpoint_every=0"])
-        sim = MossSimulation(scn, tmp_path, days=days, progress=False)
+        sim = Simulation(scn, tmp_path, days=days, progress=False)
         sim.setup()
         sim.initialise()
         for _ in range(days):

@@ -5,6 +5,8 @@ import json
 import shutil
 from pathlib import Path
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 import pytest
 
@@ -30,7 +32,7 @@ def test_autumn_clock_day_by_day_equals_paper_003_vectorised():
         date = start + dt.timedelta(days=d)
         ph.start_of_day(date)
         ph.end_of_day(date, daily[:, d])
-        taus.append(ph.tau_raw.copy())
+        taus.append(np.array(ph.tau_raw))
     ref = autumn_time(daily, AutumnParams(onset_day=0, fall=True, fall_tau=p.fall_tau,
                                           fall_sigma=p.fall_sigma, pigment_sigma=0.0), seed=4)
     raw = np.array(taus).T
@@ -38,22 +40,23 @@ def test_autumn_clock_day_by_day_equals_paper_003_vectorised():
     for i in range(n):   # equal until the leaf falls (then its clock stops)
         stop = days if fell[i] < 0 else fell[i] + 1
         np.testing.assert_allclose(raw[i, :stop], ref.tau_raw[i, :stop], rtol=1e-12)
-    assert np.array_equal(ph.fallen, fell >= 0)
+    assert np.array_equal(np.asarray(ph.fallen), fell >= 0)
 
 
 def test_leaf_out_and_regrowth():
     p = PhenologyParams(leaf_out_doy=100, leaf_out_days=20)
     ph = Phenology(3, p)
     ph.start_of_day(dt.date(2026, 3, 1))
-    assert np.all(ph.grown == 0) and not ph.on_tree.any()        # bare in early spring
+    grown = lambda: np.asarray(ph.grown)  # noqa: E731  (the state lives on the device)
+    assert np.all(grown() == 0) and not np.asarray(ph.on_tree).any()   # bare in early spring
     ph.start_of_day(dt.date(2026, 4, 20))                        # doy 110: half grown
-    assert np.allclose(ph.grown, 0.5)
+    assert np.allclose(grown(), 0.5)
     ph.start_of_day(dt.date(2026, 6, 1))
-    assert np.allclose(ph.grown, 1.0)
-    ph.fallen[:] = True
-    ph.tau_raw[:] = 1.3
+    assert np.allclose(grown(), 1.0)
+    ph.fallen = dr.full(mi.Bool, True, 3)
+    ph.tau_raw = dr.full(mi.Float64, 1.3, 3)
     ph.start_of_day(dt.date(2027, 4, 10))                        # doy 100: a new season
-    assert not ph.fallen.any() and np.all(ph.tau_raw == 0)
+    assert not np.asarray(ph.fallen).any() and np.all(np.asarray(ph.tau_raw) == 0)
 
 
 def _world(tmp_path, trees_toml: str, phenology: str = "", start="2026-07-01"):
@@ -165,7 +168,7 @@ def test_closed_canopy_red_far_red_below_half(tmp_path):
     and max_depth 8 cuts the far-red that is scattered many times (docs/world.md)."""
     import trimesh
 
-    from mitsuba_veg.world.simulation import band_shapes
+    from mitsuba_veg.daily import band_shapes
     from mitsuba_veg.foliage.canopy import leaf_layer_triangles
     tri = leaf_layer_triangles(6.0, seed=0)                 # LAI 6 over 12 m x 12 m
     n = len(tri)
@@ -186,17 +189,18 @@ leaves_file = "{d / 'leaves.ply'}"
 """
     scen = _world(tmp_path, canopy)
     from mitsuba_veg.scenario import load_scenario
-    from mitsuba_veg.world import WorldSimulation
+    from mitsuba_veg.daily import Simulation
     scn = load_scenario(scen, SMALL)
-    sim = WorldSimulation(scn, tmp_path / "run", days=1, progress=False)
+    sim = Simulation(scn, tmp_path / "run", days=1, progress=False)
     sim.setup()
     sim.initialise()
     sim.step()
-    cen = sim.index.centroids[sim.ground_slice]
+    cen = sim.index.centroids[sim.site.ground_slice]
     mid = np.hypot(cen[:, 0], cen[:, 2]) < 1.0
-    g = sim.ground_bands
+    light = sim.last["light"]
+    g = {k: np.asarray(v) for k, v in light.ground.items()}
     # open daylight of the same day: the beam and diffuse spectra the pass is scaled by
-    sh = band_shapes(float(scn.get("site.latitude")), sim._date(0).timetuple().tm_yday)
+    sh = band_shapes(float(scn.get("site.latitude")), sim.date(0).timetuple().tm_yday)
     B, D = sim.weather.beam[0], sim.weather.diffuse[0]
     open_ = {k: (B * sh["beam"][k] + D * sh["diffuse"][k]) * (hi - lo)
              for k, (lo, hi) in (("red", (655, 665)), ("far_red", (725, 735)),
@@ -205,7 +209,8 @@ leaves_file = "{d / 'leaves.ply'}"
 
     def rfr(bands, m):
         return (bands["red"][m].sum() * 660) / (bands["far_red"][m].sum() * 730)
-    print("R:FR mid", rfr(g, mid), "sky", rfr(sim.ground_sky_bands, mid), "open", open_rfr,
+    g_sky = {k: np.asarray(v) for k, v in light.ground_sky.items()}
+    print("R:FR mid", rfr(g, mid), "sky", rfr(g_sky, mid), "open", open_rfr,
           "PAR mid / open", g["par"][mid].mean() / open_["par"])
     assert rfr(g, mid) < 0.5                   # measured 0.34 (sunflecks included)
     assert rfr(g, mid) < 0.35 * open_rfr       # measured 0.29 of daylight's 1.18
@@ -219,55 +224,54 @@ def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
     recompiles the photon kernel (Dr.Jit's kernel history: every kernel from the in-memory
     cache), nor does collapsing the hidden blades (a vertex update). The bookkeeping stays
     closed (0.5 %)."""
-    import drjit as dr
-
     _, tmp = summer
     from mitsuba_veg.scenario import load_scenario
-    from mitsuba_veg.world import WorldSimulation
+    from mitsuba_veg.daily import Simulation
     scn = load_scenario(tmp / "scen" / "scenario.toml", SMALL)
-    sim = WorldSimulation(scn, tmp_path / "t", days=1, progress=False)
+    sim = Simulation(scn, tmp_path / "t", days=1, progress=False)
     sim.setup()
     sim.initialise()
     sim.step()                                  # compiles; July: all leaves green, on the tree
     c, ph = sim.canopy, sim.phen
-    counts = sim.counts()
-    under, open_ = sim.crowns[0], sim.open_ground
+    P = sim.pipeline
+    under, open_ = sim.site.crowns[0], sim.site.open_ground
+    cover = P.moss.cover(P.moss.counts(sim.state.moss))
+    vals = sim.inputs.on_device(0)
 
     def day(tau, on_tree):
-        c.update(sim.params, tau, ph.grown, on_tree)
-        sim.integrator.modes, sim.integrator.bsdf_override = c.trace_tables()
+        c.update(P.scene_params, mi.Float64(tau), ph.grown, mi.Bool(on_tree))
         with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-            sim.light(0, counts)
+            light = P.light(vals, cover, c.trace_tables(), c.displayed_area(), c)
+            dr.eval(light.ground["par"])
             hist = dr.kernel_history([dr.KernelType.JIT])
-        res = sim.last_result
+        res = light.result
         e, left = res.emitted.sum(), res.absorbed.sum() + res.escaped.sum() + res.truncated.sum()
         assert abs(e - left) / e < 0.005
-        g = sim.ground_bands
-        frac = g["par"][under].mean() / g["par"][open_].mean()
+        g = np.asarray(light.ground["par"])
+        frac = g[under].mean() / g[open_].mean()
         # red scattered onto the leaves (indirect): leaves scatter more red in autumn
         red = res.shape_flux("trees_leaves")[:, :, 1, :, res.bands.index("red")].sum()
-        return red, frac, [h["cache_hit"] for h in hist]
+        return red, frac, [h["cache_hit"] for h in hist], res.rays_traced
 
     n = c.n_leaves
     on = np.ones(n, bool)
     c.max_hidden_blades = 1.0                   # tables only: no blade collapsed
-    red_green, frac_green, hits0 = day(np.zeros(n), on)
-    red_autumn, frac_autumn, hits1 = day(np.ones(n), on)            # the last stage bin
+    day(np.zeros(n), on)                        # compiles this test's own kernels
+    red_green, frac_green, hits0, _ = day(np.zeros(n), on)
+    red_autumn, frac_autumn, hits1, _ = day(np.ones(n), on)         # the last stage bin
     half = on.copy()
     half[::2] = False
-    _, frac_half, hits2 = day(np.ones(n), half)
-    _, frac_bare, hits3 = day(np.ones(n), np.zeros(n, bool))        # all fallen
+    _, frac_half, hits2, _ = day(np.ones(n), half)
+    _, frac_bare, hits3, rays_hidden = day(np.ones(n), np.zeros(n, bool))   # all fallen
     assert c.mesh_updates == 0                  # no vertex moved: tables only
-    rays_hidden = sim.last_result.rays_traced
     # the hidden blades collapsed to points (one vertex update): the same light, fewer casts
     c.max_hidden_blades = 0.1
-    _, frac_collapsed, hits4 = day(np.ones(n), np.zeros(n, bool))
+    _, frac_collapsed, hits4, rays_collapsed = day(np.ones(n), np.zeros(n, bool))
     print("indirect red on the leaves green/autumn", red_green, red_autumn, "PAR under/open: green",
           frac_green, "autumn", frac_autumn, "half fallen", frac_half, "bare", frac_bare,
-          "bare, blades collapsed", frac_collapsed, "rays", rays_hidden,
-          sim.last_result.rays_traced)
+          "bare, blades collapsed", frac_collapsed, "rays", rays_hidden, rays_collapsed)
     assert c.mesh_updates == 1
-    assert sim.last_result.rays_traced < rays_hidden
+    assert rays_collapsed < rays_hidden
     assert abs(frac_collapsed - frac_bare) < 0.01
     for h in (hits0, hits1, hits2, hits3, hits4):
         assert h and all(h)
@@ -283,23 +287,29 @@ def test_energy_bookkeeping_with_trees(summer, tmp_path):
     """emitted = absorbed + escaped (+ truncated at max_depth) within 0.5 % in the world pass."""
     _, tmp = summer
     from mitsuba_veg.scenario import load_scenario
-    from mitsuba_veg.world import WorldSimulation
+    from mitsuba_veg.daily import Simulation
     scn = load_scenario(tmp / "scen" / "scenario.toml", SMALL)
-    sim = WorldSimulation(scn, tmp_path / "e", days=1, progress=False)
+    sim = Simulation(scn, tmp_path / "e", days=1, progress=False)
     sim.setup()
     sim.initialise()
     sim.step()
     res = sim.last_result
     e, a, x, t = (res.emitted.sum(), res.absorbed.sum(), res.escaped.sum(), res.truncated.sum())
     assert abs(e - (a + x + t)) / e < 0.005
-    leaf = sim.leaf_light["S"][sim.phen.on_tree]
+    leaf = np.asarray(sim.last["light"].S_leaf)[np.asarray(sim.phen.on_tree)]
     assert leaf.mean() > 0
 
 
 def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
     """A fast autumn (onset on the first day, leaves fall within days): under the crown the
-    ground's PAR and R:FR come back to the open values once the leaves are down; a run stopped
-    and resumed gives the same records."""
+    ground's PAR comes back towards the open value once the leaves are down; a run stopped and
+    resumed gives the same records.
+
+    The R:FR under this single 4 m crown is within 2 % of the open ground's with or without
+    leaves (1.155 against 1.175 in leaf, 1.157 against 1.177 bare: the crown takes ~12 % of
+    the PAR and most of the ground under it gets sunflecks and sky from the sides): below
+    what a day at 1.5M photons resolves, so it is not asserted here (a closed canopy's R:FR
+    is, test_closed_canopy_red_far_red_below_half)."""
     ph = "autumn_onset_doy = 250\ninsolation_full = 60.0\ntime_weight = 0.5\ndays_full = 3.0\n"
     scen = _world(tmp_path, ONE_TREE + SENSORS, ph, start="2026-09-07")
     # 1.5M photons: with SMALL's 300,000 the PAR ratios below scatter by +-0.04 between light
@@ -319,8 +329,6 @@ def test_leaf_fall_opens_the_ground_and_resume_is_exact(tmp_path):
     # seeds 0-3, frac1 0.927-0.938 (frac0 0.868-0.897) with the SPCTRAL2-weighted sun path,
     # 0.924-0.944 with the former Meinel weights: 0.93 was the mean, not a bound
     assert frac0 < frac1 and frac1 > 0.9
-    assert abs(u1["red_far_red"] - open1["red_far_red"]) < \
-        abs(u0["red_far_red"] - open0["red_far_red"])
     stages = [r["trees"]["oak"]["mean_stage"] for r in a["days_record"]
               if r["trees"]["oak"]["mean_stage"] is not None]
     assert stages[-1] > stages[0]
@@ -367,15 +375,15 @@ def test_sunny_leaves_colour_first(tmp_path):
     ph = "autumn_onset_doy = 250\ninsolation_full = 60.0\ntime_weight = 0.2\n"
     scen = _world(tmp_path, ONE_TREE, ph, start="2026-09-07")
     from mitsuba_veg.scenario import load_scenario
-    from mitsuba_veg.world import WorldSimulation
-    sim = WorldSimulation(load_scenario(scen, SMALL), tmp_path / "run", days=3, progress=False)
+    from mitsuba_veg.daily import Simulation
+    sim = Simulation(load_scenario(scen, SMALL), tmp_path / "run", days=3, progress=False)
     sim.setup()
     sim.initialise()
     for _ in range(3):
         sim.step()
     ph_, c = sim.phen, sim.canopy
-    on = ph_.on_tree
-    H, stage = ph_.H[on], ph_.stage[on]
+    on = np.asarray(ph_.on_tree)
+    H, stage = np.asarray(ph_.H)[on], np.asarray(ph_.stage)[on]
     rank = lambda x: np.argsort(np.argsort(x))  # noqa: E731
     rho = np.corrcoef(rank(H), rank(stage))[0, 1]
     r = np.hypot(c.centre[on, 0], c.centre[on, 2])
@@ -406,10 +414,10 @@ def test_leaves_still_on_the_tree_stay_across_the_new_year():
     the calendar's leaf-out curve before)."""
     ph = Phenology(2, PhenologyParams())
     ph.start_of_day(dt.date(2026, 7, 1))
-    assert np.allclose(ph.grown, 1.0)
-    ph.fallen[0] = True
+    assert np.allclose(np.asarray(ph.grown), 1.0)
+    ph.fallen = mi.Bool([True, False])
     ph.start_of_day(dt.date(2027, 1, 1))
-    assert ph.grown[1] == 1.0 and ph.on_tree.tolist() == [False, True]
+    assert np.asarray(ph.grown)[1] == 1.0 and np.asarray(ph.on_tree).tolist() == [False, True]
 
 
 def test_canopy_vertex_updates_are_bounded_and_tables_exact():
@@ -439,14 +447,20 @@ def test_canopy_vertex_updates_are_bounded_and_tables_exact():
         ph.start_of_day(date)
         if c.update(params, ph.tau, ph.grown, ph.on_tree):
             days.append(k)
-        modes, over = c.trace_tables()
+        modes, over = c.trace_tables_numpy()
         shown = modes["trees_leaves"][::2] == 0
-        assert np.array_equal(shown, ph.on_tree & (c._scale > 0))
-        assert np.array_equal(over["trees_leaves"][1][::2], c.leaf_bins(ph.tau))
+        on = np.asarray(ph.on_tree) & (np.asarray(c._scale) > 0)
+        assert np.array_equal(shown, on)
+        assert np.array_equal(over["trees_leaves"][1][::2], c.leaf_bins(np.asarray(ph.tau)))
+        # the device tables hold the same: mode per triangle, the stage bin's BSDF
+        dmode, dreg = c.trace_tables()
+        assert np.array_equal(np.asarray(dmode), modes["trees_leaves"])
+        assert np.array_equal(np.asarray(dreg), np.asarray(c.d_bin_reg)[
+            over["trees_leaves"][1]])
         if date == dt.date(2026, 7, 1):           # in full leaf: every blade shown, full size
-            assert shown.all() and np.all(c.displayed_area() == c.area)
+            assert shown.all() and np.all(np.asarray(c.displayed_area()) == c.area)
         ph.end_of_day(date, np.full(m, 12.0))
     print("vertex updates on days", days)
     assert 5 <= len(days) <= 16
     assert np.all(np.diff(days) >= Canopy.min_update_days)
-    assert ph.fallen.any()
+    assert np.asarray(ph.fallen).any()

@@ -1,94 +1,122 @@
-"""Checkpoints of the daily loop: the whole state in one ``checkpoint.npz`` (written
-atomically), resumed only by a run of the same scenario. A killed run resumes from the last
-checkpoint and reproduces the uninterrupted run exactly."""
+"""Checkpoints of a run: the whole state in one ``checkpoint.npz`` (written atomically),
+resumed only by a run of the same scenario. A killed run resumes from the last checkpoint and
+reproduces the uninterrupted run exactly.
+
+The state is read back from the device only here, every ``checkpoint_every`` days: the soil
+water, the moss population (the spot grid is rebuilt from it), the leaves' phenology and the
+canopy's blades, the sensor readings so far, the history and the timings.
+"""
 from __future__ import annotations
 
 import json
 import zipfile
-from pathlib import Path
 
+import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
+from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
 
 
-class Checkpoints:
-    """Saving and resuming the state of a :class:`~mitsuba_veg.daily.day.MossSimulation`.
+def fingerprint(sim) -> str:
+    """What must match for a checkpoint to be resumed: the settings of the run.
 
-    Subclass hooks: :meth:`_checkpoint_extra` (arrays beyond soil and moss) and
-    :meth:`_load_extra` (restore them).
+    Parameters
+    ----------
+    sim : Simulation
+        The run.
+
+    Returns
+    -------
+    str
+        A JSON string of the scenario (but its ``simulation`` section) and the start date.
     """
+    keep = {k: v for k, v in sim.scn.data.items() if k != "simulation"}
+    return json.dumps({"scenario": keep, "start": sim.start.isoformat()}, sort_keys=True,
+                      default=str)
 
-    @property
-    def checkpoint_path(self) -> Path:
-        """The run's checkpoint file, ``<out>/checkpoint.npz``."""
-        return self.out / "checkpoint.npz"
 
-    def save_checkpoint(self):
-        """Write the whole state (population, :meth:`_checkpoint_extra`, day, soil water,
-        history, timings, the scenario's fingerprint) atomically to :attr:`checkpoint_path`.
-        """
-        d = self.pop.to_numpy()
-        d.update(self._checkpoint_extra())
-        d.update({"day": np.array(self.day), "O": self.O,
-                  "history": np.array(json.dumps(self.history)),
-                  "timings": np.array(json.dumps(self.timings)),
-                  "fingerprint": np.array(self._fingerprint())})
-        with atomic_write(self.checkpoint_path, self.out / "checkpoint.tmp.npz") as tmp:
-            np.savez_compressed(tmp, **d)
+def save(sim) -> None:
+    """Write the whole state of ``sim`` atomically to its ``checkpoint.npz``.
 
-    def _checkpoint_extra(self) -> dict:
-        """Arrays of the state beyond soil and moss (a world: its leaves)."""
-        return {}
+    Parameters
+    ----------
+    sim : Simulation
+        The run (set up).
+    """
+    st = sim.state
+    d = st.moss.pop.to_numpy()
+    if st.leaves is not None:
+        d.update(st.leaves.to_numpy())
+        d.update(sim.site.canopy.state())
+    if sim.sensors is not None:
+        n = len(sim.sensors)
+        d["sensor_days"] = (np.stack(st.sensor_days) if st.sensor_days else
+                            np.zeros((0, n, len(sensors_mod.QUANTITIES),
+                                      len(sensors_mod.COMPONENTS))))
+    d.update({"day": np.array(st.day), "O": np.asarray(st.O, np.float64),
+              "history": np.array(json.dumps(st.history)),
+              "timings": np.array(json.dumps(sim.timings)),
+              "fingerprint": np.array(fingerprint(sim))})
+    with atomic_write(sim.checkpoint_path, sim.out / "checkpoint.tmp.npz") as tmp:
+        np.savez_compressed(tmp, **d)
 
-    def _load_extra(self, d: dict) -> None:
-        """Restore what :meth:`_checkpoint_extra` saved."""
 
-    def _fingerprint(self) -> str:
-        """What must match for a checkpoint to be resumed: the settings of the run."""
-        keep = {k: v for k, v in self.scn.data.items() if k != "simulation"}
-        return json.dumps({"scenario": keep, "start": self.start.isoformat()}, sort_keys=True,
-                          default=str)
+def load(sim) -> bool:
+    """Resume ``sim`` (set up) from its checkpoint if there is one.
 
-    def load_checkpoint(self) -> bool:
-        """Resume from :attr:`checkpoint_path` if there is one.
+    Parameters
+    ----------
+    sim : Simulation
+        The run.
 
-        Returns
-        -------
-        bool
-            Whether a checkpoint was loaded.
+    Returns
+    -------
+    bool
+        Whether a checkpoint was loaded.
 
-        Raises
-        ------
-        ParameterError
-            The checkpoint cannot be read, belongs to another scenario, or holds more days than
-            this run has.
-        """
-        p = self.checkpoint_path
-        if not p.exists():
-            return False
-        try:
-            d = dict(np.load(p, allow_pickle=False))
-            fingerprint, day = str(d["fingerprint"]), int(d["day"])
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
-            raise ParameterError("checkpoint", str(p), "a complete checkpoint written by "
-                                 "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
-                                 "run again with --fresh to start over") from None
-        if fingerprint != self._fingerprint():
-            raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
-                                 "use --fresh (or another --out folder) to start afresh")
-        if day > self.days:
-            raise ParameterError("--days", self.days, f">= {day}: the checkpoint in "
-                                 f"{self.out} already holds day {day}",
-                                 f"pass --days {day} or more to resume, or --fresh to start "
-                                 "over with fewer days")
-        self.pop.load_numpy(d)
-        self._load_extra(d)
-        self.grid.rebuild(self.pop.pos, self.pop.state)
-        self._moss_version += 1
-        self.day = int(d["day"])
-        self.O = np.asarray(d["O"], np.float64)
-        self.history = json.loads(str(d["history"]))
-        self.timings.update(json.loads(str(d["timings"])))
-        return True
+    Raises
+    ------
+    ParameterError
+        The checkpoint cannot be read, belongs to another scenario, or holds more days than
+        this run has.
+    """
+    p = sim.checkpoint_path
+    if not p.exists():
+        return False
+    try:
+        d = dict(np.load(p, allow_pickle=False))
+        fp, day = str(d["fingerprint"]), int(d["day"])
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
+        raise ParameterError("checkpoint", str(p), "a complete checkpoint written by "
+                             "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
+                             "run again with --fresh to start over") from None
+    if fp != fingerprint(sim):
+        raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
+                             "use --fresh (or another --out folder) to start afresh")
+    if day > sim.days:
+        raise ParameterError("--days", sim.days, f">= {day}: the checkpoint in "
+                             f"{sim.out} already holds day {day}",
+                             f"pass --days {day} or more to resume, or --fresh to start "
+                             "over with fewer days")
+    st = sim.state
+    try:
+        st.moss.pop.load_numpy(d)
+        if st.leaves is not None:
+            st.leaves.load_numpy(d)
+            sim.site.canopy.load_state(d, sim.pipeline.scene_params)
+        if sim.sensors is not None:
+            st.sensor_days = list(np.asarray(d["sensor_days"]))
+        O = np.asarray(d["O"], np.float64)
+        if O.shape != (sim.site.n_terrain,):
+            raise ValueError(f"O: {O.shape} != ({sim.site.n_terrain},)")
+    except (KeyError, ValueError) as e:
+        raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
+                             f"use --fresh ({e})") from None
+    st.moss.grid.rebuild(st.moss.pop.pos, st.moss.pop.state)
+    st.day = day
+    st.O = mi.Float64(O)
+    st.history = json.loads(str(d["history"]))
+    sim.timings.update(json.loads(str(d["timings"])))
+    return True

@@ -8,6 +8,7 @@ from ..climate import ClimateTable, daily_weather, load_csv
 from ..errors import ParameterError, check_range
 from ..moss.species import SPECIES, Species, load_species
 from ..scenario import Scenario
+from ..world.phenology import PhenologyParams
 
 BANDS = ("total", "par", "red", "far_red")
 _PCG_STREAM = 0xDA3E39CB94B95BDB  # Dr.Jit's default PCG32 stream (lane i adds i)
@@ -53,6 +54,8 @@ class MossConfig:
         The run's species, in the order of ``moss.species``.
     weather : climate.DailyWeather
         One row per day; ``climate`` the climate table it came from.
+    phenology : PhenologyParams
+        The world's leaf phenology (``[phenology]``); ``stage_bins`` its autumn-stage bins.
     """
 
     def __init__(self, scenario: Scenario, days: int | None = None):
@@ -89,6 +92,19 @@ class MossConfig:
                           "seed": scenario.get("light.seed")}
         self.seed = int(self.light_cfg["seed"])
         self._setup_climate(src)
+        self._setup_phenology(src)
+
+    def _setup_phenology(self, src):
+        """The world's ``[phenology]`` (leaf-out, autumn, leaf fall) and its stage bins."""
+        ph = dict(self.scn.get("phenology", {}) or {})
+        self.stage_bins = int(ph.pop("stage_bins", 4))
+        try:
+            self.phenology = PhenologyParams(**ph).validate(src)
+        except ParameterError as e:
+            if e.source:
+                raise
+            raise ParameterError(f"phenology.{e.field}", e.value, e.allowed, e.fix,
+                                 src) from None
 
 
     def date(self, day: int) -> _dt.date:
@@ -105,8 +121,6 @@ class MossConfig:
             ``start + day`` days.
         """
         return self.start + _dt.timedelta(days=day)
-
-    _date = date  # the name the world's loop (world/simulation.py) uses
 
     def grid_cell(self) -> float:
         """The cell of the spot grid, one moss [m].

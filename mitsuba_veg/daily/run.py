@@ -1,19 +1,17 @@
-"""One run of a scenario into a folder: the moss loop, or the world's loop when the scenario
-has ``[[trees]]``, with the day maps, moss snapshots and ``summary.json``."""
+"""One run of a scenario into a folder: the daily pipeline (with the world's trees when the
+scenario has ``[[trees]]``), the day maps, moss snapshots and ``summary.json``."""
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..outputs import RUN_OUTPUTS, DayFrames, OutputFolder, SnapshotWriter, write_summary
 from ..scenario import Scenario, load_scenario
-from ..world import WorldSimulation
-from .day import MossSimulation
+from .pipeline import Simulation
 
 
 def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: bool = True,
         progress: bool = True, frames: bool = True, snapshot_every: int | None = None) -> dict:
-    """Run a scenario into a folder: the moss loop, or the world's loop when the scenario has
-    ``[[trees]]``.
+    """Run a scenario into a folder through the daily pipeline.
 
     The folder is claimed for the run (:class:`~mitsuba_veg.outputs.OutputFolder`: a second
     process writing into it is refused; a folder holding another kind of result is refused).
@@ -46,12 +44,11 @@ def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: 
         The summary, also written to ``out/summary.json``.
     """
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
-    if scn.get("trees"):
-        sim = WorldSimulation(scn, out, days=days, progress=progress)
-    else:
-        sim = MossSimulation(scn, out, days=days, progress=progress)
+    sim = Simulation(scn, out, days=days, progress=progress)
     with OutputFolder(out, "run", info={"scenario": str(scn.path)}) as folder:
-        if not resume:
+        if not resume or not sim.checkpoint_path.exists():
+            # a run that starts at day 0 owns the folder's run outputs: maps, snapshots,
+            # renders and the GIF of an earlier run would otherwise be shown as this run's
             folder.clear(RUN_OUTPUTS)
         frames_writer = DayFrames(sim) if frames else None
         # living moss on frame days (exact animations)

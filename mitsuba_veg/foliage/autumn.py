@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import drjit as dr
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
@@ -223,9 +224,13 @@ def tau_raw(H, days_since_onset, rate, params: AutumnParams):
 
     Returns
     -------
-    numpy.ndarray
-        τ_raw [-] (not clipped), the broadcast shape of the inputs.
+    numpy.ndarray or drjit array
+        τ_raw [-] (not clipped), the broadcast shape of the inputs (Dr.Jit arrays in, a Dr.Jit
+        array out).
     """
+    if dr.is_array_v(H):  # Dr.Jit arrays (the daily world's leaves on the device)
+        return rate * ((1 - params.time_weight) * H / params.insolation_full
+                       + params.time_weight * days_since_onset / params.days_full)
     return rate * ((1 - params.time_weight) * np.asarray(H, float) / params.insolation_full
                    + params.time_weight * np.asarray(days_since_onset, float)
                    / params.days_full)

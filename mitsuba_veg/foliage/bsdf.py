@@ -51,6 +51,9 @@ def _hmean(s):
 
 
 class LeafBSDF(mi.BSDF):
+    #: its textures are inputs of a frozen function that reaches it (dr.freeze)
+    DRJIT_STRUCT = {"reflectance": mi.Texture, "transmittance": mi.Texture}
+
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
         self.reflectance = _texture(props, "reflectance", 0.1)

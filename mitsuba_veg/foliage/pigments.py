@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+import drjit as dr
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
@@ -104,14 +105,16 @@ def stage_from_tau(tau):
 
     Returns
     -------
-    numpy.ndarray
-        Stage [-] in [1, 7], the shape of ``tau`` (0-d for a number).
+    numpy.ndarray or drjit array
+        Stage [-] in [1, 7], the shape of ``tau`` (0-d for a number; a Dr.Jit array for one).
 
     Raises
     ------
     ParameterError
         When ``tau`` holds NaN.
     """
+    if dr.is_array_v(tau):   # Dr.Jit arrays (the daily world's leaves): no NaN check on host
+        return 1.0 + 6.0 * dr.clip(tau, 0.0, 1.0)
     t = np.asarray(tau, dtype=np.float64)
     if np.isnan(t).any():
         raise ParameterError("tau", "NaN", "numbers (autumn logical time, 0..1)")

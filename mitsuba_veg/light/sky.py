@@ -48,6 +48,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import DiscreteSampler
 from ..errors import ParameterError, SceneError
 
 __all__ = ["VegSky", "perez_coefficients", "cie_coefficients", "sky_coefficients",
@@ -314,6 +315,11 @@ def _opaque(v):
 class VegSky(mi.Emitter):
     """Separable clear-sky environment emitter (see module docstring)."""
 
+    #: its arrays are inputs of a frozen function that reaches it (dr.freeze)
+    DRJIT_STRUCT = {"m_cos_edges": mi.Float, "m_cell_pdf": mi.Float, "m_distr": DiscreteSampler,
+                    "m_coef": list, "m_norm": mi.Float, "m_sun": mi.Vector3f,
+                    "m_radiance": mi.Texture, "m_center": mi.Point3f, "m_radius": mi.Float}
+
     def __init__(self, props: mi.Properties):
         mi.Emitter.__init__(self, props)
         self.m_flags = mi.EmitterFlags.Infinite | mi.EmitterFlags.SpatiallyVarying
@@ -374,7 +380,8 @@ class VegSky(mi.Emitter):
         cos_e, pdf, pmf = _sampling_table(sun, coeffs, self.norm, self.rows)
         self.m_cos_edges = mi.Float(cos_e)
         self.m_cell_pdf = mi.Float(pdf)
-        self.m_distr = mi.DiscreteDistribution(mi.Float(pmf))
+        # cumulative sums on the host: the same table on every backend (arrays.DiscreteSampler)
+        self.m_distr = DiscreteSampler(pmf)
         self.m_coef = [_opaque(v) for v in coeffs]
         self.m_norm = _opaque(self.norm * self.m_scale)
         self.m_sun = mi.Vector3f(*[float(v) for v in sun])
@@ -450,7 +457,7 @@ class VegSky(mi.Emitter):
 
     def _sample(self, sample, active=True):
         """Direction towards the sky, its pdf [sr-1] and uv."""
-        idx, ux, _ = self.m_distr.sample_reuse_pmf(sample.x, active)
+        idx, ux, _ = self.m_distr.sample_reuse(sample.x, active)
         row, col = idx // self.cols, idx % self.cols
         phi = (mi.Float(col) + ux) * (2.0 * math.pi / self.cols)
         c0 = dr.gather(mi.Float, self.m_cos_edges, row, active)

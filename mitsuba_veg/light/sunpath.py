@@ -22,6 +22,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import DiscreteSampler, host_array, opaque
 from ..errors import ParameterError, check_range
 from .clear_sky import clear_sky_broadband
 from .solar_position import sun_direction, sun_position
@@ -166,6 +167,75 @@ def day_sun_path(latitude, longitude, date, step_minutes: float = 10.0):
     return p.direction, w, p.elevation
 
 
+@dataclass
+class DaySunPaths:
+    """The sun paths of consecutive days, packed (:func:`day_sun_paths`).
+
+    Day ``k``'s directions and weights are rows ``offsets[k]:offsets[k + 1]`` of ``directions``
+    and ``weights``; a day without sun above 0.5 degrees has no rows.
+    """
+
+    directions: np.ndarray   # (N, 3) unit vectors towards the sun (scene frame)
+    weights: np.ndarray      # (N,) w_k [-], each day's normalised to a unit horizontal beam
+    elevations: np.ndarray   # (N,) [deg]
+    offsets: np.ndarray      # (days + 1,) int64
+
+    def day(self, k: int):
+        """Directions, weights and elevations of day ``k`` (as :func:`day_sun_path`).
+
+        Parameters
+        ----------
+        k : int
+            Day index from the first day.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            (K, 3) directions, (K,) weights [-], (K,) elevations [deg].
+        """
+        a, b = int(self.offsets[k]), int(self.offsets[k + 1])
+        return self.directions[a:b], self.weights[a:b], self.elevations[a:b]
+
+
+def day_sun_paths(latitude, longitude, start, days: int, step_minutes: float = 10.0) -> DaySunPaths:
+    """The sun paths of ``days`` consecutive days in one vectorised call: day ``k`` is exactly
+    :func:`day_sun_path` of ``start + k`` (the same steps of the same UTC days, the same
+    SPCTRAL2 DNI and normalisation), computed for all days at once at a run's set-up instead
+    of once a day.
+
+    Parameters
+    ----------
+    latitude, longitude : float
+        The site [deg].
+    start : datetime.date or str
+        The first day (UTC).
+    days : int
+        Number of days (1-3660).
+    step_minutes : float
+        Time step [min] (a divisor of 24 h).
+
+    Returns
+    -------
+    DaySunPaths
+        Packed directions, weights and elevations with per-day offsets.
+    """
+    d0 = _start_date(start)
+    p = sun_path(latitude, longitude, start=d0, days=int(days), step_hours=step_minutes / 60.0,
+                 utc_offset_hours=0.0, intensity="clear_sky")
+    w = p.dni * (step_minutes * 60.0 / 86400.0)
+    day = np.asarray(p.day, np.int64)
+    horizontal = np.bincount(day, weights=w * np.sin(np.radians(p.elevation)),
+                             minlength=int(days))
+    good = horizontal[day] > 0.0
+    # per day as day_sun_path: w / (sum of w sin(el)) over that day's steps
+    w = np.where(good, w / np.where(horizontal[day] > 0, horizontal[day], 1.0), 0.0)
+    keep = good
+    counts = np.bincount(day[keep], minlength=int(days))
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    return DaySunPaths(np.asarray(p.direction[keep], float), w[keep], p.elevation[keep],
+                       offsets)
+
+
 class DeltaSun(mi.Emitter):
     """Base of the package's sun emitters: delta directions towards a discrete set of suns.
 
@@ -307,12 +377,16 @@ class VegSunPath(DeltaSun):
     (``sample_ray``, e.g. Mitsuba's ``ptracer``) get no light from it.
     """
 
+    #: its arrays are inputs of a frozen function that reaches it (dr.freeze: a frozen photon
+    #: pass replays with each day's sun path)
+    DRJIT_STRUCT = {"dirs": mi.Vector3f, "m_value": mi.Float, "dist": DiscreteSampler}
+
     def __init__(self, props: mi.Properties):
         DeltaSun.__init__(self, props)
         self.scale = float(props.get("scale", 1.0))
         self.set_day(np.array([[0.0, 1.0, 0.0]]), np.array([1.0]))
 
-    def set_day(self, directions, weights) -> None:
+    def set_day(self, directions, weights, size: int | None = None) -> None:
         """Use these sun directions and weights from now on.
 
         Parameters
@@ -322,15 +396,25 @@ class VegSunPath(DeltaSun):
         weights : array_like
             (K,) weights w_k [-] (as :func:`day_sun_path`'s); photons sample direction k with
             probability w_k / Σ w.
+        size : int, optional
+            Pad the table to ``size`` directions with zero weights (never sampled): the same
+            array sizes every day, as a frozen pass needs (default: K).
         """
         d = np.asarray(directions, float).reshape(-1, 3)
         w = np.asarray(weights, float).reshape(-1)
         if len(d) == 0:  # polar night: no sun, keep a harmless direction with zero weight
             d, w = np.array([[0.0, 1.0, 0.0]]), np.array([0.0])
+        if size is not None and size > len(d):
+            d = np.concatenate([d, np.tile([[0.0, 1.0, 0.0]], (size - len(d), 1))])
+            w = np.concatenate([w, np.zeros(size - len(w))])
         self.total = float(w.sum())
-        pmf = w / self.total if self.total > 0 else np.full(len(w), 1.0 / len(w))
-        self.dist = mi.DiscreteDistribution(mi.Float(pmf.astype(np.float32)))
-        self.dirs = mi.Vector3f(*[mi.Float(d[:, k].astype(np.float32)) for k in range(3)])
+        pmf = w if self.total > 0 else np.ones(len(w))
+        # cumulative sums on the host: the same table on every backend (arrays.DiscreteSampler)
+        self.dist = DiscreteSampler(pmf)
+        self.dirs = mi.Vector3f(*[host_array(mi.Float, d[:, k]) for k in range(3)])
+        # an input of the kernel, not a literal: a new day's total compiles nothing
+        self.m_value = opaque(mi.Float, self.total * self.scale)
+        dr.eval(self.dirs)
         self.count = len(w)
 
     def sample_direction(self, it, sample, active=True):
@@ -356,7 +440,7 @@ class VegSunPath(DeltaSun):
         ds = self._direction_sample(it, dr.gather(mi.Vector3f, self.dirs, k, active))
         ds.emitter = mi.EmitterPtr(self)
         # weight / pmf = total weight (flat spectrum): unbiased for the weighted sum over k
-        value = dr.select(active, self.total * self.scale, 0.0)
+        value = dr.select(active, self.m_value, 0.0)
         return ds, mi.Spectrum(value)
 
     def to_string(self):

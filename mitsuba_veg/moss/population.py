@@ -24,6 +24,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import opaque
 from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
 from .species import Species
 
@@ -90,7 +91,7 @@ class SlotQueue:
             if window == self.size:
                 idx = dr.compress(self.mask)
             else:
-                at = dr.arange(mi.UInt32, window) + dr.opaque(mi.UInt32, self.cursor)
+                at = dr.arange(mi.UInt32, window) + opaque(mi.UInt32, self.cursor)
                 idx = dr.gather(mi.UInt32, at, dr.compress(dr.gather(mi.Bool, self.mask, at)))
             self.cursor += window
             self.listed += dr.width(idx)
@@ -99,7 +100,7 @@ class SlotQueue:
         if dr.width(out) > m:
             out = dr.gather(mi.UInt32, self.buf, dr.arange(mi.UInt32, m))
             self.buf = dr.gather(mi.UInt32, self.buf, dr.arange(mi.UInt32, dr.width(self.buf) - m)
-                                 + dr.opaque(mi.UInt32, m))
+                                 + opaque(mi.UInt32, m))
         else:
             self.buf = mi.UInt32()
         dr.eval(out, self.buf)
@@ -125,7 +126,7 @@ def concat_u32(a: mi.UInt32, b: mi.UInt32) -> mi.UInt32:
         return b if na == 0 else a
     out = dr.zeros(mi.UInt32, na + nb)
     dr.scatter(out, a, dr.arange(mi.UInt32, na))
-    dr.scatter(out, b, dr.arange(mi.UInt32, nb) + dr.opaque(mi.UInt32, na))
+    dr.scatter(out, b, dr.arange(mi.UInt32, nb) + opaque(mi.UInt32, na))
     return out
 
 
@@ -277,7 +278,8 @@ class MossPopulation:
         """
         n = len(self.table.species)
         counts = dr.zeros(mi.UInt32, n)
-        dr.scatter_add(counts, mi.UInt32(1), self.species, self.state == state)
+        dr.scatter_add(counts, mi.UInt32(1), self.species, self.state == state,
+                       mode=dr.ReduceMode.Local)
         return [int(v) for v in np.asarray(counts)]
 
     def to_numpy(self) -> dict:
@@ -461,16 +463,19 @@ class MossPopulation:
         # 4. spores: G_moss >= 2.0 and growing (eq 3.23)
         spores = live & (growth >= SPORE_THRESHOLD) & (D > 0)
         negative = (self.state != FREE) & (self.growth < 0.0)
-        # the masks are evaluated with the state: counted lazily, each would be recomputed
-        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores, germ, died,
-                expired, negative)
-        # all counts in one go: one synchronisation instead of six
-        c = [dr.count(m) for m in (germ, died, expired, gemma, spores, negative)]
-        dr.eval(*c)
-        c = [int(np.asarray(v).ravel()[0]) for v in c]
+        free = self.state == FREE
+        # the day's counts in the same kernel as the state (integer atomics, packet-reduced):
+        # one launch and one read-back instead of a reduction per count
+        counts = dr.zeros(mi.UInt32, 7)
+        for k, m in enumerate((germ, died, expired, gemma, spores, negative, free)):
+            dr.scatter_add(counts, mi.UInt32(1), mi.UInt32(k), m, mode=dr.ReduceMode.Local)
+        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores, counts)
+        c = [int(v) for v in np.asarray(counts)]
         ev = DayEvents(germinated=c[0], died=c[1], expired=c[2], gemma_parents=c[3],
                        spore_parents=c[4])
         self.negative_growth = c[5]
+        #: free slots at the end of the day's steps 1-2
+        self.free_slots = c[6]
         return gemma, spores, ev
 
 

@@ -22,6 +22,7 @@ import mitsuba as mi
 import numpy as np
 
 from .population import MossPopulation
+from .spatial import _SLOT_MASK
 
 
 def uniform_sphere(u: mi.Point2f) -> mi.Vector3f:
@@ -125,7 +126,7 @@ def land(scene: mi.Scene, lookup: mi.UInt32, origin: mi.Point3f, direction: mi.V
 
 
 def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt32,
-           new_order: mi.UInt32, landed: mi.Bool):
+           new_order: mi.UInt32, landed: mi.Bool, may_evict: bool = True):
     """Resolve where propagules may stay (one individual per cell, priority rule above).
 
     Parameters
@@ -144,6 +145,9 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
         (the day's order: gemmae, then spores, each by parent slot).
     landed : mi.Bool
         Which new propagules landed (the others take no part).
+    may_evict : bool
+        False when no newcomer can evict an occupant (equal species priorities, no occupant
+        with G_moss < 0): the evicted list is then empty without being looked for.
 
     Returns
     -------
@@ -151,21 +155,25 @@ def settle(pop: MossPopulation, grid, new_pos: mi.Point3f, new_species: mi.UInt3
         Mask over the new propagules: those that take their cell.
     evicted : mi.UInt32
         The slots of existing individuals that lose their cell.
+    cells : mi.UInt32
+        The pool cell of every landed propagule (the grid's blocks exist for them).
     """
-    keys = grid.key(new_pos)
+    # the landing cells' blocks exist from here on: each cell has its own claim entry
+    cells = grid.cells(new_pos, landed)
     # among the newcomers of one cell: highest species priority, then lowest order
     pri_new = dr.gather(mi.Float, pop.table.priority, new_species)
     rank = mi.UInt64(dr.gather(mi.UInt32, pop.table.priority_rank, new_species))  # high first
-    dr.eval(keys, rank)
-    first = grid.first_per_cell(keys, (rank << 32) | mi.UInt64(new_order), landed)
+    first = grid.first_per_pool_cell(cells, (rank << 32) | mi.UInt64(new_order), landed)
     # against the individual already there
-    there = grid.occupant(new_pos, first)
+    there = dr.gather(mi.UInt32, grid.pool, cells, first) & _SLOT_MASK
     has = first & (there > 0)
     slot = dr.select(has, there - 1, 0)
     pri_old = dr.gather(mi.Float, pop.table.priority, dr.gather(mi.UInt32, pop.species, slot, has),
                         has) + dr.gather(mi.Float, pop.growth, slot, has)
     wins = ~has | (pri_new > pri_old)
     keep = first & wins
+    if not may_evict:
+        return keep, mi.UInt32(), cells
     # each cell has one newcomer at most, so no occupant is evicted twice
     evicted = dr.gather(mi.UInt32, slot, dr.compress(has & wins))
-    return keep, evicted
+    return keep, evicted, cells

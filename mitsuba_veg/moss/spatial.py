@@ -37,6 +37,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import opaque
+
 NEIGHBOURS = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
               if (dx, dy, dz) != (0, 0, 0)]
 
@@ -86,6 +88,8 @@ class SpotGrid:
         self.n_blocks = 0
         self.block_cap = max(64, self.capacity // 8)
         self.pool = dr.zeros(mi.UInt32, self.block_cap * _B3)
+        # per cell: the best claim of the newcomers being settled (``_NONE64``: none)
+        self._cell_claim = dr.full(mi.UInt64, _NONE64, self.block_cap * _B3)
         self.block_key = dr.zeros(mi.UInt64, self.block_cap)
         # per block: block id + 1 of the 27 blocks around it (itself at 13; 0 = none)
         self.block_nbr = dr.zeros(mi.UInt32, self.block_cap * 27)
@@ -93,6 +97,7 @@ class SpotGrid:
         self._code = dr.zeros(mi.UInt32, self.capacity)  # state per slot at the last sync
         self.nb = dr.zeros(mi.UInt32, self.capacity)  # moss among the 26 neighbours (moss slots)
         self.rehashes = 0
+        dr.make_opaque(self._cell_claim)
         dr.eval(self.tab_keys, self.tab_block, self._claim, self.pool, self.block_key,
                 self.block_nbr, self.slot_cell, self._code, self.nb)
 
@@ -196,7 +201,10 @@ class SpotGrid:
             found = at == k
             dr.eval(empty, found)
             del at
-            dr.scatter_reduce(dr.ReduceOp.Min, self._claim, it, pos, empty)
+            # (Local: per-packet reduction then atomics; the default expands the table per
+            # thread, three more launches a round)
+            dr.scatter_reduce(dr.ReduceOp.Min, self._claim, it, pos, empty,
+                              mode=dr.ReduceMode.Local)
             dr.eval(self._claim)
             win = empty & (dr.gather(mi.UInt32, self._claim, pos, empty) == it)
             dr.eval(win)
@@ -208,7 +216,7 @@ class SpotGrid:
                 wkey = dr.gather(mi.UInt64, k, w)
                 if ids is None:
                     self._grow(self.n_blocks + m)
-                    wid = dr.arange(mi.UInt32, m) + dr.opaque(mi.UInt32, self.n_blocks)
+                    wid = dr.arange(mi.UInt32, m) + opaque(mi.UInt32, self.n_blocks)
                     dr.scatter(self.block_key, wkey, wid)
                     self.n_blocks += m
                 else:
@@ -238,15 +246,18 @@ class SpotGrid:
         dr.scatter(bk, self.block_key, dr.arange(mi.UInt32, self.block_cap))
         nbr = dr.zeros(mi.UInt32, cap * 27)
         dr.scatter(nbr, self.block_nbr, dr.arange(mi.UInt32, self.block_cap * 27))
+        claim = dr.full(mi.UInt64, _NONE64, cap * _B3)   # (no claim is pending between calls)
+        dr.make_opaque(claim)
         dr.eval(pool, bk, nbr)
         self.pool, self.block_key, self.block_nbr, self.block_cap = pool, bk, nbr, cap
+        self._cell_claim = claim
 
     def _link(self, first: int, end: int) -> None:
         """Fill the neighbour-block table for the new blocks first .. end - 1 (and the back
         links of the blocks around them): 27 table lookups per new block, once."""
         # all 27 neighbours of all new blocks in one lookup: item i = block i // 27, offset i % 27
         j = dr.arange(mi.UInt32, (end - first) * 27)
-        ids = j // 27 + dr.opaque(mi.UInt32, first)
+        ids = j // 27 + opaque(mi.UInt32, first)
         o = j % 27
         bk = dr.gather(mi.UInt64, self.block_key, ids)
         m = (1 << _BITS) - 1
@@ -272,6 +283,71 @@ class SpotGrid:
             ids = dr.arange(mi.UInt32, self.n_blocks)
             self._place(dr.gather(mi.UInt64, self.block_key, ids), ids)
 
+    def cells(self, p: mi.Point3f, active=True) -> mi.UInt32:
+        """The pool cell of each active point, allocating the blocks that do not exist yet.
+
+        One lookup kernel and a count read back; the blocks are placed (rounds of the hash
+        table) only on the days a newcomer reaches a block no one has reached before.
+
+        Parameters
+        ----------
+        p : mi.Point3f
+            Points [m].
+        active : mi.Bool or bool
+            Which points (the others get an undefined cell).
+
+        Returns
+        -------
+        mi.UInt32
+            Pool cell per point (evaluated).
+        """
+        n = dr.width(p.x)
+        active = dr.full(mi.Bool, True, n) & active
+        ix, iy, iz = self.coords(p)
+        bk = self._block_key(ix, iy, iz)
+        found = self._find_block(bk, active)
+        miss = active & (found == 0)
+        cnt = dr.zeros(mi.UInt32, 1)
+        dr.scatter_add(cnt, mi.UInt32(1), mi.UInt32(0), miss, mode=dr.ReduceMode.Local)
+        dr.eval(bk, found, cnt)
+        if int(np.asarray(cnt)[0]):
+            self._ensure_blocks(dr.gather(mi.UInt64, bk, dr.compress(miss)))
+            found = self._find_block(bk, active)
+        cell = (found - 1) * _B3 + self._local(ix, iy, iz)
+        dr.eval(cell)
+        return cell
+
+    def first_per_pool_cell(self, cell: mi.UInt32, rank: mi.UInt64, active=True) -> mi.Bool:
+        """Among the active items, the one of lowest (distinct) ``rank`` in each pool cell.
+
+        Every cell has a place in the claim array (the blocks exist, :meth:`cells`): one
+        ``min`` per cell, then each item compares; no rounds, whatever the number of items.
+
+        Parameters
+        ----------
+        cell : mi.UInt32
+            Pool cell of each item (:meth:`cells`).
+        rank : mi.UInt64
+            Rank of each item; ranks must be distinct within a cell (lowest wins).
+        active : mi.Bool or bool
+            Which items take part.
+
+        Returns
+        -------
+        mi.Bool
+            True for the winning item of each cell.
+        """
+        n = dr.width(cell)
+        active = dr.full(mi.Bool, True, n) & active
+        dr.scatter_reduce(dr.ReduceOp.Min, self._cell_claim, rank, cell, active,
+                          mode=dr.ReduceMode.Local)
+        dr.eval(self._cell_claim)
+        win = active & (dr.gather(mi.UInt64, self._cell_claim, cell, active) == rank)
+        dr.eval(win)
+        # the claims go (run with the next kernel that touches the array)
+        dr.scatter(self._cell_claim, mi.UInt64(_NONE64), cell, active)
+        return win
+
     def _cell(self, ix, iy, iz, active) -> tuple[mi.UInt32, mi.Bool]:
         """Pool index of cells (and whether their block exists)."""
         b = self._find_block(self._block_key(ix, iy, iz), active)
@@ -279,7 +355,8 @@ class SpotGrid:
         return (b - 1) * _B3 + self._local(ix, iy, iz), ok
 
     # ---- following the population -----------------------------------------------------------
-    def insert(self, p: mi.Point3f, slots: mi.UInt32, state: mi.UInt32) -> None:
+    def insert(self, p: mi.Point3f, slots: mi.UInt32, state: mi.UInt32,
+               cells: mi.UInt32 | None = None) -> None:
         """Newcomers in ``slots`` occupy the cells of points ``p``.
 
         One per cell: the caller has resolved conflicts, see ``propagules.settle``. Call
@@ -294,19 +371,21 @@ class SpotGrid:
         state : mi.UInt32
             The population's state after adding them, per slot (kept until the next call: not a view
             of a NumPy array that changes).
+        cells : mi.UInt32, optional
+            Their pool cells when already known (:meth:`cells`, e.g. from settling).
         """
         if dr.width(slots):
-            ix, iy, iz = self.coords(p)
-            dr.eval(ix, iy, iz)
-            self._ensure_blocks(self._block_key(ix, iy, iz))
-            cell, _ = self._cell(ix, iy, iz, True)
+            cell = self.cells(p) if cells is None else cells
             moss = dr.gather(mi.UInt32, state, slots) == _MOSS
             v = (slots + 1) | dr.select(moss, mi.UInt32(_MOSS_BIT | _NEW_BIT), mi.UInt32(0))
             dr.eval(cell, v, moss)
+            mcount = dr.zeros(mi.UInt32, 1)
+            dr.scatter_add(mcount, mi.UInt32(1), mi.UInt32(0), moss, mode=dr.ReduceMode.Local)
             dr.scatter(self.pool, v, cell)
             dr.scatter(self.slot_cell, cell, slots)
-            dr.eval(self.pool, self.slot_cell)
-            self._moss_changed(mi.UInt32(), dr.gather(mi.UInt32, slots, dr.compress(moss)))
+            dr.eval(self.pool, self.slot_cell, mcount)
+            if int(np.asarray(mcount)[0]):    # (newcomers are propagules but at the start)
+                self._moss_changed(mi.UInt32(), dr.gather(mi.UInt32, slots, dr.compress(moss)))
         # a new array object: the population writes its state in place (Dr.Jit then copies)
         self._code = mi.UInt32(state)
         dr.eval(self.pool, self.slot_cell)
@@ -377,7 +456,7 @@ class SpotGrid:
         if n_gone + n_new == 0:
             return
         ev = dr.zeros(mi.UInt32, n_gone + n_new)
-        split = dr.opaque(mi.UInt32, n_gone)  # opaque: one kernel whatever the day's numbers
+        split = opaque(mi.UInt32, n_gone)  # opaque: one kernel whatever the day's numbers
         if n_gone:
             dr.scatter(ev, gone, dr.arange(mi.UInt32, n_gone))
         if n_new:
@@ -549,9 +628,9 @@ class SpotGrid:
             bits = max(4, int(math.ceil(math.log2(4 * dr.width(it)))))
             mult = (_GOLDEN + 2 * salt * 0x632BE59BD9B4E019) % (1 << 64) | 1
             # opaque: the kernels do not depend on the round or the batch size
-            b = mi.UInt32((k * dr.opaque(mi.UInt64, mult)) >> dr.opaque(mi.UInt64, 64 - bits))
+            b = mi.UInt32((k * opaque(mi.UInt64, mult)) >> opaque(mi.UInt64, 64 - bits))
             best = dr.full(mi.UInt64, _NONE64, 1 << bits)
-            dr.scatter_reduce(dr.ReduceOp.Min, best, r, b)
+            dr.scatter_reduce(dr.ReduceOp.Min, best, r, b, mode=dr.ReduceMode.Local)
             dr.eval(best, b)
             win = dr.gather(mi.UInt64, best, b) == r
             dr.eval(win)
@@ -586,7 +665,7 @@ def per_element_count(elem: mi.UInt32, active: mi.Bool, n_elements: int) -> mi.U
         Count m per element (m of eq 3.5), width ``n_elements``.
     """
     counts = dr.zeros(mi.UInt32, n_elements)
-    dr.scatter_add(counts, mi.UInt32(1), elem, active)
+    dr.scatter_add(counts, mi.UInt32(1), elem, active, mode=dr.ReduceMode.Local)
     return counts
 
 

@@ -1,8 +1,7 @@
 """The discrete moss run as a function of its parameters, and fits *of the discrete model*.
 
-:class:`DiscreteMossModel` runs :class:`~mitsuba_veg.daily.MossSimulation` (or a
-:class:`~mitsuba_veg.world.simulation.WorldSimulation`: trees in the light) with given parameter
-values on a fixed set of seeds (common random numbers: the same seeds at every evaluation, so
+:class:`DiscreteMossModel` runs the daily pipeline (:class:`~mitsuba_veg.daily.Simulation`;
+with ``world=True`` the scenario's trees in the light) with given parameter values on a fixed set of seeds (common random numbers: the same seeds at every evaluation, so
 that two evaluations differ only through the parameters) and returns the covered fraction per
 triangle, per seed and day.
 
@@ -37,10 +36,9 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
-from ..daily import MossSimulation
+from ..daily import Simulation
 from ..moss.species import PARAMETER_FIELDS
 from ..scenario import Scenario, load_scenario
-from ..world.simulation import WorldSimulation
 from .fitting import param_names, parameter_bounds, parameter_scale, target_array
 from .grad import value_and_grad
 
@@ -49,27 +47,6 @@ __all__ = ["DiscreteMossModel", "DiscreteResult", "DiscreteFitResult", "Discrete
            "patch_labels", "patch_cover", "patch_loss_value"]
 
 _CLIMATE = ("T", "rh")
-
-
-def _tuned_class(base):
-    """A subclass of ``base`` whose light is scaled by emitter strengths (s_sun, s_sky): the
-    photon pass is linear in each emitter's strength, so f_sun s_sun and f_sky s_sky are the
-    pass of scaled emitters (same photons)."""
-
-    class Tuned(base):
-        strength = (1.0, 1.0)
-
-        def light(self, day, counts):
-            S, f_sun, f_sky, res = super().light(day, counts)
-            s_sun, s_sky = self.strength
-            if (s_sun, s_sky) != (1.0, 1.0):
-                f_sun, f_sky = f_sun * s_sun, f_sky * s_sky
-                wd = self.weather
-                S = wd.beam[day] * f_sun + wd.diffuse[day] * f_sky
-            return S, f_sun, f_sky, res
-
-    Tuned.__name__ = f"Tuned{base.__name__}"
-    return Tuned
 
 
 @dataclass
@@ -121,8 +98,8 @@ class DiscreteMossModel:
     overrides : list of str
         Further ``KEY=VALUE`` scenario overrides.
     world : bool
-        Run :class:`~mitsuba_veg.world.simulation.WorldSimulation` (the scenario's trees shade
-        the terrain) instead of :class:`~mitsuba_veg.daily.MossSimulation`.
+        Keep the scenario's trees in the light (they shade the terrain); without, its
+        ``[[trees]]`` are left out and the moss runs alone.
 
     Parameter names (as :class:`~mitsuba_veg.tune.SmoothMossModel`): species fields (``"S1"``,
     ``"bryum_argenteum.alpha_g"`` ...), ``"T"`` and ``"rh"`` (the daily air temperature [K] and
@@ -152,16 +129,19 @@ class DiscreteMossModel:
             raise ParameterError("seeds", list(seeds), "at least one seed")
         self.world = bool(world)
         if self.world:
-            base = WorldSimulation
             if not self.scenario.get("trees"):
                 raise ParameterError("trees", None, "at least one [[trees]] entry for world=True",
                                      "add trees to the scenario or use world=False")
         else:
-            base = MossSimulation
-        self._cls = _tuned_class(base)
+            # the moss alone: a world without trees (nor sensors)
+            data = copy.deepcopy(self.scenario.data)
+            data.pop("trees", None)
+            data.pop("sensors", None)
+            self.scenario = Scenario(self.scenario.path, data)
         sim = self._sim(self.seeds[0], {})
+        site = sim.site
         # the terrain's elements (a world's tree leaves left out), shape by shape
-        terrain = sorted((sim.index.shape_slice(sid).start, sid) for sid in sim.terrain_shapes
+        terrain = sorted((sim.index.shape_slice(sid).start, sid) for sid in site.terrain_shapes
                          if sid in sim.index.geometry)
         self.elements = np.concatenate([np.arange(sim.index.shape_slice(sid).start,
                                                   sim.index.shape_slice(sid).stop)
@@ -174,12 +154,12 @@ class DiscreteMossModel:
         self.n = len(self.elements)
         self.areas = np.asarray(sim.index.areas, float)[self.elements]
         self.centroids = np.asarray(sim.index.centroids, float)[self.elements]
-        self.living = np.asarray(sim.living, bool)[self.elements]
+        self.living = np.asarray(site.living, bool)[self.elements]
         self.cell = float(sim.moss_cfg["size"])
         self.species_keys = list(sim.moss_cfg["species"])
         self.species = list(sim.species)
-        self.base_albedo = np.asarray(sim.base_albedo[:, 0], float)[self.elements]
-        self.region_masks = dict(sim.regions)
+        self.base_albedo = np.asarray(site.base_albedo[:, 0], float)[self.elements]
+        self.region_masks = dict(site.regions)
         self.climate_mean = {"T": float(np.mean(sim.weather.T)),
                              "rh": float(np.mean(sim.weather.rh))}
         self.evaluations = 0
@@ -267,7 +247,8 @@ class DiscreteMossModel:
         data = copy.deepcopy(self.scenario.data)
         data.setdefault("light", {})["seed"] = int(seed)
         scn = Scenario(self.scenario.path, data)
-        sim = self._cls(scn, tempfile.gettempdir(), days=self.days, progress=False)
+        sim = Simulation(scn, tempfile.gettempdir(), days=self.days, progress=False)
+        cfg = sim.config
         albedo, strength = {}, [1.0, 1.0]
         for name, v in params.items():
             v = float(v)
@@ -275,15 +256,15 @@ class DiscreteMossModel:
                 raise ParameterError(f"params[{name!r}]", v, "a finite number")
             c = self._canonical(name)
             if c[0] == "species":
-                sim.species[c[1]] = dataclasses.replace(sim.species[c[1]], **{c[2]: v})
+                cfg.species[c[1]] = dataclasses.replace(cfg.species[c[1]], **{c[2]: v})
             elif c[0] == "climate":
-                w = sim.weather
+                w = cfg.weather
                 if c[1] == "T":
-                    sim.weather = dataclasses.replace(w, T=w.T + (v - np.mean(w.T)))
+                    cfg.weather = dataclasses.replace(w, T=w.T + (v - np.mean(w.T)))
                 else:
                     if not 0.0 < v <= 1.0:
                         raise ParameterError("params['rh']", v, "(0, 1]")
-                    sim.weather = dataclasses.replace(w, rh=w.rh + (v - np.mean(w.rh)))
+                    cfg.weather = dataclasses.replace(w, rh=w.rh + (v - np.mean(w.rh)))
             elif c[0] == "albedo":
                 if not 0.0 <= v <= 1.0:
                     raise ParameterError(f"params[{name!r}]", v, "[0, 1]")
@@ -292,10 +273,10 @@ class DiscreteMossModel:
                 if v < 0:
                     raise ParameterError(f"params[{name!r}]", v, ">= 0")
                 strength[0 if c[1] == "sun" else 1] = v
-        sim.strength = tuple(strength)
+        # the light stage's parameters: emitter strengths and bare albedos (no subclass)
+        sim.light_strength = tuple(strength)
+        sim.albedo = albedo
         sim.setup()
-        for sid, v in albedo.items():
-            sim.base_albedo[sim.index.shape_slice(sid), 0] = v
         return sim
 
     # ---- runs -------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """Expected propagule dispersal between triangles: the kernels of eqs 3.22-3.23, precomputed.
 
-In the discrete model (``daily/day.py``, ``moss/propagules.py``) a gemma leaves its parent M
+In the discrete model (``daily/moss.py``, ``moss/propagules.py``) a gemma leaves its parent M
 towards B = M + k I (eq 3.22, I uniform on the sphere), a spore towards Q = M + l I_N (eq 3.23,
 I_N in the 45° cones about the normal), both stop at a surface in the way, else fall along -y;
 nothing hit or a back face: lost; a landing on a surface where moss may not live: lost.
@@ -236,7 +236,7 @@ def _decode_offset(code: np.ndarray) -> np.ndarray:
 
 def _fly(scene, index, living, grid, pts, nrm, kind, distance, rng):
     """One propagule of ``kind`` released from each point ``pts`` (on normals ``nrm``; lifted
-    0.1 mm, as individuals sit in daily/day.py): whether it counts (landed on a living surface
+    0.1 mm, as individuals sit in daily/moss.py): whether it counts (landed on a living surface
     and, with a ``grid``, not in the parent's own spot), its element, landing point and the
     release point (both Dr.Jit points)."""
     m = len(pts)

@@ -1,6 +1,6 @@
 """The relaxed (differentiable) daily soil + moss model of paper 000 on a scenario's triangles.
 
-Same physics as the discrete run (``daily/day.py``), with three changes (docs/tuning.md):
+Same physics as the discrete run (``daily/moss.py``), with three changes (docs/tuning.md):
 
 1. **Expected densities instead of individuals.** Every moss on one triangle, of one species,
    germinated on the same day, has the same G_moss trajectory in the discrete model (G depends
@@ -142,7 +142,7 @@ def with_daily_light(data: "ModelData", f_sun, f_sky) -> "ModelData":
         The prepared scenario (its ``days`` and triangles).
     f_sun, f_sky : array_like
         (days, triangles) sun and sky fractions of the unit horizontal beam and diffuse
-        irradiance [-], front side, as ``MossSimulation.light`` returns them.
+        irradiance [-], front side, as the daily pipeline's light stage computes them.
 
     Returns
     -------
@@ -257,10 +257,19 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
         data = copy.deepcopy(scn.data)
         data.setdefault("moss", {})["species"] = list(species)
         scn = Scenario(scn.path, data)
-    sim = prepare_site(scn, days=days)
-    idx = sim.index
+    site = prepare_site(scn, days=days)
+    sim = site.config
+    idx = site.index
     n_days = sim.days
     seed = sim.seed if seed is None else int(seed)
+
+    def full(a, fill):
+        """A terrain array over every element of the scene (its other shapes: ``fill``)."""
+        a = np.asarray(a)
+        out = np.full((idx.n_elements,) + a.shape[1:], fill, dtype=a.dtype)
+        out[:site.n_terrain] = a
+        return out
+    living = full(site.living, False)
     timings = {"setup": time.perf_counter() - t0}
 
     t1 = time.perf_counter()
@@ -270,13 +279,13 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     # starts in
     reach = int(math.ceil(k_g / sim.grid_cell())) + 1
     kernels = {
-        "gemma": dispersal_kernel(sim.scene, idx, sim.living, "gemma", k_g,
-                                  int(kernel_samples[0]), seed, sim.grid, near_radius=reach),
-        "spore": dispersal_kernel(sim.scene, idx, sim.living, "spore", k_s,
-                                  int(kernel_samples[1]), seed, sim.grid, near_radius=reach),
+        "gemma": dispersal_kernel(site.scene, idx, living, "gemma", k_g,
+                                  int(kernel_samples[0]), seed, site.grid, near_radius=reach),
+        "spore": dispersal_kernel(site.scene, idx, living, "spore", k_s,
+                                  int(kernel_samples[1]), seed, site.grid, near_radius=reach),
     }
     for kind, dist in (("gemma", k_g), ("spore", k_s)):
-        same, both = sibling_overlap(sim.scene, idx, sim.living, sim.grid, kind, dist, k_g,
+        same, both = sibling_overlap(site.scene, idx, living, site.grid, kind, dist, k_g,
                                      2 * int(kernel_samples[0]), seed)
         kernels[kind].sibling_share = pooled_share(kernels["gemma"], same, both)
     timings["kernels"] = time.perf_counter() - t1
@@ -290,7 +299,7 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     ldays = list(range(0, n_days, light_every))
     if ldays[-1] != n_days - 1:
         ldays.append(n_days - 1)
-    alb = sim.base_albedo[:, 0].astype(float)
+    alb = full(site.base_albedo[:, 0].astype(float), 0.0)
     a_dr = dr.float64_array_t(mi.Float)(alb)
     lat, lon = float(scn.get("site.latitude")), float(scn.get("site.longitude"))
     f_sun, p_sun = [], []
@@ -304,11 +313,11 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
             f_sun.append(np.zeros(idx.n_elements))
             p_sun.append(None)
             continue
-        sim.sun.set_day(dirs, w)
-        p = trace_paths(sim.scene, "sun", photons, idx, max_depth, seed * 7919 + 11 * k + 1)
+        site.sun.set_day(dirs, w)
+        p = trace_paths(site.scene, "sun", photons, idx, max_depth, seed * 7919 + 11 * k + 1)
         f_sun.append(np.asarray(irradiance(p, a_dr)) / (p.band[1] - p.band[0]))
         p_sun.append(p if differentiable_light else None)
-    p_sky = trace_paths(sim.scene, "sky", photons, idx, max_depth, seed * 7919 + 3)
+    p_sky = trace_paths(site.scene, "sky", photons, idx, max_depth, seed * 7919 + 3)
     f_sky = np.asarray(irradiance(p_sky, a_dr)) / (p_sky.band[1] - p_sky.band[0])
     # band irradiance / band width = fraction of the unit (1 W m-2 nm-1) horizontal irradiance
     light = LightSetup(ldays, f_sun, f_sky, p_sun if differentiable_light else None,
@@ -319,13 +328,15 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     slices = {sid: idx.shape_slice(sid) for sid in idx.shape_ids}
     return ModelData(scenario=scn, days=n_days, n=idx.n_elements,
                      areas=np.asarray(idx.areas, float),
-                     M=np.asarray(sim.M, float), living=np.asarray(sim.living, bool),
-                     geology=np.asarray(sim.geology), h=np.asarray(sim.h, float),
-                     O0=np.asarray(sim.O, float), base_albedo=alb, weather=sim.weather,
+                     M=full(site.M, 1.0).astype(float), living=living,
+                     geology=full(site.geology, 2), h=full(site.h, 1.0).astype(float),
+                     O0=full(site.O0, 0.0).astype(float), base_albedo=alb, weather=sim.weather,
                      climate=sim.climate, species=list(sim.species),
                      species_keys=list(cfg["species"]), moss_cfg=dict(cfg), cell=float(cfg["size"]),
-                     index=idx, shape_slices=slices, regions=dict(sim.regions), kernels=kernels,
-                     light=light, start=sim.start, scene=sim.scene, timings=timings)
+                     index=idx, shape_slices=slices,
+                     regions={k: full(m, False) for k, m in site.regions.items()},
+                     kernels=kernels, light=light, start=sim.start, scene=site.scene,
+                     timings=timings)
 
 
 # ------------------------------------------------------------------------------------------
@@ -515,7 +526,8 @@ class SmoothMossModel:
         self.M = T(data.M)
         self.h = data.h
         self._h = T(data.h)
-        self.geology = data.geology
+        # codes checked once, parameters cached on the device (soil.ElementGeology)
+        self.geology = soil_model.ElementGeology(data.geology)
         self.living = T(data.living.astype(float))
         self.areas = T(data.areas)
         self.cell2 = data.cell ** 2
@@ -761,7 +773,8 @@ class SmoothMossModel:
             sky = sky[k0] if k0 == k1 else \
                 sky[k0] * dr.opaque(T, 1.0 - w) + sky[k1] * dr.opaque(T, w)
         wd = self._weather
-        return fs * dr.opaque(T, wd["beam"][day]) + sky * dr.opaque(T, wd["diffuse"][day])
+        return soil_model.insolation(dr.opaque(T, wd["beam"][day]),
+                                     dr.opaque(T, wd["diffuse"][day]), fs, sky)
 
     # ---- state ------------------------------------------------------------------------------
     def initial_state(self) -> State:
@@ -823,14 +836,12 @@ class SmoothMossModel:
         for s in st.species:
             c_tot += self.life.moss(s)
         C_H = soil_model.transfer_coefficient(dr.minimum(c_tot, 1.0))
-        theta = soil_model.water_content(st.O, self._h)
         Td = op(wd["T"][d]) + P.dT
         rhd = op(wd["rh"][d]) + P.drh
-        surf = soil_model.surface_state(S, Td, rhd, op(wd["U"][d]), op(wd["A"][d]), theta,
-                                        self.geology, C_H)
-        E = soil_model.evaporation_rate(surf.lE)
-        O = soil_model.bucket_step(st.O, E, op(wd["P"][d]), self._h, self.geology).O
-        return S, surf.Ts, surf.rhs, theta, O
+        # the discrete run's soil chain (soil.soil_day), on this model's arrays
+        sd = soil_model.soil_day(st.O, S, Td, rhd, op(wd["U"][d]), op(wd["A"][d]),
+                                 op(wd["P"][d]), self._h, self.geology, C_H)
+        return S, sd.surface.Ts, sd.surface.rhs, sd.theta, sd.O
 
     def step(self, st: State, P: Resolved, light, record: dict | None = None) -> State:
         """Advance one day in the discrete day's order: light, soil, then the moss (germination,
@@ -989,7 +1000,7 @@ class SmoothMossModel:
             scale_g = scale_s = 1.0
             if self.capacity_on:
                 # the discrete run settles the day's gemmae first, then the spores, while free
-                # slots last (daily/day.py, _release): the gemmae take the room first
+                # slots last (daily/moss.py, _release): the gemmae take the room first
                 room = dr.maximum(self.capacity - dr.sum(M * occ), 0.0)
                 want_g, want_s = dr.zeros(T, n), dr.zeros(T, n)
                 for a, b in zip(arr_g, arr_s):
@@ -1075,7 +1086,7 @@ class SmoothMossModel:
         return c
 
     def cover(self, st: State):
-        """Covered fraction of each triangle: min(moss x size², area) / area (as daily/day.py).
+        """Covered fraction of each triangle: min(moss x size², area) / area (as daily/moss.py).
 
         Parameters
         ----------

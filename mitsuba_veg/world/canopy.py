@@ -31,12 +31,13 @@ triangles (both sides, direct + indirect), divided by the blade area the pass sa
 """
 from __future__ import annotations
 
+import drjit as dr
 import mitsuba as mi
 import numpy as np
 
 from ..foliage import leaf_bsdf_dict, leaf_spectra
 from ..foliage.pigments import stage_from_tau
-from ..integrators.photon_irradiance import HIDDEN, SURFACE
+from ..integrators.photon_irradiance import HIDDEN, SURFACE, registry_id
 from ..meshes import make_mesh
 
 #: bark reflectance: 0.07 at 360 nm rising to 0.30 at 830 nm (7 values 78 nm apart; grey-brown)
@@ -101,12 +102,23 @@ class Canopy:
         if n:
             np.add.at(self.centre, self.face_leaf, self.tri.mean(1))
             self.centre /= np.bincount(self.face_leaf, minlength=n)[:, None]
-        # first triangle of each leaf (triangles of a leaf are consecutive): for reduceat
+        # first triangle of each leaf (triangles of a leaf are consecutive) and their count
         self._first = np.flatnonzero(np.r_[True, np.diff(self.face_leaf) != 0]) if n else \
             np.zeros(0, np.int64)
-        self._bin = np.zeros(n, np.int64)     # stage bin of each leaf
-        self._shown = np.zeros(n, bool)       # on the tree with a blade in the mesh
-        self._scale = np.ones(n)              # blade size in the mesh (0..1, steps of 0.1)
+        ntri = np.diff(np.r_[self._first, len(self.face_leaf)]) if n else np.zeros(0, np.int64)
+        if n and ntri.max() > 2:
+            raise ValueError("a leaf element has more than 2 triangles (quads at most)")
+        # device copies: the daily state and tables never leave the device
+        self.d_face_leaf = mi.UInt32(self.face_leaf.astype(np.uint32))
+        self.d_first = mi.UInt32(self._first.astype(np.uint32))
+        self.d_two = mi.Bool(ntri == 2)
+        self.d_area = mi.Float64(self.area)
+        self.d_tree_of = mi.UInt32(self.tree_of.astype(np.uint32))
+        self.d_tri = mi.Float(self.tri.reshape(-1).astype(np.float32))
+        self.d_centre = mi.Float(self.centre.reshape(-1).astype(np.float32))
+        self._bin = dr.zeros(mi.UInt32, n)        # stage bin of each leaf
+        self._shown = dr.zeros(mi.Bool, n)        # on the tree with a blade in the mesh
+        self._scale = dr.full(mi.Float64, 1.0, n)  # blade size in the mesh (0..1, steps of 0.1)
         self._lag = 0
         self._since = 1 << 30                 # days since the last vertex update
         self._stale_prev, self._stale_days = -1, 0
@@ -169,9 +181,12 @@ class Canopy:
         if F:
             out[LEAF_MESH] = _mesh(LEAF_MESH, self.tri.reshape(-1, 3),
                                    np.arange(3 * F).reshape(-1, 3), self.stage_bsdfs[0])
-        self._scale = np.ones(self.n_leaves)
-        self._bin = np.zeros(self.n_leaves, np.int64)
-        self._shown = np.full(self.n_leaves, bool(full_leaf))
+        self._scale = dr.full(mi.Float64, 1.0, self.n_leaves)
+        self._bin = dr.zeros(mi.UInt32, self.n_leaves)
+        self._shown = dr.full(mi.Bool, bool(full_leaf), self.n_leaves)
+        # registry id of each bin's BSDF (the photon pass's per-triangle BSDF table holds them)
+        self.d_bin_reg = mi.UInt32(np.array([registry_id(b) for b in self.stage_bsdfs],
+                                            np.uint32))
         return out
 
     # ---- daily update -------------------------------------------------------------------
@@ -180,31 +195,38 @@ class Canopy:
 
         Parameters
         ----------
-        tau : numpy.ndarray
+        tau : numpy.ndarray or mi.Float64
             (n_leaves,) autumn logical time τ [-] (clipped to [0, 1]).
 
         Returns
         -------
-        numpy.ndarray
-            (n_leaves,) stage bin (int) in 0 .. bins − 1.
+        numpy.ndarray or mi.UInt32
+            (n_leaves,) stage bin in 0 .. bins − 1 (on the backend of ``tau``).
         """
+        if dr.is_array_v(tau):
+            s = stage_from_tau(dr.clip(tau, 0.0, 1.0))
+            return dr.minimum(mi.UInt32((s - 1.0) / 6.0 * self.bins), self.bins - 1)
         s = stage_from_tau(np.clip(tau, 0.0, 1.0))
         return np.minimum(((s - 1.0) / 6.0 * self.bins).astype(np.int64), self.bins - 1)
 
-    def update(self, params, tau: np.ndarray, scale: np.ndarray, on_tree: np.ndarray) -> int:
+    def update(self, params, tau, scale, on_tree) -> int:
         """Set the day's stage bin and shown/hidden state of every leaf (exact, tables only)
         and, during leaf-out, grow the blades in the mesh (see :attr:`min_change`).
+
+        Everything stays on the device but three counts (leaves with a new blade size, leaves
+        on the tree, hidden blades still in the mesh), read back in one go to decide whether
+        the mesh's vertices move today.
 
         Parameters
         ----------
         params : mi.SceneParameters
             ``mi.traverse`` of the light scene (vertex updates go through it).
-        tau : np.ndarray
+        tau : mi.Float64
             Autumn logical time τ of each leaf (0..1).
-        scale : np.ndarray
+        scale : mi.Float64
             Blade size of each leaf (0..1, leaf-out).
-        on_tree : np.ndarray
-            Leaves out and not fallen (bool).
+        on_tree : mi.Bool
+            Leaves out and not fallen.
 
         Returns
         -------
@@ -215,38 +237,51 @@ class Canopy:
             return 0
         self._bin = self.leaf_bins(tau)
         live = on_tree & (scale > 1e-3)
-        size = np.round(scale, 1)
+        size = dr.round(scale * 10.0) / 10.0
         # only leaves on the tree matter: hidden ones keep whatever blade the mesh holds
         changed = live & (size != self._scale)
+        # hidden leaves whose blades are still in the mesh (photons cross them, one cast each)
+        stale_m = (self._scale > 0) & ~live
+        counts = dr.zeros(mi.UInt32, 3)
+        for k, m in enumerate((changed, live, stale_m)):
+            dr.scatter_add(counts, mi.UInt32(1), mi.UInt32(k), m, mode=dr.ReduceMode.Local)
+        dr.eval(self._bin, live, size, counts)
+        n_changed, n_live, stale = (int(v) for v in np.asarray(counts))
         moved = 0
         self._since += 1
-        # hidden leaves whose blades are still in the mesh (photons cross them, one cast each)
-        stale = int(((self._scale > 0) & ~live).sum())
         self._stale_days = self._stale_days + 1 if stale == self._stale_prev else 0
         self._stale_prev = stale
         collapse = stale > self.max_hidden_blades * self.n_leaves or \
             (stale > 0.01 * self.n_leaves and self._stale_days >= self.max_lag_days)
-        self._lag = self._lag + 1 if changed.any() else 0
-        grow = changed.sum() >= self.min_change * max(int(live.sum()), 1) or \
-            (changed.any() and self._lag >= self.max_lag_days)
+        self._lag = self._lag + 1 if n_changed else 0
+        grow = n_changed >= self.min_change * max(n_live, 1) or \
+            (n_changed > 0 and self._lag >= self.max_lag_days)
         if (collapse or grow) and self._since >= self.min_update_days:
             # hidden leaves collapse to their centre: a leaf that comes out later shows no
             # blade until the next update gives it its size
-            self._set_blades(params, np.where(live, size, 0.0))
+            self._set_blades(params, dr.select(live, size, 0.0))
             self._lag = 0
             self._since = 0
             self.mesh_updates += 1
             moved = 1
         # a blade of size 0 in the mesh (round(scale, 1) == 0) is not shown
         self._shown = live & (self._scale > 0)
+        dr.eval(self._shown)
         return moved
 
-    def _set_blades(self, params, scale: np.ndarray) -> None:
+    def _set_blades(self, params, scale) -> None:
         """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene."""
-        s = scale[self.face_leaf][:, None, None]
-        c = self.centre[self.face_leaf][:, None, :]
-        v = (c + s * (self.tri - c)).reshape(-1)
-        params[f"{LEAF_MESH}.vertex_positions"] = mi.Float(v.astype(np.float32))
+        scale = scale if dr.is_array_v(scale) else mi.Float64(np.asarray(scale, float))
+        dr.eval(scale)
+        F = len(self.face_leaf)
+        k = dr.arange(mi.UInt32, 9 * F)          # triangle, corner, axis
+        tri = k // 9
+        axis = k % 3
+        leaf = dr.gather(mi.UInt32, self.d_face_leaf, tri)
+        s = mi.Float(dr.gather(mi.Float64, scale, leaf))
+        c = dr.gather(mi.Float, self.d_centre, leaf * 3 + axis)
+        v = c + s * (dr.gather(mi.Float, self.d_tri, k) - c)
+        params[f"{LEAF_MESH}.vertex_positions"] = v
         params.update()
         self._scale = scale
 
@@ -271,7 +306,8 @@ class Canopy:
         """
         clocks = np.array([self._lag, self._since, self._stale_prev, self._stale_days,
                            self.mesh_updates], np.int64)
-        return {prefix + "scale": self._scale.copy(), prefix + "clocks": clocks}
+        return {prefix + "scale": np.array(self._scale, dtype=np.float64),
+                prefix + "clocks": clocks}
 
     def load_state(self, d: dict, params, prefix: str = "canopy_") -> None:
         """Restore :meth:`state` (and the blades in the light scene).
@@ -293,81 +329,85 @@ class Canopy:
         scale = np.asarray(d[prefix + "scale"], float)
         if scale.shape != (self.n_leaves,):
             raise ValueError(f"{prefix}scale: {scale.shape} != ({self.n_leaves},)")
-        if self.n_leaves and not np.array_equal(scale, self._scale):
+        if self.n_leaves and not np.array_equal(scale, np.asarray(self._scale)):
             self._set_blades(params, scale)
         (self._lag, self._since, self._stale_prev, self._stale_days,
          self.mesh_updates) = (int(x) for x in np.asarray(d[prefix + "clocks"]))
 
-    def trace_tables(self) -> tuple[dict, dict]:
-        """The day's ``modes`` and ``bsdf_override`` for the photon pass.
+    def trace_tables(self) -> tuple:
+        """The day's per-triangle leaf tables for the photon pass, on the device.
 
-        Per leaf triangle: HIDDEN unless the leaf is shown, else SURFACE; the BSDF of its stage bin.
+        Per leaf triangle: HIDDEN unless the leaf is shown, else SURFACE; the registry id of
+        its stage bin's BSDF (what ``PassTables.bsdf_table`` holds).
+
+        Returns
+        -------
+        modes : mi.UInt32 or None
+            (triangles,) SURFACE / HIDDEN (None without leaves or before :meth:`shapes`).
+        bsdf_ids : mi.UInt32 or None
+            (triangles,) BSDF registry id of each triangle's stage bin.
+        """
+        if self.n_leaves == 0 or not self.stage_bsdfs:
+            return None, None
+        leaf = self.d_face_leaf
+        mode = dr.select(dr.gather(mi.Bool, self._shown, leaf), mi.UInt32(SURFACE),
+                         mi.UInt32(HIDDEN))
+        reg = dr.gather(mi.UInt32, self.d_bin_reg, dr.gather(mi.UInt32, self._bin, leaf))
+        return mode, reg
+
+    def trace_tables_numpy(self) -> tuple[dict, dict]:
+        """The day's ``modes`` and ``bsdf_override`` for :meth:`PhotonIrradianceIntegrator.trace`
+        (read back: a light study of one day).
 
         Returns
         -------
         modes : dict
-            ``{"trees_leaves": (triangles,) uint32 mode}`` (empty without leaves or before
-            :meth:`shapes`).
+            ``{"trees_leaves": (triangles,) uint32 mode}`` (empty without leaves).
         bsdf_override : dict
             ``{"trees_leaves": (stage BSDFs, (triangles,) bin index)}`` (empty likewise).
         """
         if self.n_leaves == 0 or not self.stage_bsdfs:
             return {}, {}
-        mode = np.where(self._shown, SURFACE, HIDDEN).astype(np.uint32)[self.face_leaf]
-        return ({LEAF_MESH: mode},
-                {LEAF_MESH: (self.stage_bsdfs, self._bin[self.face_leaf])})
+        shown = np.asarray(self._shown)
+        bins = np.asarray(self._bin).astype(np.int64)
+        mode = np.where(shown, SURFACE, HIDDEN).astype(np.uint32)[self.face_leaf]
+        return ({LEAF_MESH: mode}, {LEAF_MESH: (self.stage_bsdfs, bins[self.face_leaf])})
 
-    def displayed_area(self) -> np.ndarray:
+    def displayed_area(self):
         """Blade area of each leaf as the light scene shows it now [m2] (0 when hidden).
 
         Returns
         -------
-        numpy.ndarray
+        mi.Float64
             (n_leaves,) one-sided blade area [m2]: full area × (blade size in the mesh)².
         """
-        return np.where(self._shown, self.area * self._scale ** 2, 0.0)
+        return dr.select(self._shown, self.d_area * self._scale * self._scale, 0.0)
 
     # ---- light per leaf -----------------------------------------------------------------
-    def leaf_triangle_flux(self, res) -> np.ndarray:
-        """Flux on every leaf triangle from a photon-pass result [W].
-
-        :attr:`face_leaf` gives the leaf of each triangle.
-
-        Parameters
-        ----------
-        res : PhotonIrradianceResult
-            The day's photon pass.
-
-        Returns
-        -------
-        numpy.ndarray
-            Shape (emitters, triangles, 2 components, 2 sides, bands) [W].
-        """
-        if self.n_leaves == 0:
-            return np.zeros((len(res.emitters), 0) + res.flux.shape[2:])
-        return res.shape_flux(LEAF_MESH)
-
-    def leaf_flux(self, tri_flux: np.ndarray) -> np.ndarray:
+    def leaf_flux(self, tri_flux):
         """Flux incident on each leaf [W] from the fluxes of its triangles.
 
-        A leaf's triangles are consecutive in the leaf mesh: one segmented sum.
+        A leaf's triangles are consecutive in the leaf mesh (one, or two for a quad).
 
         Parameters
         ----------
-        tri_flux : numpy.ndarray
-            (triangles, ...) flux per leaf triangle [W], rows in the leaf mesh's triangle order
-            (:attr:`face_leaf`), any trailing axes.
+        tri_flux : mi.Float64 or numpy.ndarray
+            (triangles,) flux per leaf triangle [W], in the leaf mesh's triangle order.
 
         Returns
         -------
-        numpy.ndarray
-            (n_leaves, ...) flux per leaf [W].
+        mi.Float64 or numpy.ndarray
+            (n_leaves,) flux per leaf [W] (on the backend of ``tri_flux``).
         """
-        f = np.asarray(tri_flux)
-        if self.n_leaves == 0:
-            return np.zeros((0,) + f.shape[1:])
-        # a leaf's triangles are consecutive: one segmented sum
-        return np.add.reduceat(f, self._first, axis=0)
+        if not dr.is_array_v(tri_flux):
+            f = np.asarray(tri_flux)
+            if self.n_leaves == 0:
+                return np.zeros((0,) + f.shape[1:])
+            return np.add.reduceat(f, self._first, axis=0)
+        t = type(tri_flux)
+        a = dr.gather(t, tri_flux, self.d_first)
+        b = dr.gather(t, tri_flux, self.d_first + 1, self.d_two)
+        return a + dr.select(self.d_two, b, 0.0)
 
 
 def _mesh(name, vertices, faces, bsdf):

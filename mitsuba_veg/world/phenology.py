@@ -1,6 +1,7 @@
 """Leaf phenology of the world's trees, day by day: leaf-out, autumn colour, leaf fall.
 
-Each leaf i carries (all NumPy arrays over the leaves, updated by one vectorised step a day):
+Each leaf i carries (Dr.Jit arrays over the leaves on the variant's device, updated by one
+vectorised step a day):
 
 - **leaf-out** (spring; documented parameters, not from the papers): leaves grow from nothing to
   full size between day of year ``leaf_out_doy`` and ``leaf_out_doy + leaf_out_days`` (a
@@ -22,8 +23,11 @@ from __future__ import annotations
 import datetime as _dt
 from dataclasses import asdict, dataclass
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
+from ..arrays import opaque
 from ..errors import check_range
 from ..foliage.autumn import AutumnParams, leaf_factors, tau_raw
 from ..foliage.pigments import stage_from_tau
@@ -93,32 +97,40 @@ class PhenologyParams:
 
 
 class Phenology:
-    """The state of ``n`` leaves (see the module docstring); :meth:`step` advances one day."""
+    """The state of ``n`` leaves on the device (see the module docstring): one vectorised step
+    a day, nothing read back (:meth:`to_numpy` reads the state for checkpoints and maps).
+
+    Attributes ``H`` [MJ m-2], ``t`` [days], ``tau_raw`` [-], ``grown`` [-] (blade size 0..1),
+    ``rate``, ``fall_threshold`` [-] are ``mi.Float64`` arrays, ``fallen`` a ``mi.Bool``.
+    """
 
     FIELDS = ("H", "t", "tau_raw", "fallen", "grown", "rate", "fall_threshold")
 
     def __init__(self, n: int, params: PhenologyParams = PhenologyParams(), seed: int = 0,
-                 leaf_out_shift: np.ndarray | None = None):
+                 leaf_out_shift=None):
         self.params = params
         self.n = int(n)
         self.autumn_params = params.autumn()
-        self.rate, self.fall_threshold = leaf_factors(self.n, self.autumn_params, seed)
+        rate, thr = leaf_factors(self.n, self.autumn_params, seed)
+        self.rate, self.fall_threshold = mi.Float64(rate), mi.Float64(thr)
         # sunnier leaves unfold a few days earlier (leaf_out_shift [days], <= 0)
-        self.shift = np.zeros(self.n) if leaf_out_shift is None else \
-            np.asarray(leaf_out_shift, float)
-        self.H = np.zeros(self.n)           # insolation since the onset [MJ m-2]
-        self.t = np.zeros(self.n)           # days since the onset
-        self.tau_raw = np.zeros(self.n)
-        self.fallen = np.zeros(self.n, bool)
-        self.grown = np.zeros(self.n)       # blade size 0..1 (leaf-out)
+        self.shift = mi.Float64(np.zeros(self.n) if leaf_out_shift is None else
+                                np.asarray(leaf_out_shift, float))
+        self.H = dr.zeros(mi.Float64, self.n)          # insolation since the onset [MJ m-2]
+        self.t = dr.zeros(mi.Float64, self.n)          # days since the onset
+        self.tau_raw = dr.zeros(mi.Float64, self.n)
+        self.fallen = dr.zeros(mi.Bool, self.n)
+        self.grown = dr.zeros(mi.Float64, self.n)      # blade size 0..1 (leaf-out)
+        dr.eval(self.rate, self.fall_threshold, self.shift, self.H, self.t, self.tau_raw,
+                self.fallen, self.grown)
 
     # ---- one day ------------------------------------------------------------------------
     def start_of_day(self, date: _dt.date) -> None:
         """Leaf-out (blade size) for ``date``.
 
-        Blades grow as a smoothstep of (doy − (leaf_out_doy + shift)) / leaf_out_days; a new
-        leaf-out season (day ``leaf_out_doy``) resets last year's autumn (fallen leaves grow again,
-        green).
+        Blades grow as a smoothstep of (doy − (leaf_out_doy + shift)) / leaf_out_days; on day
+        ``leaf_out_doy`` a new season starts: last year's leaves (fallen or still hanging) give
+        way to new, green ones (on a first leaf-out there is nothing to reset: the same).
 
         Parameters
         ----------
@@ -127,19 +139,20 @@ class Phenology:
         """
         p = self.params
         doy = date.timetuple().tm_yday
-        x = np.clip((doy - (p.leaf_out_doy + self.shift)) / p.leaf_out_days, 0.0, 1.0)
-        if doy == p.leaf_out_doy and (self.grown.any() or self.fallen.any()):
-            # a new season: last year's leaves (fallen or still hanging) give way to new ones
-            self.H[:] = 0.0
-            self.t[:] = 0.0
-            self.tau_raw[:] = 0.0
-            self.fallen[:] = False
-            self.grown[:] = 0.0
+        # the day as a kernel input: one kernel serves every day
+        d = opaque(mi.Float64, float(doy))
+        x = dr.clip((d - (p.leaf_out_doy + self.shift)) / float(p.leaf_out_days), 0.0, 1.0)
+        if doy == p.leaf_out_doy:
+            self.H = dr.zeros(mi.Float64, self.n)
+            self.t = dr.zeros(mi.Float64, self.n)
+            self.tau_raw = dr.zeros(mi.Float64, self.n)
+            self.fallen = dr.zeros(mi.Bool, self.n)
+            self.grown = dr.zeros(mi.Float64, self.n)
         # a leaf grows with the calendar and keeps its size until it falls (also across the
         # new year: a leaf still on the tree in January stays until it falls)
-        self.grown = np.where(self.fallen, 0.0, np.maximum(self.grown, x * x * (3 - 2 * x)))
+        self.grown = dr.select(self.fallen, 0.0, dr.maximum(self.grown, x * x * (3 - 2 * x)))
 
-    def end_of_day(self, date: _dt.date, insolation_mj: np.ndarray) -> np.ndarray:
+    def end_of_day(self, date: _dt.date, insolation_mj) -> None:
         """Add the day's insolation of each leaf (after the autumn onset), update τ and leaf fall.
 
         Only leaves on the tree accumulate, from ``autumn_onset_doy`` until the next leaf-out.
@@ -148,48 +161,47 @@ class Phenology:
         ----------
         date : datetime.date
             The simulated day.
-        insolation_mj : numpy.ndarray
+        insolation_mj : mi.Float64 or array_like
             (n,) the day's insolation of each leaf [MJ m-2] (negative values count as 0).
-
-        Returns
-        -------
-        numpy.ndarray
-            (n,) bool: the leaves that fell today.
         """
         doy = date.timetuple().tm_yday
         p = self.params
-        autumn = doy >= p.autumn_onset_doy or doy < p.leaf_out_doy
-        if not autumn:
-            return np.zeros(self.n, bool)
+        if not (doy >= p.autumn_onset_doy or doy < p.leaf_out_doy):
+            return
+        ins = insolation_mj if dr.is_array_v(insolation_mj) else \
+            mi.Float64(np.asarray(insolation_mj, float))
         on = (self.grown > 0) & ~self.fallen
-        self.H = self.H + np.where(on, np.maximum(insolation_mj, 0.0), 0.0)
-        self.t = self.t + on
-        self.tau_raw = np.where(on, tau_raw(self.H, self.t, self.rate, self.autumn_params),
-                                self.tau_raw)
+        self.H = self.H + dr.select(on, dr.maximum(mi.Float64(ins), 0.0), 0.0)
+        self.t = self.t + dr.select(on, 1.0, 0.0)
+        self.tau_raw = dr.select(on, tau_raw(self.H, self.t, self.rate, self.autumn_params),
+                                 self.tau_raw)
         fell = on & (self.tau_raw >= self.fall_threshold)
-        self.fallen |= fell
-        self.grown = np.where(self.fallen, 0.0, self.grown)
-        return fell
+        self.fallen = self.fallen | fell
+        self.grown = dr.select(self.fallen, 0.0, self.grown)
+
+    def evaluate(self) -> None:
+        """Evaluate the state (one kernel for the day's updates)."""
+        dr.eval(self.H, self.t, self.tau_raw, self.fallen, self.grown)
 
     # ---- views --------------------------------------------------------------------------
     @property
-    def tau(self) -> np.ndarray:
-        """Autumn logical time τ ∈ [0, 1] per leaf [-] (τ_raw clipped)."""
-        return np.clip(self.tau_raw, 0.0, 1.0)
+    def tau(self):
+        """Autumn logical time τ ∈ [0, 1] per leaf [-] (τ_raw clipped; mi.Float64)."""
+        return dr.clip(self.tau_raw, 0.0, 1.0)
 
     @property
-    def stage(self) -> np.ndarray:
-        """Continuous Ishikura stage 1..7 per leaf."""
+    def stage(self):
+        """Continuous Ishikura stage 1..7 per leaf (mi.Float64)."""
         return stage_from_tau(self.tau)
 
     @property
-    def on_tree(self) -> np.ndarray:
-        """Leaves that are out and have not fallen."""
+    def on_tree(self):
+        """Leaves that are out and have not fallen (mi.Bool)."""
         return (self.grown > 1e-3) & ~self.fallen
 
     # ---- checkpoints --------------------------------------------------------------------
     def to_numpy(self, prefix: str = "phen_") -> dict:
-        """The leaves' state for a checkpoint.
+        """The leaves' state for a checkpoint (read back).
 
         Parameters
         ----------
@@ -202,7 +214,7 @@ class Phenology:
             ``{prefix + field: (n,) array}`` for :attr:`FIELDS`: H [MJ m-2], t [days], tau_raw [-],
             fallen (bool), grown [-] (blade size 0..1), rate [-], fall_threshold [-].
         """
-        return {prefix + k: np.asarray(getattr(self, k)) for k in self.FIELDS}
+        return {prefix + k: np.array(getattr(self, k)) for k in self.FIELDS}
 
     def load_numpy(self, d: dict, prefix: str = "phen_") -> None:
         """Restore the state saved by :meth:`to_numpy`.
@@ -225,4 +237,5 @@ class Phenology:
             v = np.asarray(d[prefix + k])
             if v.shape != (self.n,):
                 raise ValueError(f"{prefix + k}: {v.shape} != ({self.n},)")
-            setattr(self, k, v.copy())
+            setattr(self, k, mi.Bool(v.astype(bool)) if k == "fallen" else
+                    mi.Float64(v.astype(np.float64)))

@@ -1,0 +1,115 @@
+"""A steady world day against its bare photon pass, and the kernels a day launches.
+
+    python benchmarks/world_day.py [--photons 1000000] [--days 6] [--start 2026-07-01]
+
+The courtyard world of benchmarks/world_year.py (117,636 leaves, in full leaf on 1 July). After
+two warm-up days, ``--days`` days are run; each day is followed by a bare photon pass of the
+same scene with the same device tables (albedo, leaf stages and modes, recorded shapes) and the
+same photon split, so that load from other processes hits both. Printed:
+
+- the day's wall time and its stages, the bare pass's wall time and their ratio (median of the
+  per-day ratios; the issue's target on the CPU is <= 1.2);
+- kernel launches per day (Dr.Jit's kernel history, every kind: JIT kernels, reductions,
+  compress, memset/memcpy, host tasks) and how many kernels were compiled (cache misses; 0 in
+  a steady day), and the same for the bare pass;
+- the device and backend.
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--photons", type=int, default=1_000_000)
+    ap.add_argument("--days", type=int, default=6)
+    ap.add_argument("--start", default="2026-07-01")
+    a = ap.parse_args(argv)
+    import drjit as dr
+    import mitsuba as mi
+
+    import mitsuba_veg as mv
+    from mitsuba_veg.daily import Simulation
+    from mitsuba_veg.daily.config import BANDS
+    from mitsuba_veg.scenario import load_scenario
+    from world_year import EXTRA
+
+    tmp = Path(tempfile.mkdtemp())
+    shutil.copytree(ROOT / "scenes" / "courtyard", tmp / "courtyard")
+    f = tmp / "courtyard" / "scenario.toml"
+    f.write_text(f.read_text().replace("[phenology]", EXTRA + "\n[phenology]", 1))
+    scn = load_scenario(f, [f'simulation.start_date="{a.start}"', f"light.photons={a.photons}"])
+    sim = Simulation(scn, tmp / "run", days=a.days + 2, progress=False)
+    t0 = time.perf_counter()
+    sim.setup()
+    sim.initialise()
+    setup = time.perf_counter() - t0
+    for _ in range(2):                       # compiles; the leaves come out
+        sim.step()
+    light = sim.pipeline.light
+    integ, tables = sim.site.integrator, light.tables
+
+    def bare(day):
+        dr.sync_thread()
+        t = time.perf_counter()
+        res = integ.trace(sim.scene, photons=a.photons, seed=(light.seed * 10_007 + day)
+                          & 0x7FFFFFFF, max_depth=light.max_depth, bands=BANDS,
+                          indirect=light.indirect, tables=tables, counts=light.counts[day])
+        dr.eval(res.device.acc)
+        dr.sync_thread()
+        return time.perf_counter() - t
+
+    bare(sim.day)                             # this path's own kernels compile once
+    days, passes, ratios, stages = [], [], [], collections.defaultdict(list)
+    k_day, k_bare, c_day, c_bare = [], [], [], []
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    for _ in range(a.days):
+        dr.sync_thread()
+        dr.kernel_history()
+        t = time.perf_counter()
+        rec = sim.step()
+        dr.sync_thread()
+        dt = time.perf_counter() - t
+        h = dr.kernel_history()
+        k_day.append(len(h))
+        c_day.append(sum(1 for x in h if x["type"] == dr.KernelType.JIT and not x["cache_hit"]))
+        tb = bare(sim.day - 1)
+        h = dr.kernel_history()
+        k_bare.append(len(h))
+        c_bare.append(sum(1 for x in h if x["type"] == dr.KernelType.JIT and not x["cache_hit"]))
+        days.append(dt)
+        passes.append(tb)
+        ratios.append(dt / tb)
+        for k, v in rec["seconds"].items():
+            stages[k].append(v)
+    dr.set_flag(dr.JitFlag.KernelHistory, False)
+    dev = "CPU" if "llvm" in mi.variant() else "GPU"
+    print(f"variant {mi.variant()} ({dev}, {os.cpu_count()} CPU threads); world: "
+          f"{sim.canopy.n_leaves:,d} leaves, {a.photons:,d} photons/day, set-up {setup:.1f} s")
+    print(f"steady day (median of {a.days}): {np.median(days) * 1e3:.1f} ms "
+          f"(" + ", ".join(f"{k} {np.median(v) * 1e3:.1f} ms" for k, v in stages.items())
+          + ")")
+    print(f"bare photon pass, same scene, tables and photon split: {np.median(passes) * 1e3:.1f} ms")
+    print(f"world day / bare pass: {np.median(ratios):.2f} (per day: "
+          + ", ".join(f"{r:.2f}" for r in ratios) + "; target <= 1.2 on the CPU)")
+    print(f"kernel launches per day: {np.median(k_day):.0f} (min {min(k_day)}, max {max(k_day)};"
+          f" target <= 40), compiled {max(c_day)}; bare pass: {np.median(k_bare):.0f} launches, "
+          f"compiled {max(c_bare)}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,657 @@
+"""Array helpers shared by the package: one module for NumPy / Dr.Jit dispatch and for the few
+device primitives the daily pipeline needs.
+
+- **Backend dispatch** (:func:`is_dr`, :func:`float_type`, :func:`prep`, :func:`finish` and the
+  NaN-keeping elementwise functions): a model written once runs on NumPy arrays (float64) and
+  on Dr.Jit arrays of any backend (the result has the kind of the input), so the discrete
+  daily run and the relaxed, differentiable model share one implementation of each equation
+  (``soil.py``, ``moss/fitness_model.py``, ``foliage/autumn.py``).
+- **Deterministic discrete sampling** (:class:`DiscreteSampler`): a probability table whose
+  cumulative sums are formed on the host in float64 and searched on the device. Mitsuba's
+  ``DiscreteDistribution`` forms them with Dr.Jit's prefix sum, which on CUDA is not bitwise
+  repeatable (mitsuba3 issue 1938): the same seed then gave different sun directions.
+- **Deterministic sums** (:class:`Tally`): many sums over segments (regions, trees, species)
+  in a few kernels, exact to the last bit on every backend and in any thread order, by 64-bit
+  fixed-point integer atomics (float atomics are not associative).
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+__all__ = ["is_dr", "float_type", "prep", "finish", "nan_keep", "exp", "abs_", "where",
+           "maximum", "minimum", "power", "safe_power", "clip", "host_array", "opaque", "zero_index", "Pack", "host_scalar",
+           "DiscreteSampler", "Tally"]
+
+
+# --------------------------------------------------------------------------------------------
+# Backend dispatch: NumPy or Dr.Jit, decided by the inputs
+# --------------------------------------------------------------------------------------------
+def is_dr(x) -> bool:
+    """Whether ``x`` is a Dr.Jit array.
+
+    Parameters
+    ----------
+    x : object
+        Any value.
+
+    Returns
+    -------
+    bool
+        True for Dr.Jit arrays of any backend and type.
+    """
+    return dr.is_array_v(x)
+
+
+def float_type(*xs):
+    """The Dr.Jit floating-point array type among ``xs`` (the first Dr.Jit array found).
+
+    Parameters
+    ----------
+    *xs : object
+        Values; NumPy arrays and numbers are skipped.
+
+    Returns
+    -------
+    type or None
+        The type of the first Dr.Jit array (its float32 twin for an integer array), or None
+        when no argument is a Dr.Jit array.
+    """
+    for x in xs:
+        if is_dr(x):
+            t = type(x)
+            return t if dr.is_float_v(t) else dr.float32_array_t(t)
+    return None
+
+
+def prep(*xs) -> tuple:
+    """Bring the inputs onto one backend.
+
+    With any Dr.Jit input, NumPy arrays are converted to that Dr.Jit type and NumPy scalars to
+    Python floats (Dr.Jit broadcasts them; a NumPy scalar on the left of a Dr.Jit array would
+    turn the result into a NumPy array); otherwise everything becomes a float64 NumPy array.
+
+    Parameters
+    ----------
+    *xs : object
+        Numbers, NumPy arrays or Dr.Jit arrays.
+
+    Returns
+    -------
+    tuple
+        The inputs on one backend, in order.
+    """
+    t = float_type(*xs)
+    if t is None:
+        return tuple(np.asarray(x, dtype=np.float64) for x in xs)
+    out = []
+    for x in xs:
+        if is_dr(x) or type(x) in (int, float):
+            out.append(x)
+        else:
+            a = np.asarray(x, dtype=np.float64)
+            out.append(float(a) if a.ndim == 0 else t(a.ravel()))
+    return tuple(out)
+
+
+def finish(x):
+    """NumPy 0-d arrays become NumPy scalars; everything else is returned unchanged.
+
+    Parameters
+    ----------
+    x : object
+        A result.
+
+    Returns
+    -------
+    object
+        ``x[()]`` for a 0-d NumPy array, else ``x``.
+    """
+    if isinstance(x, np.ndarray) and x.ndim == 0:
+        return x[()]
+    return x
+
+
+# Dr.Jit's transcendental functions do not reliably propagate NaN: on width-1 arrays, fused into
+# a kernel with other work, exp2(10 * log2(NaN)) gave -1.1e10 (Float) or 2.2e307 (Float64), and
+# power(NaN, Float(10)) gave -1.8e38 (Dr.Jit 1.5.0, LLVM). The NaN policy of the models is made
+# explicit with a select.
+def nan_keep(x, r):
+    """``r`` where ``x`` is a number, ``x`` (NaN) where it is NaN (Dr.Jit arrays).
+
+    Parameters
+    ----------
+    x : drjit array
+        The operand whose NaN must survive.
+    r : drjit array
+        The result computed from it.
+
+    Returns
+    -------
+    drjit array
+        ``select(isnan(x), x, r)``.
+    """
+    return dr.select(dr.isnan(x), x, r)
+
+
+def exp(x):
+    """exp(x) on either backend, NaN in NaN out.
+
+    Parameters
+    ----------
+    x : numpy.ndarray or drjit array
+        Exponent [-].
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        e^x [-].
+    """
+    return nan_keep(x, dr.exp(x)) if is_dr(x) else np.exp(x)
+
+
+def abs_(x):
+    """|x| on either backend.
+
+    Parameters
+    ----------
+    x : numpy.ndarray or drjit array
+        Values.
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        Absolute values.
+    """
+    return dr.abs(x) if is_dr(x) else np.abs(x)
+
+
+def where(cond, a, b):
+    """``a`` where ``cond`` else ``b``, on the backend of any Dr.Jit operand.
+
+    Parameters
+    ----------
+    cond : array_like or drjit array
+        Condition.
+    a, b : array_like or drjit array
+        The two choices.
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        The selected values.
+    """
+    if is_dr(cond) or is_dr(a) or is_dr(b):
+        return dr.select(cond, a, b)
+    return np.where(cond, a, b)
+
+
+def maximum(a, b):
+    """max(a, b) that keeps a NaN in ``a`` (``a < b`` is False for NaN).
+
+    Parameters
+    ----------
+    a, b : array_like or drjit array
+        Operands.
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        The larger value (NaN where ``a`` is NaN).
+    """
+    return where(a < b, b, a)
+
+
+def minimum(a, b):
+    """min(a, b) that keeps a NaN in ``a``.
+
+    Parameters
+    ----------
+    a, b : array_like or drjit array
+        Operands.
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        The smaller value (NaN where ``a`` is NaN).
+    """
+    return where(a > b, b, a)
+
+
+def clip(x, lo, hi):
+    """``x`` clipped to [lo, hi], keeping NaN.
+
+    Parameters
+    ----------
+    x : array_like or drjit array
+        Values.
+    lo, hi : float
+        Bounds.
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        Clipped values.
+    """
+    return minimum(maximum(x, lo), hi)
+
+
+def power(x, y):
+    """x**y for x >= 0 (or NaN); NaN in x or y gives NaN on both backends.
+
+    Parameters
+    ----------
+    x : array_like or drjit array
+        Base (>= 0).
+    y : array_like or drjit array or float
+        Exponent.
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        x**y.
+    """
+    if is_dr(x) or is_dr(y):
+        r = dr.power(x, y)
+        if is_dr(y) or (isinstance(y, float) and math.isnan(y)):
+            r = nan_keep(y, r)
+        return nan_keep(x, r) if is_dr(x) else r
+    return np.power(x, y)
+
+
+def safe_power(base, expo):
+    """``base**expo`` for ``base >= 0`` with a finite derivative at 0 (double ``where``).
+
+    ``0**expo = 0``; NaN in ``base`` stays NaN. Negative bases must be clamped by the caller.
+
+    Parameters
+    ----------
+    base : array_like or drjit array
+        Base (>= 0).
+    expo : array_like or drjit array or float
+        Exponent (> 0).
+
+    Returns
+    -------
+    numpy.ndarray or drjit array
+        base**expo.
+    """
+    zero = base == 0
+    safe = where(zero, 1.0, base)
+    return where(zero, 0.0, power(safe, expo))
+
+
+_NP_TYPES = {dr.VarType.UInt32: np.uint32, dr.VarType.Int32: np.int32,
+             dr.VarType.UInt64: np.uint64, dr.VarType.Int64: np.int64,
+             dr.VarType.Float32: np.float32, dr.VarType.Float64: np.float64,
+             dr.VarType.Bool: np.bool_}
+
+
+def host_array(t, values):
+    """A Dr.Jit array of type ``t`` from host values, through a 64-byte aligned NumPy buffer.
+
+    On the LLVM backend Dr.Jit maps NumPy memory instead of copying it, and a frozen function
+    (``dr.freeze``) is recorded anew when an input's alignment differs from the last call's;
+    NumPy's own buffers are aligned by chance. An aligned buffer keeps every day's inputs alike.
+
+    Parameters
+    ----------
+    t : type
+        Dr.Jit array type (``mi.Float``, ``mi.UInt32`` ...).
+    values : array_like
+        The values (flattened).
+
+    Returns
+    -------
+    drjit array
+        An evaluated array of the values.
+    """
+    v = np.ascontiguousarray(np.asarray(values, dtype=_NP_TYPES[dr.type_v(t)]).reshape(-1))
+    buf = np.empty(v.nbytes + 64, np.uint8)
+    off = (-buf.ctypes.data) % 64
+    a = buf[off:off + v.nbytes].view(v.dtype)
+    a[...] = v
+    return t(a)
+
+
+def opaque(t, value):
+    """A width-1 array of type ``t`` holding ``value`` that is a kernel *input*, not a literal.
+
+    A Python number used in a kernel becomes a literal of its code: a value that changes
+    every day (the day's weather, a photon count) would then compile a new kernel every day.
+    Unlike ``dr.opaque`` (one memset launch per value), the value is copied from a host array,
+    which on the LLVM backend launches nothing.
+
+    Parameters
+    ----------
+    t : type
+        Dr.Jit array type (``mi.Float``, ``mi.UInt32`` ...).
+    value : number
+        The value.
+
+    Returns
+    -------
+    drjit array
+        An evaluated width-1 array.
+    """
+    return host_array(t, [value])
+
+
+_ZERO: dict = {}
+
+
+def zero_index():
+    """An evaluated UInt32 zero of the current variant (made once).
+
+    ``zero_index() + j`` indexes a gather without being a literal: Dr.Jit performs a gather
+    whose index is a literal at once (a copy launched per value), while one whose index is an
+    expression is fused into the kernels that read it.
+
+    Returns
+    -------
+    mi.UInt32
+        A width-1 array holding 0.
+    """
+    key = mi.variant()
+    if key not in _ZERO:
+        _ZERO[key] = opaque(mi.UInt32, 0)
+    return _ZERO[key]
+
+
+class Pack:
+    """Several per-call numbers as kernel inputs from one host copy: ``pack[j]`` is value j,
+    read inside the kernels that use it (a gather with a non-literal index).
+
+    Parameters
+    ----------
+    t : type
+        Dr.Jit array type.
+    values : sequence of numbers
+        The values.
+    """
+
+    def __init__(self, t, values):
+        self.t = t
+        self.arr = host_array(t, values)
+
+    def __getitem__(self, j: int):
+        return dr.gather(self.t, self.arr, zero_index() + int(j))
+
+    def __len__(self) -> int:
+        return dr.width(self.arr)
+
+
+def host_scalar(x) -> float:
+    """A Python float from a width-1 Dr.Jit array (reads it back) or a number.
+
+    Parameters
+    ----------
+    x : drjit array or number
+        A reduction result or a number.
+
+    Returns
+    -------
+    float
+        Its value.
+    """
+    return float(np.asarray(x, dtype=np.float64).ravel()[0])
+
+
+# --------------------------------------------------------------------------------------------
+# Deterministic discrete sampling
+# --------------------------------------------------------------------------------------------
+class DiscreteSampler:
+    """A discrete distribution over ``n`` entries: cumulative sums on the host, search on the
+    device.
+
+    The cumulative sums are formed in float64 with NumPy and rounded to float32 once, so the
+    table (and every sample drawn from it) is the same on every backend and in every process;
+    :meth:`sample_reuse` matches Mitsuba's ``DiscreteDistribution.sample_reuse_pmf``.
+
+    Parameters
+    ----------
+    weights : array_like
+        (n,) non-negative weights (not all 0) [-]; normalised here.
+
+    Attributes
+    ----------
+    pmf : numpy.ndarray
+        (n,) probabilities (float64).
+    cdf : mi.Float
+        (n,) inclusive cumulative probabilities on the device (the last is 1).
+    """
+
+    #: its arrays are inputs of a frozen function that reaches it (dr.freeze)
+    DRJIT_STRUCT = {"cdf": mi.Float, "pmf_dr": mi.Float}
+
+    def __init__(self, weights):
+        w = np.asarray(weights, dtype=np.float64).reshape(-1)
+        if w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+            raise ValueError("DiscreteSampler: weights must be finite, >= 0 and not all 0 "
+                             f"(got {w.size} values, sum {w.sum() if w.size else 0.0})")
+        self.n = int(w.size)
+        self.pmf = w / w.sum()
+        c = np.cumsum(self.pmf)
+        # 1 from the last entry with a weight on: entries of weight 0 are never drawn
+        c[int(np.flatnonzero(self.pmf > 0)[-1]):] = 1.0
+        self.cdf = host_array(mi.Float, c)
+        self.pmf_dr = host_array(mi.Float, self.pmf)
+        dr.eval(self.cdf, self.pmf_dr)
+
+    def sample(self, u, active=True):
+        """Entries drawn with probability pmf[i] from uniform numbers ``u``.
+
+        Parameters
+        ----------
+        u : mi.Float
+            Uniform samples in [0, 1).
+        active : mi.Bool or bool
+            Active lanes.
+
+        Returns
+        -------
+        mi.UInt32
+            The entry of each sample (the first i with u < cdf[i]).
+        """
+        cdf, n = self.cdf, self.n
+        idx = dr.binary_search(0, n - 1,
+                               lambda i: dr.gather(mi.Float, cdf, i, active) <= u)
+        return dr.minimum(mi.UInt32(idx), n - 1)
+
+    def sample_reuse(self, u, active=True):
+        """An entry, the sample re-scaled to [0, 1) within it, and the entry's probability.
+
+        Parameters
+        ----------
+        u : mi.Float
+            Uniform samples in [0, 1).
+        active : mi.Bool or bool
+            Active lanes.
+
+        Returns
+        -------
+        idx : mi.UInt32
+            The entry.
+        u_reused : mi.Float
+            (u - cdf[idx - 1]) / pmf[idx], in [0, 1).
+        pmf : mi.Float
+            pmf[idx] [-].
+        """
+        idx = self.sample(u, active)
+        hi = dr.gather(mi.Float, self.cdf, idx, active)
+        p = dr.gather(mi.Float, self.pmf_dr, idx, active)
+        lo = hi - p
+        ur = dr.clip((u - lo) / dr.maximum(p, 1e-30), 0.0, float(np.nextafter(np.float32(1),
+                                                                              np.float32(0))))
+        return idx, ur, p
+
+
+# --------------------------------------------------------------------------------------------
+# Deterministic sums over segments
+# --------------------------------------------------------------------------------------------
+_FIX_TOTAL = float(2 ** 62)   # the largest sum a fixed-point column may reach
+
+
+class Tally:
+    """Sums of many quantities over segments, exact and repeatable on every backend, in two
+    kernels per array width plus one read-back for all of them.
+
+    Each quantity ``x`` (width n) is summed per segment ``s`` (a UInt32 per lane, or one
+    segment for all). Float sums are 64-bit fixed-point integer atomics: a first kernel finds
+    each column's largest magnitude (an integer ``max`` of the float bits, which order like
+    the values for x >= 0), a second adds ``round(|x| * scale)`` with ``scale = 2^62 / (n max)``:
+    no sum can exceed 2^62, integer addition is associative, so the result does not depend on
+    the order of the atomics (a float ``scatter_add`` does, and Dr.Jit's CUDA float prefix sums
+    do too). The relative resolution of a sum is n max / 2^62 / sum (below 1e-10 for a million
+    values whose sum is not 1e-8 of n max). Signed quantities (``signed=True``) are summed as
+    their positive and negative parts; counts (:meth:`count`) are exact integers.
+
+    A column holding NaN or infinity sums to NaN; a negative value in an unsigned column too.
+
+    Usage::
+
+        t = Tally()
+        t.add("S", S * area, mask=living)                 # one segment
+        t.add("par", par * area, segments=tree_of, n_segments=5)
+        t.count("alive", pop.state == 2, segments=pop.species, n_segments=3)
+        sums = t.evaluate()                               # {name: numpy (n_segments,)}
+    """
+
+    def __init__(self):
+        # (name, kind, values, segments, n_segments, mask); kind "sum", "neg" or "count"
+        self._cols: list[tuple] = []
+        self._names: list[tuple[str, bool]] = []
+
+    def _check(self, name):
+        if name in {n for n, _ in self._names}:
+            raise ValueError(f"Tally: '{name}' added twice")
+
+    def add(self, name: str, x, segments=None, n_segments: int = 1, mask=None,
+            signed: bool = False) -> None:
+        """Queue the sum of ``x`` per segment.
+
+        Parameters
+        ----------
+        name : str
+            Key of the result.
+        x : drjit float array
+            Values (width n); non-negative unless ``signed``.
+        segments : mi.UInt32, optional
+            Segment of each lane, 0 .. n_segments - 1 (default: all in segment 0); lanes with
+            a segment >= n_segments are skipped.
+        n_segments : int
+            Number of segments.
+        mask : mi.Bool, optional
+            Lanes that count (default: all).
+        signed : bool
+            ``x`` may be negative (summed as two non-negative parts).
+        """
+        self._check(name)
+        self._names.append((name, signed))
+        if signed:
+            self._cols.append((name, "sum", dr.maximum(x, 0.0), segments, int(n_segments), mask))
+            self._cols.append((name + "\0neg", "sum", dr.maximum(-x, 0.0), segments,
+                               int(n_segments), mask))
+            # NaN in x: both parts lose it in max(); keep it in the positive part
+            self._cols[-2] = (name, "sum", dr.select(dr.isnan(x), x, dr.maximum(x, 0.0)),
+                              segments, int(n_segments), mask)
+        else:
+            self._cols.append((name, "sum", x, segments, int(n_segments), mask))
+
+    def count(self, name: str, x, segments=None, n_segments: int = 1, mask=None) -> None:
+        """Queue an exact integer sum per segment.
+
+        Parameters
+        ----------
+        name : str
+            Key of the result.
+        x : mi.Bool or mi.UInt32
+            A mask (counts 1 where True) or non-negative integers (width n).
+        segments : mi.UInt32, optional
+            Segment of each lane (default: all in segment 0).
+        n_segments : int
+            Number of segments.
+        mask : mi.Bool, optional
+            Lanes that count (default: all).
+        """
+        self._check(name)
+        self._names.append((name, False))
+        self._cols.append((name, "count", x, segments, int(n_segments), mask))
+
+    def evaluate(self) -> dict:
+        """Compute every queued sum (two kernels per width, one read-back).
+
+        Returns
+        -------
+        dict
+            ``{name: numpy.ndarray (n_segments,) float64}`` (counts are exact integers in
+            float64; NaN for a float column that held NaN, infinity or, unsigned, a negative
+            value).
+        """
+        if not self._cols:
+            return {}
+        k_all = len(self._cols)
+        # 1. per float column: the largest value (bits of non-negative floats order like the
+        #    values), and whether any value is negative, NaN or infinite
+        top = dr.zeros(mi.UInt32, k_all)
+        bad = dr.zeros(mi.UInt32, k_all)
+        for i, (_, kind, x, seg, n_seg, mask) in enumerate(self._cols):
+            if kind != "sum":
+                continue
+            xf = mi.Float(x)
+            xf = dr.select(xf == 0.0, 0.0, xf)  # -0.0 has the largest bit pattern
+            m = self._lanes(x, seg, n_seg, mask)
+            ok = (xf >= 0.0) & dr.isfinite(xf)  # False for NaN
+            dr.scatter_reduce(dr.ReduceOp.Max, top, dr.reinterpret_array(mi.UInt32, xf),
+                              mi.UInt32(i), m & ok, mode=dr.ReduceMode.Local)
+            dr.scatter_reduce(dr.ReduceOp.Max, bad, mi.UInt32(1), mi.UInt32(i), m & ~ok,
+                              mode=dr.ReduceMode.Local)
+        dr.eval(top, bad)
+        # 2. fixed-point sums; the scale of column i: 2^62 / (width x max), on the device
+        offsets, n_rows = [], 0
+        for c in self._cols:
+            offsets.append(n_rows)
+            n_rows += c[4]
+        acc = dr.zeros(mi.UInt64, n_rows)
+        for i, (_, kind, x, seg, n_seg, mask) in enumerate(self._cols):
+            n = dr.width(x)
+            m = self._lanes(x, seg, n_seg, mask)
+            s = dr.zeros(mi.UInt32, n) if seg is None else mi.UInt32(seg)
+            if kind == "count":
+                q = mi.UInt64(mi.UInt32(x)) if dr.is_mask_v(x) or not dr.is_float_v(x) \
+                    else mi.UInt64(x)
+            else:
+                # (an opaque index: a literal one would make Dr.Jit copy the value at once)
+                xmax = mi.Float64(dr.reinterpret_array(
+                    mi.Float, dr.gather(mi.UInt32, top, zero_index() + i)))
+                scale = dr.select(xmax > 0, _FIX_TOTAL / (xmax * n), 0.0)
+                q = mi.UInt64(dr.round(dr.maximum(mi.Float64(x), 0.0) * scale))
+            dr.scatter_add(acc, q, s + offsets[i], m, mode=dr.ReduceMode.Local)
+        dr.eval(acc)
+        a = np.asarray(acc).astype(np.float64)
+        tops = np.asarray(top).view(np.float32).astype(np.float64)
+        b = np.asarray(bad)
+        raw = {}
+        for i, (name, kind, x, _, n_seg, _) in enumerate(self._cols):
+            # the unit of column i: the inverse of the kernel's scale
+            unit = 1.0 if kind == "count" else \
+                (tops[i] * dr.width(x) / _FIX_TOTAL if tops[i] > 0 else 0.0)
+            v = a[offsets[i]:offsets[i] + n_seg] * unit
+            raw[name] = np.full(n_seg, np.nan) if b[i] else v
+        out = {}
+        for name, signed in self._names:
+            out[name] = raw[name] - raw[name + "\0neg"] if signed else raw[name]
+        self._cols, self._names = [], []
+        return out
+
+    @staticmethod
+    def _lanes(x, seg, n_seg, mask):
+        n = dr.width(x)
+        m = dr.full(mi.Bool, True, n) if mask is None else (mi.Bool(mask) &
+                                                           dr.full(mi.Bool, True, n))
+        if seg is not None:
+            m &= mi.UInt32(seg) < n_seg
+        return m

@@ -1,0 +1,576 @@
+"""The day as one pipeline of stages with explicit state, and the loop over the days.
+
+One day (:meth:`DayPipeline.run_day`), every stage a function of (state, the day's inputs,
+parameters) on Dr.Jit arrays of the variant's backend::
+
+    leaves   phenology (leaf-out) -> canopy stage bins, hidden leaves  -> pass tables
+    light    one photon pass (sun path + sky)  -> f_sun, f_sky, S per terrain element;
+             band irradiances per leaf and per ground element            (daily/light.py)
+    soil     eqs 3.2-3.16 and the bucket: Ts, rhs, theta, next water    (daily/soil.py)
+    leaves   the day's leaf insolation -> autumn clock, leaf fall       (daily/leaves.py)
+    moss     germination, growth, death, gemmae, spores                 (daily/moss.py)
+    record   a few dozen sums on the device, read back once             (daily/record.py)
+
+A moss-only scenario is a world without trees (no leaves stage). State (:class:`DayState`):
+the soil water, the moss population and its spot grid, the leaves; nothing of it is read back
+on a normal day: the host reads the day's record and, on their days, writes maps, snapshots
+and checkpoints (:class:`Simulation`). The year's sun paths and clear-sky band shapes are
+computed at set-up (:class:`~mitsuba_veg.daily.inputs.DayInputs`); a day's numbers enter its
+kernels as opaque inputs, so every day runs the same compiled kernels.
+
+A killed run resumes from its last checkpoint and reproduces the uninterrupted run exactly: all
+random numbers derive from (seed, day), every sum is an integer or fixed-point sum.
+"""
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..backend import versions
+from ..errors import MitsubaVegError
+from ..light import sensors as sensors_mod
+from ..moss.population import MOSS, PROPAGULE
+from ..scenario import Scenario
+from ..world.phenology import Phenology
+from . import checkpoint as ckpt
+from .config import MossConfig
+from .inputs import DayInputs
+from .leaves import DayLeaves
+from .light import DayLight
+from .moss import DayMoss, MossState
+from .record import DayRecord
+from .site import Site, build_site
+from .soil import day_soil
+
+
+@dataclass
+class DayState:
+    """The state of a run between two days (module docstring).
+
+    Attributes
+    ----------
+    day : int
+        Days simulated so far.
+    O : mi.Float64
+        Soil water per terrain element [mm].
+    moss : MossState
+        Population and spot grid.
+    leaves : Phenology or None
+        The leaves (a world).
+    history : list of dict
+        Every day's record.
+    sensor_days : list of numpy.ndarray
+        Every day's sensor readings (with sensors).
+    """
+
+    day: int
+    O: object
+    moss: MossState
+    leaves: Phenology | None = None
+    history: list = field(default_factory=list)
+    sensor_days: list = field(default_factory=list)
+
+
+class DayPipeline:
+    """The stages of a day and :meth:`run_day`, which composes them (module docstring).
+
+    Parameters
+    ----------
+    site : Site
+        The run's site.
+    inputs : DayInputs
+        Every day's weather, sun path and band shapes.
+    light_strength : tuple of float
+        Factors on the sun's and the sky's light (see :class:`DayLight`).
+    """
+
+    def __init__(self, site: Site, inputs: DayInputs, light_strength=(1.0, 1.0)):
+        self.site, self.inputs = site, inputs
+        self.leaves = DayLeaves(site) if site.canopy is not None and site.canopy.n_leaves \
+            else None
+        self.light = DayLight(site, inputs, light_strength)
+        self.moss = DayMoss(site)
+        self.record = DayRecord(site)
+        self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
+
+    def new_state(self) -> DayState:
+        """The state before the first day: buckets at field capacity, no moss, bare trees.
+
+        Returns
+        -------
+        DayState
+            Day 0.
+        """
+        O = mi.Float64(self.site.O0)
+        dr.eval(O)
+        return DayState(0, O, self.moss.new_state(),
+                        self.leaves.new_state() if self.leaves is not None else None)
+
+    def run_day(self, st: DayState) -> tuple[dict, dict]:
+        """Simulate day ``st.day`` (the stages of the module docstring); ``st`` is updated.
+
+        Parameters
+        ----------
+        st : DayState
+            The state at the start of the day.
+
+        Returns
+        -------
+        record : dict
+            The day's record (:class:`DayRecord`).
+        fields : dict
+            The day's per-element fields on the device (``S``, ``Ts``, ``rhs``, ``theta``,
+            ``f_sun``, ``f_sky`` per terrain element; ``light``: the DayLightResult).
+        """
+        day = st.day
+        date = self.inputs.date(day)
+        vals = self.inputs.on_device(day)
+        t0 = time.perf_counter()
+        tables = leaf_area = None
+        if self.leaves is not None:
+            tables = self.leaves.start(st.leaves, date, self.scene_params)
+            leaf_area = self.site.canopy.displayed_area()
+        counts = self.moss.counts(st.moss)
+        cover = self.moss.cover(counts)
+        t1 = time.perf_counter()
+        light = self.light(vals, cover, tables, leaf_area, self.site.canopy)
+        dr.sync_thread()
+        t2 = time.perf_counter()
+        soil = day_soil(self.site, vals, st.O, light.S, counts)
+        Ts, rhs = soil.surface.Ts, soil.surface.rhs
+        S32, Ts32, rhs32 = mi.Float(light.S), mi.Float(Ts), mi.Float(rhs)
+        # the day's per-element fields in one kernel per width
+        out = [soil.O, Ts, rhs, soil.theta, light.S, light.f_sun, light.f_sky, S32, Ts32,
+               rhs32]
+        if light.leaf is not None:
+            out += [light.S_leaf, *light.leaf.values()]
+        dr.eval(out, *light.ground.values(), *light.ground_sky.values())
+        t3 = time.perf_counter()
+        if self.leaves is not None:
+            self.leaves.end(st.leaves, date, light.S_leaf)
+            st.leaves.evaluate()
+        t4 = time.perf_counter()
+        events = self.moss.step(st.moss, day, S32, Ts32, rhs32)
+        counts_after = self.moss.counts(st.moss)
+        t5 = time.perf_counter()
+        if light.sensors is not None:
+            st.sensor_days.append(light.sensors)
+        secs = {"light": t2 - t1, "soil": t3 - t2, "moss": t5 - t4}
+        if self.leaves is not None:
+            secs["leaves"] = (t1 - t0) + (t4 - t3)
+        rec = self.record(vals, date, light, soil, counts_after, st.moss.pop, events,
+                          st.leaves, light.sensors, secs)
+        rec["seconds"]["record"] = time.perf_counter() - t5
+        st.O = soil.O
+        st.history.append(rec)
+        st.day += 1
+        fields = {"S": light.S, "Ts": Ts, "rhs": rhs, "theta": soil.theta,
+                  "f_sun": light.f_sun, "f_sky": light.f_sky, "light": light,
+                  "counts": counts_after}
+        return rec, fields
+
+
+class HostFields(dict):
+    """The day's per-element fields, read back from the device on first access (maps and
+    tests read them; a normal day does not)."""
+
+    def __init__(self, fields: dict):
+        super().__init__()
+        self._dev = fields
+
+    def __missing__(self, key):
+        v = self._dev[key]
+        if dr.is_array_v(v):
+            v = np.asarray(v, dtype=np.float64)
+        self[key] = v
+        return v
+
+    def __contains__(self, key):
+        return key in self._dev
+
+
+class Simulation:
+    """A run of a scenario through the daily pipeline: build from a scenario, :meth:`run`
+    the days.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The loaded scenario.
+    out_dir : path-like
+        The run folder (checkpoint; the outputs are written by :func:`mitsuba_veg.daily.run.run`).
+    days : int, optional
+        Simulated days [d] (default: the scenario's ``simulation.days``).
+    progress : bool
+        Show a progress bar.
+    light_strength : tuple of float
+        Factors on the sun's and the sky's light (tuning; default 1, 1).
+    albedo : dict, optional
+        ``{shape id: albedo}``: the bare reflectance in the total band [-] of terrain shapes,
+        replacing their BSDF's (tuning).
+    """
+
+    def __init__(self, scenario: Scenario, out_dir, days: int | None = None,
+                 progress: bool = True, light_strength=(1.0, 1.0), albedo=None):
+        self.config = MossConfig(scenario, days)
+        c = self.config
+        self.scn, self.days, self.start, self.seed = c.scn, c.days, c.start, c.seed
+        self.species, self.weather, self.climate = c.species, c.weather, c.climate
+        self.moss_cfg, self.light_cfg = c.moss_cfg, c.light_cfg
+        self.checkpoint_every, self.frame_every = c.checkpoint_every, c.frame_every
+        self.out = Path(out_dir)
+        self.progress = progress
+        self.light_strength = light_strength
+        self.albedo = dict(albedo or {})
+        self.timings = {"setup": 0.0, "light": 0.0, "soil": 0.0, "moss": 0.0, "output": 0.0,
+                        "record": 0.0}
+        self.state: DayState | None = None
+        self.last: dict = {}
+
+    # ---- set-up ---------------------------------------------------------------------------
+    def setup(self) -> None:
+        """Build the site, the year's inputs, the stages and the state of day 0."""
+        t0 = time.perf_counter()
+        c = self.config
+        self.site = build_site(c)
+        if self.albedo:
+            self.site.set_albedo(self.albedo)
+        self.inputs = DayInputs.build(float(c.scn.get("site.latitude")),
+                                      float(c.scn.get("site.longitude")), c.start, c.days,
+                                      c.weather)
+        self.pipeline = DayPipeline(self.site, self.inputs, self.light_strength)
+        self.state = self.pipeline.new_state()
+        if self.pipeline.leaves is not None:
+            self.timings["leaves"] = 0.0
+        self.timings["setup"] += time.perf_counter() - t0
+
+    def initialise(self) -> None:
+        """Place the initial moss (``moss.initial``) at random on the living surfaces."""
+        self.pipeline.moss.initialise(self.state.moss)
+
+    # ---- views of the site and the state (maps, snapshots, tests) -------------------------
+    @property
+    def index(self):
+        """The light scene's :class:`SceneIndex`."""
+        return self.site.index
+
+    @property
+    def scene(self):
+        """The light scene."""
+        return self.site.scene
+
+    @property
+    def trees(self) -> list:
+        """The world's trees (empty without ``[[trees]]``)."""
+        return self.site.trees
+
+    @property
+    def canopy(self):
+        """The world's canopy (None without trees)."""
+        return self.site.canopy
+
+    @property
+    def phen(self):
+        """The leaves' phenology (None without trees)."""
+        return self.state.leaves if self.state is not None else None
+
+    @property
+    def pop(self):
+        """The moss population."""
+        return self.state.moss.pop
+
+    @property
+    def grid(self):
+        """The spot grid."""
+        return self.state.moss.grid
+
+    @property
+    def day(self) -> int:
+        """Days simulated so far."""
+        return self.state.day
+
+    @property
+    def history(self) -> list:
+        """Every day's record so far."""
+        return self.state.history
+
+    @property
+    def sensors(self):
+        """The scenario's sensors (None without)."""
+        return self.site.sensors
+
+    @property
+    def last_result(self):
+        """The last photon pass (PhotonIrradianceResult)."""
+        return self.last["light"].result if "light" in self.last else None
+
+    def date(self, day: int):
+        """The calendar date of simulated day ``day`` (0-based).
+
+        Parameters
+        ----------
+        day : int
+            Day number [d].
+
+        Returns
+        -------
+        datetime.date
+            ``start + day``.
+        """
+        return self.config.date(day)
+
+    def grid_cell(self) -> float:
+        """The spot grid's cell, one moss [m].
+
+        Returns
+        -------
+        float
+            ``moss.size`` [m].
+        """
+        return self.config.grid_cell()
+
+    def counts(self) -> np.ndarray:
+        """Live moss per element of the scene, read back (maps).
+
+        Returns
+        -------
+        numpy.ndarray
+            (elements,) moss count [-] (0 off the terrain).
+        """
+        c = np.zeros(self.index.n_elements)
+        c[:self.site.n_terrain] = np.asarray(self.pipeline.moss.counts(self.state.moss),
+                                             dtype=np.float64)
+        return c
+
+    def covered_area(self, counts=None) -> np.ndarray:
+        """Area covered by moss per element.
+
+        Parameters
+        ----------
+        counts : numpy.ndarray, optional
+            Live moss per element (default: :meth:`counts`).
+
+        Returns
+        -------
+        numpy.ndarray
+            (elements,) covered area [m2]: min(moss x size², triangle area).
+        """
+        counts = self.counts() if counts is None else counts
+        return np.minimum(counts * self.grid_cell() ** 2, self.index.areas)
+
+    # ---- the days -------------------------------------------------------------------------
+    def step(self) -> dict:
+        """Simulate one day; its record is appended to ``history``.
+
+        Returns
+        -------
+        dict
+            The day's record.
+        """
+        rec, fields = self.pipeline.run_day(self.state)
+        self.last = HostFields(fields)
+        self.last_fields = fields
+        for k, v in rec["seconds"].items():
+            self.timings[k] = self.timings.get(k, 0.0) + v
+        return rec
+
+    def run(self, resume: bool = True, on_day=None) -> dict:
+        """Run (or resume) to ``self.days`` days.
+
+        Parameters
+        ----------
+        resume : bool
+            Resume from ``checkpoint.npz`` in the run folder when there is one.
+        on_day : callable, optional
+            ``on_day(sim, record)`` after every day (maps, snapshots).
+
+        Returns
+        -------
+        dict
+            The summary (:meth:`summary`).
+
+        Raises
+        ------
+        Interrupted
+            After Ctrl-C: the day in progress ends and a checkpoint is written first.
+        """
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.setup()
+        resumed = resume and ckpt.load(self)
+        # half-written files of a process killed while writing (the real files are replaced
+        # atomically, so these are never read)
+        for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
+                        "snapshots/.day_*.tmp.npz", "days.tmp.gif"):
+            for q in self.out.glob(pattern):
+                q.unlink()
+        if not resumed:
+            self.initialise()
+        bar = None
+        if self.progress:
+            bar = tqdm(total=self.days, initial=self.day, unit="day", desc="days")
+        stop = _InterruptFlag()
+        try:
+            with stop:
+                while self.day < self.days:
+                    rec = self.step()
+                    if bar is not None:
+                        bar.update(1)
+                        bar.set_postfix(moss=rec["moss_alive"],
+                                        cover=f"{rec['covered_area_m2']:.3f}m2")
+                    t0 = time.perf_counter()
+                    if on_day is not None:
+                        on_day(self, rec)
+                    if self.checkpoint_every and self.day % self.checkpoint_every == 0:
+                        ckpt.save(self)
+                    self.timings["output"] += time.perf_counter() - t0
+                    if stop.requested:
+                        ckpt.save(self)
+                        raise Interrupted(self.day, self.checkpoint_path)
+        finally:
+            if bar is not None:
+                bar.close()
+        ckpt.save(self)
+        return self.summary(resumed)
+
+    @property
+    def checkpoint_path(self) -> Path:
+        """The run's checkpoint file, ``<out>/checkpoint.npz``."""
+        return self.out / "checkpoint.npz"
+
+    # ---- the summary ----------------------------------------------------------------------
+    def summary(self, resumed=False) -> dict:
+        """The run's summary (settings, final state, timings, every day's record).
+
+        Parameters
+        ----------
+        resumed : bool, optional
+            Whether the run was resumed from a checkpoint (recorded as ``resumed``).
+
+        Returns
+        -------
+        dict
+            JSON-able: ``scenario``, ``days``, ``resumed``, ``settings`` (light, moss, climate,
+            simulation), ``species``, ``spot_grid`` (``cell_m`` [m]), ``final``
+            (``covered_area_m2`` [m2], ``moss_alive``, ``propagules``, ``alive_by_species``,
+            per-region covered and total area [m2] and live moss, ``propagules_crowded_out``),
+            ``timings_s`` (totals and ``per_day`` [s]), ``days_record`` (the daily records),
+            ``versions``; a world adds ``world`` and, with sensors, ``sensors``.
+        """
+        counts = self.counts()[:self.site.n_terrain]
+        cov = np.minimum(counts * self.grid_cell() ** 2, self.site.areas)
+        regions = {k: {"covered_area_m2": float(cov[m].sum()),
+                       "area_m2": float(self.site.areas[m].sum()),
+                       "moss_alive": int(counts[m].sum())} for k, m in self.site.regions.items()}
+        hist = self.history
+        last = hist[-1] if hist else {}
+        n_days = max(len(hist), 1)
+        per_day = {k: self.timings[k] / n_days for k in ("light", "soil", "moss")}
+        if "leaves" in self.timings:
+            per_day["leaves"] = self.timings["leaves"] / n_days
+        s = {
+            "scenario": str(self.scn.path), "days": self.days, "resumed": resumed,
+            "settings": {"light": self.light_cfg, "moss": self.moss_cfg,
+                         "climate": self.climate.__dict__, "simulation": {
+                             "start_date": self.start.isoformat(),
+                             "checkpoint_every": self.checkpoint_every}},
+            "species": [sp.name for sp in self.species],
+            "spot_grid": {"cell_m": self.grid.cell},
+            "final": {"covered_area_m2": float(cov.sum()),
+                      "moss_alive": int(self.pop.count(MOSS)),
+                      "propagules": int(self.pop.count(PROPAGULE)),
+                      "alive_by_species": last.get("alive", {}), "regions": regions,
+                      "propagules_crowded_out": sum(r["events"].get("propagules_crowded_out", 0)
+                                                    for r in hist)},
+            "timings_s": {**self.timings, "per_day": per_day},
+            "days_record": hist, "versions": versions()}
+        if self.site.canopy is not None and self.site.canopy.n_leaves:
+            c = self.site.canopy
+            s["world"] = {"trees": [{"name": wt.name, "model": wt.model,
+                                     "position": wt.position.tolist(),
+                                     "leaves": int(len(wt.leaf_area)),
+                                     "crown_radius_m": wt.crown_radius(),
+                                     "crown_centre_xz_m": wt.crown_centre().tolist(), **wt.info}
+                                    for wt in self.site.trees],
+                          "leaf_elements": int(c.n_leaves),
+                          "leaf_triangles": int(len(c.tri)),
+                          # vertex updates of the leaf mesh in this process (leaf-out growth,
+                          # hidden blades collapsed); stage and fall changes need none
+                          "leaf_mesh_updates": int(c.mesh_updates),
+                          "stage_bins": self.config.stage_bins,
+                          "phenology": self.config.phenology.to_dict(),
+                          "trees_built_s": self.site.tree_seconds}
+        path = self.write_sensors()
+        if path is not None:
+            v = np.stack(self.state.sensor_days)
+            q, cc = sensors_mod.QUANTITIES, sensors_mod.COMPONENTS
+            ppfd = v[:, :, q.index("par"), cc.index("total")]
+            rfr = v[:, :, q.index("rfr"), cc.index("total")]
+            names = self.sensors.names
+            s["sensors"] = {
+                "file": path, "count": len(names), "days": int(v.shape[0]),
+                "units": "daily means: PPFD, red, far-red umol m-2 s-1; shortwave W m-2; "
+                         "DLI mol m-2 d-1",
+                # the first 100 sensors by name (all of them are in the CSV)
+                "per_sensor": {names[i]: {"dli_mean_mol_m2_d": float(ppfd[:, i].mean() * 0.0864),
+                                          "red_far_red_mean": float(np.nanmean(rfr[:, i]))
+                                          if np.isfinite(rfr[:, i]).any() else None}
+                               for i in range(min(len(names), 100))}}
+        return s
+
+    def write_sensors(self) -> str | None:
+        """``sensors_daily.csv`` of the run so far: daily means.
+
+        Tidy table (time, sensor, band, component, value, unit): PPFD, red and far-red photon
+        flux densities [µmol m-2 s-1], R:FR [-] and shortwave [W m-2].
+
+        Returns
+        -------
+        str or None
+            The path written; None without sensors (or before the first day).
+        """
+        if self.sensors is None or not self.state.sensor_days:
+            return None
+        times = [self.date(d).isoformat() for d in range(len(self.state.sensor_days))]
+        return sensors_mod.write_tidy_csv(self.out / "sensors_daily.csv",
+                                          np.stack(self.state.sensor_days), self.sensors.names,
+                                          times)
+
+
+class Interrupted(MitsubaVegError):
+    """The run was interrupted (Ctrl-C / SIGINT) after a day; its checkpoint was written."""
+
+    def __init__(self, day: int, checkpoint: Path):
+        self.day, self.checkpoint = day, checkpoint
+        super().__init__(f"interrupted after day {day}; checkpoint written to {checkpoint}. "
+                         "Run the same command again to resume")
+
+
+class _InterruptFlag:
+    """While active (main thread only), Ctrl-C sets ``requested`` instead of raising, so the
+    day in progress ends and a consistent checkpoint is written; a second Ctrl-C raises."""
+
+    requested = False
+
+    def __enter__(self):
+        self._old = None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.getsignal(signal.SIGINT)
+
+            def handler(signum, frame):
+                if self.requested:
+                    raise KeyboardInterrupt
+                self.requested = True
+            signal.signal(signal.SIGINT, handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)

@@ -1,0 +1,210 @@
+"""The record of a day: a few dozen numbers, summed on the device and read back in one go.
+
+Every area-weighted mean, covered area, count and per-tree figure of the day's record is a
+column of one :class:`~mitsuba_veg.arrays.Tally` (exact, repeatable fixed-point sums: the same
+on every backend and in every thread order), evaluated in a few kernels and read back once; the
+host turns the sums into the record's means and ratios.
+
+A day's record: ``day`` (1-based), ``date``, live moss per species, propagules, covered area
+[m2], area means over the living surfaces of S [W m-2], Ts [K], rhs [-], theta [-] and the share
+where eq 3.16's linearisation is off by > 10 %, covered area per region [m2], the moss stage's
+events and the stages' seconds. A world adds per tree (leaves, leaves on the tree, mean stage,
+absorbed PAR [W], the ground under its crown) and the ground in the open (area [m2], PAR
+[W m-2], R:FR [-] (total and of the sky's light), moss cover, S, Ts, rhs); with sensors, their
+mean PPFD [µmol m-2 s-1], DLI [mol m-2 d-1] and R:FR.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..arrays import Tally
+from ..foliage import leaf_spectra
+from ..light import sensors as sensors_mod
+from ..light.photon import band_range
+from ..moss.population import MOSS, PROPAGULE
+from ..soil import linearisation_error
+from ..units import umol_per_joule
+
+_GROUND_FIELDS = ("par", "red", "far_red", "red_sky", "far_red_sky", "cover", "S", "Ts", "rhs")
+
+
+class DayRecord:
+    """The day's record (module docstring).
+
+    Parameters
+    ----------
+    site : Site
+        The run's site (terrain, regions, ground, crowns, canopy, sensors).
+    """
+
+    def __init__(self, site):
+        self.site = site
+        n_sp = len(site.config.species)
+        self.names = [s.name for s in site.config.species]
+        self.n_sp = n_sp
+        self.d_living = site.d_living
+        self.d_area_living = dr.select(site.d_living, site.d_areas, 0.0)
+        self.regions = list(site.regions)
+        self.d_regions = [mi.Bool(site.regions[r]) for r in self.regions]
+        gsl = site.ground_slice
+        self.ground_sl = gsl
+        self.d_ground_area = mi.Float64(site.index.areas[gsl])
+        self.d_ground_elems = mi.UInt32(np.arange(gsl.start, gsl.stop, dtype=np.uint32))
+        self.d_crowns = [mi.Bool(m) for m in site.crowns] + [mi.Bool(site.open_ground)]
+        c = site.canopy
+        self.world = c is not None and c.n_leaves > 0
+        if self.world:
+            self.n_trees = len(site.trees)
+            self.leaves_per_tree = np.bincount(c.tree_of, minlength=self.n_trees)
+            # PAR absorptance of each stage bin's leaf spectra (bin centres, as the light scene)
+            a = []
+            for b in range(c.bins):
+                R, T = leaf_spectra(stage=c.bin_stage(b)).band_mean(400, 700)
+                a.append(1.0 - float(R) - float(T))
+            self.d_a_par = mi.Float64(np.array(a))
+        self.u_red = umol_per_joule(*band_range("red"))
+        self.u_fr = umol_per_joule(*band_range("far_red"))
+        dr.eval(self.d_area_living, self.d_ground_area, self.d_ground_elems)
+
+    def __call__(self, vals, date, light, soil, counts, pop, events: dict, phen=None,
+                 sensors=None, seconds: dict | None = None) -> dict:
+        """Sum the day's figures on the device, read them back once and build the record.
+
+        Parameters
+        ----------
+        vals : DayValues
+            The day's inputs (its index and weather).
+        date : datetime.date
+            Its date.
+        light : DayLightResult
+            The day's light.
+        soil : SoilDay
+            The day's soil.
+        counts : mi.UInt32
+            Live moss per terrain element after the day's moss stage.
+        pop : MossPopulation
+            The population.
+        events : dict
+            The moss stage's events.
+        phen : Phenology, optional
+            The leaves (a world).
+        sensors : numpy.ndarray, optional
+            The day's sensor readings (n, quantities, components).
+        seconds : dict, optional
+            The stages' times [s].
+
+        Returns
+        -------
+        dict
+            The day's record (module docstring).
+        """
+        site = self.site
+        day = vals.day
+        t = Tally()
+        a = self.d_area_living
+        live = self.d_living
+        st = soil.surface
+        cell2 = site.grid_cell() ** 2
+        covered = dr.minimum(mi.Float64(counts) * cell2, site.d_areas)
+        t.add("area", a, mask=live)
+        t.add("S", light.S * a, mask=live)
+        t.add("Ts", st.Ts * a, mask=live)
+        t.add("rhs", st.rhs * a, mask=live, signed=True)
+        t.add("theta", soil.theta * a, mask=live)
+        off = dr.abs(linearisation_error(vals.weather["T"], st.Ts)) > 0.1
+        t.add("off", dr.select(off, a, 0.0), mask=live)
+        t.add("covered", covered)
+        for r, m in zip(self.regions, self.d_regions):
+            t.add("region:" + r, covered, mask=m)
+        t.count("alive", pop.state == MOSS, segments=pop.species, n_segments=self.n_sp)
+        t.count("propagules", pop.state == PROPAGULE)
+        if self.world:
+            self._world_columns(t, light, soil, counts, phen)
+        s = t.evaluate()
+        area = s["area"][0]
+
+        def amean(k):
+            return float(s[k][0] / area) if area > 0 else float("nan")
+        alive = {n: int(v) for n, v in zip(self.names, s["alive"])}
+        rec = {"day": day + 1, "date": date.isoformat(), "alive": alive,
+               "soil_linearisation_off": amean("off"),
+               "moss_alive": int(sum(alive.values())), "propagules": int(s["propagules"][0]),
+               "covered_area_m2": float(s["covered"][0]),
+               "mean_S_W_m2": amean("S"), "mean_Ts_K": amean("Ts"), "mean_rhs": amean("rhs"),
+               "mean_theta": amean("theta"), "events": events,
+               "regions": {r: float(s["region:" + r][0]) for r in self.regions},
+               "seconds": dict(seconds or {})}
+        if sensors is not None:
+            q, c = sensors_mod.QUANTITIES, sensors_mod.COMPONENTS
+            ppfd = sensors[:, q.index("par"), c.index("total")]
+            rfr = sensors[:, q.index("rfr"), c.index("total")]
+            rec["sensors"] = {"count": int(len(ppfd)),
+                              "mean_ppfd_umol_m2_s": float(np.mean(ppfd)),
+                              "mean_dli_mol_m2_d": float(np.mean(ppfd)) * 0.0864,
+                              "mean_red_far_red": float(np.nanmean(rfr))
+                              if np.isfinite(rfr).any() else None}
+        if self.world:
+            self._world_record(rec, s)
+        return rec
+
+    # ---- the world's figures ----------------------------------------------------------------
+    def _world_columns(self, t: Tally, light, soil, counts, phen) -> None:
+        site, c = self.site, self.site.canopy
+        # per leaf: on the tree, stage, absorbed PAR [W] (stage bin's PAR absorptance)
+        on = phen.on_tree
+        seg = c.d_tree_of
+        t.count("leaves_on", on, segments=seg, n_segments=self.n_trees)
+        t.add("stage_on", phen.stage, segments=seg, n_segments=self.n_trees, mask=on)
+        a_par = dr.gather(mi.Float64, self.d_a_par, c._bin)
+        t.add("absorbed_par", light.leaf["par"] * light.leaf_area * a_par, segments=seg,
+              n_segments=self.n_trees)
+        # the ground under each crown and in the open: area-weighted sums
+        e = self.d_ground_elems
+        w = self.d_ground_area
+        g, gs = light.ground, light.ground_sky
+        cover = dr.minimum(dr.gather(mi.Float64, mi.Float64(counts), e) * site.grid_cell() ** 2
+                           / dr.maximum(w, 1e-30), 1.0)
+        vals = {"par": g["par"], "red": g["red"], "far_red": g["far_red"],
+                "red_sky": gs["red"], "far_red_sky": gs["far_red"], "cover": cover,
+                "S": dr.gather(mi.Float64, light.S, e),
+                "Ts": dr.gather(mi.Float64, soil.surface.Ts, e),
+                "rhs": dr.gather(mi.Float64, soil.surface.rhs, e)}
+        for k, m in enumerate(self.d_crowns):
+            t.add(f"g{k}:area", w, mask=m)
+            for f in _GROUND_FIELDS:
+                t.add(f"g{k}:{f}", vals[f] * w, mask=m, signed=f == "rhs")
+
+    def _ground_stats(self, s: dict, k: int) -> dict:
+        area = float(s[f"g{k}:area"][0])
+        if area <= 0:
+            return {"area_m2": 0.0, "par_W_m2": None, "red_far_red": None,
+                    "red_far_red_sky": None, "moss_cover": None, "S_W_m2": None,
+                    "Ts_K": None, "rhs": None}
+
+        def mean(f):
+            return float(s[f"g{k}:{f}"][0] / area)
+
+        def rfr(red, fr):
+            r = float(s[f"g{k}:{red}"][0]) * self.u_red
+            f = float(s[f"g{k}:{fr}"][0]) * self.u_fr
+            return r / f if f > 0 else None
+        return {"area_m2": area, "par_W_m2": mean("par"),
+                "red_far_red": rfr("red", "far_red"), "red_far_red_sky": rfr("red_sky",
+                                                                              "far_red_sky"),
+                "moss_cover": mean("cover"), "S_W_m2": mean("S"), "Ts_K": mean("Ts"),
+                "rhs": mean("rhs")}
+
+    def _world_record(self, rec: dict, s: dict) -> None:
+        trees = {}
+        for i, wt in enumerate(self.site.trees):
+            on = int(s["leaves_on"][i])
+            trees[wt.name] = {
+                "leaves": int(self.leaves_per_tree[i]), "leaves_on_tree": on,
+                "mean_stage": float(s["stage_on"][i] / on) if on else None,
+                "absorbed_par_W": float(s["absorbed_par"][i]),
+                "ground_under_crown": self._ground_stats(s, i)}
+        rec["trees"] = trees
+        rec["ground_open"] = self._ground_stats(s, len(self.site.trees))
+
