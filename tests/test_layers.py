@@ -28,8 +28,8 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 LAYERS: list[tuple[str, list[str]]] = [
     ("base", ["backend", "errors", "atomic", "meshes", "outputs", "plots", "units"]),
     ("light", ["light", "integrators"]),
-    ("ground", ["soil", "climate", "terrain", "scenario"]),
-    ("models", ["moss", "trees", "foliage"]),
+    ("ground", ["soil", "climate", "terrain", "forest_floor", "scenario"]),
+    ("models", ["moss", "trees", "foliage", "export_gltf"]),
     ("daily loop", ["daily", "world"]),
     ("render/tune/sweeps", ["render", "tune", "sweeps"]),
     ("cli", ["cli", "tune.__main__"]),
