@@ -114,8 +114,9 @@ class Heightfield:
         nx = max(1, int(math.ceil((x1 - x0) / float(resolution) - 1e-9)))
         nz = max(1, int(math.ceil((z1 - z0) / float(resolution) - 1e-9)))
         if nx * nz > 16_000_000:
-            raise ParameterError("resolution", resolution, f">= {math.sqrt((x1 - x0) * (z1 - z0) / 16e6):.3g} m "
-                                 f"(at most 16 million cells)", "use a coarser resolution")
+            least = math.sqrt((x1 - x0) * (z1 - z0) / 16e6)
+            raise ParameterError("resolution", resolution, f">= {least:.3g} m (at most 16 "
+                                 f"million cells)", "use a coarser resolution")
         xs = np.linspace(x0, x1, nx + 1)
         zs = np.linspace(z0, z1, nz + 1)
         X, Z = np.meshgrid(xs, zs)

@@ -140,7 +140,8 @@ class _Region:
         b = self.bounds
         out = np.zeros((0, 2))
         while len(out) < n:
-            c = np.column_stack([rng.uniform(b[0], b[2], 2 * n + 8), rng.uniform(b[1], b[3], 2 * n + 8)])
+            m = 2 * n + 8
+            c = np.column_stack([rng.uniform(b[0], b[2], m), rng.uniform(b[1], b[3], m)])
             out = np.concatenate([out, c[self.contains(c)]])
         return out[:n]
 
