@@ -237,8 +237,8 @@ def scene_dict(stand: Stand, variants: dict, instanced: bool = True, bark_bsdf=N
         ``{(species, variant): VariantMesh}``.
     instanced : bool, optional
         Instances (default) or merged plain meshes.
-    bark_bsdf, leaf_bsdf : dict, optional
-        BSDFs; default :data:`BARK_BSDF`, :data:`LEAF_BSDF`.
+    bark_bsdf, leaf_bsdf : dict or mitsuba.BSDF, optional
+        BSDFs (dicts or loaded); default :data:`BARK_BSDF`, :data:`LEAF_BSDF`.
     trees : array_like, optional
         Indices of the trees to take; default every tree with a variant.
 
@@ -248,8 +248,8 @@ def scene_dict(stand: Stand, variants: dict, instanced: bool = True, bark_bsdf=N
         ``{id: shape or dict}`` to merge into a ``{"type": "scene", ...}`` dict (load it with
         ``optimize=False`` to keep the ids).
     """
-    bark_bsdf = mi.load_dict(bark_bsdf or BARK_BSDF)
-    leaf_bsdf = mi.load_dict(leaf_bsdf or LEAF_BSDF)
+    bark_bsdf, leaf_bsdf = (b if isinstance(b, mi.BSDF) else mi.load_dict(b or default)
+                            for b, default in ((bark_bsdf, BARK_BSDF), (leaf_bsdf, LEAF_BSDF)))
     idx = np.flatnonzero(stand.variants >= 0) if trees is None else np.asarray(trees)
     if not instanced:
         m = merged_meshes(stand, variants, idx)
