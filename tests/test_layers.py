@@ -28,8 +28,8 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 LAYERS: list[tuple[str, list[str]]] = [
     ("base", ["backend", "errors", "atomic", "arrays", "meshes", "outputs", "plots", "units"]),
     ("light", ["light", "integrators"]),
-    ("ground", ["soil", "climate", "terrain", "scenario"]),
-    ("models", ["moss", "trees", "foliage", "world"]),
+    ("ground", ["soil", "climate", "terrain", "forest_floor", "scenario"]),
+    ("models", ["moss", "trees", "foliage", "world", "export_gltf"]),
     ("daily loop", ["daily"]),
     ("render/tune/sweeps", ["render", "tune", "sweeps"]),
     ("cli", ["cli", "tune.__main__"]),
