@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-all bench clean
+.PHONY: setup demo test test-gpu test-all bench clean
 
 setup:
 	bash scripts/setup.sh
@@ -14,6 +14,10 @@ demo: setup
 
 test: setup
 	$(BIN)/python -m pytest -m "not slow" -q --nbmake tests notebooks $(PYTEST_ARGS)
+
+# the light, world, sensor and render tests on cuda_ad_spectral (a machine with a CUDA GPU)
+test-gpu: setup
+	PY=$(BIN)/python bash scripts/test-gpu.sh $(PYTEST_ARGS)
 
 test-all: setup
 	$(BIN)/python -m pytest -q --nbmake tests notebooks $(PYTEST_ARGS)
@@ -26,6 +30,7 @@ bench: setup
 	$(BIN)/python benchmarks/trees_nongrowth.py
 	$(BIN)/python benchmarks/weber_penn_generation.py
 	$(BIN)/python benchmarks/autumn_insolation.py
+	$(BIN)/python benchmarks/world_day.py
 	$(BIN)/python benchmarks/world_year.py
 	$(BIN)/python benchmarks/animate_daily_light.py
 	$(BIN)/python benchmarks/validation_page.py

@@ -158,8 +158,9 @@ def main():
         for r in range(a.reps):
             t = time.perf_counter()
             res = integ.trace(scene, photons=n, seed=r + 1)
+            rays.append(res.rays_traced)        # the bookkeeping read back: the pass has run
+            dr.sync_thread()
             t_pass.append(time.perf_counter() - t)
-            rays.append(res.rays_traced)
             # the raw rays are timed on the same count of rays as this pass cast
             scale = res.rays_traced / O.shape[1]
             t_pre.append(time_raw(scene, O, D, "prelim", r + 1) * scale)

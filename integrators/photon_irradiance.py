@@ -1750,7 +1750,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         index = scene_index(scene)
         pilots = [self._pilot_power(scene, e, index, band) for e in emitters]
         dr.eval(pilots)  # one launch for all emitters, then deterministic reductions
-        power = np.array([_scalar(dr.mean(p)) for p in pilots]) * (band[1] - band[0])
+        # (means on the host, in float64: a device float reduction need not be repeatable)
+        power = np.array([float(np.mean(np.asarray(p, np.float64))) for p in pilots]) \
+            * (band[1] - band[0])
         return split_photons(power, photons)
 
     def pilot_power(self, scene: mi.Scene, emitter, band) -> float:
@@ -1772,7 +1774,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             Estimated power [W].
         """
         p = self._pilot_power(scene, emitter, scene_index(scene), band)
-        return _scalar(dr.mean(p)) * (band[1] - band[0])
+        return float(np.mean(np.asarray(p, np.float64))) * (band[1] - band[0])
 
     def trace_paths(self, scene: mi.Scene, emitter, photons: int, seed: int = 0,
                     max_depth: int = 8, band=(360.0, 830.0),

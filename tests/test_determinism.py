@@ -1,0 +1,111 @@
+"""Same seed, same numbers, on every backend: the daily pipeline's repeatability.
+
+Run on the CPU in CI and on a GPU by ``make test-gpu`` (cuda_ad_spectral): Dr.Jit's CUDA float
+prefix sums and float atomics are not bitwise repeatable (mitsuba3 issue 1938), so everything a
+day sums is an integer or a 64-bit fixed-point sum, and every sampling table is summed on the
+host (arrays.DiscreteSampler). These tests hold the day to that.
+"""
+from pathlib import Path
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+import pytest
+
+import mitsuba_veg as mv
+from mitsuba_veg.arrays import DiscreteSampler, Tally
+from mitsuba_veg.daily import Simulation
+from mitsuba_veg.daily.config import BANDS
+from mitsuba_veg.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+COURTYARD = ROOT / "scenes" / "courtyard" / "scenario.toml"
+SMALL = ["light.photons=60000", "moss.initial=100", "simulation.checkpoint_every=0",
+         'simulation.start_date="2026-07-01"']
+
+
+def _world(tmp, days=3, run=None):
+    sim = Simulation(load_scenario(COURTYARD, SMALL), tmp, days=days, progress=False)
+    sim.setup()
+    sim.initialise()
+    recs = [sim.step() for _ in range(days if run is None else run)]
+    strip = [{k: v for k, v in r.items() if k != "seconds"} for r in recs]
+    return sim, strip
+
+
+def test_two_world_runs_with_one_seed_are_identical(tmp_path):
+    """Trees, leaves, light, soil and moss: three days twice, every record and the moss
+    population equal to the last bit."""
+    a, ra = _world(tmp_path / "a")
+    b, rb = _world(tmp_path / "b")
+    assert ra == rb
+    pa, pb = a.pop.to_numpy(), b.pop.to_numpy()
+    for k in pa:
+        assert np.array_equal(pa[k], pb[k]), k
+    assert np.array_equal(np.asarray(a.state.O), np.asarray(b.state.O))
+    assert np.array_equal(np.asarray(a.phen.H), np.asarray(b.phen.H))
+
+
+def test_frozen_pass_equals_the_traced_pass(tmp_path):
+    """The world's photon pass replayed from its recording (dr.freeze) gives the traced pass's
+    tallies bit for bit, on other days (new sun path, photon split, seed) too, without being
+    recorded again."""
+    sim, _ = _world(tmp_path / "w", days=4, run=1)
+    light = sim.pipeline.light
+    integ = sim.site.integrator
+    for day in (1, 2, 3):
+        dirs, w, _ = sim.inputs.sun.day(day)
+        sim.site.sun.set_day(dirs, w, size=light.SUN_STEPS)
+        kw = dict(photons=60000, seed=day, max_depth=8, bands=BANDS, tables=light.tables,
+                  counts=light.counts[day])
+        traced = integ.trace(sim.scene, **kw)
+        f_traced = traced.flux.copy()
+        frozen = integ.trace(sim.scene, frozen=True, **kw)
+        assert np.array_equal(f_traced, frozen.flux)
+        assert np.array_equal(traced.emitted, frozen.emitted)
+        assert traced.rays_traced == frozen.rays_traced
+    # the first day recorded it (the daily loop's own call), later days replayed it
+    assert integ._frozen.n_cached_recordings == 1
+
+
+def test_tally_is_exact_and_order_free():
+    """The record's sums: a sum over segments equals NumPy's float64 sum to 1e-12, a count is
+    exact, and a shuffled input gives the same bits (integer atomics)."""
+    rng = np.random.default_rng(0)
+    x = rng.random(50_000)
+    seg = rng.integers(0, 7, 50_000).astype(np.uint32)
+    perm = rng.permutation(50_000)
+
+    def sums(order):
+        t = Tally()
+        t.add("x", mi.Float64(x[order]), segments=mi.UInt32(seg[order]), n_segments=7)
+        t.add("s", mi.Float64(x[order] - 0.5), signed=True)
+        t.count("c", mi.Bool(x[order] > 0.5), segments=mi.UInt32(seg[order]), n_segments=7)
+        return t.evaluate()
+    a, b = sums(np.arange(50_000)), sums(perm)
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+    ref = np.array([x[seg == k].sum() for k in range(7)])
+    assert np.allclose(a["x"], ref, rtol=1e-12)
+    assert a["s"][0] == pytest.approx((x - 0.5).sum(), abs=1e-9)
+    assert a["c"].tolist() == [int(((x > 0.5) & (seg == k)).sum()) for k in range(7)]
+    t = Tally()
+    t.add("bad", mi.Float64(np.array([1.0, -2.0])))
+    assert np.isnan(t.evaluate()["bad"][0])          # a negative value in an unsigned sum
+
+
+def test_sampling_table_is_summed_on_the_host():
+    """veg_sun_path's and veg_sky's tables: the cumulative sums are NumPy's (float64, rounded
+    once), the last entry with weight exactly 1, and draws follow the weights."""
+    w = np.array([0.0, 3.0, 1.0, 0.0, 4.0, 0.0])
+    d = DiscreteSampler(w)
+    c = np.asarray(d.cdf)
+    ref = np.cumsum(w / w.sum()).astype(np.float32)
+    assert np.array_equal(c[:4], ref[:4]) and np.all(c[4:] == 1.0)
+    u = dr.arange(mi.Float, 80_000) / 80_000.0
+    k = np.asarray(d.sample(u))
+    assert not np.isin(k, [0, 3, 5]).any()           # weight 0: never drawn
+    assert np.allclose(np.bincount(k, minlength=6) / 80_000, w / w.sum(), atol=1e-4)
+    idx, ur, p = d.sample_reuse(u)
+    assert np.all((np.asarray(ur) >= 0) & (np.asarray(ur) < 1))
+    assert np.allclose(np.asarray(p), (w / w.sum())[np.asarray(idx)])
