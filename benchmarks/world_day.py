@@ -73,7 +73,15 @@ def main(argv=None) -> int:
 
     bare(sim.day)                             # this path's own kernels compile once
     days, passes, ratios, stages = [], [], [], collections.defaultdict(list)
-    k_day, k_bare, c_day, c_bare = [], [], [], []
+    k_day, k_bare, c_day, c_bare, kinds = [], [], [], [], []
+
+    def _kind(t):
+        if t == dr.KernelType.JIT:
+            return "kernels"
+        if t in (dr.KernelType.BlockReduce, dr.KernelType.BlockPrefixReduce,
+                 dr.KernelType.Compress, dr.KernelType.MkPerm):
+            return "reductions"
+        return "memory/host"     # memset, memcpy, aggregate, host tasks (copies of inputs)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     for _ in range(a.days):
         dr.sync_thread()
@@ -85,6 +93,7 @@ def main(argv=None) -> int:
         h = dr.kernel_history()
         k_day.append(len(h))
         c_day.append(sum(1 for x in h if x["type"] == dr.KernelType.JIT and not x["cache_hit"]))
+        kinds.append(collections.Counter(_kind(x["type"]) for x in h))
         tb = bare(sim.day - 1)
         h = dr.kernel_history()
         k_bare.append(len(h))
@@ -101,12 +110,16 @@ def main(argv=None) -> int:
     print(f"steady day (median of {a.days}): {np.median(days) * 1e3:.1f} ms "
           f"(" + ", ".join(f"{k} {np.median(v) * 1e3:.1f} ms" for k, v in stages.items())
           + ")")
-    print(f"bare photon pass, same scene, tables and photon split: {np.median(passes) * 1e3:.1f} ms")
+    print("bare photon pass, same scene, tables and photon split: "
+          f"{np.median(passes) * 1e3:.1f} ms")
     print(f"world day / bare pass: {np.median(ratios):.2f} (per day: "
           + ", ".join(f"{r:.2f}" for r in ratios) + "; target <= 1.2 on the CPU)")
+    med = {k: float(np.median([c.get(k, 0) for c in kinds]))
+           for k in ("kernels", "reductions", "memory/host")}
     print(f"kernel launches per day: {np.median(k_day):.0f} (min {min(k_day)}, max {max(k_day)};"
-          f" target <= 40), compiled {max(c_day)}; bare pass: {np.median(k_bare):.0f} launches, "
-          f"compiled {max(c_bare)}")
+          f" target <= 40): " + ", ".join(f"{k} {v:.0f}" for k, v in med.items())
+          + f"; compiled {max(c_day)} (max of a day); bare pass: {np.median(k_bare):.0f} "
+          f"launches, compiled {max(c_bare)}")
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

@@ -552,6 +552,19 @@ class SceneIndex:
         gbase = np.zeros(n_reg, dtype=np.uint32)
         for r, b in inst_base.items():
             gbase[r] = b
+        # the order of a shapegroup's meshes in its acceleration structure (what a hit's
+        # shape_index counts) is the backend's: learned by one probe ray per mesh
+        first_inst = {}
+        for sh in shapes:
+            if sh.class_name() == "Instance":
+                first_inst.setdefault(instances[sh.id()], sh)
+        for gname, base in g_base.items():
+            local, items, _ = group_layout[gname]
+            perm = SceneIndex._probe_group_order(scene, first_inst.get(gname), items)
+            if perm is not None:
+                k = len(items)
+                g_local[base:base + k] = [g_local[base + j] for j in perm]
+                g_bsdf[base:base + k] = [g_bsdf[base + j] for j in perm]
         # without instances, only hits on the listed shapes need the full interaction
         full_lookup = None
         if not instances and full_shapes:
@@ -566,6 +579,39 @@ class SceneIndex:
                           mi.UInt32(np.array(g_local + [0], np.uint32)),
                           mi.UInt32(np.array(g_bsdf + [0], np.uint32)),
                           sorted(bsdf_objs.items(), key=lambda kv: kv[0]), full_lookup)
+
+    @staticmethod
+    def _probe_group_order(scene, inst, items):
+        """For a shapegroup shown by instance ``inst`` with meshes ``items`` (traversal order):
+        ``perm[shape_index] = traversal position`` as the scene's ray tracer numbers them (a
+        short ray at the largest triangle of each mesh, from just in front of it); None when
+        every probe agrees with the traversal order or a probe is inconclusive (then the
+        traversal order is kept). Embree keeps the traversal order; OptiX need not."""
+        if inst is None or len(items) < 2:
+            return None
+        T = _matrix(mi.traverse(inst)["to_world"])
+        o, d = [], []
+        for v, f in items:
+            w = v @ T[:3, :3].T + T[:3, 3]
+            a, nrm, c = triangle_geometry(w, f)
+            j = int(np.argmax(a))
+            ext = max(float(np.ptp(w, axis=0).max()), 1e-6)
+            o.append(c[j] + nrm[j] * 1e-4 * ext)
+            d.append(-nrm[j])
+        o, d = np.asarray(o, np.float32), np.asarray(d, np.float32)
+        ray = mi.Ray3f(mi.Point3f(*[mi.Float(o[:, k]) for k in range(3)]),
+                       mi.Vector3f(*[mi.Float(d[:, k]) for k in range(3)]))
+        pi = scene.ray_intersect_preliminary(ray, coherent=False)
+        ok = np.asarray(pi.is_valid()) & (np.asarray(dr.reinterpret_array(mi.UInt32, pi.instance))
+                                          == _reg_id(inst))
+        idx = np.asarray(pi.shape_index)
+        if not ok.all() or sorted(idx.tolist()) != list(range(len(items))):
+            return None
+        if np.array_equal(idx, np.arange(len(items))):
+            return None
+        perm = np.zeros(len(items), np.int64)
+        perm[idx] = np.arange(len(items))
+        return perm.tolist()
 
     @staticmethod
     def _group_of(inst, groups) -> str:

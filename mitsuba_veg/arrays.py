@@ -23,7 +23,8 @@ import mitsuba as mi
 import numpy as np
 
 __all__ = ["is_dr", "float_type", "prep", "finish", "nan_keep", "exp", "abs_", "where",
-           "maximum", "minimum", "power", "safe_power", "clip", "host_array", "opaque", "zero_index", "Pack", "host_scalar",
+           "maximum", "minimum", "power", "safe_power", "clip", "host_array", "opaque",
+           "zero_index", "Pack", "host_scalar",
            "DiscreteSampler", "Tally"]
 
 

@@ -16,4 +16,4 @@ exec "$PY" -m pytest -m "not slow" -q \
     tests/test_photon_scenes.py tests/test_photon_weights.py tests/test_light_system.py \
     tests/test_sensors.py tests/test_daylight.py tests/test_moss_run.py tests/test_world.py \
     tests/test_render.py tests/test_render_parts.py tests/test_render_cli.py \
-    tests/test_tune_photon.py tests/test_tune_discrete.py "$@"
+    tests/test_tune_photon.py "$@"

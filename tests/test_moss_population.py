@@ -191,7 +191,7 @@ def test_occupancy_conflicts_and_priorities():
     pts = mi.Point3f(mi.Float([0.001, 0.002, 0.2005, 0.5, 0.5005]), mi.Float([0.0] * 5),
                      mi.Float([0.0] * 5))
     species = mi.UInt32([0, 0, 1, 0, 0])
-    keep, evicted = settle(pop, grid, pts, species, dr.arange(mi.UInt32, 5), mi.Bool(True))
+    keep, evicted, _ = settle(pop, grid, pts, species, dr.arange(mi.UInt32, 5), mi.Bool(True))
     keep = np.asarray(keep).tolist()
     # 0, 1: Bryum gemmae on the established moss: it keeps its spot (0.3 > 0)
     # 2: a Polytrichum (priority 5) on the waiting Bryum gemma (0): it takes the spot
@@ -208,7 +208,7 @@ def test_newcomers_of_one_cell_ranked_by_exact_priority(priority):
     pop = pop_with(n_slots=8, species=(BRYUM, POLY), priority=priority)
     grid.rebuild(pop.pos, pop.state)
     pts = mi.Point3f(mi.Float([0.5, 0.5005]), mi.Float([0.0, 0.0]), mi.Float([0.0, 0.0]))
-    keep, _ = settle(pop, grid, pts, mi.UInt32([0, 1]), dr.arange(mi.UInt32, 2), mi.Bool(True))
+    keep, _, _ = settle(pop, grid, pts, mi.UInt32([0, 1]), dr.arange(mi.UInt32, 2), mi.Bool(True))
     assert np.asarray(keep).tolist() == [False, True]
 
 

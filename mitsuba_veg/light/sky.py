@@ -17,7 +17,9 @@ all-weather model (sky clearness epsilon, brightness delta), or the CIE standard
 
 Directions are importance-sampled from a piecewise-constant table of f over a latitude-longitude
 grid of the upper hemisphere (cells uniform in cos(theta) and azimuth inside, so that the pdf is
-constant per cell in solid angle); weights are exact (L / pdf with the analytic f).
+constant per cell in solid angle); weights are exact (L / pdf with the analytic f). A
+``uniform`` sky is sampled uniformly in solid angle directly (the table's own distribution,
+without its search).
 
 Frame (project convention): +y up, +x east, +z south; the grid's azimuth is clockwise from north
 (-z). The plugin takes no ``to_world``.
@@ -450,6 +452,8 @@ class VegSky(mi.Emitter):
         return row, col, phi, theta
 
     def _pdf(self, d, active=True):
+        if self.distribution == "uniform":   # uniform in solid angle (see _sample)
+            return dr.select(active & (d.y > 0.0), 0.5 / math.pi, 0.0)
         row, col, _, _ = self._cell_index(d)
         up = active & (d.y > 0.0)
         pdf = dr.gather(mi.Float, self.m_cell_pdf, row * self.cols + col, up)
@@ -457,6 +461,15 @@ class VegSky(mi.Emitter):
 
     def _sample(self, sample, active=True):
         """Direction towards the sky, its pdf [sr-1] and uv."""
+        if self.distribution == "uniform":
+            # a uniform sky's table is uniform in solid angle: drawn directly (no table search)
+            cos_t = 1.0 - sample.y
+            sin_t = dr.safe_sqrt(1.0 - cos_t * cos_t)
+            phi = sample.x * (2.0 * math.pi)
+            sp, cp = dr.sincos(phi)
+            d = mi.Vector3f(sp * sin_t, cos_t, -cp * sin_t)
+            uv = mi.Point2f(sample.x, dr.safe_acos(cos_t) * (2.0 / math.pi))
+            return d, dr.select(active & (cos_t > 0.0), 0.5 / math.pi, 0.0), uv
         idx, ux, _ = self.m_distr.sample_reuse(sample.x, active)
         row, col = idx // self.cols, idx % self.cols
         phi = (mi.Float(col) + ux) * (2.0 * math.pi / self.cols)

@@ -1,8 +1,9 @@
 """The discrete moss run as a function of its parameters, and fits *of the discrete model*.
 
 :class:`DiscreteMossModel` runs the daily pipeline (:class:`~mitsuba_veg.daily.Simulation`;
-with ``world=True`` the scenario's trees in the light) with given parameter values on a fixed set of seeds (common random numbers: the same seeds at every evaluation, so
-that two evaluations differ only through the parameters) and returns the covered fraction per
+with ``world=True`` the scenario's trees in the light) with given parameter values on a fixed
+set of seeds (common random numbers: the same seeds at every evaluation, so that two
+evaluations differ only through the parameters) and returns the covered fraction per
 triangle, per seed and day.
 
 :func:`fit_discrete` fits the parameters of the discrete model to a target coverage map by
