@@ -15,7 +15,12 @@ from __future__ import annotations
 import math
 
 from ..errors import ParameterError
-from ..soil import _abs, _exp, _finish, _prep, _safe_power, _where
+from ..arrays import abs_ as _abs
+from ..arrays import exp as _exp
+from ..arrays import finish as _finish
+from ..arrays import prep as _prep
+from ..arrays import safe_power as _safe_power
+from ..arrays import where as _where
 from .species import get_species
 
 __all__ = ["s", "fitness", "daily_fitness", "daily_growth", "germination_value", "germinates",
@@ -121,10 +126,16 @@ def daily_fitness(species, Ts, rhs, S):
 
     Vectorised: one value per moss (or per spot).
 
+    The one implementation of eq 3.17: the discrete run (parameters gathered per individual,
+    ``moss.population.SpeciesTable``) and the relaxed model (differentiable parameters,
+    ``tune.lifecycle``) both call it.
+
     Parameters
     ----------
-    species : Species or str
-        A :class:`Species` or a key of ``SPECIES``.
+    species : Species or str or mapping
+        A :class:`Species`, a key of ``SPECIES``, or a mapping / object with the nine
+        parameters ``T0, T1, nT, rh0, rh1, nrh, S0, S1, nS`` (numbers or arrays, e.g. one per
+        individual or differentiable scalars).
     Ts : float, array_like or drjit array
         Surface temperature [K].
     rhs : float, array_like or drjit array
@@ -140,11 +151,18 @@ def daily_fitness(species, Ts, rhs, S):
     Raises
     ------
     ParameterError
-        If ``species`` is not a :class:`Species` or a key of ``SPECIES``.
+        If ``species`` is a string that is not a key of ``SPECIES``.
     """
-    sp = get_species(species)
-    gT, grh, gS = _prep(fitness(Ts, sp.T0, sp.T1, sp.nT), fitness(rhs, sp.rh0, sp.rh1, sp.nrh),
-                        fitness(S, sp.S0, sp.S1, sp.nS))
+    if isinstance(species, str):
+        species = get_species(species)
+    if hasattr(species, "keys"):
+        q = {k: species[k] for k in ("T0", "T1", "nT", "rh0", "rh1", "nrh", "S0", "S1", "nS")}
+    else:
+        q = {k: getattr(species, k) for k in ("T0", "T1", "nT", "rh0", "rh1", "nrh", "S0",
+                                              "S1", "nS")}
+    gT, grh, gS = _prep(fitness(Ts, q["T0"], q["T1"], q["nT"]),
+                        fitness(rhs, q["rh0"], q["rh1"], q["nrh"]),
+                        fitness(S, q["S0"], q["S1"], q["nS"]))
     return _finish(gT * grh * gS)
 
 

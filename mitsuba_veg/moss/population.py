@@ -25,7 +25,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import opaque
-from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
+from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, daily_fitness, fitness
 from .species import Species
 
 FREE, PROPAGULE, MOSS = 0, 1, 2
@@ -185,11 +185,9 @@ class SpeciesTable:
         mi.Float
             Daily fitness G [-], one per individual.
         """
-        g = self.get
-        gT = fitness(Ts, g("T0", idx), g("T1", idx), g("nT", idx))
-        grh = fitness(rhs, g("rh0", idx), g("rh1", idx), g("nrh", idx))
-        gS = fitness(S, g("S0", idx), g("S1", idx), g("nS", idx))
-        return gT * grh * gS
+        p = {k: self.get(k, idx) for k in ("T0", "T1", "nT", "rh0", "rh1", "nrh", "S0", "S1",
+                                              "nS")}
+        return daily_fitness(p, Ts, rhs, S)
 
     def fitness_table(self, Ts, rhs, S) -> mi.Float:
         """G of eq 3.17 for every (element, species) pair.

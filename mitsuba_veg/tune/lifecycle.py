@@ -40,7 +40,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..moss.fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, fitness
+from ..moss.fitness_model import (GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, daily_fitness,
+                                   fitness)
 from ..moss.population import GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SpeciesTable
 from ..moss.species import PARAMETER_FIELDS
 from . import relax
@@ -137,8 +138,7 @@ def species_fitness(p: dict, Ts, rhs, S):
     Dr.Jit float array
         G per element [-].
     """
-    return fitness(Ts, p["T0"], p["T1"], p["nT"]) * fitness(rhs, p["rh0"], p["rh1"], p["nrh"]) \
-        * fitness(S, p["S0"], p["S1"], p["nS"])
+    return daily_fitness(p, Ts, rhs, S)
 
 
 class CohortLifeCycle:
