@@ -77,7 +77,12 @@ def test_photon_pass_absorbs_one_minus_R_minus_T():
         "irradiance": {"type": "uniform", "value": 1.0}}}, optimize=False)
     res = mv.light.photon_irradiance(sc, photons=200_000, max_depth=4)
     hit = res.flux[:, :, 0].sum(axis=(0, 1, 2))                 # direct power on the leaf
-    assert np.allclose(res.absorbed.sum(0) / hit, 0.5, rtol=1e-3)
+    # Russian roulette absorbs a hit whole with probability 1 - q = 0.5 (grey leaf), so the
+    # absorbed fraction is a binomial estimate over the ~133,000 photons that hit: sigma 0.0014
+    # (seeds 0-3 gave 0.4986-0.5012); 0.006 is 4.3 sigma
+    assert np.allclose(res.absorbed.sum(0) / hit, 0.5, atol=0.006)
+    # energy closes exactly: what is not absorbed leaves the scene
+    assert np.allclose(res.absorbed.sum(0) + res.escaped.sum(0), res.emitted.sum(0), rtol=1e-5)
     # a second sheet below receives the transmitted part on its front
     V2 = V.copy()
     V2[:, 1] -= 0.002                       # view factor leaf -> floor ~ 0.999
