@@ -47,6 +47,11 @@ class ParameterError(MitsubaVegError, ValueError):
         super().__init__(msg)
 
 
+class FolderBusy(ParameterError):
+    """An output folder is in use by another process (its lock is held): the refusal of
+    :class:`mitsuba_veg.outputs.OutputFolder`, which a sweep retries."""
+
+
 class SceneError(MitsubaVegError, ValueError):
     """A scene lacks something a computation needs (a shape id, an emitter, a file ...)."""
 
