@@ -28,6 +28,7 @@ from pathlib import Path
 import mitsuba as mi
 
 from .errors import ParameterError, unknown_field
+from .inputs import input_hashes
 from .light.clear_sky import daylight as _daylight
 
 #: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
@@ -486,6 +487,7 @@ class Scenario:
             the horizon at ``light.when``.
         """
         path = self.file("scene.file")
+        input_hashes(self)   # the files the run reads, as it reads them (resumes compare them)
         try:
             scene = mi.load_file(str(path), optimize=False)
         except Exception as e:  # Mitsuba's own message names the XML problem

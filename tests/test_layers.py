@@ -28,7 +28,7 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 LAYERS: list[tuple[str, list[str]]] = [
     ("base", ["backend", "errors", "atomic", "meshes", "outputs", "plots", "units"]),
     ("light", ["light", "integrators"]),
-    ("ground", ["soil", "climate", "terrain", "scenario"]),
+    ("ground", ["soil", "climate", "terrain", "scenario", "inputs"]),
     ("models", ["moss", "trees", "foliage"]),
     ("daily loop", ["daily", "world"]),
     ("render/tune/sweeps", ["render", "tune", "sweeps"]),

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..inputs import check_resume, input_hashes
 from ..outputs import atomic_write
 
 
@@ -46,10 +47,11 @@ class Checkpoints:
         """Restore what :meth:`_checkpoint_extra` saved."""
 
     def _fingerprint(self) -> str:
-        """What must match for a checkpoint to be resumed: the settings of the run."""
+        """What must match for a checkpoint to be resumed: the settings of the run and the
+        content of every file it reads (:func:`mitsuba_veg.inputs.input_hashes`)."""
         keep = {k: v for k, v in self.scn.data.items() if k != "simulation"}
-        return json.dumps({"scenario": keep, "start": self.start.isoformat()}, sort_keys=True,
-                          default=str)
+        return json.dumps({"scenario": keep, "start": self.start.isoformat(),
+                           "inputs": input_hashes(self.scn)}, sort_keys=True, default=str)
 
     def load_checkpoint(self) -> bool:
         """Resume from :attr:`checkpoint_path` if there is one.
@@ -75,9 +77,7 @@ class Checkpoints:
             raise ParameterError("checkpoint", str(p), "a complete checkpoint written by "
                                  "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
                                  "run again with --fresh to start over") from None
-        if fingerprint != self._fingerprint():
-            raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
-                                 "use --fresh (or another --out folder) to start afresh")
+        check_resume(fingerprint, self._fingerprint(), p)  # names the field or file that changed
         if day > self.days:
             raise ParameterError("--days", self.days, f">= {day}: the checkpoint in "
                                  f"{self.out} already holds day {day}",
