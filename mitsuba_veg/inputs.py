@@ -265,6 +265,44 @@ def _first_difference(a, b, prefix: str = ""):
     return prefix.rstrip("."), a, b
 
 
+def same_run_scenario(recorded: str, scn) -> str | None:
+    """Whether a scenario is the one a run was made from, by the run's checkpoint fingerprint.
+
+    Compares the settings (but ``[simulation]`` and ``[render]``, which a render may change)
+    and, when the checkpoint recorded them, the input files.
+
+    Parameters
+    ----------
+    recorded : str
+        The checkpoint's fingerprint (JSON).
+    scn : mitsuba_veg.scenario.Scenario
+        The scenario to compare.
+
+    Returns
+    -------
+    str or None
+        What differs in words (e.g. ``"light.seed is 0 in the run and 3 here"``), or None when
+        nothing does (or the fingerprint cannot be read).
+    """
+    try:
+        old = json.loads(recorded)
+        settings = dict(old["scenario"])
+    except (ValueError, KeyError, TypeError):
+        return None
+    now = {k: v for k, v in scn.data.items() if k != "simulation"}
+    diff = _first_difference({k: v for k, v in settings.items() if k != "render"},
+                             json.loads(json.dumps({k: v for k, v in now.items()
+                                                    if k != "render"}, default=str)))
+    if diff is not None:
+        name, a, b = diff
+        return f"{name} is {a!r} in the run and {b!r} here"
+    if isinstance(old.get("inputs"), dict):
+        d = changed_input(old["inputs"], input_hashes(scn))
+        if d is not None:
+            return d[1] + " (then: the run; now: this scenario)"
+    return None
+
+
 def check_resume(recorded: str, current: str, checkpoint) -> None:
     """Refuse to resume a checkpoint whose run read other settings or files than this one.
 
@@ -314,3 +352,114 @@ def check_resume(recorded: str, current: str, checkpoint) -> None:
         return
     check_same_inputs(old.get("inputs") or {}, new.get("inputs") or {}, "checkpoint",
                       str(checkpoint), fix)
+
+
+#: bytes of the PLY property types
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
+              "int16": 2, "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4,
+              "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+def ply_problem(path) -> str | None:
+    """What is wrong with a PLY mesh file, from its header and size (None: nothing found).
+
+    Finds an empty file, a file that is not PLY, a header without ``end_header`` and a body
+    shorter than its header declares (a truncated file: binary bodies by size, with at least
+    three indices per face list; ASCII bodies by their lines).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The PLY file.
+
+    Returns
+    -------
+    str or None
+        The problem in words (e.g. ``"is empty (0 bytes)"``), or None.
+    """
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        with open(p, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError as e:
+        return f"cannot be read ({e.strerror})"
+    if size == 0:
+        return "is empty (0 bytes)"
+    if not head.startswith(b"ply"):
+        return "is not a PLY file (it does not start with 'ply')"
+    end = head.find(b"end_header")
+    if end < 0:
+        return "has no complete PLY header (no end_header)"
+    nl = head.find(b"\n", end)
+    body_start = nl + 1 if nl >= 0 else len(head)
+    fmt, elements = None, []
+    for line in head[:end].decode("ascii", "replace").splitlines():
+        w = line.split()
+        if not w:
+            continue
+        if w[0] == "format" and len(w) > 1:
+            fmt = w[1]
+        elif w[0] == "element" and len(w) == 3 and w[2].isdigit():
+            elements.append([w[1], int(w[2]), 0, 0])     # name, count, fixed bytes, list bytes
+        elif w[0] == "property" and elements:
+            if len(w) >= 5 and w[1] == "list":
+                elements[-1][3] += _PLY_SIZES.get(w[2], 1) + 3 * _PLY_SIZES.get(w[3], 4)
+            elif len(w) >= 3:
+                elements[-1][2] += _PLY_SIZES.get(w[1], 4)
+    declared = ", ".join(f"{n:,d} {name}" for name, n, _, _ in elements) + " elements"
+    if fmt == "ascii":
+        with open(p, "rb") as f:
+            f.seek(body_start)
+            lines = sum(1 for ln in f if ln.strip())
+        need = sum(n for _, n, _, _ in elements)
+        if lines < need:
+            return (f"is truncated: its header declares {declared} ({need:,d} lines of data), "
+                    f"the file holds {lines:,d}")
+        return None
+    need = sum(n * (a + b) for _, n, a, b in elements)
+    have = size - body_start
+    if have < need:
+        return (f"is truncated: its header declares {declared}, which take at least "
+                f"{need:,d} bytes, and the file holds {have:,d} after its header")
+    return None
+
+
+def check_scene_files(xml_path, field: str = "scene.file", source: str | None = None) -> None:
+    """Refuse a scene whose referenced files are missing, empty or truncated, naming the file
+    and what is wrong (before Mitsuba loads it and blames the XML).
+
+    Parameters
+    ----------
+    xml_path : str or pathlib.Path
+        The scene file.
+    field : str, optional
+        The field or argument that named the scene (default ``"scene.file"``).
+    source : str, optional
+        The scenario file, for messages; default None.
+
+    Raises
+    ------
+    ParameterError
+        For the first referenced file (mesh, texture, included XML) that is missing, empty or,
+        for a PLY mesh, truncated or not PLY.
+    """
+    xml = Path(xml_path)
+    for ref in scene_references(xml):
+        try:
+            name = Path(os.path.relpath(ref, xml.resolve().parent)).as_posix()
+        except ValueError:
+            name = str(ref)
+        if not ref.exists():
+            problem = "does not exist"
+        elif ref.is_dir():
+            problem = "is a folder"
+        elif ref.suffix.lower() == ".ply":
+            problem = ply_problem(ref)
+        else:
+            problem = "is empty (0 bytes)" if ref.stat().st_size == 0 else None
+        if problem is not None:
+            raise ParameterError(field, str(xml), f"a scene whose files are complete ({name}, "
+                                 f"which {xml.name} references, {problem})",
+                                 f"restore or re-export {name}, or fix its filename in "
+                                 f"{xml.name}", source)
