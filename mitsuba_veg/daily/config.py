@@ -8,6 +8,7 @@ from ..climate import ClimateTable, daily_weather, load_csv
 from ..errors import ParameterError, check_range
 from ..moss.species import SPECIES, Species, load_species
 from ..scenario import Scenario
+from ..trees.entries import check_render_trees
 
 BANDS = ("total", "par", "red", "far_red")
 _PCG_STREAM = 0xDA3E39CB94B95BDB  # Dr.Jit's default PCG32 stream (lane i adds i)
@@ -89,6 +90,7 @@ class MossConfig:
                           "seed": scenario.get("light.seed")}
         self.seed = int(self.light_cfg["seed"])
         self._setup_climate(src)
+        check_render_trees(scenario.get("render.trees"), src)  # refused now, not by the render
 
 
     def date(self, day: int) -> _dt.date:
