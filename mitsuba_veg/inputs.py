@@ -268,8 +268,10 @@ def _first_difference(a, b, prefix: str = ""):
 def same_run_scenario(recorded: str, scn) -> str | None:
     """Whether a scenario is the one a run was made from, by the run's checkpoint fingerprint.
 
-    Compares the settings (but ``[simulation]`` and ``[render]``, which a render may change)
-    and, when the checkpoint recorded them, the input files.
+    Compares what the render draws: the settings but ``[simulation]``, ``[render]`` (the
+    render's own), ``[light]`` and ``[climate]`` (how the run was lit and watered, not what it
+    looks like: a run made with ``--set light.photons=...`` renders with its own file) and,
+    when the checkpoint recorded them, the input files but the weather CSV.
 
     Parameters
     ----------
@@ -289,15 +291,18 @@ def same_run_scenario(recorded: str, scn) -> str | None:
         settings = dict(old["scenario"])
     except (ValueError, KeyError, TypeError):
         return None
-    now = {k: v for k, v in scn.data.items() if k != "simulation"}
-    diff = _first_difference({k: v for k, v in settings.items() if k != "render"},
-                             json.loads(json.dumps({k: v for k, v in now.items()
-                                                    if k != "render"}, default=str)))
+    skip = ("simulation", "render", "light", "climate")
+    diff = _first_difference({k: v for k, v in settings.items() if k not in skip},
+                             json.loads(json.dumps({k: v for k, v in scn.data.items()
+                                                    if k not in skip}, default=str)))
     if diff is not None:
         name, a, b = diff
         return f"{name} is {a!r} in the run and {b!r} here"
     if isinstance(old.get("inputs"), dict):
-        d = changed_input(old["inputs"], input_hashes(scn))
+        weather = [(settings.get("climate") or {}).get("csv"), scn.get("climate.csv")]
+        strip = {Path(str(w)).as_posix() for w in weather if w}
+        d = changed_input({k: v for k, v in old["inputs"].items() if k not in strip},
+                          {k: v for k, v in input_hashes(scn).items() if k not in strip})
         if d is not None:
             return d[1] + " (then: the run; now: this scenario)"
     return None

@@ -105,7 +105,10 @@ def test_sigkill_then_resume_equals_uninterrupted_run(tmp_path, reference, momen
     for k, v in ref_arrays.items():
         assert np.array_equal(arrays[k], v), k
     assert maps == ref_maps and snaps == ref_snaps     # no half-written leftovers
-    assert json.loads((out / "summary.json").read_text())["resumed"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["resumed"]
+    # the summary lists every map of the run, also those written before the kill
+    assert sorted(Path(m).name for m in summary["files"]["maps"]) == ref_maps
 
 
 def test_second_writer_is_refused_by_the_lock(tmp_path):
