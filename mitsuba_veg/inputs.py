@@ -179,7 +179,7 @@ def input_hashes(scn) -> dict:
     Parameters
     ----------
     scn : mitsuba_veg.scenario.Scenario
-        The loaded scenario.
+        The scenario whose run is fingerprinted.
 
     Returns
     -------
@@ -375,7 +375,7 @@ def ply_problem(path) -> str | None:
     Parameters
     ----------
     path : str or pathlib.Path
-        The PLY file.
+        The mesh file to check.
 
     Returns
     -------

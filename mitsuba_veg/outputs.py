@@ -321,7 +321,20 @@ def _probe_writable(path: Path) -> str | None:
     return None
 
 
-class OutputFolder:
+class _Released:
+    """A context manager whose exit (and garbage collection) calls ``release()``."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    def __del__(self):
+        self.release()
+
+
+class OutputFolder(_Released):
     """An output folder claimed by one command.
 
     The folder is created if needed, checked to be writable (for the files to come, not only
@@ -525,17 +538,8 @@ class OutputFolder:
                 atomic_unwatch(_on_write)
         c.fh.close()  # closing drops the flock
 
-    def __enter__(self):
-        return self
 
-    def __exit__(self, *exc):
-        self.release()
-
-    def __del__(self):
-        self.release()
-
-
-class RunReader:
+class RunReader(_Released):
     """A shared lock on a folder that a command reads (``render`` and ``animate`` read a run
     folder): while one is held, a run that would clear the folder (``--fresh``, or a new run
     in it) is refused instead of deleting files under the reader. A folder that cannot be
@@ -575,15 +579,6 @@ class RunReader:
         if self._fh is not None:
             self._fh.close()
             self._fh = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.release()
-
-    def __del__(self):
-        self.release()
 
 
 class _Exclusive:

@@ -530,7 +530,7 @@ def load_scene_file(path, field: str = "scene.file", source: str | None = None):
     Returns
     -------
     mi.Scene
-        The loaded scene.
+        The scene, its shape ids kept.
 
     Raises
     ------
