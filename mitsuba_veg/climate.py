@@ -375,8 +375,9 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None,
     Raises
     ------
     ParameterError
-        If the file is missing, unreadable or empty, a column is unknown, the ``P`` column is
-        missing, a cell is not a number in its range, or N > N0 / N0 <= 0.
+        If the file is missing, unreadable or empty, a column is unknown or repeated, the
+        ``P`` column is missing, a row has more or fewer cells than the header, a cell is not a
+        number in its range, a ``day_of_year`` is not a whole number, or N > N0 / N0 <= 0.
     """
     table = table or ClimateTable()
     path = Path(path)
@@ -384,14 +385,28 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None,
         raise ParameterError("climate.csv", str(path), "an existing CSV file", "check the path")
     try:
         with path.open(newline="", encoding="utf-8") as f:
-            rows = list(csv.DictReader(f))
+            table_rows = [r for r in csv.reader(f) if r]   # empty lines only
     except (UnicodeDecodeError, csv.Error, OSError) as e:
         raise ParameterError("climate.csv", str(path), "a UTF-8 text CSV file with a header",
                              f"it cannot be read as CSV ({type(e).__name__}); export it as "
                              "CSV") from None
-    if not rows:
+    if len(table_rows) < 2:
         raise ParameterError("climate.csv", str(path), "a CSV with a header and >= 1 row")
-    cols = {(c or "").strip(): c for c in rows[0].keys()}
+    header = [c.strip() for c in table_rows[0]]
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise ParameterError(f"{path.name} columns", ", ".join(header), "each column once "
+                             f"({twice[0] or 'an unnamed column'} appears "
+                             f"{header.count(twice[0])} times)", "remove or rename the "
+                             "repeated column", str(path))
+    for i, r in enumerate(table_rows[1:]):
+        if len(r) != len(header):
+            raise ParameterError(f"{path.name} row {i + 2}", ",".join(r), f"{len(header)} "
+                                 f"cells, one per column ({', '.join(header)}; it has "
+                                 f"{len(r)})", "remove the extra cells or fill the missing "
+                                 "ones", str(path))
+    rows = [dict(zip(header, r)) for r in table_rows[1:]]
+    cols = {c: c for c in header}
     known = set(_CSV_FIELDS) | {"N", "N0"}
     unknown = [c for c in cols if c not in known]
     if unknown:
@@ -435,8 +450,17 @@ def load_csv(path, latitude: float, table: ClimateTable | None = None,
         A = N / N0
     else:
         A = np.full(n, table.sunshine / table.possible_sunshine)
-    doy = (column("day_of_year", 0).astype(int) if "day_of_year" in cols
-           else (np.arange(n) + int(start_day) - 1) % 365 + 1)
+    if "day_of_year" in cols:
+        doy = column("day_of_year", 0)
+        frac = np.flatnonzero(doy != np.round(doy))
+        if frac.size:
+            raise ParameterError(f"{path.name} row {frac[0] + 2} column day_of_year",
+                                 rows[frac[0]][cols["day_of_year"]].strip(),
+                                 "a whole day of the year in [1, 366]", "write the day's "
+                                 "number without a fraction", str(path))
+        doy = doy.astype(int)
+    else:
+        doy = (np.arange(n) + int(start_day) - 1) % 365 + 1
     ghi = column("ghi", 0.0) if "ghi" in cols else None
     return _radiation(doy, column("T", table.temperature), column("rh", table.humidity),
                       column("P", 0.0), column("U", table.wind), A, latitude, table.angstrom_a,

@@ -47,6 +47,11 @@ class ParameterError(MitsubaVegError, ValueError):
         super().__init__(msg)
 
 
+class FolderBusy(ParameterError):
+    """An output folder is in use by another process (its lock is held): the refusal of
+    :class:`mitsuba_veg.outputs.OutputFolder`, which a sweep retries."""
+
+
 class SceneError(MitsubaVegError, ValueError):
     """A scene lacks something a computation needs (a shape id, an emitter, a file ...)."""
 
@@ -130,8 +135,11 @@ def unknown_field(field: str, value, known, source: str | None = None,
         The error to raise (not raised here).
     """
     known = sorted(set(known))
-    close = difflib.get_close_matches(field, known, n=3, cutoff=0.6)
     head, _, last = field.rpartition(".")
+    # a field of a table written at the top (``seed = 3``): the fields of that name first
+    close = [k for k in known if "." in k and k.rpartition(".")[2] == field][:3] if not head \
+        else []
+    close = close or difflib.get_close_matches(field, known, n=3, cutoff=0.6)
     siblings = [k for k in known if k.rpartition(".")[0] == head]
     if not close:  # a misspelt last part: compare within the same table
         near = difflib.get_close_matches(last, [k.rpartition(".")[2] for k in siblings], n=3,

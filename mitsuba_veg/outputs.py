@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 from .atomic import atomic_write
-from .errors import ParameterError
+from .atomic import unwatch as atomic_unwatch
+from .atomic import watch as atomic_watch
+from .errors import FolderBusy, ParameterError
 from .plots import _mpl, plan_map
 
 
@@ -36,10 +38,16 @@ def write_json(path, data, indent: int = 2) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Output folders: one kind of result per folder, one writer at a time
+# Output folders: one kind of result per folder, one writer at a time, and a manifest of the
+# files the package wrote (it deletes or overwrites nothing else)
 # --------------------------------------------------------------------------------------------
 MARKER = ".mitsuba-veg.json"
 LOCK = ".mitsuba-veg.lock"
+#: a shared lock held by the commands that read a run folder (render, animate): a run that
+#: would clear the folder (``--fresh``) is refused while one is held
+READERS = ".mitsuba-veg.readers.lock"
+#: the package's own bookkeeping files of a folder (never foreign, never in the manifest)
+_OWN = (MARKER, LOCK, READERS, MARKER + ".tmp")
 #: what each command leaves in its folder (used to recognise folders written before markers)
 _KIND_FILES = {"run": ("checkpoint.npz",), "irradiance": ("irradiance.npz",),
                "render": ("render.json",), "animate": ("animate.json",),
@@ -49,6 +57,11 @@ _KIND_FILES = {"run": ("checkpoint.npz",), "irradiance": ("irradiance.npz",),
 RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.json.tmp",
                "days.gif", "days.tmp.gif", "maps", "snapshots", "render", "animation",
                "sensors_daily.csv", "sensors_daily.csv.tmp")
+#: output folders nested in a run folder that are cleared with the run (their own manifests)
+_RUN_CHILD_KINDS = ("render", "animate")
+#: a run folder written before manifests existed: the files adopted as the package's, by name
+_ADOPT_RUN = ("checkpoint.npz", "summary.json", "days.gif", "run.json", "error.json",
+              "sensors_daily.csv", "maps/day_*.png", "snapshots/day_*.npz")
 
 
 def folder_kind(path) -> str | None:
@@ -85,47 +98,256 @@ def folder_kind(path) -> str | None:
     return None
 
 
+def _read_marker(path: Path) -> dict | None:
+    """The folder's marker as a dict (None when there is none); a marker that cannot be read
+    raises :class:`ValueError`."""
+    m = path / MARKER
+    if not m.exists():
+        return None
+    meta = json.loads(m.read_text())
+    if not isinstance(meta, dict):
+        raise ValueError("not a JSON object")
+    return meta
+
+
+def _write_marker(path: Path, meta: dict) -> None:
+    """Write the marker atomically (directly: a marker is not an output of the folder)."""
+    tmp = path / (MARKER + ".tmp")
+    tmp.write_text(json.dumps(meta, indent=1, default=jsonable))
+    os.replace(tmp, path / MARKER)
+
+
+def _adopted(path: Path, kind: str) -> set:
+    """The files of a folder written before manifests existed that are taken as the package's:
+    a run folder's outputs by name; every file of a folder of another kind."""
+    if kind == "run":
+        return {p.relative_to(path).as_posix() for pat in _ADOPT_RUN for p in path.glob(pat)
+                if p.is_file()}
+    out = set()
+    for p in path.rglob("*"):
+        rel = p.relative_to(path)
+        nested = any((path / Path(*rel.parts[:i]) / MARKER).exists()
+                     for i in range(1, len(rel.parts)))
+        if p.is_file() and p.name not in _OWN and not nested:
+            out.add(rel.as_posix())
+    return out
+
+
+def _foreign_entries(path: Path) -> list[str]:
+    """Entries of a folder other than the package's bookkeeping files."""
+    try:
+        return sorted(q.name for q in path.iterdir() if q.name not in _OWN)
+    except OSError:
+        return []
+
+
 #: how long a folder whose lock holder is exiting is waited for [s]
 EXITING_GRACE_S = 30.0
+#: SIGKILL's bit in the pending-signal masks of /proc/PID/status
+_SIGKILL_BIT = 1 << 8
 
 
-def _process_exiting(pid: str) -> bool:
-    """Whether local process ``pid`` is exiting: its main thread has ended (state Z or X in
-    ``/proc/PID/stat``) while other threads still close down. A process killed with SIGKILL
-    keeps its files, and so the folder's lock, until its last thread has gone (Dr.Jit's thread
-    pool takes a moment), so a run started at once after a kill would find the folder busy."""
+def _process_exiting(pid) -> bool:
+    """Whether local process ``pid`` is going away: its main thread has ended (state Z or X in
+    ``/proc/PID/stat``) while other threads still close down, or a SIGKILL is pending for it
+    (a killed process on a busy machine waits for a core before it ends). A process killed with
+    SIGKILL keeps its files, and so the folder's lock, until its last thread has gone (Dr.Jit's
+    thread pool takes a moment), so a run started at once after a kill would find the folder
+    busy."""
     try:
         stat = Path(f"/proc/{int(pid)}/stat").read_text()
     except (OSError, ValueError):
         return False           # not a local process (or no /proc): a real holder
-    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    if stat.rsplit(")", 1)[1].split()[0] in ("Z", "X"):
+        return True
+    try:
+        status = Path(f"/proc/{int(pid)}/status").read_text()
+    except OSError:
+        return False
+    for line in status.splitlines():
+        if line.startswith(("SigPnd:", "ShdPnd:")) and int(line.split()[1], 16) & _SIGKILL_BIT:
+            return True
+    return False
 
 
-def _flock_unless_held(fcntl, fh) -> bool:
-    """Take an exclusive ``flock`` on ``fh``; wait up to :data:`EXITING_GRACE_S` while its holder
-    (the pid written in the file) is exiting. Returns False if another process holds it."""
+def lock_holders(lock_file) -> list[int]:
+    """The processes holding a ``flock`` on a file, from ``/proc/locks`` (Linux).
+
+    Parameters
+    ----------
+    lock_file : str or pathlib.Path
+        The locked file.
+
+    Returns
+    -------
+    list of int
+        Their process ids (empty when none, or when ``/proc/locks`` cannot be read).
+    """
+    try:
+        st = os.stat(lock_file)
+        text = Path("/proc/locks").read_text()
+    except OSError:
+        return []
+    dev = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    pids = []
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) >= 6 and parts[1] == "FLOCK" and parts[5] == dev:
+            try:
+                pids.append(int(parts[4]))
+            except ValueError:
+                continue
+    return sorted(set(pids))
+
+
+def _describe(pid) -> str:
+    """``process PID (its command line)`` for messages."""
+    try:
+        cmd = Path(f"/proc/{int(pid)}/cmdline").read_bytes().split(b"\0")
+        text = " ".join(c.decode(errors="replace") for c in cmd if c)
+    except (OSError, ValueError):
+        text = ""
+    if len(text) > 80:
+        text = text[:77] + "..."
+    return f"process {pid}" + (f" ({text})" if text else "")
+
+
+def _holders_text(lock_file: Path, written: str) -> str:
+    """Who holds a lock: the processes ``/proc/locks`` names, else the pid the last
+    mitsuba-veg writer wrote into the file."""
+    pids = lock_holders(lock_file)
+    if pids:
+        return ", ".join(_describe(p) for p in pids)
+    return f"process {written or '?'}"
+
+
+def _flock_wait(fcntl, fh, mode, lock_file: Path, wait: float = 0.0) -> bool:
+    """Take a ``flock`` (``mode``: ``LOCK_EX`` or ``LOCK_SH``) on ``fh``. Waits up to ``wait``
+    seconds for any holder, and up to :data:`EXITING_GRACE_S` while every holder is going away
+    (:func:`_process_exiting`). Returns False if another process holds it."""
     t0 = time.monotonic()
     while True:
         try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh.fileno(), mode | fcntl.LOCK_NB)
             return True
         except BlockingIOError:
-            fh.seek(0)
-            if not _process_exiting(fh.read().strip()) or \
-                    time.monotonic() - t0 > EXITING_GRACE_S:
+            waited = time.monotonic() - t0
+            if waited < wait:
+                time.sleep(0.05)
+                continue
+            pids = lock_holders(lock_file)
+            if not pids:
+                fh.seek(0)
+                pids = [fh.read().strip()]
+            if not all(_process_exiting(p) for p in pids) or waited > EXITING_GRACE_S:
                 return False
             time.sleep(0.02)
 
 
-class OutputFolder:
+def _flock_unless_held(fcntl, fh) -> bool:
+    """Take an exclusive ``flock`` on ``fh``; wait up to :data:`EXITING_GRACE_S` while its holder
+    is exiting. Returns False if another process holds it."""
+    return _flock_wait(fcntl, fh, fcntl.LOCK_EX, Path(fh.name))
+
+
+class _Claim:
+    """The state of a folder claimed by this process, shared by every :class:`OutputFolder` of
+    it (a folder claimed again in the same process, e.g. a sweep's run folder claimed by the
+    sweep's task and then by the run, shares one lock and one manifest)."""
+
+    def __init__(self, path: Path, kind: str, option: str, fh, meta: dict, files: set):
+        self.path, self.kind, self.option, self.fh = path, kind, option, fh
+        self.root = path.resolve()
+        self.meta, self.files, self.refs = meta, files, 1
+        self.owner = threading.get_ident()
+        self.lock = threading.RLock()
+
+    def save(self) -> None:
+        with self.lock:
+            self.meta["files"] = sorted(self.files)
+            _write_marker(self.path, self.meta)
+
+    def record(self, path: Path) -> None:
+        rel = Path(os.path.abspath(path)).relative_to(self.root).as_posix()
+        if Path(rel).name in _OWN:
+            return
+        with self.lock:
+            if rel in self.files:
+                return
+            if Path(path).is_file():
+                raise ParameterError(self.option, str(self.path), "output names free or "
+                                     f"taken by mitsuba-veg's own files ({rel} exists and was "
+                                     "not written by mitsuba-veg)", f"move {rel} out of the "
+                                     "folder, or "
+                                     f"choose another {self.option} folder; nothing was "
+                                     "overwritten")
+            self.files.add(rel)
+            self.save()
+
+
+#: folders claimed by this process: resolved path -> claim
+_HELD: dict = {}
+_HELD_LOCK = threading.RLock()
+
+
+def _innermost_claim(path) -> "_Claim | None":
+    """The claimed folder of this process that holds ``path`` most closely."""
+    p = Path(os.path.abspath(path))
+    best = None
+    with _HELD_LOCK:
+        for c in _HELD.values():
+            if p == c.root or c.root in p.parents:
+                if best is None or len(c.root.parts) > len(best.root.parts):
+                    best = c
+    return best
+
+
+def _on_write(path) -> None:
+    """Watcher of :func:`mitsuba_veg.atomic.atomic_write`: a file written into a claimed folder
+    goes into that folder's manifest (a foreign file in its place is refused)."""
+    c = _innermost_claim(path)
+    if c is not None:
+        c.record(Path(path))
+
+
+def _probe_writable(path: Path) -> str | None:
+    """None if a file can be created in ``path``, else the reason (as the OS says it)."""
+    probe = path / f".mitsuba-veg.probe.{os.getpid()}.{threading.get_ident()}"
+    try:
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        return e.strerror or str(e)
+    return None
+
+
+class _Released:
+    """A context manager whose exit (and garbage collection) calls ``release()``."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    def __del__(self):
+        self.release()
+
+
+class OutputFolder(_Released):
     """An output folder claimed by one command.
 
-    The folder is created if needed, checked to be writable, marked with its kind
-    (``.mitsuba-veg.json``) and locked (``.mitsuba-veg.lock``, an advisory ``flock`` the kernel
-    drops when the process ends, also on SIGKILL) so that a second process writing into it is
-    refused instead of interleaving. A holder that is exiting (killed, its threads still closing
-    down) is waited for, up to :data:`EXITING_GRACE_S`. Use as a context manager or call
-    :meth:`release`.
+    The folder is created if needed, checked to be writable (for the files to come, not only
+    the marker), marked with its kind (``.mitsuba-veg.json``) and locked
+    (``.mitsuba-veg.lock``, an advisory ``flock`` the kernel drops when the process ends, also
+    on SIGKILL) so that a second process writing into it is refused instead of interleaving.
+    A holder that is going away (killed, its threads still closing down) is waited for, up to
+    :data:`EXITING_GRACE_S`. The marker keeps a manifest of the files the package wrote into
+    the folder (every :func:`~mitsuba_veg.atomic.atomic_write` into it, and
+    :meth:`record`): :meth:`clear` deletes only those, and a file the package did not write is
+    never overwritten. A folder that holds anything mitsuba-veg did not write and no marker is
+    refused (it is not an output folder), as is an empty path. Use as a context manager or
+    call :meth:`release`.
 
     Parameters
     ----------
@@ -138,18 +360,60 @@ class OutputFolder:
         The command-line option that named the folder, for messages; default ``"--out"``.
     info : dict, optional
         More fields for the marker file (e.g. the scenario); default None.
+    wait : float, optional
+        Seconds to wait for another process's lock before refusing [s]; default 0 (a holder
+        that is going away is always waited for).
+    reads : str or pathlib.Path, optional
+        A run folder the command reads (``render``, ``animate``): it is held with a
+        :class:`RunReader` until :meth:`release`, so that no run clears it meanwhile; default
+        None.
 
     Raises
     ------
     ParameterError
-        If the path is a file, cannot be created or written, holds another kind of result, or
-        another process holds the lock.
+        If the path is empty or a file, cannot be created or written, holds another kind of
+        result or files mitsuba-veg did not write, or another process holds the lock.
     """
 
-    def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None):
+    def __init__(self, path, kind: str, option: str = "--out", info: dict | None = None,
+                 wait: float = 0.0, reads=None):
+        self._claim = self._fh = self._reader = None
+        if reads is not None:
+            self._reader = RunReader(reads)
+        if not str(path).strip():
+            raise ParameterError(option, str(path), "a folder path (an empty one would be the "
+                                 "current folder)", f"give {option} DIR (is a variable such "
+                                 "as $OUTDIR unset?)")
         self.path = Path(path)
         self.kind = kind
-        self._fh = None
+        key = str(Path(os.path.abspath(self.path)))
+        t0 = time.monotonic()
+        while True:
+            with _HELD_LOCK:
+                held = _HELD.get(key)
+                if held is not None and held.owner == threading.get_ident():
+                    if held.kind != kind:
+                        raise ParameterError(option, str(self.path), f"a folder for a `{kind}`"
+                                             f" result (this process is writing a "
+                                             f"`{held.kind}` result into it)",
+                                             f"choose another {option} folder")
+                    held.refs += 1        # claimed again by the same task: one lock
+                    self._claim, self._fh = held, held.fh
+                    return
+            if held is None:
+                break
+            if time.monotonic() - t0 >= wait:   # another thread of this process writes it
+                raise FolderBusy(option, str(self.path), "a folder no other task is writing "
+                                 f"(another thread of this process, {os.getpid()}, holds it)",
+                                 f"wait for it to finish, or choose another {option} folder")
+            time.sleep(0.05)
+        self._claim = self._take(option, info, wait)
+        self._fh = self._claim.fh
+        with _HELD_LOCK:
+            _HELD[key] = self._claim
+        atomic_watch(_on_write)
+
+    def _take(self, option, info, wait) -> _Claim:
         p = self.path
         if p.exists() and not p.is_dir():
             raise ParameterError(option, str(p), "a folder (this is a file)",
@@ -159,38 +423,94 @@ class OutputFolder:
         except OSError as e:
             raise ParameterError(option, str(p), "a folder that can be created and written",
                                  f"{e.strerror}: choose a writable location") from None
-        held = folder_kind(p)
-        if held is not None and held != kind:
-            raise ParameterError(option, str(p), f"an empty folder or one holding a `{kind}` "
-                                 f"result (it holds a `{held}` result)",
-                                 f"choose another {option} folder; this one is not changed")
         try:
-            import fcntl
-            self._fh = open(p / LOCK, "a+")
-            if not _flock_unless_held(fcntl, self._fh):
-                self._fh.seek(0)
-                other = self._fh.read().strip() or "?"
-                self._fh.close()
-                self._fh = None
-                raise ParameterError(option, str(p), "a folder no other mitsuba-veg process "
-                                     f"is writing (process {other} holds it)",
-                                     "wait for that process to finish, or choose another "
-                                     f"{option} folder") from None
-            self._fh.seek(0)
-            self._fh.truncate()
-            self._fh.write(str(os.getpid()))
-            self._fh.flush()
-            if not (p / MARKER).exists():
-                write_json(p / MARKER, {"kind": kind, **(info or {})})
-        except PermissionError as e:
-            if self._fh is not None:
-                self._fh.close()
-                self._fh = None
+            meta = _read_marker(p)
+        except (ValueError, OSError) as e:
+            raise ParameterError(option, str(p), f"a folder with a readable {MARKER}",
+                                 f"its marker cannot be read ({type(e).__name__}); choose "
+                                 f"another {option} folder") from None
+        held = folder_kind(p)
+        if held is not None and held != self.kind:
+            raise ParameterError(option, str(p), f"an empty folder or one holding a "
+                                 f"`{self.kind}` result (it holds a `{held}` result)",
+                                 f"choose another {option} folder; this one is not changed")
+        if meta is None and held is None:
+            foreign = _foreign_entries(p)
+            if foreign:
+                more = f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+                raise ParameterError(option, str(p), "an empty folder or one written by "
+                                     "mitsuba-veg (this one holds "
+                                     f"{', '.join(foreign[:3])}{more}, not written by it)",
+                                     f"choose a new or empty {option} folder; nothing in this "
+                                     "one was changed")
+        import fcntl
+        try:
+            fh = open(p / LOCK, "a+")
+        except OSError as e:
             raise ParameterError(option, str(p), "a writable folder",
                                  f"{e.strerror}: choose a writable location") from None
+        if not _flock_wait(fcntl, fh, fcntl.LOCK_EX, p / LOCK, wait):
+            fh.seek(0)
+            who = _holders_text(p / LOCK, fh.read().strip())
+            fh.close()
+            raise FolderBusy(option, str(p), f"a folder no other process is writing ({who} "
+                             "holds it)", "wait for that process to finish, or choose another "
+                             f"{option} folder")
+        try:
+            why = _probe_writable(p)
+            if why is None:
+                for sub in ("maps", "snapshots"):
+                    if self.kind == "run" and (p / sub).is_dir():
+                        why = _probe_writable(p / sub)
+                        if why is not None:
+                            why = f"{sub}/: {why}"
+                            break
+            if why is not None:
+                raise ParameterError(option, str(p), "a writable folder", f"{why}: make it "
+                                     f"writable or choose another {option} folder (checked "
+                                     "before any work)")
+            fh.seek(0)
+            fh.truncate()
+            fh.write(str(os.getpid()))
+            fh.flush()
+            if meta is None:
+                meta = {"kind": self.kind, **(info or {})}
+            files = meta.get("files")
+            files = set(files) if isinstance(files, list) else _adopted(p, self.kind)
+            claim = _Claim(p, self.kind, option, fh, meta, files)
+            claim.save()
+        except BaseException:
+            fh.close()
+            raise
+        return claim
+
+    @property
+    def files(self) -> list[str]:
+        """The files the package wrote into the folder (its manifest), relative paths."""
+        return sorted(self._claim.files) if self._claim is not None else []
+
+    def record(self, path) -> None:
+        """Add a file written into the folder by other means than
+        :func:`~mitsuba_veg.atomic.atomic_write` (e.g. by a Dask worker) to the manifest.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file (inside the folder).
+        """
+        c = self._claim
+        if c is None:
+            return
+        rel = Path(os.path.abspath(path)).relative_to(c.root).as_posix()
+        with c.lock:
+            if rel not in c.files:
+                c.files.add(rel)
+                c.save()
 
     def clear(self, names) -> None:
-        """Remove stale outputs (files or folders named in ``names``) of an earlier result.
+        """Remove the earlier result's outputs named in ``names``: the files of the manifest
+        among them (a folder name: the manifest's files under it, and the output folders of a
+        render or an animation nested there); anything else stays.
 
         Parameters
         ----------
@@ -202,36 +522,197 @@ class OutputFolder:
 
     def release(self) -> None:
         """Release the folder's lock (closing the lock file drops the ``flock``); idempotent."""
+        reader, self._reader = getattr(self, "_reader", None), None
+        if reader is not None:
+            reader.release()
+        c, self._claim = getattr(self, "_claim", None), None
+        self._fh = None
+        if c is None:
+            return
+        with _HELD_LOCK:
+            c.refs -= 1
+            if c.refs > 0:
+                return
+            _HELD.pop(str(Path(os.path.abspath(c.path))), None)
+            if not _HELD:
+                atomic_unwatch(_on_write)
+        c.fh.close()  # closing drops the flock
+
+
+class RunReader(_Released):
+    """A shared lock on a folder that a command reads (``render`` and ``animate`` read a run
+    folder): while one is held, a run that would clear the folder (``--fresh``, or a new run
+    in it) is refused instead of deleting files under the reader. A folder that cannot be
+    written (so nothing can clear it) is read without the lock. Use as a context manager or
+    call :meth:`release`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The folder that is read.
+    option : str, optional
+        The argument that named the folder, for messages; default ``"RUN_DIR"``.
+
+    Raises
+    ------
+    ParameterError
+        If a run has been clearing the folder for more than 5 s.
+    """
+
+    def __init__(self, path, option: str = "RUN_DIR"):
+        import fcntl
+        self._fh = None
+        lock = Path(path) / READERS
+        try:
+            fh = open(lock, "a+")
+        except OSError:
+            return
+        if not _flock_wait(fcntl, fh, fcntl.LOCK_SH, lock, wait=5.0):
+            fh.close()
+            raise FolderBusy(option, str(path), "a run folder that is not being cleared "
+                             f"({_holders_text(lock, '')} is starting a new run in it)",
+                             "wait for that run to write its first day, then try again")
+        self._fh = fh
+
+    def release(self) -> None:
+        """Drop the shared lock; idempotent."""
         if self._fh is not None:
-            self._fh.close()  # closing drops the flock
+            self._fh.close()
             self._fh = None
+
+
+class _Exclusive:
+    """An exclusive ``flock`` on a folder's lock file for the time of a clear; refused with one
+    line when another command holds it (a reader of the folder, or a nested folder's writer).
+    Without a lock file that can be created (a read-only folder) it is a no-op."""
+
+    def __init__(self, lock: Path, folder: Path, what: str):
+        import fcntl
+        self._fh = None
+        try:
+            fh = open(lock, "a+")
+        except OSError:
+            return
+        if not _flock_wait(fcntl, fh, fcntl.LOCK_EX, lock):
+            fh.seek(0)
+            who = _holders_text(lock, fh.read().strip() if lock.name == LOCK else "")
+            fh.close()
+            raise FolderBusy("--out", str(folder), "a folder no other mitsuba-veg command is "
+                             f"using when its earlier outputs are cleared ({who} {what} it)",
+                             "wait for that command to finish, or choose another --out "
+                             "folder; nothing was deleted")
+        self._fh = fh
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self.release()
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
 
-    def __del__(self):
-        self.release()
+
+def _manifest_of(folder: Path):
+    """(claim or None, the manifest's set of files or None when nothing is known to be the
+    package's)."""
+    c = _innermost_claim(folder)
+    if c is not None and c.root == Path(os.path.abspath(folder)):
+        return c, c.files
+    try:
+        meta = _read_marker(folder)
+    except (ValueError, OSError):
+        return None, None
+    if meta is not None and isinstance(meta.get("files"), list):
+        return None, set(meta["files"])
+    kind = folder_kind(folder)
+    if kind == "run":
+        return None, _adopted(folder, "run")
+    return None, None
+
+
+def _prune(directory: Path) -> None:
+    """Remove the empty folders under ``directory`` and ``directory`` itself if empty."""
+    if not directory.is_dir():
+        return
+    for root, _, _ in sorted(os.walk(directory), key=lambda t: -len(t[0])):
+        try:
+            os.rmdir(root)
+        except OSError:
+            pass
+
+
+def _clear_nested(sub: Path) -> None:
+    """Clear a render's or an animation's output folder nested in a run folder: the files of
+    its manifest; the folder itself goes when nothing else is left in it."""
+    with _Exclusive(sub / LOCK, sub, "writes"):
+        _, files = _manifest_of(sub)
+        for rel in sorted(files or ()):
+            (sub / rel).unlink(missing_ok=True)
+        for rel in sorted(files or (), key=len, reverse=True):
+            if "/" in rel:
+                _prune(sub / rel.split("/", 1)[0])
+        if _foreign_entries(sub):
+            meta = _read_marker(sub) or {"kind": folder_kind(sub)}
+            meta["files"] = []
+            _write_marker(sub, meta)
+            return
+        for n in _OWN:
+            (sub / n).unlink(missing_ok=True)
+    _prune(sub)
 
 
 def clear_outputs(folder, names) -> None:
-    """Remove the files or folders ``names`` from ``folder`` (those that exist).
+    """Remove an earlier result's outputs among ``names`` from ``folder``: only files the package
+    wrote and recorded in the folder's manifest (a run folder from before manifests: its
+    outputs by name), and the output folders of a render or an animation nested under those
+    names; files the package did not write stay, and so do the folders holding them.
 
     Parameters
     ----------
     folder : str or pathlib.Path
         The folder.
     names : iterable of str
-        File or folder names inside ``folder``; folders are removed with their contents.
+        File or folder names inside ``folder``; for a folder name, the recorded files under it.
+
+    Raises
+    ------
+    ParameterError
+        If another command uses the folder (``render``/``animate`` reading it, or writing a
+        nested output folder): nothing is deleted then.
     """
+    folder = Path(folder)
+    claim, files = _manifest_of(folder)
+    if files is None:
+        return
+    names = [str(n).strip("/") for n in names if str(n).strip("/")]
+    targets = sorted(f for f in files for n in names if f == n or f.startswith(n + "/"))
+    nested = []
     for n in names:
-        q = Path(folder) / n
+        q = folder / n
         if q.is_dir():
-            shutil.rmtree(q)
-        elif q.exists():
-            q.unlink()
+            for m in sorted(q.rglob(MARKER)):
+                if folder_kind(m.parent) in _RUN_CHILD_KINDS:
+                    nested.append(m.parent)
+    if not nested and not any((folder / t).exists() for t in targets):
+        return
+    with _Exclusive(folder / READERS, folder, "reads"):
+        for sub in nested:
+            _clear_nested(sub)
+        for t in targets:
+            (folder / t).unlink(missing_ok=True)
+            files.discard(t)
+        for n in names:
+            _prune(folder / n)
+    if claim is not None:
+        claim.save()
+    else:
+        try:
+            meta = _read_marker(folder)
+        except (ValueError, OSError):
+            meta = None
+        if meta is not None:
+            meta["files"] = sorted(files)
+            _write_marker(folder, meta)
 
 
 # --------------------------------------------------------------------------------------------
@@ -438,12 +919,13 @@ class DayFrames:
         Returns
         -------
         dict
-            ``{"maps": [PNG paths written by this run], "animation": GIF path}`` (``animation`` only
-            when the GIF was written); paths as str.
+            ``{"maps": [PNG paths of every map of the run], "animation": GIF path}``
+            (``animation`` only when the GIF was written); paths as str. A resumed run lists
+            the maps written before the resume as well.
         """
-        files = {"maps": [str(p) for p in sorted(set(self.frames))]}
         frames = sorted(p for p in set(self.dir.glob("day_*.png"))
                         if p.stem[4:].isdigit() and int(p.stem[4:]) <= self.sim.days)
+        files = {"maps": [str(p) for p in sorted(set(frames) | set(self.frames))]}
         if len(frames) >= 2:
             from PIL import Image
             imgs = [Image.open(p).convert("P", palette=Image.ADAPTIVE) for p in frames]

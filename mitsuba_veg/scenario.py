@@ -28,6 +28,7 @@ from pathlib import Path
 import mitsuba as mi
 
 from .errors import ParameterError, unknown_field
+from .inputs import check_scene_files, input_hashes
 from .light.clear_sky import daylight as _daylight
 
 #: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
@@ -73,14 +74,16 @@ SCHEMA: dict[str, Field] = {
     "site": Field("table", fields={
         "latitude": _num("float", -90.0, 90.0, "[deg] north positive"),
         "longitude": _num("float", -180.0, 180.0, "[deg] east positive"),
-        "timezone": _num("float", -14.0, 14.0, "[h] offset from UTC"),
+        "timezone": _num("float", -14.0, 14.0, "[h] offset from UTC (default: longitude / 15, "
+                         "rounded)"),
     }),
     "light": Field("table", fields={
         "photons": _num("int", 1, MAX_PHOTONS, "photons per light pass"),
         "max_depth": _num("int", 1, 1000, "bounces per photon"),
         "seed": _num("int", 0, 2**31 - 1, "random seed of the light, weather and moss"),
         "indirect": Field("bool", doc="false: direct light only (paper 000 fig 4.2)"),
-        "when": Field("datetime", doc="ISO 8601 date-time, e.g. 2026-04-20T10:00:00+09:00"),
+        "when": Field("datetime", doc="ISO 8601 date-time, e.g. 2026-04-20T10:00:00+09:00 "
+                      "(no offset: the site's local time)"),
     }),
     "terrain": Field("table", fields={
         "ground": Field("str", doc="shape id of the soil-bearing terrain"),
@@ -184,7 +187,8 @@ SCHEMA: dict[str, Field] = {
         "v": Field("vec3", doc="plane_grid: second edge [m]"),
     }),
     "render": Field("table", fields={
-        "when": Field("datetime", doc="daylight of the render (default: the day at 10:00)"),
+        "when": Field("datetime", doc="daylight of the render (default: the day at 10:00; "
+                      "no offset: the site's local time)"),
         "materials": Field("map", item=Field("str"), doc="render material per shape id"),
         "cameras": Field("map", item=Field("table", fields={
             "origin": _VEC3, "target": _VEC3, "up": _VEC3,
@@ -486,12 +490,8 @@ class Scenario:
             the horizon at ``light.when``.
         """
         path = self.file("scene.file")
-        try:
-            scene = mi.load_file(str(path), optimize=False)
-        except Exception as e:  # Mitsuba's own message names the XML problem
-            raise ParameterError("scene.file", str(path), "a Mitsuba 3 XML scene that loads",
-                                 f"correct the XML: {' '.join(str(e).split())[:400]}",
-                                 str(self.path)) from None
+        input_hashes(self)   # the files the run reads, as it reads them (resumes compare them)
+        scene = load_scene_file(path, "scene.file", str(self.path))
         when = self.get("light.when")
         if daylight is False or (daylight is None and when is None):
             return scene
@@ -514,12 +514,107 @@ class Scenario:
         return mi.load_dict(d, optimize=False)
 
 
+def load_scene_file(path, field: str = "scene.file", source: str | None = None):
+    """Load a Mitsuba XML scene with ``optimize=False`` (shape ids kept), after checking the
+    files it references (:func:`mitsuba_veg.inputs.check_scene_files`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The XML file.
+    field : str, optional
+        The field or argument that named it, for messages (default ``"scene.file"``).
+    source : str, optional
+        The scenario file, for messages; default None.
+
+    Returns
+    -------
+    mi.Scene
+        The scene, its shape ids kept.
+
+    Raises
+    ------
+    ParameterError
+        Naming a referenced file that is missing, empty or truncated, or with Mitsuba's message
+        for an XML that does not load.
+    """
+    check_scene_files(path, field, source)
+    try:
+        return mi.load_file(str(path), optimize=False)
+    except Exception as e:  # Mitsuba's own message names the XML problem
+        raise ParameterError(field, str(path), "a Mitsuba 3 XML scene that loads",
+                             f"correct the XML: {' '.join(str(e).split())[:400]}",
+                             source) from None
+
+
 def _parse_value(text: str):
     """A --set value: TOML syntax (numbers, true/false, strings, arrays), bare words as strings."""
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+
+
+def _check_key(item: str, key: str, source) -> None:
+    """Refuse a ``--set`` key that is empty or has an empty name between its dots (the whole
+    item is named: ``--set light..photons=5``, ``--set =1``)."""
+    if not key or any(not p.strip() for p in key.split(".")):
+        raise ParameterError("--set", item, "KEY=VALUE with a dotted key of non-empty names "
+                             "(e.g. light.photons=2000000)", "write the field's full dotted "
+                             "name before the = (docs/scenario.md lists them)", source)
+
+
+#: the scenario fields ``--set`` may give with a bare Mitsuba XML scene (no scenario)
+XML_SET_FIELDS = ("light.photons", "light.seed", "light.max_depth", "light.indirect")
+
+
+def light_overrides(overrides, source: str = "--set") -> dict:
+    """The light settings of ``--set`` items given with a bare XML scene (no scenario).
+
+    Every key is checked like a scenario's (unknown fields refused with the closest names, values
+    against their range); fields other than :data:`XML_SET_FIELDS` need a scenario and are
+    refused.
+
+    Parameters
+    ----------
+    overrides : iterable of str
+        ``"KEY=VALUE"`` items.
+    source : str, optional
+        Where they come from, for messages; default ``"--set"``.
+
+    Returns
+    -------
+    dict
+        ``{"photons": ..., "seed": ..., "max_depth": ..., "indirect": ...}`` (those given).
+
+    Raises
+    ------
+    ParameterError
+        For a malformed item, an unknown field, a value out of range or a field that needs a
+        scenario.
+    """
+    out = {}
+    known = known_fields()
+    for item in overrides or ():
+        if "=" not in item:
+            raise ParameterError(source, item, "KEY=VALUE with a dotted key",
+                                 "e.g. --set light.photons=2000000")
+        key, text = (x.strip() for x in item.split("=", 1))
+        _check_key(item, key, source)
+        f = field_spec(key) if key in XML_SET_FIELDS else None
+        if f is None:
+            try:
+                field_spec(key)
+            except ParameterError as e:
+                raise ParameterError(e.field, _parse_value(text), e.allowed, e.fix,
+                                     source) from None
+            raise ParameterError(key, _parse_value(text), "with an XML scene only "
+                                 + ", ".join(XML_SET_FIELDS), "pass a scenario TOML as SCENE "
+                                 "to set other fields", source)
+        value = _parse_value(text)
+        _check_value(key, f, value, source, known)
+        out[key.split(".", 1)[1]] = value
+    return out
 
 
 def apply_overrides(data: dict, overrides, source: str = "--set") -> dict:
@@ -553,6 +648,7 @@ def apply_overrides(data: dict, overrides, source: str = "--set") -> dict:
             raise ParameterError(source, item, "KEY=VALUE with a dotted key",
                                  "e.g. --set light.photons=2000000")
         key, text = item.split("=", 1)
+        _check_key(item, key.strip(), source)
         parts = key.strip().split(".")
         node = data
         for p in parts[:-1]:
@@ -608,7 +704,20 @@ def validate(data: dict, source: str) -> dict:
             if k not in reg:
                 raise ParameterError(f"regions.{name}.{k}", None, "present",
                                      "a region needs shapes, min and max", source)
+        bad = [a for a, lo, hi in zip("xyz", reg["min"], reg["max"]) if lo > hi]
+        if bad:
+            raise ParameterError(f"regions.{name}.min", reg["min"], f"<= regions.{name}.max "
+                                 f"{reg['max']} in x, y and z (not in {', '.join(bad)}: the "
+                                 "box would be empty)", "min is the lower corner and max the "
+                                 "upper one: swap the values that are the wrong way round",
+                                 source)
     moss = data.get("moss", {})
+    species = moss.get("species")
+    if isinstance(species, list):
+        twice = sorted({k for k in species if species.count(k) > 1})
+        if twice:
+            raise ParameterError("moss.species", species, f"each species once ({twice[0]} is "
+                                 "listed more than once)", "remove the repeated entry", source)
     if moss.get("priority") is not None:
         n = len(moss.get("species", ("bryum_argenteum", "hypnum_plumaeforme", "polytrichum")))
         if len(moss["priority"]) != n:
@@ -619,7 +728,52 @@ def validate(data: dict, source: str) -> dict:
         raise ParameterError("moss.initial", moss["initial"], f"<= moss.capacity "
                              f"({moss['capacity']})", "no more initial moss than the capacity",
                              source)
+    for sec in ("light", "render"):      # a time without a UTC offset is the site's local time
+        if isinstance(data.get(sec), dict) and data[sec].get("when") is not None:
+            data[sec]["when"] = site_time(data[sec]["when"], data["site"])
     return data
+
+
+def site_offset_hours(site: dict) -> float:
+    """The site's offset from UTC [h]: ``site.timezone``, else its longitude / 15 rounded (the
+    render's rule).
+
+    Parameters
+    ----------
+    site : dict
+        The scenario's ``[site]`` (``timezone`` [h], ``longitude`` [deg]).
+
+    Returns
+    -------
+    float
+        Hours east of UTC.
+    """
+    tz = site.get("timezone")
+    return float(tz) if tz is not None else float(round(float(site.get("longitude", 0.0)) / 15.0))
+
+
+def site_time(when, site: dict) -> str:
+    """An ISO 8601 date-time with its UTC offset: a time without one is local time at the site
+    (:func:`site_offset_hours`); a time with one is kept.
+
+    Parameters
+    ----------
+    when : str or datetime.datetime
+        The date-time (``Z`` for UTC allowed).
+    site : dict
+        The scenario's ``[site]``.
+
+    Returns
+    -------
+    str
+        The date-time with an offset, e.g. ``2026-06-21T10:00:00+09:00``.
+    """
+    t = str(when).strip() if not isinstance(when, _dt.datetime) else when.isoformat()
+    v = _dt.datetime.fromisoformat(t[:-1] + "+00:00" if t.endswith(("Z", "z")) else t)
+    if v.tzinfo is not None:
+        return t
+    tz = _dt.timezone(_dt.timedelta(hours=site_offset_hours(site)))
+    return v.replace(tzinfo=tz).isoformat()
 
 
 def load_scenario(path, overrides=None) -> Scenario:
@@ -660,6 +814,7 @@ def load_scenario(path, overrides=None) -> Scenario:
     for item in overrides or ():
         key = str(item).split("=", 1)[0].strip()
         if "=" in str(item):
+            _check_key(str(item), key, f"{path} (--set)")
             try:
                 field_spec(key)
             except ParameterError as e:

@@ -59,7 +59,8 @@ def _digest(root: Path) -> dict:
 X = str(SCEN.parent / "scene.xml") if (SCEN.parent / "scene.xml").exists() else None
 R = ["run", str(SCEN), "--quiet"]
 I = ["irradiance", str(SCEN), "--quiet"]
-T = ["tune", str(SCEN), "--target", "synthetic:S1=60", "--quiet", "--days", "2"]
+T = ["tune", str(SCEN), "--target", "synthetic:S1=60", "--quiet", "--days", "2", "--species",
+     "bryum_argenteum"]
 
 #: (argv with {tmp} placeholders, text the one line must contain)
 CASES = [

@@ -28,7 +28,7 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 LAYERS: list[tuple[str, list[str]]] = [
     ("base", ["backend", "errors", "atomic", "arrays", "meshes", "outputs", "plots", "units"]),
     ("light", ["light", "integrators"]),
-    ("ground", ["soil", "climate", "terrain", "forest_floor", "scenario"]),
+    ("ground", ["soil", "climate", "terrain", "forest_floor", "scenario", "inputs"]),
     ("models", ["moss", "trees", "foliage", "world", "export_gltf"]),
     ("daily loop", ["daily"]),
     ("render/tune/sweeps", ["render", "tune", "sweeps"]),

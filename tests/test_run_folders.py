@@ -106,7 +106,10 @@ def test_sigkill_then_resume_equals_uninterrupted_run(tmp_path, reference, momen
     for k, v in ref_arrays.items():
         assert np.array_equal(arrays[k], v), k
     assert maps == ref_maps and snaps == ref_snaps     # no half-written leftovers
-    assert json.loads((out / "summary.json").read_text())["resumed"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["resumed"]
+    # the summary lists every map of the run, also those written before the kill
+    assert sorted(Path(m).name for m in summary["files"]["maps"]) == ref_maps
 
 
 def test_second_writer_is_refused_by_the_lock(tmp_path):
@@ -185,13 +188,21 @@ def test_a_folder_whose_holder_is_exiting_is_waited_for(tmp_path, monkeypatch):
 
 def test_fresh_run_clears_what_an_earlier_run_left(tmp_path):
     """run --days 6, then --days 3 --fresh with another seed: maps, snapshots, the GIF and the
-    animation's frame days hold the new run only."""
+    animation's frame days hold the new run only; a render folder the package wrote goes, and
+    the user's own files in the run folder stay."""
     import mitsuba_veg as mv
+    from mitsuba_veg.atomic import atomic_write
+    from mitsuba_veg.outputs import OutputFolder
     from mitsuba_veg.render.history import load_run
     out = tmp_path / "run"
     mv.run(SCEN, out=out, days=6, overrides=SMALL, progress=False)
-    (out / "render").mkdir()
-    (out / "render" / "render_overview.png").write_bytes(b"old")
+    for sub in ("render", "animation"):      # as `render` and `animate` write them
+        with OutputFolder(out / sub, "render" if sub == "render" else "animate"):
+            with atomic_write(out / sub / "old.png") as tmp:
+                tmp.write_bytes(b"old")
+    (out / "animation" / "photo_2025.png").write_bytes(b"mine")   # the user's own files
+    (out / "maps" / "site_plan.png").write_bytes(b"mine")
+    (out / "notes.txt").write_text("mine")
     s = mv.run(SCEN, out=out, days=3, overrides=SMALL + ["light.seed=7"], resume=False,
                progress=False)
     assert s["days"] == 3 and not s["resumed"]
@@ -200,6 +211,11 @@ def test_fresh_run_clears_what_an_earlier_run_left(tmp_path):
     assert sorted(p.name for p in (out / "snapshots").glob("day_*.npz")) == \
         ["day_0001.npz", "day_0002.npz", "day_0003.npz"]
     assert not (out / "render").exists()
+    assert sorted(p.name for p in (out / "animation").iterdir()
+                  if not p.name.startswith(".")) == ["photo_2025.png"]
+    assert (out / "animation" / "photo_2025.png").read_bytes() == b"mine"
+    assert (out / "maps" / "site_plan.png").read_bytes() == b"mine"
+    assert (out / "notes.txt").read_text() == "mine"
     from PIL import Image
     assert Image.open(out / "days.gif").n_frames == 3
     run = load_run(out)

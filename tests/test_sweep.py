@@ -110,7 +110,11 @@ def _checkpoint_day(run: Path) -> int:
         return -1
 
 
-def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
+@pytest.mark.parametrize("kill", ["group", "parent"])
+def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client, kill):
+    """SIGKILL of the sweep with its cluster (``group``), or of the sweep's process alone
+    (``parent``: its orphaned workers may still hold a run folder when the resumed sweep's task
+    for that run arrives): run again at once, the table is the uninterrupted one."""
     days = 24
     axes = '"climate.temperature" = [288.15, 293.15]'
     f = write_sweep(tmp_path / "s.toml", days, axes)          # 4 runs
@@ -137,12 +141,21 @@ def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
         else:
             pytest.fail("no run finished within 150 s")
     finally:
-        os.killpg(p.pid, signal.SIGKILL)   # the sweep, its scheduler and its workers
+        if kill == "group":
+            os.killpg(p.pid, signal.SIGKILL)   # the sweep, its scheduler and its workers
+        else:
+            os.kill(p.pid, signal.SIGKILL)     # the sweep's process alone
         p.wait()
     assert not (out / "sweep.parquet").exists()
     assert any(not (r / "summary.json").exists() and _checkpoint_day(r) >= 0
                for r in (out / "runs").glob("run-*")), "no run was left part-way"
-    df = mv.sweep(f, out, client=client, progress=False, plots=False)
+    try:
+        df = mv.sweep(f, out, client=client, progress=False, plots=False)
+    finally:
+        try:
+            os.killpg(p.pid, signal.SIGKILL)   # the orphans of a killed parent, if any left
+        except ProcessLookupError:
+            pass
     m = json.loads((out / "sweep.json").read_text())
     statuses = {r["status"] for r in m["runs"]}
     seen = [(r["run"], r["status"], r["resumed"], r["error"]) for r in m["runs"]]
@@ -152,22 +165,68 @@ def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client):
 
 
 def test_failing_run_is_reported_not_fatal(tmp_path, client):
-    f = write_sweep(tmp_path / "s.toml", 3, '"climate.humidity" = [0.7, 1.5]', seeds="[0]")
+    """A run that fails where only the run can tell (a shape id the scene lacks) is a failed
+    row with its error; the other runs go on."""
+    f = write_sweep(tmp_path / "s.toml", 3, '"terrain.ground" = ["ground", "grund"]',
+                    seeds="[0]")
     df = mv.sweep(f, tmp_path / "out", client=client, progress=False)
-    bad = df[df["climate.humidity"] == 1.5]
-    good = df[df["climate.humidity"] == 0.7]
+    bad = df[df["terrain.ground"] == "grund"]
+    good = df[df["terrain.ground"] == "ground"]
     assert len(bad) == 1 and bad["status"].item() == "failed"
-    assert "climate.humidity = 1.5" in bad["error"].item()
+    assert "terrain.ground = 'grund'" in bad["error"].item()
     assert bad["day"].isna().all()
     assert len(good) == 3 and set(good["status"]) == {"done"}
     m = json.loads((tmp_path / "out" / "sweep.json").read_text())
     assert m["counts"] == {"done": 1, "skipped": 0, "failed": 1}
     folder = tmp_path / "out" / "runs" / bad["run"].item()
     assert "ParameterError" in json.loads((folder / "error.json").read_text())["error"]
-    # the CLI says which run failed and exits 1
+    # the CLI says which run failed (on stderr too, with --quiet) and exits 1
     from mitsuba_veg.cli import main
-    assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--quiet", "--no-plots",
-                 "--scheduler", client.scheduler.address]) == 1
+    import contextlib
+    import io
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["sweep", str(f), "--out", str(tmp_path / "out"), "--quiet", "--no-plots",
+                     "--scheduler", client.scheduler.address]) == 1
+    assert "1 of 2 runs failed" in err.getvalue() and "grund" in err.getvalue()
+
+
+def test_bad_axis_value_is_refused_before_anything_starts(tmp_path):
+    """A value the scenario refuses, in any combination, ends the sweep before the cluster
+    starts: one line naming the field, the value and the run, exit code 2, nothing written."""
+    f = write_sweep(tmp_path / "s.toml", 3, '"climate.humidity" = [0.5, 7.0]', seeds="[0]")
+    with pytest.raises(ParameterError, match=r"the run with climate\.humidity=7\.0.*"
+                       r"climate\.humidity = 7\.0 is invalid"):
+        load_sweep(f)
+    g = write_sweep(tmp_path / "t.toml", 3, '"moss.species" = [["bryum_argenteum"], '
+                    '["bryum_argentum"]]', seeds="[0]")
+    with pytest.raises(ParameterError, match=r"moss\.species = 'bryum_argentum'"):
+        load_sweep(g)
+    r = subprocess.run([sys.executable, "-m", "mitsuba_veg.cli", "sweep", str(f), "--out",
+                        str(tmp_path / "o"), "--quiet"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "climate.humidity = 7.0" in lines[0], r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_edited_input_file_gives_new_run_ids(tmp_path):
+    """The run ids hash the content of the files a run reads: an edited scene (or weather, or
+    mesh) file makes new runs instead of taking the old ones as finished."""
+    import shutil
+    scen = tmp_path / "scen"
+    shutil.copytree(SCEN.parent, scen)
+    f = write_sweep(tmp_path / "s.toml", 3, '"climate.temperature" = [288.15]', seeds="[0]")
+    f.write_text(f.read_text().replace(str(SCEN), str(scen / "scenario.toml")))
+    before = [r.run_id for r in load_sweep(f).runs]
+    assert [r.run_id for r in load_sweep(f).runs] == before          # stable
+    xml = scen / "scene.xml"
+    xml.write_text(xml.read_text().replace('value="0.35"', 'value="0.9"', 1))
+    after = [r.run_id for r in load_sweep(f).runs]
+    assert after != before
+    (scen / "wall.ply").write_bytes((scen / "wall.ply").read_bytes() + b"\n")
+    assert [r.run_id for r in load_sweep(f).runs] != after
 
 
 def test_worker_lost_midrun_is_retried_and_resumes(tmp_path, client):

@@ -118,6 +118,26 @@ def iso_datetime(text: str) -> str:
     return t
 
 
+def out_dir(text: str) -> str:
+    """An argparse ``type`` for ``--out``: a non-empty folder path.
+
+    Parameters
+    ----------
+    text : str
+        The path as given.
+
+    Returns
+    -------
+    str
+        The path, unchanged.
+    """
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is invalid (allowed: a folder path; an empty one would be the current "
+            "folder). Fix: give --out DIR (is a variable such as $OUTDIR unset?)")
+    return text
+
+
 def add_out(p, default: str | None, what: str) -> None:
     """Add ``--out DIR``: the output folder of ``what``.
 
@@ -130,9 +150,10 @@ def add_out(p, default: str | None, what: str) -> None:
     what : str
         What the folder receives, for the help text.
     """
-    p.add_argument("--out", default=default, metavar="DIR",
+    p.add_argument("--out", default=default, metavar="DIR", type=out_dir,
                    help=f"output folder for {what} (created; refused if another process is "
-                        "writing it or it holds another kind of result)")
+                        "writing it, it holds another kind of result, or it holds files "
+                        "mitsuba-veg did not write and is not an output folder)")
 
 
 def add_set(p, what: str = "scenario", example: str = "light.photons=2000000") -> None:

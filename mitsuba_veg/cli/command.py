@@ -23,7 +23,7 @@ from ..light import photon_irradiance
 from ..outputs import OutputFolder, write_json
 from ..plots import irradiance_figure
 from ..render.still import run_render
-from ..scenario import MAX_PHOTONS, load_scenario
+from ..scenario import MAX_PHOTONS, light_overrides, load_scenario, load_scene_file
 from ..sweeps.frames import run_animate
 from ..backend import __version__, versions
 from ..world.trees import scene_with_trees
@@ -109,11 +109,9 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         ground = scn.get("terrain.ground", ground)
         when = scn.get("light.when")
     else:
-        try:
-            scene = mi.load_file(str(scene_path), optimize=False)
-        except Exception as e:  # Mitsuba's parser names the XML problem
-            raise ParameterError("SCENE", str(scene_path), "a Mitsuba 3 XML scene that loads",
-                                 f"correct the XML: {' '.join(str(e).split())[:400]}") from None
+        # --set with an XML: the light settings only, every key checked (none ignored)
+        settings.update(light_overrides(overrides, f"{scene_path} (--set)"))
+        scene = load_scene_file(scene_path, "SCENE")
     t_load = time.perf_counter() - t0
     folder = OutputFolder(out, "irradiance", info={"scene": str(scene_path)})
     for k, v in {"photons": photons, "seed": seed, "max_depth": max_depth,

@@ -9,6 +9,7 @@ file or a missing extra (one line on stderr).
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from ..sweeps.runner import sweep
@@ -61,4 +62,8 @@ def _cmd_sweep(a) -> int:
     for p in m["files"].get("plots", []):
         print(f"  {p}")
     print(f"  {out.resolve() / 'runs'}/run-*/ (summary.json, checkpoint.npz, maps)")
+    if c["failed"]:   # also with --quiet: on stderr, one line
+        first = next(r for r in m["runs"] if r["status"] == "failed")
+        print(f"mitsuba-veg: error: {c['failed']} of {len(m['runs'])} runs failed (the first: "
+              f"{first['run']}: {first['error']}); see {out / 'sweep.json'}", file=sys.stderr)
     return 1 if c["failed"] else 0

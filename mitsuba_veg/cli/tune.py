@@ -15,13 +15,16 @@ supplies the gradient; writes ``fitted_discrete.json``).
 """
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 
 import drjit as dr
 import numpy as np
 
+from ..daily import MOSS_DEFAULTS
 from ..errors import ParameterError
+from ..moss.species import PARAMETER_FIELDS
 from ..outputs import OutputFolder
 from ..scenario import load_scenario
 from ..tune import coverage_from_checkpoint, fit, prepare
@@ -32,6 +35,10 @@ from .args import add_out, add_photons, add_quiet, add_set, ranged
 from .entry import standalone
 
 __all__ = ["add_parser", "main"]
+
+#: --params when none are given (a run of one species; with several, refused with the choices)
+DEFAULT_PARAMS = "S1,T1"
+log = logging.getLogger("mitsuba_veg")
 
 
 def _pairs(text: str | None, what: str) -> dict:
@@ -72,19 +79,27 @@ def _seeds(text: str) -> list[int]:
 def _cmd_tune(a) -> int:
 
     species = [s.strip() for s in a.species.split(",")] if a.species else None
-    params = [p.strip() for p in a.params.split(",") if p.strip()]
+    text = DEFAULT_PARAMS if a.params is None else a.params
+    params = [p.strip() for p in text.split(",") if p.strip()]
     if not params:
         raise ParameterError("--params", a.params, "comma-separated parameter names",
                              "e.g. --params S1,T1")
+    twice = sorted({p for p in params if params.count(p) > 1})
+    if twice:
+        raise ParameterError("--params", a.params, f"each parameter once ({twice[0]} is "
+                             "named twice)", "remove the repeated name")
     init = _pairs(a.init, "--init")
     for k in init:
         if k not in params:
             raise ParameterError("--init", f"{k}={init[k]}", "starting values of the fitted "
                                  f"parameters ({', '.join(params)})",
                                  f"add {k} to --params or remove it from --init")
-    load_scenario(a.scenario, a.set or ())  # bad fields refused before any work
+    scn = load_scenario(a.scenario, a.set or ())  # bad fields refused before any work
+    keys = species or list((scn.get("moss") or {}).get("species") or
+                           MOSS_DEFAULTS["species"])
     t = a.target
     target = None
+    synthetic = None
     if t.startswith("synthetic:"):
         synthetic = _pairs(t.split(":", 1)[1], "--target synthetic")
         if not synthetic:
@@ -114,10 +129,28 @@ def _cmd_tune(a) -> int:
                 raise ParameterError("--target", t, "a 1-D float array of covered fractions "
                                      f"(got shape {target.shape}, dtype {target.dtype})",
                                      "one value in [0, 1] per triangle, NaN = ignore")
+            if np.isinf(target).any():
+                raise ParameterError("--target", t, "covered fractions in [0, 1] (NaN = "
+                                     f"ignore; it holds {int(np.isinf(target).sum())} "
+                                     "infinite values)", "write NaN where there is no "
+                                     "value, else a fraction in [0, 1]")
             fin = target[np.isfinite(target)]
             if fin.size == 0 or fin.min() < 0 or fin.max() > 1:
                 raise ParameterError("--target", t, "covered fractions in [0, 1] (NaN = "
                                      "ignore), at least one finite", "check the array")
+    # a species parameter without its species is ambiguous when the run has several: say so
+    # now (not after the set-up), and name the choices
+    if len(keys) > 1:
+        for opt, names in (("--params", params), ("--target synthetic", synthetic or {})):
+            bare = [n for n in names if n in PARAMETER_FIELDS]
+            if bare:
+                default = " (the default)" if opt == "--params" and a.params is None else ""
+                raise ParameterError(opt, ",".join(names) + default, f"species parameters "
+                                     f"named with their species: the run has {len(keys)} "
+                                     f"species ({', '.join(keys)}), e.g. {keys[0]}.{bare[0]}",
+                                     f"write {keys[0]}.{bare[0]} (also in --params, --init and "
+                                     f"synthetic targets), or tune one species with --species "
+                                     f"{keys[0]}")
     folder = OutputFolder(a.out, "tune")
     albedo = any(p.startswith(("albedo.", "strength.")) for p in params)
     data = prepare(a.scenario, days=a.days, overrides=a.set or (), species=species,
@@ -137,6 +170,16 @@ def _cmd_tune(a) -> int:
         raise ParameterError("--target", t, f"one covered fraction per triangle ({data.n} "
                              f"values; got {target.shape[0]})", "use a target made for this "
                              "scenario's scene")
+    usable = np.isfinite(target) & np.asarray(data.living, bool)
+    if not usable.any():   # NaN everywhere moss can live: the fit would see no data at all
+        raise ParameterError("--target", t, "a finite covered fraction on at least one "
+                             f"triangle moss can live on (all {int(data.living.sum())} of "
+                             "them are NaN here)", "give values for the living surfaces "
+                             "(NaN = ignore that triangle)")
+    n_nan = int(np.asarray(data.living, bool).sum() - usable.sum())
+    if n_nan:
+        log.warning("--target: %d of %d triangles moss can live on are NaN and left out of "
+                    "the fit", n_nan, int(data.living.sum()))
     if a.discrete_seeds:
         seeds = _seeds(a.discrete_seeds)
         if a.loss == "l1":
@@ -183,9 +226,10 @@ def add_parser(subparsers):
     p.add_argument("--target", required=True,
                    help="checkpoint.npz of a run, a .npy per-triangle cover, or "
                         "synthetic:S1=60,T1=299.15")
-    p.add_argument("--params", default="S1,T1", help="comma-separated parameter names "
-                   "(species thresholds S1, T1, alpha_g, ...; T, rh; albedo.SHAPE; "
-                   "strength.sun, strength.sky)")
+    p.add_argument("--params", help="comma-separated parameter names, each once (species "
+                   "thresholds S1, T1, alpha_g, ... written SPECIES.S1 when the run has "
+                   "several species; T, rh; albedo.SHAPE; strength.sun, strength.sky; default "
+                   f"{DEFAULT_PARAMS}, for a run of one species)")
     p.add_argument("--init", help="starting values of fitted parameters, e.g. S1=42,T1=306.65 "
                    "(default: the species table's)")
     p.add_argument("--species", help="comma-separated species keys (default: the scenario's)")

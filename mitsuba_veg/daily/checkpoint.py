@@ -15,12 +15,14 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
+from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
 
 
 def fingerprint(sim) -> str:
-    """What must match for a checkpoint to be resumed: the settings of the run.
+    """What must match for a checkpoint to be resumed: the settings of the run and the
+    content of every file it reads (:func:`mitsuba_veg.inputs.input_hashes`).
 
     Parameters
     ----------
@@ -30,11 +32,12 @@ def fingerprint(sim) -> str:
     Returns
     -------
     str
-        A JSON string of the scenario (but its ``simulation`` section) and the start date.
+        A JSON string of the scenario (but its ``simulation`` section), the start date and
+        the input files' hashes.
     """
     keep = {k: v for k, v in sim.scn.data.items() if k != "simulation"}
-    return json.dumps({"scenario": keep, "start": sim.start.isoformat()}, sort_keys=True,
-                      default=str)
+    return json.dumps({"scenario": keep, "start": sim.start.isoformat(),
+                       "inputs": input_hashes(sim.scn)}, sort_keys=True, default=str)
 
 
 def save(sim) -> None:
@@ -92,9 +95,7 @@ def load(sim) -> bool:
         raise ParameterError("checkpoint", str(p), "a complete checkpoint written by "
                              "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
                              "run again with --fresh to start over") from None
-    if fp != fingerprint(sim):
-        raise ParameterError("checkpoint", str(p), "a checkpoint of the same scenario",
-                             "use --fresh (or another --out folder) to start afresh")
+    check_resume(fp, fingerprint(sim), p)  # names the field or file that changed
     if day > sim.days:
         raise ParameterError("--days", sim.days, f">= {day}: the checkpoint in "
                              f"{sim.out} already holds day {day}",

@@ -8,6 +8,7 @@ from ..climate import ClimateTable, daily_weather, load_csv
 from ..errors import ParameterError, check_range
 from ..moss.species import SPECIES, Species, load_species
 from ..scenario import Scenario
+from ..trees.entries import check_render_trees
 from ..world.phenology import PhenologyParams
 
 BANDS = ("total", "par", "red", "far_red")
@@ -93,6 +94,7 @@ class MossConfig:
         self.seed = int(self.light_cfg["seed"])
         self._setup_climate(src)
         self._setup_phenology(src)
+        check_render_trees(scenario.get("render.trees"), src)  # refused now, not by the render
 
     def _setup_phenology(self, src):
         """The world's ``[phenology]`` (leaf-out, autumn, leaf fall) and its stage bins."""

@@ -258,7 +258,11 @@ class SensorSet:
         return out
 
     def check(self) -> "SensorSet":
-        """Refuse duplicate names and more than :data:`MAX_SENSORS` sensors.
+        """Refuse duplicate names, more than :data:`MAX_SENSORS` sensors and overlapping sensors.
+
+        Two sensors overlap when their surfaces coincide (:meth:`overlap`): a photon crossing
+        there is recorded by one of them only (the pass goes on from the first hit), so both
+        would read too little, silently.
 
         Returns
         -------
@@ -268,7 +272,7 @@ class SensorSet:
         Raises
         ------
         ParameterError
-            For a duplicate name or too many sensors.
+            For a duplicate name, too many sensors or two overlapping sensors.
         """
         u, c = np.unique(self.names, return_counts=True)
         if (c > 1).any():
@@ -277,7 +281,63 @@ class SensorSet:
         if len(self) > MAX_SENSORS:
             raise ParameterError("sensors", len(self), f"at most {MAX_SENSORS:,d} sensors",
                                  "use a larger grid spacing or fewer grids")
+        pair = self.overlap()
+        if pair is not None:
+            i, j = pair
+            where = ", ".join(f"{x:g}" for x in self.position[i])
+            raise ParameterError("sensors", f"{self.names[i]} and {self.names[j]}",
+                                 "sensors whose surfaces do not coincide (these two share "
+                                 f"their surface at [{where}] m: a photon crossing it is "
+                                 "recorded by one of them only, so both would read too "
+                                 "little)", "move one of them or give it another size (a "
+                                 "hemispherical sensor is half of a spherical one of the same "
+                                 "place and size; domes facing opposite ways may share a "
+                                 "place); a grid needs a spacing >= its sensors' size")
         return self
+
+    def overlap(self) -> tuple[int, int] | None:
+        """The first two sensors whose surfaces coincide, or None.
+
+        Coinciding surfaces: two curved sensors (spherical or hemispherical) with the same
+        centre and size, except two domes facing opposite ways (the two halves of a sphere),
+        or two cosine squares in one plane whose areas overlap. Surfaces that only cross
+        (a square through a sphere, spheres of different sizes) are recorded independently.
+
+        Returns
+        -------
+        tuple of int or None
+            Their rows (i < j), or None.
+        """
+        n = len(self)
+        if n < 2:
+            return None
+        from scipy.spatial import cKDTree
+
+        pos = np.asarray(self.position, float)
+        size = np.asarray(self.size, float)
+        tol = 1e-4 * (1.0 + np.abs(pos).max()) + 1e-3 * size.min()
+        r = float(size.max()) * math.sqrt(2.0) + tol
+        pairs = cKDTree(pos).query_pairs(r, output_type="ndarray")
+        if not len(pairs):
+            return None
+        i, j = pairs[:, 0], pairs[:, 1]
+        ki, kj = self.kind[i], self.kind[j]
+        d = pos[j] - pos[i]
+        ni, nj = self.normal[i], self.normal[j]
+        dot = np.einsum("ij,ij->i", ni, nj)
+        curved = (ki > 0) & (kj > 0) & (np.linalg.norm(d, axis=1) <= tol) & \
+            (np.abs(size[i] - size[j]) <= tol) & ~((ki == 1) & (kj == 1) & (dot < -1 + 1e-6))
+        fr = _frames(ni)
+        half = (size[i] + size[j]) / 2 - tol
+        flat = (ki == 0) & (kj == 0) & (np.abs(dot) > 1 - 1e-6) & \
+            (np.abs(np.einsum("ij,ij->i", ni, d)) <= tol) & \
+            (np.abs(np.einsum("ij,ij->i", fr[:, 0], d)) < half) & \
+            (np.abs(np.einsum("ij,ij->i", fr[:, 2], d)) < half)
+        hit = np.flatnonzero(curved | flat)
+        if not len(hit):
+            return None
+        k = hit[np.lexsort((j[hit], i[hit]))[0]]
+        return int(min(i[k], j[k])), int(max(i[k], j[k]))
 
     def index(self, name) -> int:
         """Row of a sensor.

@@ -219,11 +219,10 @@ def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height
     if len(days) < 2:
         raise ParameterError("RUN_DIR", str(run.dir), "a run with at least 2 days to animate",
                              "run more days")
-    folder = OutputFolder(out, "animate", info={"run": str(run.dir)})
+    folder = OutputFolder(out, "animate", info={"run": str(run.dir)}, reads=run.dir)
     fdir = out / "frames"
+    folder.clear(["frames"])        # the frames of an earlier animation (the package's only)
     fdir.mkdir(parents=True, exist_ok=True)
-    for old in fdir.glob("frame_*.png"):
-        old.unlink()
     opts = dict(width=width or ANIMATE_DEFAULTS["width"],
                 height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
                 camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,

@@ -28,12 +28,28 @@ import numpy as np
 from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
 from ..daily.run import run
 from ..errors import ParameterError
+from ..inputs import same_run_scenario
 from ..outputs import SNAPSHOT_DIR
 from ..scenario import Scenario, load_scenario
 from .moss import MossSet, live_moss
 
 
 # ---- reading a run ------------------------------------------------------------------------------
+def _read_snapshot(path) -> dict:
+    """The arrays of a moss snapshot; a file that cannot be read is one line naming it."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        for k in ("pos", "nrm", "species", "growth"):
+            d[k]
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
+        raise ParameterError("RUN_DIR snapshot", str(path), "a complete moss snapshot written "
+                             "by mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
+                             "render another --day, or run the scenario again with --fresh "
+                             "to write the snapshots again") from None
+    return d
+
+
 @dataclass
 class Frame:
     day: int                 # 1-based simulated day (end of that day)
@@ -101,9 +117,9 @@ class Run:
         return self.snapshots[-1][0] if self.snapshots else self.days
 
     def _snapshot(self, path) -> MossSet:
-        with np.load(path) as z:
-            return MossSet(z["pos"], z["nrm"].astype(np.float64), z["species"],
-                           z["growth"].astype(np.float64), list(self.species))
+        z = _read_snapshot(path)
+        return MossSet(z["pos"], z["nrm"].astype(np.float64), z["species"],
+                       z["growth"].astype(np.float64), list(self.species))
 
     def leaf_state(self, day: int) -> dict | None:
         """A world run's leaf state at the latest snapshot on or before ``day``.
@@ -126,10 +142,10 @@ class Run:
                 best = p
         if best is None:
             return None
-        with np.load(best) as z:
-            if "leaf_tau" not in z:
-                return None
-            return {k: np.asarray(z[k]) for k in ("leaf_tau", "leaf_grown", "leaf_on")}
+        z = _read_snapshot(best)
+        if "leaf_tau" not in z:
+            return None
+        return {k: np.asarray(z[k]) for k in ("leaf_tau", "leaf_grown", "leaf_on")}
 
     def frame_days(self, count: int | None = None, every: int | None = None) -> list[int]:
         """Days to animate.
@@ -253,8 +269,9 @@ def load_run(run_dir, scenario=None) -> Run:
     Raises
     ------
     ParameterError
-        If the folder is not a run, its checkpoint or summary cannot be read, or its scenario
-        cannot be found.
+        If the folder is not a run, its checkpoint or summary cannot be read, its scenario
+        cannot be found, or ``scenario`` is not the run's (its settings or input files differ
+        from the run's checkpoint).
     """
     d = Path(run_dir)
     sp = d / "summary.json"
@@ -287,6 +304,12 @@ def load_run(run_dir, scenario=None) -> Run:
         scn = _resolve_scenario(summary, ck, d)
     else:
         scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        diff = same_run_scenario(str(ck["fingerprint"]), scn) \
+            if ck is not None and "fingerprint" in ck else None
+        if diff is not None:   # another scenario would draw another scene over this run
+            raise ParameterError("--scenario", str(scn.path), f"the scenario of the run in {d} "
+                                 f"(this one differs: {diff})", "pass the run's own scenario "
+                                 "(or a copy of it), or leave --scenario out", None)
     moss_cfg = {**MOSS_DEFAULTS, **(scn.get("moss", {}) or {}),
                 **(summary.get("settings", {}).get("moss", {}) or {})}
     sim = {**SIM_DEFAULTS, **(scn.get("simulation", {}) or {})}

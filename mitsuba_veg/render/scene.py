@@ -38,6 +38,7 @@ from ..light.clear_sky import daylight
 from ..light.sky import VegSky, attach_scene
 from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
 from ..terrain import classify_geology, load_texture_rgb
+from ..scenario import site_offset_hours, site_time
 from . import materials as mat
 from .cameras import sensor_dict
 from .film import film_dict
@@ -591,12 +592,7 @@ def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
 
 # ---- light ---------------------------------------------------------------------------------------
 def _timezone(scn) -> _dt.timezone:
-    tz = scn.get("site.timezone")
-    if tz is None:
-        hours = round(float(scn.get("site.longitude", 0.0)) / 15.0)
-    else:
-        hours = float(tz)
-    return _dt.timezone(_dt.timedelta(hours=hours))
+    return _dt.timezone(_dt.timedelta(hours=site_offset_hours(scn.get("site") or {})))
 
 
 def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
@@ -620,8 +616,8 @@ def render_time(scn, date: _dt.date | None, options: RenderOptions) -> str:
     str
         ISO 8601 date-time (with a UTC offset when built from ``date``).
     """
-    if options.when:
-        return str(options.when)
+    if options.when:      # without a UTC offset: local time at the site
+        return site_time(options.when, scn.get("site") or {})
     if scn.get("render.when"):
         return str(scn.get("render.when"))
     if date is None:

@@ -150,7 +150,7 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
     day = last if day is None else int(day)
     check_range("day", day, 1, max(last, 1), fix=f"a simulated day of the run (1-{last})")
     frame = run.frame(day)
-    folder = OutputFolder(out, "render", info={"run": str(run.dir)})
+    folder = OutputFolder(out, "render", info={"run": str(run.dir)}, reads=run.dir)
     opts = dict(width=width or RENDER_DEFAULTS["width"],
                 height=height or RENDER_DEFAULTS["height"], spp=spp or RENDER_DEFAULTS["spp"],
                 when=when, seed=int(seed))

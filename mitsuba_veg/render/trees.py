@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..meshes import make_mesh
 from ..trees import weber_penn
+from ..trees.entries import check_render_tree
 from ..trees.growth import GrowthParams, grow
 from ..trees.junction import leaf_mesh, tree_mesh
 from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh  # noqa: F401
@@ -316,13 +317,7 @@ def make_tree(cfg: dict, source: str | None = None):
     ParameterError
         On an unknown field, a malformed position, a height out of range or an unknown model.
     """
-    allowed = {"preset", "model", "seed", "position", "height", "autumn", "overrides",
-               "generations", "growth"}
-    for k in cfg:
-        if k not in allowed:
-            raise ParameterError(f"render.trees.{k}", cfg[k],
-                                 "one of " + ", ".join(sorted(allowed)),
-                                 "remove or rename the field", source)
+    check_render_tree(cfg, source)    # fields, model, preset, overrides, growth fields
     pos = cfg.get("position", [0.0, 0.0, 0.0])
     if not (isinstance(pos, list) and len(pos) == 3):
         raise ParameterError("render.trees.position", pos, "[x, y, z] in metres", None, source)

@@ -182,6 +182,8 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
                      "dashboard": info.dashboard, "drjit_threads": info.drjit_threads}
     t3 = time.perf_counter()
     paths = [r["png"] for r in records]
+    for q in paths:          # written by the workers: into the folder's manifest
+        folder.record(q)
     mp4 = write_mp4(fdir, "frame_%04d.png", out / "animation.mp4", fps)
     gif = write_gif(paths, out / "animation.gif", fps,
                     ANIMATE_DEFAULTS["gif_width"] if gif_width is None else gif_width)

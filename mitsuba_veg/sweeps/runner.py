@@ -8,11 +8,15 @@ Layout of ``OUT``::
     sweep.json          the sweep: axes, runs (id, values, status, error), cluster, timings
     plots/              standard plots of the sweep
 
-A run whose ``summary.json`` already has all its days is not run again; any other run is
-submitted and resumes from its ``checkpoint.npz`` (:func:`mitsuba_veg.run` does so when the
-checkpoint is of the same scenario). A run that raises is recorded with its error and the sweep
-goes on; a worker lost mid-run makes Dask run the task again elsewhere, and it resumes from the
-run's last checkpoint.
+Every combination is checked before the cluster starts (:func:`~.spec.load_sweep`). A run
+whose ``summary.json`` already has all its days is not run again; any other run is submitted
+and resumes from its ``checkpoint.npz`` (:func:`mitsuba_veg.run` does so when the checkpoint is
+of the same scenario and input files). A task first claims its run folder, waiting for a
+process that still holds it (a worker of a killed sweep going away); a folder that stays
+locked makes the sweep submit the run again (:data:`BUSY_RETRIES` times) before it reports it
+as failed. A run that raises, or ends with fewer day records than its days, is recorded as
+failed with its error and the sweep goes on; a worker lost mid-run makes Dask run the task
+again elsewhere, and it resumes from the run's last checkpoint.
 """
 from __future__ import annotations
 
@@ -26,7 +30,7 @@ from pathlib import Path
 
 from ..daily import SIM_DEFAULTS
 from ..daily.run import run
-from ..errors import MitsubaVegError
+from ..errors import FolderBusy, MitsubaVegError
 from ..outputs import OutputFolder, write_json
 from ..scenario import load_scenario
 from .cluster import open_client, require_pandas, set_drjit_threads, worker_drjit_threads
@@ -103,8 +107,22 @@ def _result(spec: dict, status: str, summary: dict | None = None, error: str | N
             "worker": f"{socket.gethostname()}:{os.getpid()}", "drjit_threads": threads}
 
 
+#: how long a run task waits for its run folder when another process holds it [s]: a task of
+#: a killed sweep still going away, or the same run in a concurrent sweep (then this one finds
+#: it finished)
+RUN_LOCK_WAIT_S = 120.0
+#: how often the sweep submits a run again whose folder stayed busy
+BUSY_RETRIES = 3
+
+
 def run_task(spec: dict) -> dict:
     """One run of a sweep (a Dask task; also callable in-process).
+
+    The task claims the run folder first (:class:`~mitsuba_veg.outputs.OutputFolder`), waiting
+    up to :data:`RUN_LOCK_WAIT_S` for another process that holds it, then looks again whether
+    the run is finished (the holder may have finished it), writes ``run.json`` and runs or
+    resumes. A run that ends with fewer day records than its days is a failed run, never a
+    done one.
 
     Parameters
     ----------
@@ -118,31 +136,50 @@ def run_task(spec: dict) -> dict:
     -------
     dict
         ``run_id``, ``index``, ``status`` (``"done"``, ``"skipped"``: already finished,
-        ``"failed"``), ``error`` (one line) and ``traceback``, ``records`` (the run's
+        ``"failed"``, ``"busy"``: the folder stayed locked by another process, to be
+        submitted again), ``error`` (one line) and ``traceback``, ``records`` (the run's
         ``days_record``), ``resumed``, ``seconds`` [s], ``worker``, ``drjit_threads``.
     """
     t0 = time.perf_counter()
     out = Path(spec["out"])
-    out.mkdir(parents=True, exist_ok=True)
     threads = set_drjit_threads(worker_drjit_threads(spec.get("drjit_threads"),
                                                      spec.get("host_workers") or {}))
     days = expected_days(spec["scenario"], spec["overrides"], spec["days"])
     done = finished(out, days)
     if done is not None:
         return _result(spec, "skipped", done, seconds=time.perf_counter() - t0, threads=threads)
-    write_json(out / "run.json", {"run_id": spec["run_id"], "values": spec["values"],
-                                  "overrides": spec["overrides"], "scenario": spec["scenario"],
-                                  "days": spec["days"]})
     try:
-        summary = run(spec["scenario"], out=out, days=spec["days"], overrides=spec["overrides"],
-                      resume=True, progress=False, frames=bool(spec["frames"]))
-    except Exception as e:  # noqa: BLE001 - a failing run is a result of the sweep
-        msg = " ".join(f"{type(e).__name__}: {e}".split())
-        tb = traceback.format_exc()
-        write_json(out / "error.json", {"error": msg, "traceback": tb})
-        return _result(spec, "failed", error=msg, tb=tb, seconds=time.perf_counter() - t0,
-                       threads=threads)
-    (out / "error.json").unlink(missing_ok=True)
+        folder = OutputFolder(out, "run", info={"scenario": spec["scenario"]},
+                              wait=float(spec.get("lock_wait", RUN_LOCK_WAIT_S)))
+    except FolderBusy as e:
+        return _result(spec, "busy", error=" ".join(f"{type(e).__name__}: {e}".split()),
+                       seconds=time.perf_counter() - t0, threads=threads)
+    with folder:
+        done = finished(out, days)        # the holder waited for may have finished it
+        if done is not None:
+            return _result(spec, "skipped", done, seconds=time.perf_counter() - t0,
+                           threads=threads)
+        write_json(out / "run.json", {"run_id": spec["run_id"], "values": spec["values"],
+                                      "overrides": spec["overrides"],
+                                      "scenario": spec["scenario"], "days": spec["days"]})
+        try:
+            summary = run(spec["scenario"], out=out, days=spec["days"],
+                          overrides=spec["overrides"], resume=True, progress=False,
+                          frames=bool(spec["frames"]))
+        except Exception as e:  # noqa: BLE001 - a failing run is a result of the sweep
+            msg = " ".join(f"{type(e).__name__}: {e}".split())
+            tb = traceback.format_exc()
+            write_json(out / "error.json", {"error": msg, "traceback": tb})
+            return _result(spec, "failed", error=msg, tb=tb, seconds=time.perf_counter() - t0,
+                           threads=threads)
+        n = len(summary.get("days_record") or [])
+        if days is not None and n != days:
+            msg = (f"RuntimeError: the run recorded {n} of its {days} days (run it again: "
+                   "it resumes from its checkpoint)")
+            write_json(out / "error.json", {"error": msg, "traceback": ""})
+            return _result(spec, "failed", error=msg, seconds=time.perf_counter() - t0,
+                           threads=threads)
+        folder.clear(["error.json"])
     return _result(spec, "done", summary, seconds=time.perf_counter() - t0, threads=threads)
 
 
@@ -235,27 +272,35 @@ def sweep(sweep_file, out="out/sweep", *, scheduler: str | None = None,
                       f"{'s' if info.workers != 1 else ''} ({'local cluster' if info.local else info.address})")
                 if info.dashboard:
                     print(f"Dask dashboard: {info.dashboard}")
-            tok = uuid.uuid4().hex[:8]
-            futures = [cl.submit(run_task, s, key=f"{TASK_PREFIX}-{s['run_id']}-{tok}",
-                                 pure=False) for s in todo]
-            by_key = {f.key: s for f, s in zip(futures, todo)}
+            def submit(s, attempt=0):
+                key = f"{TASK_PREFIX}-{s['run_id']}-{uuid.uuid4().hex[:8]}"
+                by_key[key] = (s, attempt)
+                return cl.submit(run_task, s, key=key, pure=False)
+
+            by_key = {}
+            futures = as_completed([submit(s) for s in todo])
             bar = None
             if progress:
                 from tqdm.auto import tqdm
                 bar = tqdm(total=len(sw.runs), initial=len(results), unit="run", desc="sweep")
             n_failed = 0
-            for fut in as_completed(futures):
-                s = by_key[fut.key]
+            for fut in futures:
+                s, attempt = by_key.pop(fut.key)
                 if fut.status == "finished":
                     res = fut.result()
                 else:  # the task itself could not finish (e.g. its workers kept dying)
                     res = _result(s, "failed", error=_task_error(fut))
+                fut.release()
+                if res["status"] == "busy":
+                    if attempt + 1 < BUSY_RETRIES:     # its folder stayed locked: again
+                        futures.add(submit(s, attempt + 1))
+                        continue
+                    res["status"] = "failed"
                 results[s["run_id"]] = res
                 n_failed += res["status"] == "failed"
                 if bar is not None:
                     bar.update(1)
                     bar.set_postfix(failed=n_failed, last=f"{res['seconds']:.0f}s")
-                fut.release()
             if bar is not None:
                 bar.close()
     ordered = [results[s["run_id"]] for s in specs]

@@ -17,8 +17,12 @@ A sweep file looks like this (paths relative to the sweep file)::
 The runs are the Cartesian product of the axes (in file order), then the seeds. Unknown keys of
 the sweep file and axis fields that the scenario does not have are refused with one line naming
 the file, the field and the closest known names (:class:`~mitsuba_veg.errors.ParameterError`),
-before any run starts. Field *values* are checked by the run itself: a run with a value the
-scenario refuses fails and is reported in the sweep's table with its error.
+before any run starts, and so is every combination whose scenario or run settings (field
+values, species, weather, days) do not validate: the line names the run's swept values. A run
+id is a hash of the base scenario, the run's values and the content of every file the run reads
+(:func:`mitsuba_veg.inputs.input_hashes`), so an edited scene, mesh or weather file gives new
+runs. What only the run can find (e.g. a shape id missing from the scene) fails that run, which
+is reported in the sweep's table with its error.
 
 Nothing here imports Dask.
 """
@@ -33,8 +37,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS
+from ..daily import MOSS_DEFAULTS, SIM_DEFAULTS, MossConfig
 from ..errors import ParameterError, unknown_field
+from ..inputs import input_hashes
 from ..scenario import load_scenario
 
 #: keys of the [sweep] table
@@ -252,6 +257,19 @@ def _fingerprint(obj) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def _check_run(scenario: Path, overrides: list, days, values: dict, source: str):
+    """Load and check one run's scenario and settings (fields, species, weather, days) before
+    any run starts; an error names the run's swept values."""
+    try:
+        scn = load_scenario(scenario, overrides)
+        MossConfig(scn, days)
+    except ParameterError as e:
+        where = ", ".join(f"{k}={toml_value(v)}" for k, v in values.items())
+        raise ParameterError(e.field, e.value, e.allowed, e.fix,
+                             f"{source} (the run with {where})" if where else source) from None
+    return scn
+
+
 def load_sweep(path, overrides=()) -> Sweep:
     """Read and validate a sweep file; expand its runs.
 
@@ -271,7 +289,8 @@ def load_sweep(path, overrides=()) -> Sweep:
     ------
     ParameterError
         Unknown keys (with the closest known names), a bad range, an axis field the scenario
-        does not have, or a base scenario that does not validate.
+        does not have, a base scenario that does not validate, or a combination whose
+        scenario or run settings do not validate.
     """
     path = Path(path)
     src = str(path)
@@ -346,8 +365,12 @@ def load_sweep(path, overrides=()) -> Sweep:
     for i, combo in enumerate(itertools.product(*[axes[n] for n in names]) if names else [()]):
         values = dict(zip(names, combo))
         ov = base_set + [f"{k}={toml_value(v)}" for k, v in values.items()]
+        scn = _check_run(scen, ov, days, values, src)
+        # the content of every file the run reads is part of its id: an edited scene, mesh or
+        # weather file makes new runs instead of taking the old ones as finished
         rid = _fingerprint({"base": base_fp, "values": {k: toml_value(v)
-                                                        for k, v in values.items()}})[:12]
+                                                        for k, v in values.items()},
+                            "inputs": input_hashes(scn)})[:12]
         if rid in seen:
             raise ParameterError("axes", values, "distinct runs", "an axis repeats a value", src)
         seen[rid] = i
