@@ -2101,7 +2101,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 else:
                     idx, m = strata
                     m_u, inv_m = _opaque(mi.UInt32, m), _opaque(mi.Float, 1.0 / m)
-                cell = mi.Point2f(mi.Float(idx % m_u), mi.Float(idx // m_u))
+                # (the divisor at least 1: the LLVM backend's padding lanes of a launch whose
+                # width is not a multiple of the vector width gather 0, and an integer
+                # division by 0 traps the process)
+                m_d = dr.maximum(m_u, mi.UInt32(1))
+                cell = mi.Point2f(mi.Float(idx % m_d), mi.Float(idx // m_d))
                 u = dr.select(idx < m_u * m_u, (cell + u) * inv_m, u)
             su = dr.lerp(smin, smax, u.x)
             tv = dr.lerp(tmin, tmax, u.y)

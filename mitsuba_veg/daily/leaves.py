@@ -72,7 +72,6 @@ class DayLeaves:
             (modes, BSDF registry ids) of the leaf triangles, on the device.
         """
         ph.start_of_day(date)
-        ph.evaluate()
         self.canopy.update(scene_params, ph.tau, ph.grown, ph.on_tree)
         return self.canopy.trace_tables()
 
@@ -82,7 +81,7 @@ class DayLeaves:
         Parameters
         ----------
         ph : Phenology
-            The leaves (updated in place, lazily: evaluated with the day's record).
+            The leaves (updated in place, one kernel).
         date : datetime.date
             The day.
         S_leaf : mi.Float64

@@ -262,9 +262,11 @@ class DayLight:
         parts = []
         for b in sensors_mod.PASS_BANDS:
             k = self.band_index["total" if b == "shortwave" else b]
-            parts += [res.device_flux(0, k, rows, component="direct", side="both"),
-                      res.device_flux(0, k, rows, component="indirect", side="both"),
-                      res.device_flux(1, k, rows, side="both")]
+            # the front side only: a sensor reads the light on its face (a square's upper
+            # face, a dome's or sphere's outside), not what the ground reflects onto its back
+            parts += [res.device_flux(0, k, rows, component="direct", side="front"),
+                      res.device_flux(0, k, rows, component="indirect", side="front"),
+                      res.device_flux(1, k, rows, side="front")]
         wd = vals.weather
         scal = [wd["beam"], wd["diffuse"]]
         for b in BANDS:

@@ -156,7 +156,6 @@ class DayPipeline:
         t3 = time.perf_counter()
         if self.leaves is not None:
             self.leaves.end(st.leaves, date, light.S_leaf)
-            st.leaves.evaluate()
         t4 = time.perf_counter()
         events = self.moss.step(st.moss, day, S32, Ts32, rhs32)
         counts_after = self.moss.counts(st.moss)

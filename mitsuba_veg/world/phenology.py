@@ -151,6 +151,9 @@ class Phenology:
         # a leaf grows with the calendar and keeps its size until it falls (also across the
         # new year: a leaf still on the tree in January stays until it falls)
         self.grown = dr.select(self.fallen, 0.0, dr.maximum(self.grown, x * x * (3 - 2 * x)))
+        # evaluated now (one kernel): a state left lazy grows its expression day by day, and
+        # every later day would compile a longer kernel
+        self.evaluate()
 
     def end_of_day(self, date: _dt.date, insolation_mj) -> None:
         """Add the day's insolation of each leaf (after the autumn onset), update τ and leaf fall.
@@ -178,6 +181,7 @@ class Phenology:
         fell = on & (self.tau_raw >= self.fall_threshold)
         self.fallen = self.fallen | fell
         self.grown = dr.select(self.fallen, 0.0, self.grown)
+        self.evaluate()                          # (see start_of_day)
 
     def evaluate(self) -> None:
         """Evaluate the state (one kernel for the day's updates)."""
