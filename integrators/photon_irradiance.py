@@ -69,6 +69,7 @@ shapegroup is refused with an error naming it.
 """
 from __future__ import annotations
 
+import gc
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -2292,7 +2293,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         if frozen:
             if self._frozen is None:
                 self._frozen = dr.freeze(PhotonIrradianceIntegrator._launch, warn_after=50)
-            return self._frozen(self, *args)
+            # no cyclic garbage collection while a launch is recorded or replayed: a collection
+            # that frees other Dr.Jit objects (an earlier scene's) in the middle of a recording
+            # aborted the process once in the test suite (Mitsuba 3.9.1, Dr.Jit 1.5.0)
+            was = gc.isenabled()
+            gc.disable()
+            try:
+                return self._frozen(self, *args)
+            finally:
+                if was:
+                    gc.enable()
         return self._launch(*args)
 
     def _launch(self, scene, emitters, index, tables, refl, inp, n, E, max_depth, indirect,

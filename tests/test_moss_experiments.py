@@ -6,6 +6,7 @@ full size and draws the comparison figures.
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import mitsuba_veg as mv
 from mitsuba_veg.moss.fitness_model import fitness
@@ -16,6 +17,7 @@ SCEN = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scen
 FAST = ["light.photons=100000", "simulation.checkpoint_every=0"]
 
 
+@pytest.mark.slow
 def test_indirect_light_spreads_moss_under_the_roof(tmp_path):
     """Figs 4.1/4.2: after 300 days the moss area under the roof (back floor + roof underside)
     is clearly larger with indirect light."""

@@ -88,6 +88,7 @@ def _write_exported_scene(folder):
     return path, d
 
 
+@pytest.mark.slow
 def test_exported_scene_with_instances_and_envmap(tmp_path):
     xml, d = _write_exported_scene(tmp_path)
     # the command line and the API give the same pass

@@ -161,6 +161,7 @@ SLOW_RENDER = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_fresh_is_refused_while_render_reads_the_run(base, tmp_path, capsys):
     """`run RUN --fresh` while `render RUN` renders: refused with one line naming the render's
     process; the render's files and the run's stay, and the render ends well."""
@@ -522,6 +523,7 @@ def test_tune_says_which_parameters_and_refuses_repeats(tmp_path, capsys):
     assert "polytrichum" in line and not (tmp_path / "t").exists()
 
 
+@pytest.mark.slow
 def test_tune_target_nan_on_every_living_triangle_is_refused(tmp_path, capsys):
     """A .npy target whose finite values are all on triangles moss cannot live on: the fit
     would see no data (its gradient 0, the start returned as fitted); refused."""

@@ -59,6 +59,7 @@ def test_flat_environment_calibrates_the_film():
     assert np.nanmedian(im["r_fr"]) == pytest.approx(660 / 730, rel=0.08)
 
 
+@pytest.mark.slow
 def test_moss_carpet_render_is_green_and_low_rfr_and_updates_in_place(scn, terrain):
     o = RenderOptions(width=64, height=48, spp=8, camera="patch", when="2026-06-21T12:00+09:00")
     rs = build_scene(scn, carpet(), moss_size=0.01, options=o, terrain=terrain,
@@ -117,6 +118,7 @@ def test_options_and_cameras_are_validated(scn, terrain):
                                                      height=8, spp=1), terrain=terrain)
 
 
+@pytest.mark.slow
 def test_set_light_moves_the_daylight_in_place_without_a_recompile(scn, terrain):
     """An animation's daily light: a scene built for one time and given another time's daylight
     with set_light renders as a scene built for that time (same seed: same image), and the

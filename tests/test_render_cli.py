@@ -51,6 +51,7 @@ def test_run_render_writes_exr_png_and_rfr(run_dir, tmp_path):
         run_render(run_dir, tmp_path / "x", day=99, width=16, height=16, spp=1, progress=False)
 
 
+@pytest.mark.slow
 def test_run_animate_writes_mp4_and_gif(run_dir, tmp_path):
     s = run_animate(run_dir, tmp_path / "a", width=48, height=32, spp=2, frames=3, fps=4,
                     progress=False)

@@ -92,7 +92,9 @@ def reference(tmp_path_factory):
     return _state(out)
 
 
-@pytest.mark.parametrize("moment", ["between_checkpoints", "checkpoint_write", "map_write"])
+@pytest.mark.parametrize("moment", ["between_checkpoints",
+                                    pytest.param("checkpoint_write", marks=pytest.mark.slow),
+                                    pytest.param("map_write", marks=pytest.mark.slow)])
 def test_sigkill_then_resume_equals_uninterrupted_run(tmp_path, reference, moment):
     out = tmp_path / "run"
     r = _cli(out, moment=moment, check=False)
@@ -223,6 +225,7 @@ def test_fresh_run_clears_what_an_earlier_run_left(tmp_path):
     assert all(run.frame(d).exact for d in run.frame_days(count=10))
 
 
+@pytest.mark.slow
 def test_ctrl_c_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     out = tmp_path / "run"
     p = subprocess.Popen([*CLI, "run", str(SCEN), "--out", str(out), "--days", "400",

@@ -304,6 +304,7 @@ def test_cli_year_writes_the_table_dli_and_figures(tmp_path):
     assert set(h["sensor"]) == {"open", "fluence"} and len(h) == 4 * 24 * 2 * 15
 
 
+@pytest.mark.slow
 def test_cli_series_refusals(tmp_path):
     sc = _scenario(tmp_path, "")
     base = [sys.executable, "-m", "mitsuba_veg.cli", "light-study", str(sc), "--out",

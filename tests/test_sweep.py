@@ -60,6 +60,7 @@ def client():
         yield c
 
 
+@pytest.mark.slow
 def test_sweep_equals_the_same_runs_made_one_by_one(tmp_path, client):
     days = 6
     f = write_sweep(tmp_path / "s.toml", days, AXES_2X2, frames=True)
@@ -110,7 +111,7 @@ def _checkpoint_day(run: Path) -> int:
         return -1
 
 
-@pytest.mark.parametrize("kill", ["group", "parent"])
+@pytest.mark.parametrize("kill", ["group", pytest.param("parent", marks=pytest.mark.slow)])
 def test_sweep_killed_midway_resumes_to_the_same_table(tmp_path, client, kill):
     """SIGKILL of the sweep with its cluster (``group``), or of the sweep's process alone
     (``parent``: its orphaned workers may still hold a run folder when the resumed sweep's task
@@ -324,6 +325,7 @@ def test_package_import_leaves_dask_out_and_missing_extra_says_how(monkeypatch):
         require_distributed()
 
 
+@pytest.mark.slow
 def test_animation_frames_as_dask_tasks_match_the_sequential_ones(tmp_path, client):
     import numpy as np
     from PIL import Image

@@ -52,11 +52,13 @@ def discrete_ensemble(days, photons, seeds, tmp, light=False, species=("bryum_ar
 
 def relaxed_with_runs_light(days, seeds, f_sun, f_sky, closure="near-field",
                             species=("bryum_argenteum",)):
-    """The relaxed model once per seed with that run's weather and daily light; the mean."""
+    """The relaxed model once per seed with that run's weather and daily light; the mean.
+    The model's dispersal kernels are seed 0's for every run (a property of the model; one
+    preparation's kernels serve the others: ``smooth.prepare`` keeps them)."""
     out = []
     for i, s in enumerate(seeds):
         base = tune.prepare(SCEN, days=days, species=list(species), photons=10_000,
-                            light_every=days, overrides=[f"light.seed={s}"])
+                            light_every=days, overrides=[f"light.seed={s}"], seed=0)
         out.append(relaxed(smooth.with_daily_light(base, f_sun[i], f_sky[i]), closure))
     return np.mean(out, axis=0)
 
@@ -90,6 +92,7 @@ def ensemble_20_days(tmp_path_factory):
     return discrete_ensemble(20, 250_000, range(8), tmp_path_factory.mktemp("ens"), light=True)
 
 
+@pytest.mark.slow
 def test_near_field_closer_to_discrete_mean(tmp_path, ensemble_20_days):
     report = [10, 20]
     mf, nf = ratios(20, 250_000, tmp_path, report, ensemble_20_days[0])
@@ -116,6 +119,7 @@ def test_near_field_closer_to_discrete_mean(tmp_path, ensemble_20_days):
     assert mf[-1, 0] / nf[-1, 0] > 1.12, (mf, nf)
 
 
+@pytest.mark.slow
 def test_near_field_with_the_runs_light(ensemble_20_days):
     """Driven by each run's own weather and daily light (photon noise, moss albedo), the
     near-field model is within 10 % of the discrete mean on days 10 and 20 in total, and

@@ -173,6 +173,7 @@ def test_fit_discrete_arguments(dm, surrogate):
         fit_discrete(dm, surrogate, np.zeros(3), ["S1"])
 
 
+@pytest.mark.slow
 def test_fit_discrete_experiments_plumbing(surrogate):
     """Several experiments: the summed discrete loss is the weighted sum of the experiments'
     losses, each the single experiment's; the record names every experiment.
@@ -204,6 +205,7 @@ def test_fit_discrete_experiments_plumbing(surrogate):
     assert it["covered_m2_discrete"] == pytest.approx(2 * e["a"]["covered_m2_discrete"])
 
 
+@pytest.mark.slow
 def test_safeguarded_outer_step(surrogate, monkeypatch):
     """accept="decrease": a step that raises the discrete loss is halved ``backtrack`` times,
     then the fit stops where it was; a step that lowers it is taken whole. "always" takes

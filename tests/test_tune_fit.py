@@ -53,12 +53,14 @@ def one_fit(model, target, tmp_path_factory):
     return res, out
 
 
+@pytest.mark.slow
 def test_inverse_problem_one_start(one_fit):
     res, _ = one_fit
     check_recovered(res)  # measured: S1 0.1 %, T1 0.6 % of the range
     assert res.history[-1]["loss"] < 1e-2 * res.history[0]["loss"]
 
 
+@pytest.mark.slow
 def test_fit_writes_values_loss_curve_and_maps(one_fit):
     res, out = one_fit
     f = json.loads((out / "fitted.json").read_text())

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
 import datetime as _dt
 import math
 import time
@@ -210,6 +211,23 @@ class ModelData:
         return m
 
 
+#: dispersal kernels of this process by :func:`_kernel_key`: they depend on the scene's
+#: geometry, where moss lives, the spot grid and the species' distances only (not on the light,
+#: the weather or the days), so the preparations of one scenario share them
+_KERNELS: dict = {}
+
+
+def _kernel_key(idx, living, grid, k_g, k_s, samples, seed, reach) -> str:
+    """A digest of everything :func:`dispersal_kernel` and :func:`sibling_overlap` read."""
+    h = hashlib.sha1()
+    for a in (idx.centroids, idx.normals, idx.areas, np.asarray(living, bool),
+              np.asarray(grid.lo, float)):
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(repr((idx.n_elements, float(grid.cell), float(k_g), float(k_s),
+                   [int(x) for x in samples], int(seed), int(reach))).encode())
+    return h.hexdigest()
+
+
 def prepare(scenario, days: int | None = None, overrides=(), species=None,
             photons: int | None = None, light_every: int = 15, max_depth: int | None = None,
             kernel_samples=(64, 256), differentiable_light: bool = False, seed: int | None = None,
@@ -278,16 +296,25 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     # the gemmae's reach [cells]: a gemma lands at most k from its parent, plus the cell it
     # starts in
     reach = int(math.ceil(k_g / sim.grid_cell())) + 1
-    kernels = {
-        "gemma": dispersal_kernel(site.scene, idx, living, "gemma", k_g,
-                                  int(kernel_samples[0]), seed, site.grid, near_radius=reach),
-        "spore": dispersal_kernel(site.scene, idx, living, "spore", k_s,
-                                  int(kernel_samples[1]), seed, site.grid, near_radius=reach),
-    }
-    for kind, dist in (("gemma", k_g), ("spore", k_s)):
-        same, both = sibling_overlap(site.scene, idx, living, site.grid, kind, dist, k_g,
-                                     2 * int(kernel_samples[0]), seed)
-        kernels[kind].sibling_share = pooled_share(kernels["gemma"], same, both)
+    key = _kernel_key(idx, living, site.grid, k_g, k_s, kernel_samples, seed, reach)
+    kernels = _KERNELS.get(key)
+    if kernels is None:
+        kernels = {
+            "gemma": dispersal_kernel(site.scene, idx, living, "gemma", k_g,
+                                      int(kernel_samples[0]), seed, site.grid,
+                                      near_radius=reach),
+            "spore": dispersal_kernel(site.scene, idx, living, "spore", k_s,
+                                      int(kernel_samples[1]), seed, site.grid,
+                                      near_radius=reach),
+        }
+        for kind, dist in (("gemma", k_g), ("spore", k_s)):
+            same, both = sibling_overlap(site.scene, idx, living, site.grid, kind, dist, k_g,
+                                         2 * int(kernel_samples[0]), seed)
+            kernels[kind].sibling_share = pooled_share(kernels["gemma"], same, both)
+        if len(_KERNELS) >= 8:
+            _KERNELS.pop(next(iter(_KERNELS)))
+        _KERNELS[key] = kernels
+    kernels = {k: copy.copy(v) for k, v in kernels.items()}
     timings["kernels"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
