@@ -487,6 +487,7 @@ class SceneIndex:
             group_layout[gname] = (local, items, k)
             return group_layout[gname]
 
+        SceneIndex._check_ids(shapes)
         for sh in shapes:
             sid = sh.id()
             ids.append(sid)
@@ -580,6 +581,25 @@ class SceneIndex:
                           mi.UInt32(np.array(g_local + [0], np.uint32)),
                           mi.UInt32(np.array(g_bsdf + [0], np.uint32)),
                           sorted(bsdf_objs.items(), key=lambda kv: kv[0]), full_lookup)
+
+    @staticmethod
+    def _check_ids(shapes) -> None:
+        """Refuse shapes without an id or with one id twice: results are looked up by id, and
+        such shapes would share one name (one row, one map file, the last shape's values).
+        Mitsuba's XML writer (``mi.parser.write_file``) writes ``name=`` and no ``id=``."""
+        seen, bad = {}, []
+        for k, sh in enumerate(shapes):
+            sid = sh.id()
+            if not sid or sid in seen:
+                bad.append(f"shape {k} ({sh.class_name()}"
+                           + (f", id '{sid}' as shape {seen[sid]}" if sid else ", no id") + ")")
+            seen.setdefault(sid, k)
+        if bad:
+            raise SceneError(
+                f"{len(bad)} shape(s) of the scene have no id or an id used before: "
+                f"{', '.join(bad[:4])}{' ...' if len(bad) > 4 else ''}; the photon pass names "
+                "its results by shape id. Fix: give every <shape> a unique id=\"...\" attribute "
+                "(Mitsuba's XML writer writes name= only; in a dict, the keys are the ids)")
 
     @staticmethod
     def _probe_group_order(scene, inst, items):

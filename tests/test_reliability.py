@@ -561,3 +561,20 @@ def test_sensors_at_one_place_are_refused_or_independent():
         S.point("flat", (0, 0.5, 0)) + S.point("big", (0, 0.5, 0), kind="spherical", size=0.3)
     assert len(ok) == 4 and ok.overlap() is None
     assert len(S.grid("g", (0, 0, 0), (1, 0, 0), (0, 0, 1), spacing=0.1, size=0.1)) == 100
+
+
+def test_shapes_without_ids_are_refused(tmp_path, capsys):
+    """Mitsuba's XML writer writes shapes with ``name=`` and no ``id=``: every shape would load
+    with the id '' and share one name (one row, one map file written over and over). Refused
+    with one line naming the shapes and the fix; no result written (the output folder is
+    claimed before the scene loads: at most its marker is there)."""
+    import mitsuba as mi
+    xml = tmp_path / "cbox.xml"
+    mi.parser.write_file(mi.parser.parse_dict(mi.parser.ParserConfig(mi.variant()),
+                                              mi.cornell_box()), str(xml))
+    assert 'id="' not in "".join(ln for ln in xml.read_text().splitlines() if "<shape" in ln)
+    _refused(capsys, ["irradiance", xml, "--set", "light.photons=1000", "--out", tmp_path / "o"],
+             "no id", "id=")
+    left = sorted(p.name for p in (tmp_path / "o").rglob("*")) if (tmp_path / "o").exists() \
+        else []
+    assert all(n.startswith(".mitsuba-veg") for n in left), left

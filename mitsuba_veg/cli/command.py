@@ -61,8 +61,9 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
     out : path-like
         Output folder: ``irradiance.npz``, PNG maps per shape and ``summary.json``.
     photons, seed, max_depth : int, optional
-        Photons per emitter, random seed, bounces per photon (default: the scenario's, else
-        1000000, 0, 8).
+        Photons of the pass in all (shared by the emitters in proportion to the power each
+        sends towards the geometry, each at least 5 %), random seed, bounces per photon
+        (default: the scenario's, else 1000000, 0, 8).
     indirect : bool, optional
         Follow bounces (default: the scenario's, else True).
     when : str, optional
