@@ -394,8 +394,10 @@ class SceneIndex:
     #: True when some BSDF is spatially varying, or (in scenes without instances) a mesh has
     #: vertex normals: hits then use Mitsuba's full surface interaction
     needs_full_interaction: bool = False
-    #: instanced hits: ``group_base[instance registry id] + shape_index`` indexes
-    #: ``group_local`` (first element of that mesh within the group) and ``group_bsdf``
+    #: instanced hits where the backend gives a null shape (Embree):
+    #: ``group_base[instance registry id] + shape_index`` indexes ``group_local`` (first
+    #: element of that mesh within the group) and ``group_bsdf``; where it gives the mesh as
+    #: the shape (OptiX, shape_index 0), ``lookup``/``bsdf_lookup`` of the mesh hold the same
     group_base: mi.UInt32 | None = None
     group_local: mi.UInt32 | None = None
     group_bsdf: mi.UInt32 | None = None
@@ -607,7 +609,8 @@ class SceneIndex:
         ``perm[shape_index] = traversal position`` as the scene's ray tracer numbers them (a
         short ray at the largest triangle of each mesh, from just in front of it); None when
         every probe agrees with the traversal order or a probe is inconclusive (then the
-        traversal order is kept). Embree keeps the traversal order; OptiX need not."""
+        traversal order is kept). Embree keeps the traversal order; OptiX gives shape_index 0
+        and the mesh itself as the hit's shape (the kernel reads that instead)."""
         if inst is None or len(items) < 2:
             return None
         T = _matrix(mi.traverse(inst)["to_world"])
@@ -2417,7 +2420,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         ``e_lane`` (the emitter of each lane) emitter k's records go to rows
         ``k n_rec + row``. A hit on the mesh triangle that the photon last left is a
         self-intersection of the spawned ray (a planar triangle cannot be hit again by a ray
-        that left it; it happened on OptiX on instanced surfaces): it is crossed like a hidden
+        that left it, only float rounding of the spawn point can do that): it is crossed like a hidden
         element, unrecorded, without a bounce. Hits on meshes with vertex normals (scenes
         without instances) use Mitsuba's full surface interaction for the BSDF's shading
         frame; every other hit a minimal one built from the element's geometric normal.
@@ -2459,13 +2462,17 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             elem = dr.gather(mi.UInt32, lookup, sid, hit) + pi.prim_index
             bsdf_id = dr.gather(mi.UInt32, blookup, sid, hit)
             if dr.hint(has_instances, mode='scalar'):
-                # inside an instance: shape is null, shape_index is the mesh's place in its group
+                # inside an instance the backends name the mesh differently: OptiX gives the
+                # mesh as ``shape`` (its lookup entries: offset within the group, BSDF) and
+                # shape_index 0; Embree a null shape and the mesh's place in its group as
+                # shape_index (the group tables)
                 iid = dr.reinterpret_array(mi.UInt32, pi.instance)
                 in_inst = hit & (iid > 0)
-                slot = dr.gather(mi.UInt32, index.group_base, iid, in_inst) + pi.shape_index
-                elem += dr.select(in_inst, dr.gather(mi.UInt32, lookup, iid, in_inst)
-                                  + dr.gather(mi.UInt32, index.group_local, slot, in_inst), 0)
-                bsdf_id = dr.select(in_inst, dr.gather(mi.UInt32, index.group_bsdf, slot, in_inst),
+                by_slot = in_inst & (sid == 0)
+                slot = dr.gather(mi.UInt32, index.group_base, iid, by_slot) + pi.shape_index
+                elem += dr.select(in_inst, dr.gather(mi.UInt32, lookup, iid, in_inst), 0) \
+                    + dr.select(by_slot, dr.gather(mi.UInt32, index.group_local, slot, by_slot), 0)
+                bsdf_id = dr.select(by_slot, dr.gather(mi.UInt32, index.group_bsdf, slot, by_slot),
                                     bsdf_id)
             analytic = mi.Bool(False)
             if dr.hint(full, mode='scalar'):
