@@ -110,6 +110,10 @@ def main(argv=None) -> int:
     print(f"steady day (median of {a.days}): {np.median(days) * 1e3:.1f} ms "
           f"(" + ", ".join(f"{k} {np.median(v) * 1e3:.1f} ms" for k, v in stages.items())
           + ")")
+    still = [t for t, c in zip(days, c_day) if c == 0]
+    print(f"days that compiled nothing: {len(still)} of {a.days}, median "
+          + (f"{np.median(still) * 1e3:.1f} ms" if still else "-")
+          + " (target <= 30 ms on a GPU: a day of a run past its first compilations)")
     print("bare photon pass, same scene, tables and photon split: "
           f"{np.median(passes) * 1e3:.1f} ms")
     print(f"world day / bare pass: {np.median(ratios):.2f} (per day: "
