@@ -81,6 +81,7 @@ import numpy as np
 from mitsuba_veg.arrays import host_array, zero_index
 from mitsuba_veg.arrays import opaque as _opaque
 from mitsuba_veg.atomic import atomic_write
+from mitsuba_veg.defaults import LIGHT, check_light
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
 from mitsuba_veg.meshes import triangle_geometry
 from mitsuba_veg.units import umol_per_joule
@@ -104,7 +105,7 @@ SIDES = ("front", "back")
 _SLOTS = 4  # wavelengths carried by one Mitsuba spectral sample
 _UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
-DEFAULT_BATCH = 1 << 22
+DEFAULT_BATCH = LIGHT["batch"].default
 
 #: Element modes (``trace(..., modes=...)``): a SURFACE element records the photon and scatters
 #: or absorbs it (its BSDF); a SENSOR element records the photon and lets it pass unchanged
@@ -1412,7 +1413,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
          - integer
          - 1000000
          - Photons per pass, shared among the emitters by the power they send towards the
-           geometry (each >= 5 %). ``mi.render``'s ``spp`` is ignored.
+           geometry (each >= 5 %), 1 - 1e9. ``mi.render``'s ``spp`` is ignored.
        * - max_depth
          - integer
          - 8
@@ -1420,7 +1421,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
        * - seed
          - integer
          - 0
-         - Random seed; ``mi.render(scene, seed=k)`` traces with ``seed + k``.
+         - Random seed, 0 - 2^31 - 1; ``mi.render(scene, seed=k)`` traces with ``seed + k``.
        * - indirect
          - boolean
          - true
@@ -1436,7 +1437,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
        * - batch
          - integer
          - 4194304
-         - Photons per kernel launch (bounds memory; any size is exact).
+         - Photons per kernel launch, >= 1024 (bounds memory; any size is exact).
        * - mode
          - string
          - "roulette"
@@ -1464,10 +1465,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
     def __init__(self, props=None):
         super().__init__(props if props is not None else mi.Properties())
         props = props if props is not None else mi.Properties()
-        self.photons = int(props.get("photons", 1_000_000))
-        self.max_depth = int(props.get("max_depth", 8))
-        self.indirect = bool(props.get("indirect", True))
-        self.seed = int(props.get("seed", 0))
+        # defaults and ranges: mitsuba_veg.defaults.LIGHT (one table for every front end)
+        self.photons = int(props.get("photons", LIGHT["photons"].default))
+        self.max_depth = int(props.get("max_depth", LIGHT["max_depth"].default))
+        self.indirect = bool(props.get("indirect", LIGHT["indirect"].default))
+        self.seed = int(props.get("seed", LIGHT["seed"].default))
         self.bands = parse_bands(props.get("bands", ",".join(DEFAULT_BANDS)))
         em = str(props.get("emitters", "")).strip()
         self.emitters = tuple(s.strip() for s in em.split(",") if s.strip()) or None
@@ -1480,10 +1482,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         if self.output not in ("elements", "image"):
             raise ParameterError("output", self.output, "'elements' or 'image'",
                                  "<string name=\"output\" value=\"elements\"/>")
-        check_range("photons", self.photons, 1, None, fix="use a positive photon count")
-        check_range("max_depth", self.max_depth, 1, 1000, fix="max_depth counts surface hits")
-        check_range("seed", self.seed, 0, 2**31 - 1)
-        check_range("batch", self.batch, 1024, None)
+        for name in ("photons", "max_depth", "seed", "batch"):
+            check_light(name, getattr(self, name))
         self.result: PhotonIrradianceResult | None = None  # the last pass
         self._frozen = None   # the frozen launch (trace(..., frozen=True))
         self._lobes: dict = {}   # emission cones of point-like emitters (:meth:`_lobe`)
@@ -1692,10 +1692,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         if mode not in KERNEL_MODES:
             raise ParameterError("mode", mode, "'roulette' or 'weights'",
                                  "trace(..., mode='roulette')")
-        check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
-        check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
-        check_range("seed", seed, 0, 2**31 - 1)
-        check_range("batch", batch, 1024, None)
+        for name, v in (("photons", photons), ("max_depth", max_depth), ("seed", seed),
+                        ("batch", batch)):
+            check_light(name, v)
         photons, max_depth, seed, batch = int(photons), int(max_depth), int(seed), int(batch)
         if isinstance(bands, str):
             bands = (bands,)

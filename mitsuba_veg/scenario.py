@@ -27,16 +27,13 @@ from pathlib import Path
 
 import mitsuba as mi
 
+from .defaults import LIGHT, MAX_PHOTONS  # noqa: F401  (MAX_PHOTONS: part of this API)
 from .errors import ParameterError, unknown_field
 from .inputs import check_scene_files, input_hashes
 from .light.clear_sky import daylight as _daylight
 
-#: the largest photon count of one light pass: ~2 minutes on 2 CPU cores at ~8 M photons/s
-#: (more gains little: the estimate's noise falls as 1/sqrt(N) and a day has other errors)
-MAX_PHOTONS = 1_000_000_000
-
 _DEFAULTS = {
-    "light": {"photons": 1_000_000, "max_depth": 8, "seed": 0, "indirect": True},
+    "light": {k: LIGHT[k].default for k in ("photons", "max_depth", "seed", "indirect")},
     "site": {"latitude": 35.0, "longitude": 139.0},
 }
 
@@ -78,9 +75,11 @@ SCHEMA: dict[str, Field] = {
                          "rounded)"),
     }),
     "light": Field("table", fields={
-        "photons": _num("int", 1, MAX_PHOTONS, "photons per light pass"),
-        "max_depth": _num("int", 1, 1000, "bounces per photon"),
-        "seed": _num("int", 0, 2**31 - 1, "random seed of the light, weather and moss"),
+        "photons": _num("int", LIGHT["photons"].lo, LIGHT["photons"].hi, LIGHT["photons"].doc),
+        "max_depth": _num("int", LIGHT["max_depth"].lo, LIGHT["max_depth"].hi,
+                          LIGHT["max_depth"].doc),
+        "seed": _num("int", LIGHT["seed"].lo, LIGHT["seed"].hi,
+                     "random seed of the light, weather and moss"),
         "indirect": Field("bool", doc="false: direct light only (paper 000 fig 4.2)"),
         "when": Field("datetime", doc="ISO 8601 date-time, e.g. 2026-04-20T10:00:00+09:00 "
                       "(no offset: the site's local time)"),

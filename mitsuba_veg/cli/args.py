@@ -11,7 +11,7 @@ import datetime as _dt
 import math
 import sys
 
-from ..scenario import MAX_PHOTONS
+from ..defaults import LIGHT, range_text
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -190,7 +190,7 @@ def add_quiet(p, what: str = "no progress bar") -> None:
 
 
 def add_photons(p, default: int | None, what: str = "per light pass") -> None:
-    """Add ``--photons N``: photons ``what`` (1 to ``scenario.MAX_PHOTONS``).
+    """Add ``--photons N``: photons ``what`` (range: ``defaults.LIGHT["photons"]``).
 
     Parameters
     ----------
@@ -201,5 +201,24 @@ def add_photons(p, default: int | None, what: str = "per light pass") -> None:
     what : str, optional
         What the count is per, for the help (default ``"per light pass"``).
     """
-    p.add_argument("--photons", type=ranged(int, 1, MAX_PHOTONS, "photons"), default=default,
-                   metavar="N", help=f"photons {what} (1 .. 1e9)")
+    p.add_argument("--photons", type=light_type("photons"), default=default,
+                   metavar="N", help=f"photons {what} ({range_text('photons')})")
+
+
+def light_type(name: str):
+    """The argparse ``type`` of a light setting (``photons``, ``seed``, ``max_depth``): its
+    range from the one table, :data:`mitsuba_veg.defaults.LIGHT`.
+
+    Parameters
+    ----------
+    name : str
+        Key of the table.
+
+    Returns
+    -------
+    callable
+        The ``type`` for ``add_argument``.
+    """
+    s = LIGHT[name]
+    unit = {"photons": "photons", "max_depth": "bounces"}.get(name, "")
+    return ranged(int, s.lo, s.hi, unit)

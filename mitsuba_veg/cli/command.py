@@ -18,17 +18,19 @@ import mitsuba as mi
 import numpy as np
 
 from ..daily.run import run
-from ..errors import ParameterError, SceneError, check_range
+from ..defaults import LIGHT, check_light
+from ..errors import ParameterError, SceneError
 from ..light import photon_irradiance
 from ..outputs import OutputFolder, write_json
 from ..plots import irradiance_figure
 from ..render.still import run_render
-from ..scenario import MAX_PHOTONS, light_overrides, load_scenario, load_scene_file
+from ..scenario import light_overrides, load_scenario, load_scene_file
 from ..sweeps.frames import run_animate
 from ..backend import __version__, versions
 from ..world.trees import scene_with_trees
 from . import grow, light_study, render, sweep, tune
-from .args import Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
+from .args import (Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, light_type,
+                   ranged)
 from .entry import run_parsed
 
 
@@ -88,14 +90,13 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
         raise ParameterError("--when", when, "a scenario (.toml) with a [site] as SCENE",
                              "pass the scenario instead of the XML: --when replaces the "
                              "scene's emitters by daylight for the scenario's site")
-    for k, v, lo, hi in (("--photons", photons, 1, MAX_PHOTONS), ("--seed", seed, 0, 2**31 - 1),
-                         ("--max-depth", max_depth, 1, 1000)):
+    for k, v in (("photons", photons), ("seed", seed), ("max_depth", max_depth)):
         if v is not None:
-            check_range(k, v, lo, hi)
+            check_light(k, v, "--" + k.replace("_", "-"))
     regions = {}
     tree_shapes = []
     ground = "ground"
-    settings = {"photons": 1_000_000, "seed": 0, "max_depth": 8, "indirect": True}
+    settings = {k: LIGHT[k].default for k in ("photons", "seed", "max_depth", "indirect")}
     t0 = time.perf_counter()
     if scene_path.suffix.lower() == ".toml":
         ov = list(overrides)
@@ -289,7 +290,7 @@ def build_parser():
     d = sub.add_parser("demo", help="run the default scenario end to end")
     add_out(d, "out/demo", "the light study, the world run, render and animation")
     add_photons(d, 4_000_000, "of the light study")
-    d.add_argument("--world-photons", type=ranged(int, 1, 10**9, "photons"), default=500_000,
+    d.add_argument("--world-photons", type=light_type("photons"), default=500_000,
                    help="photons per day of the world run")
     d.add_argument("--days", type=ranged(int, 1, 100_000, "days"), default=365,
                    help="days of the world run (from 1 March)")
@@ -308,11 +309,13 @@ def build_parser():
     r.set_defaults(func=_cmd_run)
     p = sub.add_parser("irradiance", help="photon pass: irradiance per triangle (npz + PNG)")
     p.add_argument("scene", help="Mitsuba XML scene or scenario TOML")
-    add_photons(p, None, "(default: the scenario's light.photons, else 1000000)")
-    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
-                   help="random seed (default: the scenario's, else 0)")
-    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
-                   help="bounces per photon (default: the scenario's, else 8)")
+    add_photons(p, None, "(default: the scenario's light.photons, else "
+                         f"{LIGHT['photons'].default})")
+    p.add_argument("--seed", type=light_type("seed"),
+                   help=f"random seed (default: the scenario's, else {LIGHT['seed'].default})")
+    p.add_argument("--max-depth", type=light_type("max_depth"),
+                   help="bounces per photon (default: the scenario's, else "
+                        f"{LIGHT['max_depth'].default})")
     p.add_argument("--no-indirect", action="store_true", help="direct light only (paper fig 4.2)")
     p.add_argument("--when", metavar="ISO-DATETIME", type=iso_datetime,
                    help="daylight for the scenario's site at this time, e.g. "

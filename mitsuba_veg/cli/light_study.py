@@ -11,7 +11,7 @@ import datetime as _dt
 from ..errors import ParameterError
 from ..foliage.light_series import SERIES_PHOTONS, run_sensor_study
 from ..foliage.light_study import run_light_study
-from .args import add_out, add_photons, add_quiet, add_set, iso_datetime, ranged
+from .args import add_out, add_photons, add_quiet, add_set, iso_datetime, light_type, ranged
 
 __all__ = ["add_parser"]
 
@@ -37,9 +37,9 @@ def add_parser(subparsers):
     p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
     add_photons(p, None, "per light pass (default 2000000; time series: 500000 per sun "
                          "pass)")
-    p.add_argument("--seed", type=ranged(int, 0, 2**31 - 1),
+    p.add_argument("--seed", type=light_type("seed"),
                    help="random seed (default 0; time series: the scenario's light.seed)")
-    p.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
+    p.add_argument("--max-depth", type=light_type("max_depth"),
                    help="bounces per photon (default 8; time series: the scenario's "
                         "light.max_depth)")
     p.add_argument("--no-indirect", action="store_true", help="first hits only")
@@ -72,7 +72,7 @@ def add_parser(subparsers):
                    default=200.0, help="PPFD threshold of the hours-above count")
     g.add_argument("--sensor", help="sensor of the year plot and heat map (default: the first "
                                     "point sensor)")
-    g.add_argument("--sky-photons", type=ranged(int, 1, 1_000_000_000, "photons"),
+    g.add_argument("--sky-photons", type=light_type("photons"),
                    metavar="N", help="photons of the one sky pass (default 10 x --photons)")
     add_set(p, "scenario")
     add_out(p, "out/light_study", "maps, light_study.npz, leaves.csv and summary.json (time "

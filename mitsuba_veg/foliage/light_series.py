@@ -34,7 +34,8 @@ from mitsuba_veg.light import sensor_study as SS
 from mitsuba_veg.light import sensors as S
 from mitsuba_veg.outputs import OutputFolder, write_json
 from mitsuba_veg.plots import _mpl
-from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
+from mitsuba_veg.defaults import check_light
+from mitsuba_veg.scenario import load_scenario
 from mitsuba_veg.backend import versions
 
 FILES = ("sensors.csv", "sensors.parquet", "sensors_hourly.csv", "sensors_hourly.parquet",
@@ -129,7 +130,7 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     if p.suffix.lower() != ".toml":
         raise ParameterError("SCENE", str(p), "a scenario .toml with [[sensors]] for a time "
                              "series", "write a scenario (docs/sensors.md)")
-    check_range("photons", photons, 1, MAX_PHOTONS)
+    check_light("photons", photons)
     check_range("heatmap_every", heatmap_every, 0, 366, fix="days between hourly heat-map "
                 "days, 0 for none")
     check_range("par_threshold", par_threshold, 0.0, 5000.0, fix="PPFD in µmol m-2 s-1")

@@ -42,7 +42,8 @@ from mitsuba_veg.light.solar_position import sun_position
 from mitsuba_veg.light.validation import grid_mesh
 from mitsuba_veg.outputs import OutputFolder, write_json
 from mitsuba_veg.plots import _mpl, plan_map
-from mitsuba_veg.scenario import MAX_PHOTONS, load_scenario
+from mitsuba_veg.defaults import check_light
+from mitsuba_veg.scenario import load_scenario
 from mitsuba_veg.trees.structure import Tree
 from mitsuba_veg.units import umol_per_joule
 from mitsuba_veg.backend import versions
@@ -381,9 +382,9 @@ def run_light_study(scene_or_scenario, out_dir, *, photons: int = 2_000_000, see
     """
 
 
-    check_range("photons", photons, 1, MAX_PHOTONS)
-    check_range("max_depth", max_depth, 1, 1000)
-    check_range("seed", seed, 0, 2**31 - 1)
+    check_light("photons", photons)
+    check_light("max_depth", max_depth)
+    check_light("seed", seed)
     check_range("leaves", tree_leaves, 1, 1_000_000)
     out = Path(out_dir)
     t0 = time.perf_counter()

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import mitsuba as mi
 
-from mitsuba_veg.errors import ParameterError, check_range
+from mitsuba_veg.defaults import LIGHT, check_light
+from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.integrators.photon_irradiance import (  # noqa: F401
     BANDS, DEFAULT_BANDS, DEFAULT_BATCH, PhotonIrradianceIntegrator, PhotonIrradianceResult,
     band_range)
@@ -34,8 +35,9 @@ def _band_property(bands) -> str:
     return ",".join(items)
 
 
-def integrator(photons: int = 1_000_000, seed: int = 0, max_depth: int = 8,
-               bands=DEFAULT_BANDS, indirect: bool = True,
+def integrator(photons: int = LIGHT["photons"].default, seed: int = LIGHT["seed"].default,
+               max_depth: int = LIGHT["max_depth"].default, bands=DEFAULT_BANDS,
+               indirect: bool = LIGHT["indirect"].default,
                batch: int = DEFAULT_BATCH) -> PhotonIrradianceIntegrator:
     """The ``veg_photon_irradiance`` plugin with these properties (what a scene file declares).
 
@@ -60,18 +62,19 @@ def integrator(photons: int = 1_000_000, seed: int = 0, max_depth: int = 8,
         The loaded Mitsuba integrator.
     """
     # checked here too: an error raised inside mi.load_dict would reach the caller re-wrapped
-    check_range("photons", photons, 1, None, fix="use a positive photon count, e.g. 1000000")
-    check_range("max_depth", max_depth, 1, 1000, fix="max_depth counts surface hits, >= 1")
-    check_range("seed", seed, 0, 2**31 - 1)
-    check_range("batch", batch, 1024, None)
+    for name, v in (("photons", photons), ("max_depth", max_depth), ("seed", seed),
+                    ("batch", batch)):
+        check_light(name, v)
     return mi.load_dict({"type": "veg_photon_irradiance", "photons": int(photons),
                          "seed": int(seed), "max_depth": int(max_depth),
                          "bands": _band_property(bands), "indirect": bool(indirect),
                          "batch": int(batch)})
 
 
-def photon_irradiance(scene: mi.Scene, photons: int = 1_000_000, seed: int = 0,
-                      max_depth: int = 8, bands=DEFAULT_BANDS, indirect: bool = True,
+def photon_irradiance(scene: mi.Scene, photons: int = LIGHT["photons"].default,
+                      seed: int = LIGHT["seed"].default,
+                      max_depth: int = LIGHT["max_depth"].default, bands=DEFAULT_BANDS,
+                      indirect: bool = LIGHT["indirect"].default,
                       reflectance: dict | None = None, emitters=None,
                       progress: bool = False, modes: dict | None = None
                       ) -> PhotonIrradianceResult:

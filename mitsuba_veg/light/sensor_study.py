@@ -37,6 +37,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from mitsuba_veg.defaults import check_light
 from mitsuba_veg.errors import ParameterError, check_range
 
 from . import sensors as S
@@ -391,7 +392,7 @@ def run_series(scene, sensors: S.SensorSet, *, latitude: float, longitude: float
 
     check_range("latitude", latitude, -90.0, 90.0)
     check_range("longitude", longitude, -180.0, 180.0)
-    check_range("photons", photons, 1, 1_000_000_000)
+    check_light("photons", photons)
     check_range("sub_minutes", sub_minutes, 1.0, 60.0)
     if 60.0 % sub_minutes:
         raise ParameterError("sub_minutes", sub_minutes, "a divisor of 60", "e.g. 10")
