@@ -2614,13 +2614,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                 ray = mi.Ray3f(dr.select(passing, pass_ray, ray))
             else:
                 if dr.hint(full, mode='scalar'):
-                    # mirror back-face hits so that every surface reflects on both sides
                     si.wi = si.to_local(-ray.d)
-                    flip = si.wi.z < 0
-                    si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
                 else:
-                    # the frame of the geometric normal, back-face hits mirrored into it (as
-                    # for the full interaction): surfaces reflect on both sides
+                    # the frame of the geometric normal
                     si = dr.zeros(mi.SurfaceInteraction3f)
                     si.t = pi.t
                     si.p = ray(pi.t)
@@ -2637,12 +2633,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                         si_f = pi.compute_surface_interaction(ray, mi.RayFlags.All, need)
                         si = dr.select(need, si_f, si)
                     si.wi = si.sh_frame.to_local(-ray.d)
-                    flip = si.wi.z < 0
-                    si.wi = dr.select(flip, mi.Vector3f(si.wi.x, si.wi.y, -si.wi.z), si.wi)
+                # a back-face hit: the BSDF sees it as such (Mitsuba's semantics: ``diffuse``
+                # absorbs it, ``twosided`` and the leaf BSDF reflect on that side); a
+                # per-element albedo override reflects on the side that was hit
+                flip = si.wi.z < 0
                 if dr.hint(weights, mode='scalar'):
                     # weights: a cosine-weighted direction on the side that was hit, whatever
                     # the albedo; the power is multiplied by it (no roulette)
                     wo_local = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
+                    wo_local = dr.select(flip, mi.Vector3f(wo_local.x, wo_local.y, -wo_local.z),
+                                         wo_local)
                     albedo = mi.Spectrum(1.0)
                     if dr.hint(has_acc, mode='scalar'):
                         # (a module function: a reference to ``self`` in the loop body would
@@ -2655,8 +2655,6 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                             use_ov = hit & ~dr.isnan(ov[0])
                             albedo = mi.Spectrum(dr.select(use_ov, mi.Spectrum(*ov), albedo))
                         albedo = mi.Spectrum(dr.select(dr.isfinite(albedo), albedo, 0.0))
-                    wo_local = dr.select(flip, mi.Vector3f(wo_local.x, wo_local.y, -wo_local.z),
-                                         wo_local)
                     go = mi.Bool(hit)
                     new_thr = throughput * albedo
                 else:
@@ -2683,14 +2681,13 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                               for k in range(_SLOTS)]
                         use_ov = hit & ~dr.isnan(ov[0])
                         wo_cos = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit))
+                        wo_cos = dr.select(flip, mi.Vector3f(wo_cos.x, wo_cos.y, -wo_cos.z),
+                                           wo_cos)
                         wo_local = dr.select(use_ov, wo_cos, wo_local)
                         albedo = mi.Spectrum(dr.select(use_ov, mi.Spectrum(*ov), albedo))
                         bs.pdf = dr.select(use_ov, 1.0, bs.pdf)
                     albedo = mi.Spectrum(dr.select(dr.isfinite(albedo) & (bs.pdf > 0), albedo,
                                                    0.0))
-                    # mirror the outgoing direction back for flipped hits
-                    wo_local = dr.select(flip, mi.Vector3f(wo_local.x, wo_local.y, -wo_local.z),
-                                         wo_local)
                     q = dr.minimum(dr.max(albedo), 1.0)
                     go = hit & (sampler.next_1d(hit) < q)
                     new_thr = throughput * albedo / dr.maximum(q, 1e-12)
@@ -2810,4 +2807,4 @@ def _cosine_albedo(si, wo_local, bsdf_id, bsdfs, ctx, active, slot_of=None, eval
         for reg, b in bsdfs:
             on = active & (bsdf_id == reg)
             f = dr.select(on, b.eval(ctx, si, wo_local, on), f)
-    return mi.Spectrum(f * (dr.pi / dr.maximum(wo_local.z, 1e-12)))
+    return mi.Spectrum(f * (dr.pi / dr.maximum(dr.abs(wo_local.z), 1e-12)))
