@@ -1087,8 +1087,12 @@ class PhotonIrradianceResult:
         Keys ``{shape}/{band}/{component}`` (front irradiance [W m-2], one value a triangle),
         ``{shape}/area_m2``, ``{shape}/centroid_m``, ``{shape}/normal``. With instances, also
         ``elements/...`` (the same for every element of the scene, in :meth:`tensor` order)
-        and ``instances/ids``, ``instances/first_element``, ``instances/element_count``;
-        per-instance keys are written for up to 100 instances only.
+        and ``instances/ids``, ``instances/first_element``, ``instances/element_count``, and
+        one value per instance for every instance: ``instances/area_m2`` and
+        ``instances/{band}/{component}`` (area-weighted mean front irradiance [W m-2]);
+        per-instance per-triangle keys (``{instance}/...``) are written for up to 100
+        instances only (beyond, the ``elements/...`` rows of ``first_element`` ..
+        ``first_element + element_count`` hold them).
 
         Parameters
         ----------
@@ -1111,9 +1115,20 @@ class PhotonIrradianceResult:
             data["elements/area_m2"] = self.index.areas
             data["elements/centroid_m"] = self.index.centroids
             data["elements/normal"] = self.index.normals
+            starts = np.array([sl.start for sl in sls], dtype=np.int64)
+            ends = np.array([sl.stop for sl in sls], dtype=np.int64)
+
+            def per_instance(x):   # sums over each instance's elements (other shapes between)
+                cs = np.concatenate([[0.0], np.cumsum(x, dtype=np.float64)])
+                return cs[ends] - cs[starts]
+            area = per_instance(self.index.areas)
+            data["instances/area_m2"] = area
             for b in self.bands:
                 for c in COMPONENTS:
-                    data[f"elements/{b}/{c}"] = self.element_irradiance(b, c)
+                    e = self.element_irradiance(b, c)
+                    data[f"elements/{b}/{c}"] = e
+                    data[f"instances/{b}/{c}"] = per_instance(e * self.index.areas) \
+                        / np.maximum(area, 1e-300)
         for sid in self.index.shape_ids:
             if not sid or (sid in inst and len(inst) > 100):
                 continue

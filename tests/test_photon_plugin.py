@@ -187,6 +187,27 @@ def test_thousand_instanced_plants_per_instance_and_triangle(plants):
         assert absorbed + escaped == pytest.approx(emitted, rel=0.005)
 
 
+def test_npz_has_every_instances_mean_irradiance(plants, tmp_path):
+    """Past 100 instances the npz has no per-instance per-triangle keys, but one value per
+    instance for all of them (area-weighted mean front irradiance) besides the element rows."""
+    res, _ = plants
+    res.to_npz(tmp_path / "r.npz")
+    data = np.load(tmp_path / "r.npz")
+    ids = list(data["instances/ids"])
+    assert len(ids) == 1000 and "p0517/total/total" not in data
+    for i in (0, 517, 999):
+        sid = f"p{i:04d}"
+        a = res.index.areas[res.shape_slice(sid)]
+        assert data["instances/area_m2"][i] == pytest.approx(a.sum(), rel=1e-12)
+        for b, c in (("total", "total"), ("par", "indirect")):
+            mean = (res.irradiance(sid, b, c) * a).sum() / a.sum()
+            assert data[f"instances/{b}/{c}"][i] == pytest.approx(mean, rel=1e-9)
+        sl = slice(data["instances/first_element"][i],
+                   data["instances/first_element"][i] + data["instances/element_count"][i])
+        np.testing.assert_allclose(data["elements/total/total"][sl],
+                                   res.irradiance(sid, "total", "total"), rtol=1e-12)
+
+
 def test_instances_agree_with_the_same_plants_as_plain_meshes(plants):
     inst, plain = plants
     assert inst.rays_traced == pytest.approx(plain.rays_traced, rel=1e-3)
