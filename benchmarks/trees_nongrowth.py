@@ -28,7 +28,7 @@ def main(argv=None):
     import mitsuba as mi
 
     import mitsuba_veg  # noqa: F401
-    from mitsuba_veg.light.validation import make_mesh
+    from mitsuba_veg.meshes import make_mesh
     from mitsuba_veg.trees import GrowthParams, Leaves, branching, nongrowth
     from mitsuba_veg.trees.voxel import VoxelSpace, sky_rays
 

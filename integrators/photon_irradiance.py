@@ -411,6 +411,16 @@ class SceneIndex:
     full_lookup: mi.UInt32 | None = None
     #: :attr:`normals` on the device for the kernel (flat, 3 per element)
     kernel_normals: mi.Float | None = None
+    #: scenes with instances whose meshes (in groups or top-level) have vertex normals: the
+    #: shading normals of their hits from tables instead of Mitsuba's full interaction (a
+    #: virtual call over every instance). ``vn_table``: the 3 vertex normals of each such
+    #: triangle (9 floats; a group's triangles in object space, a top-level mesh's in world
+    #: space); ``vn_base[registry id]`` (of the instance or the top-level mesh): its first row
+    #: (``0xFFFFFFFF``: none); ``vn_matrix[9 registry id ..]``: the normal transform (inverse
+    #: transpose of an instance's ``to_world``; identity for a top-level mesh)
+    vn_table: mi.Float | None = None
+    vn_base: mi.UInt32 | None = None
+    vn_matrix: mi.Float | None = None
 
     def __post_init__(self):
         if self.kernel_normals is None:
@@ -465,6 +475,17 @@ class SceneIndex:
 
         group_layout = {}  # group name -> (local offsets, triangle data in local space)
         g_base, g_local, g_bsdf, inst_base = {}, [], [], {}
+        # vertex normals per triangle, (k, 3, 3) or None, of each group's meshes and of the
+        # top-level meshes (for the shading frame of hits in scenes with instances)
+        vn_group: dict[str, list] = {}
+        vn_top: dict[int, np.ndarray] = {}
+        inst_matrix: dict[int, np.ndarray] = {}
+
+        def tri_normals(sh, f):
+            if not (sh.is_mesh() and sh.has_vertex_normals()):
+                return None
+            vn = np.asarray(sh.vertex_normals_buffer(), dtype=np.float64).reshape(-1, 3)
+            return vn[f]
 
         def layout(gname):
             if gname in group_layout:
@@ -483,6 +504,7 @@ class SceneIndex:
                 v, f = _mesh_arrays(s)
                 local[n] = (k, len(f))
                 reg_offset[_reg_id(s)] = k
+                vn_group.setdefault(gname, []).append((len(f), tri_normals(s, f)))
                 note_bsdf(s)
                 g_local.append(k)
                 g_bsdf.append(bsdf_of.get(_reg_id(s), 0))
@@ -512,6 +534,7 @@ class SceneIndex:
                     sub_local[f"{sid}/{n}"] = (offset + o, c)
                 reg_offset[_reg_id(sh)] = offset
                 inst_base[_reg_id(sh)] = g_base[gname]
+                inst_matrix[_reg_id(sh)] = T
             elif sh.is_mesh() and sh.face_count() > 0:
                 v, f = _mesh_arrays(sh)
                 a, nrm, c = triangle_geometry(v, f)
@@ -521,6 +544,9 @@ class SceneIndex:
                 cents.append(c)
                 geometry[sid] = (v, f)
                 reg_offset[_reg_id(sh)] = offset
+                tn = tri_normals(sh, f)
+                if tn is not None:
+                    vn_top[_reg_id(sh)] = tn
                 if note_bsdf(sh) or sh.has_vertex_normals():
                     full_shapes.add(_reg_id(sh))
                 smooth = smooth or sh.has_vertex_normals()
@@ -543,8 +569,8 @@ class SceneIndex:
         if not bbox.valid():
             bbox = scene.bbox()
         # shading normals need Mitsuba's full interaction too, except with instances, where
-        # it costs a virtual call over every instance (instanced meshes reflect about their
-        # geometric normals)
+        # it costs a virtual call over every instance (the vertex-normal tables below serve
+        # instanced scenes)
         needs_full = needs_full or (smooth and not instances)
         counts = np.asarray(counts, dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
@@ -571,6 +597,32 @@ class SceneIndex:
                 k = len(items)
                 g_local[base:base + k] = [g_local[base + j] for j in perm]
                 g_bsdf[base:base + k] = [g_bsdf[base + j] for j in perm]
+        # with instances: shading normals from tables (groups in object space, top-level
+        # meshes in world space; a group's meshes keep the traversal order of its elements)
+        vn_table = vn_base = vn_matrix = None
+        has_vn = any(tn is not None for items in vn_group.values() for _, tn in items) \
+            or bool(vn_top)
+        if instances and has_vn:
+            rows, base_of, nrow = [], {}, 0
+            for gname, items in vn_group.items():
+                base_of[gname] = nrow
+                for cnt, tn in items:
+                    rows.append(np.full((cnt, 3, 3), np.nan) if tn is None else tn)
+                    nrow += cnt
+            vb = np.full(n_reg, 0xFFFFFFFF, dtype=np.uint32)
+            vm = np.zeros((n_reg, 9), dtype=np.float32)
+            for sh in shapes:
+                r = _reg_id(sh)
+                if sh.class_name() == "Instance":
+                    vb[r] = base_of[instances[sh.id()]]
+                    vm[r] = np.linalg.inv(inst_matrix[r][:3, :3]).T.ravel()
+                elif r in vn_top:
+                    vb[r] = nrow
+                    vm[r] = np.eye(3).ravel()
+                    rows.append(vn_top[r])
+                    nrow += len(vn_top[r])
+            vn_table = mi.Float(np.concatenate(rows).astype(np.float32).ravel())
+            vn_base, vn_matrix = mi.UInt32(vb), mi.Float(vm.ravel())
         # without instances, only hits on the listed shapes need the full interaction
         full_lookup = None
         if not instances and full_shapes:
@@ -584,7 +636,8 @@ class SceneIndex:
                           mi.UInt32(blook), analytic, needs_full, mi.UInt32(gbase),
                           mi.UInt32(np.array(g_local + [0], np.uint32)),
                           mi.UInt32(np.array(g_bsdf + [0], np.uint32)),
-                          sorted(bsdf_objs.items(), key=lambda kv: kv[0]), full_lookup)
+                          sorted(bsdf_objs.items(), key=lambda kv: kv[0]), full_lookup,
+                          vn_table=vn_table, vn_base=vn_base, vn_matrix=vn_matrix)
 
     @staticmethod
     def _check_ids(shapes) -> None:
@@ -2519,6 +2572,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
         lookup, blookup = index.lookup, index.bsdf_lookup
         has_instances = len(index.instances) > 0
+        has_vn = index.vn_table is not None   # shading normals from tables (instanced scenes)
         full_lookup = index.full_lookup
         # every hit needs the full interaction (a spatially varying BSDF in an instanced scene),
         # or only hits on the shapes listed in ``full_lookup``
@@ -2636,7 +2690,28 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
                     si.t = pi.t
                     si.p = ray(pi.t)
                     si.n = ng
-                    si.sh_frame = mi.Frame3f(ng)
+                    if dr.hint(has_vn, mode='scalar'):
+                        # shading normal of meshes with vertex normals, as Mitsuba's mesh
+                        # interpolates it (barycentric weights 1 - u - v, u, v), moved to
+                        # world space by the instance's normal transform
+                        reg = dr.select(in_inst, iid, sid)
+                        vb = dr.gather(mi.UInt32, index.vn_base, reg, hit)
+                        on_vn = hit & (vb != _NO_ROW)
+                        row = (vb + elem - dr.gather(mi.UInt32, lookup, reg, on_vn)) * 9
+                        b1, b2 = pi.prim_uv.x, pi.prim_uv.y
+                        b0 = 1.0 - b1 - b2
+                        n_o = [b0 * dr.gather(mi.Float, index.vn_table, row + c, on_vn)
+                               + b1 * dr.gather(mi.Float, index.vn_table, row + 3 + c, on_vn)
+                               + b2 * dr.gather(mi.Float, index.vn_table, row + 6 + c, on_vn)
+                               for c in range(3)]
+                        m = [dr.gather(mi.Float, index.vn_matrix, reg * 9 + c, on_vn)
+                             for c in range(9)]
+                        n_s = mi.Vector3f(*[m[3 * r] * n_o[0] + m[3 * r + 1] * n_o[1]
+                                            + m[3 * r + 2] * n_o[2] for r in range(3)])
+                        ok = on_vn & dr.isfinite(n_s.x) & (dr.squared_norm(n_s) > 0)
+                        si.sh_frame = mi.Frame3f(dr.select(ok, dr.normalize(n_s), ng))
+                    else:
+                        si.sh_frame = mi.Frame3f(ng)
                     si.time = ray.time
                     si.wavelengths = ray.wavelengths
                     si.shape = pi.shape

@@ -7,8 +7,9 @@ import numpy as np
 
 
 def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
-              attributes: dict | None = None) -> mi.Mesh:
-    """An in-memory Mitsuba mesh from NumPy arrays.
+              attributes: dict | None = None, *, albedo: float | None = None) -> mi.Mesh:
+    """An in-memory Mitsuba mesh from NumPy arrays, its id set (the one mesh helper of the
+    package: light scenes, terrain, trees, sensors and the render).
 
     Parameters
     ----------
@@ -18,14 +19,17 @@ def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
         (n, 3) positions [m] (stored as float32).
     faces : array_like
         (m, 3) vertex indices (stored as uint32).
-    bsdf : dict or mitsuba.BSDF, optional
-        Its material.
+    bsdf : dict, mitsuba.BSDF or float, optional
+        Its material; a number is the reflectance [-] of a (one-sided) ``diffuse`` BSDF with a
+        spectrally flat reflectance. Default None: Mitsuba's default BSDF.
     uv : array_like, optional
         (n, 2) texture coordinates.
     normals : array_like, optional
         (n, 3) vertex normals.
     attributes : dict, optional
         Per-vertex float attributes (``vertex_<name>``: (n,) values).
+    albedo : float, optional
+        Same as a number given as ``bsdf`` (overrides it).
 
     Returns
     -------
@@ -35,10 +39,15 @@ def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
     v = np.ascontiguousarray(np.asarray(vertices, np.float32).reshape(-1, 3))
     f = np.ascontiguousarray(np.asarray(faces, np.uint32).reshape(-1, 3))
     props = mi.Properties()
+    if albedo is not None:
+        bsdf = albedo
+    if isinstance(bsdf, (int, float, np.floating, np.integer)) and not isinstance(bsdf, bool):
+        bsdf = {"type": "diffuse", "reflectance": {"type": "uniform", "value": float(bsdf)}}
     if bsdf is not None:
         props["bsdf"] = bsdf if isinstance(bsdf, mi.BSDF) else mi.load_dict(bsdf)
     m = mi.Mesh(name, len(v), len(f), props, has_vertex_normals=normals is not None,
                 has_vertex_texcoords=uv is not None)
+    m.set_id(name)   # (otherwise only loading a scene dict gives it its key as id)
     p = mi.traverse(m)
     p["vertex_positions"] = mi.Float(v.ravel())
     p["faces"] = mi.UInt32(f.ravel())

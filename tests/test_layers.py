@@ -323,3 +323,17 @@ if __name__ == "__main__":
         print(f"== {kind}: {len(items)}")
         for it in items:
             print("  ", it)
+
+
+def test_integrators_are_imported_as_part_of_the_package():
+    """``integrators/`` ships as ``mitsuba_veg.integrators``: imported as a top-level
+    ``integrators`` package it would be a second copy of the module, registering the plugin
+    again with its own caches (a scene's index dropped in one copy stays in the other)."""
+    found = []
+    for folder in ("tests", "benchmarks", "scripts", "mitsuba_veg", "integrators"):
+        for path in (ROOT / folder).rglob("*.py"):
+            for i, line in enumerate(path.read_text().splitlines(), 1):
+                s = line.strip()
+                if s.startswith(("from integrators", "import integrators")):
+                    found.append(f"{path.relative_to(ROOT)}:{i}: {s}")
+    assert found == []

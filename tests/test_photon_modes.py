@@ -11,7 +11,7 @@ import pytest
 import mitsuba_veg as mv  # noqa: F401  (selects the variant, registers plugins)
 import mitsuba as mi
 
-from integrators.photon_irradiance import HIDDEN, SENSOR, SURFACE
+from mitsuba_veg.integrators.photon_irradiance import HIDDEN, SENSOR, SURFACE
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.light import BANDS, photon_irradiance
 from mitsuba_veg.light import validation as V

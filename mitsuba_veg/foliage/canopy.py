@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
-from mitsuba_veg.light.validation import make_mesh
+from mitsuba_veg.meshes import make_mesh
 from mitsuba_veg.trees.structure import Leaves, Tree, leaf_quads, tube_mesh
 
 #: a leaf quad is size x (2 * 0.3 size) (mitsuba_veg.trees.structure.leaf_quads)
@@ -302,6 +302,6 @@ def mesh(name: str, vertices, faces, bsdf=None):
     Returns
     -------
     mitsuba.Mesh
-        The mesh (:func:`mitsuba_veg.light.validation.make_mesh`).
+        The mesh (:func:`mitsuba_veg.meshes.make_mesh`).
     """
     return make_mesh(name, vertices, faces, bsdf=bsdf)

@@ -67,11 +67,10 @@ import mitsuba as mi
 
 from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
-from mitsuba_veg.meshes import triangle_geometry
+from mitsuba_veg.meshes import make_mesh, triangle_geometry
 from mitsuba_veg.units import umol_per_joule
 
 from .photon import BANDS, photon_irradiance
-from .validation import make_mesh
 
 __all__ = ["KINDS", "QUANTITIES", "UNITS", "COMPONENTS", "PASS_BANDS", "SensorSet",
            "SensorReadings", "point", "grid", "ground_grid", "read", "scene_with_sensors",

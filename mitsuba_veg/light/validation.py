@@ -1,6 +1,7 @@
 """Independent references for the photon pass and the small scenes used to validate it.
 
-- :func:`grid_mesh` / :func:`box_mesh`: meshes built in memory (no files), with ids.
+- :func:`grid_mesh` / :func:`box_mesh`: vertices and faces of meshes built in memory (no
+  files), made into Mitsuba meshes with ids by :func:`mitsuba_veg.meshes.make_mesh`.
 - :func:`roof_wall_scene`: ground + roof slab + wall, sun + uniform sky, spectrally flat.
 - :func:`path_reference`: per-triangle irradiance from Mitsuba's own ``path`` integrator with one
   ``irradiancemeter`` per triangle (each selected triangle becomes its own mesh carrying the
@@ -23,46 +24,7 @@ import mitsuba as mi
 import numpy as np
 
 from mitsuba_veg.errors import SceneError
-
-
-def make_mesh(name: str, vertices, faces, albedo: float | None = None, bsdf=None) -> mi.Mesh:
-    """A Mitsuba mesh from numpy arrays, with its id set.
-
-    ``albedo`` gives it a diffuse BSDF with a uniform (spectrally flat) reflectance; ``bsdf``
-    any Mitsuba BSDF dict or object.
-
-    Parameters
-    ----------
-    name : str
-        Mesh name and id.
-    vertices : array_like
-        Vertex positions (n, 3) [m] (stored as float32).
-    faces : array_like of int
-        Triangles (m, 3), vertex indices (stored as uint32).
-    albedo : float, optional
-        Reflectance of a diffuse BSDF [-], in [0, 1]; overrides ``bsdf``; default None.
-    bsdf : dict or mi.BSDF, optional
-        Any BSDF (a dict is loaded with ``mi.load_dict``); default None: Mitsuba's default BSDF.
-
-    Returns
-    -------
-    mi.Mesh
-        The mesh.
-    """
-    v = np.asarray(vertices, dtype=np.float32)
-    f = np.asarray(faces, dtype=np.uint32)
-    props = mi.Properties()
-    if albedo is not None:
-        bsdf = {"type": "diffuse", "reflectance": {"type": "uniform", "value": float(albedo)}}
-    if bsdf is not None:
-        props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
-    mesh = mi.Mesh(name, len(v), len(f), props=props)
-    mesh.set_id(name)  # (otherwise only loading a scene dict gives it its key as id)
-    p = mi.traverse(mesh)
-    p["vertex_positions"] = mi.Float(v.ravel())
-    p["faces"] = mi.UInt32(f.ravel())
-    p.update()
-    return mesh
+from mitsuba_veg.meshes import make_mesh
 
 
 def grid_mesh(nx: int, nz: int, x=(-1.0, 1.0), z=(-1.0, 1.0), y=0.0, height=None, up=True):
@@ -246,7 +208,7 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
             key = k
     if key is None:
         raise SceneError(f"path_reference: no in-memory mesh with id '{shape_id}' in the scene "
-                         "dict (build meshes with mitsuba_veg.light.validation.make_mesh, or "
+                         "dict (build meshes with mitsuba_veg.meshes.make_mesh, or "
                          "convert the dict with validation.as_meshes)")
     mesh = scene_dict[key]
     V = np.asarray(mesh.vertex_positions_buffer()).reshape(-1, 3)

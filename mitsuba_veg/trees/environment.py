@@ -29,7 +29,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from mitsuba_veg.light.validation import box_mesh, grid_mesh, make_mesh
+from mitsuba_veg.light.validation import box_mesh, grid_mesh
+from mitsuba_veg.meshes import make_mesh
 
 from ..errors import ParameterError, check_range
 from ..meshes import triangle_geometry
