@@ -1481,7 +1481,10 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
          - integer
          - 1000000
          - Photons per pass, shared among the emitters by the power they send towards the
-           geometry (each >= 5 %), 1 - 1e9. ``mi.render``'s ``spp`` is ignored.
+           geometry (each >= 5 %), 1 - 1e9. With ``output="elements"`` this is the pass's
+           whole effort: ``mi.render(..., spp=N)`` is refused (a photon pass has no samples
+           per pixel); with ``output="image"``, ``spp`` is the camera's samples per pixel of
+           the light map.
        * - max_depth
          - integer
          - 8
@@ -1576,7 +1579,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             Added to the ``seed`` property (``mi.render(scene, seed=k)`` gives independent
             passes).
         spp : int
-            Ignored (the ``photons`` property sets the effort).
+            ``output="image"``: the camera's samples per pixel (0: 1). ``output="elements"``:
+            must be 0 (the ``photons`` property sets the effort; another value is refused).
         develop, evaluate : bool
             As for Mitsuba integrators.
 
@@ -1588,6 +1592,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             the front irradiance of the first band [W m-2].
         """
         k = int(np.asarray(dr.ravel(seed))[0]) if not isinstance(seed, int) else int(seed)
+        if self.output == "elements" and int(spp or 0) != 0:
+            raise ParameterError(
+                "spp", int(spp), "0 (mi.render's default) for output='elements'",
+                "a photon pass has no samples per pixel: set its effort with the integrator's "
+                f"photons property, e.g. <integer name=\"photons\" value=\"{4 * self.photons}\"/>")
         res = self.trace(scene, seed=(self.seed + k) & 0x7FFFFFFF)
         if self.output == "elements":
             return mi.TensorXf(res.tensor().astype(np.float32))

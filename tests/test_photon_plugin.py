@@ -44,6 +44,18 @@ def test_mi_render_runs_the_pass_from_a_scene_dict():
     np.testing.assert_array_equal(
         other, photon_irradiance(scene, photons=200_000, seed=6, max_depth=6).tensor()
         .astype(np.float32))
+    # samples per pixel mean nothing to the element output: refused, the fix named (mi.render
+    # wraps the plugin's error in its own; the plugin's is the cause)
+    with pytest.raises(ParameterError, match=r"spp = 64 is invalid.*photons"):
+        integ.render(scene, spp=64)
+    with pytest.raises(Exception) as e:
+        mi.render(scene, spp=64)
+    causes = []
+    c = e.value
+    while c is not None:
+        causes.append(c)
+        c = c.__cause__ or c.__context__
+    assert any(isinstance(c, ParameterError) and "spp = 64" in str(c) for c in causes)
 
 
 XML = """<scene version="3.0.0">
