@@ -1558,11 +1558,6 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         self.result: PhotonIrradianceResult | None = None  # the last pass
         self._frozen = None   # the frozen launch (trace(..., frozen=True))
         self._lobes: dict = {}   # emission cones of point-like emitters (:meth:`_lobe`)
-        #: element modes and per-triangle BSDF choices used by :meth:`trace` when its own
-        #: arguments are None (a daily loop sets them before each pass)
-        self.modes: dict | None = None
-        self.bsdf_override: dict | None = None
-        self.record = None
         self._vis = None  # (lookup, per-element irradiance) shown by the image output
 
     # ---- Mitsuba's render interface ---------------------------------------------------------
@@ -1716,7 +1711,6 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             Used for leaves whose optics change by autumn stage: a day's new choice is a new
             table, not a new scene, and the kernel is recompiled only when the *set* of BSDF
             objects changes (see :meth:`_bsdf_table`).
-
         record : sequence of str, optional
             Ids of the shapes (or instances) whose flux is kept (default: all). Photons
             interact with every shape as usual; the others are just not recorded, so the
@@ -1762,9 +1756,6 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         bands = self.bands if bands is None else bands
         emitters = self.emitters if emitters is None else emitters
         batch = self.batch if batch is None else batch
-        modes = self.modes if modes is None else modes
-        record = self.record if record is None else record
-        bsdf_override = self.bsdf_override if bsdf_override is None else bsdf_override
         mode = self.mode if mode is None else mode
         if mode not in KERNEL_MODES:
             raise ParameterError("mode", mode, "'roulette' or 'weights'",
