@@ -38,12 +38,15 @@ Emitter sampling ("bounding-sphere aim", done tighter):
   (pdf_pos pdf_dir). This is the paper's cosine emission with "re-draw photons that miss the
   bounding sphere", with the rejection replaced by an importance-sampled, equally unbiased
   estimator (no photon is drawn only to be thrown away).
-- point-like emitters (point, spot, projector): origin at the light, direction uniform in the cone
-  that subtends the bounding sphere (or the whole sphere when the light is inside it).
+- point-like emitters (point, spot, projector): origin at the light, direction uniform in the
+  narrower of the cone that subtends the bounding sphere (the whole sphere when the light is
+  inside it) and the emitter's own emission cone (:meth:`PhotonIrradianceIntegrator._lobe`).
 
-Surfaces are treated as two-sided for reflection (a photon hitting a back face reflects to the
-back side, as a thin sheet would); only hits on the front side (the side the geometric normal
-faces: moss lives there) count as front irradiance. Back-side flux is recorded separately.
+Which sides of a surface reflect is its BSDF's business, as in Mitsuba: a plain ``diffuse`` is
+one-sided (a photon hitting its back face is absorbed), ``twosided`` and the leaf BSDF reflect on
+both sides, a per-element albedo override on the side that was hit. Only hits on the front side
+(the side the geometric normal faces: moss lives there) count as front irradiance; back-side
+flux is recorded separately.
 
 Hits. Rays are cast with ``ray_intersect_preliminary`` (the BVH traversal only). The element of
 a hit comes from lookup tables (shape -> first element, instance -> first element, mesh within
@@ -51,9 +54,9 @@ a shapegroup -> first element within it), its side from the element's geometric 
 per-element table in world space), and the BSDF is sampled about that normal on a surface
 interaction holding only what a spatially uniform BSDF reads. Mitsuba's full surface
 interaction (shading normals, uv) is computed instead when some BSDF has a spatially varying
-texture, or when a mesh has vertex normals in a scene without instances (with instances,
-instanced meshes reflect about their geometric normals); analytic shapes (sphere, disk,
-cylinder) get their normal from the shape. This avoids
+texture, or when a mesh has vertex normals in a scene without instances (with instances, the
+shading normals of meshes with vertex normals come from per-triangle tables); analytic shapes
+(sphere, disk, cylinder) get their normal from the shape. This avoids
 Mitsuba's per-instance virtual call: with 1,000 instances a full ``ray_intersect`` was 30-50x
 slower than a preliminary one on this 2-core machine.
 
