@@ -24,7 +24,10 @@ finite difference of two replays is noise-free). Re-tracing with the same seed g
 paths.
 
 Front/back: as in the integrator, a hit is *front* when the ray arrives against the geometric
-normal; the moss model uses front irradiance only. Reflection is two-sided.
+normal; the moss model uses front irradiance only. The albedos a(e) stand in for the scene's
+BSDFs like the integrator's per-triangle ``reflectance`` overrides do, and like them reflect on
+the side that was hit (two-sided; a plain ``diffuse`` BSDF of the scene is one-sided in the
+integrator's own pass).
 """
 from __future__ import annotations
 
