@@ -15,8 +15,8 @@ wavelengths), a cosine-weighted direction on the chosen side, and returns the we
 T/(1 - p): the expected weight is R + T, the leaf's albedo. For a spectrally flat leaf (or one
 whose R/T ratio is the same at all of a sample's wavelengths) the weight is exactly R + T per
 wavelength, so the photon pass's Russian roulette (continue with probability max weight) sees
-the albedo R + T. Because f is the same on both sides, the photon pass's mirroring of back-face
-hits is exact for it.
+the albedo R + T. The photon pass hands a back-face hit to the BSDF as it is (Mitsuba's
+semantics); this one treats both sides alike.
 
 Registered as ``veg_leaf`` when :mod:`mitsuba_veg.foliage` is imported.
 """
@@ -51,6 +51,26 @@ def _hmean(s):
 
 
 class LeafBSDF(mi.BSDF):
+    """Mitsuba BSDF ``veg_leaf``: a thin two-sided leaf, diffuse reflectance R(lambda) and
+    diffuse transmittance T(lambda) (module docstring).
+
+    .. list-table::
+       :header-rows: 1
+
+       * - Property
+         - Type
+         - Default
+         - Description
+       * - reflectance
+         - spectrum or float
+         - 0.1
+         - R [-], the same on both sides; a number is a flat spectrum.
+       * - transmittance
+         - spectrum or float
+         - 0.05
+         - T [-]; R + T <= 1 at every wavelength (checked when the plugin is built).
+    """
+
     #: its textures are inputs of a frozen function that reaches it (dr.freeze)
     DRJIT_STRUCT = {"reflectance": mi.Texture, "transmittance": mi.Texture}
 

@@ -53,10 +53,23 @@ SLOTS = 256
 
 
 class VegSunSteps(DeltaSun):
-    """The sun over one time step: a discrete set of directions with weights and a spectrum.
+    """Mitsuba emitter ``veg_sun_steps``: the sun over one time step, a discrete set of
+    directions with weights and a spectrum.
 
-    Properties: ``irradiance`` (spectrum, the beam irradiance on a plane normal to it per unit
-    weight [W m-2 nm-1]). :meth:`set_directions` sets the step's directions (towards the sun)
+    .. list-table::
+       :header-rows: 1
+
+       * - Property
+         - Type
+         - Default
+         - Description
+       * - irradiance
+         - spectrum or float
+         - 1.0
+         - Beam irradiance on a plane normal to the sun per unit weight [W m-2 nm-1]; a
+           number is a flat spectrum.
+
+    :meth:`set_directions` sets the step's directions (towards the sun)
     and weights; a photon picks direction k with probability w_k / Σw and carries Σw × the
     spectrum, so a pass gives Σ_k w_k × (the light of a sun in direction k). The tables have a
     fixed size (:data:`SLOTS`) and opaque values: changing them does not recompile the kernel.

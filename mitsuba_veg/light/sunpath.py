@@ -369,9 +369,21 @@ class DeltaSun(mi.Emitter):
 
 
 class VegSunPath(DeltaSun):
-    """Delta-direction emitter with a discrete set of sun directions (see module docstring).
+    """Mitsuba emitter ``veg_sun_path``: a delta-direction emitter with a discrete set of sun
+    directions (module docstring).
 
-    Properties: ``scale`` (float, 1: spectral irradiance per unit weight [W m-2 nm-1], flat).
+    .. list-table::
+       :header-rows: 1
+
+       * - Property
+         - Type
+         - Default
+         - Description
+       * - scale
+         - float
+         - 1.0
+         - Spectral irradiance per unit weight [W m-2 nm-1] (flat spectrum).
+
     Directions are set with :meth:`set_day` (default: one sun at the zenith). Supports the
     photon pass and ``sample_direction`` (next-event estimation of path tracers); light tracers
     (``sample_ray``, e.g. Mitsuba's ``ptracer``) get no light from it.
