@@ -92,7 +92,8 @@ from .bands import (BANDS, COMPONENTS, DEFAULT_BANDS, SIDES, _SLOTS,  # noqa: F4
                     _band_name, _scalar, band_range, parse_bands)
 from .photon_result import (DeviceTallies, PhotonIrradianceResult,  # noqa: F401
                             PhotonPathRecord, fixed_point_scale)
-from .scene_index import SceneIndex, _reg_id, registry_id, scene_index  # noqa: F401
+from .scene_index import (SceneIndex, _reg_id, emitter_name, registry_id,  # noqa: F401
+                          scene_index)
 
 _UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
@@ -561,7 +562,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             raise SceneError("the scene has no emitters: add a sun (e.g. mitsuba_veg.light."
                              "daylight(...)) or any Mitsuba emitter")
         em_idx = self._select_emitters(all_emitters, emitters)
-        em_names = tuple(all_emitters[i].id() or f"emitter{i}" for i in em_idx)
+        em_names = tuple(emitter_name(all_emitters[i], i) for i in em_idx)
         ems = [all_emitters[i] for i in em_idx]
 
         n_b = len(bands)
@@ -745,7 +746,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         else:
             all_em = scene.emitters()
             i = self._select_emitters(all_em, [emitter])[0]
-            em, name = all_em[i], all_em[i].id() or f"emitter{i}"
+            em, name = all_em[i], emitter_name(all_em[i], i)
         n, depth_max = int(photons), int(max_depth)
         stream = int(seed) & 0x7FFFFFFF
         inp = self.launch_inputs(n, [n], 0, stream, [(lo, hi)] * _SLOTS)

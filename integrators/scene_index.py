@@ -63,6 +63,26 @@ def registry_id(obj) -> int:
 _reg_id = registry_id
 
 
+def emitter_name(emitter, index: int) -> str:
+    """The name of a scene's emitter in results: its id, or (an emitter without one, as
+    Mitsuba's XML writer and hand-written XML leave them) its Mitsuba class and its place in
+    ``scene.emitters()``, e.g. ``"DirectionalEmitter_0"``.
+
+    Parameters
+    ----------
+    emitter : mi.Emitter
+        The emitter.
+    index : int
+        Its position in ``scene.emitters()``.
+
+    Returns
+    -------
+    str
+        The name.
+    """
+    return emitter.id() or f"{emitter.class_name()}_{int(index)}"
+
+
 class _Children(mi.TraversalCallback):
     """Collects the Mitsuba objects an object lists in its ``traverse()`` (name -> object)."""
 

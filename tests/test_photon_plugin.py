@@ -286,6 +286,23 @@ def test_instanced_meshes_with_vertex_normals_shade_as_mitsuba():
     assert e_f == pytest.approx(w_f, rel=0.1) and east[0] > 3 * e_f
 
 
+def test_emitters_without_ids_are_named_by_class_and_place():
+    """Hand-written XML (and Mitsuba's XML writer) leaves emitters without ids: results name
+    them by Mitsuba class and place in ``scene.emitters()``, an id where there is one."""
+    xml = """<scene version="3.0.0">
+        <emitter type="directional"><vector name="direction" value="0, -1, 0"/></emitter>
+        <emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>
+        <emitter type="point" id="lamp"><point name="position" value="0, 1, 0"/></emitter>
+    </scene>"""
+    scene = mi.load_string(xml.replace("</scene>", "") + """
+        <shape type="rectangle" id="ground"><transform name="to_world">
+            <rotate x="1" angle="-90"/></transform></shape></scene>""")
+    assert [e.id() for e in scene.emitters()] == ["", "", "lamp"]
+    res = photon_irradiance(scene, photons=20_000)
+    assert list(res.emitters) == ["DirectionalEmitter_0", "ConstantBackgroundEmitter_1", "lamp"]
+    assert res.flux_of("ground", emitter="DirectionalEmitter_0").sum() > 0
+
+
 def test_unresolvable_instances_are_refused_by_name():
     gv, gf = V.grid_mesh(1, 1, x=(-0.1, 0.1), z=(-0.1, 0.1))
     base = {"type": "scene", "sun": {"type": "directional", "direction": [0, -1, 0]}}

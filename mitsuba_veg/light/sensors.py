@@ -67,6 +67,7 @@ import mitsuba as mi
 
 from mitsuba_veg.atomic import atomic_write
 from mitsuba_veg.errors import ParameterError, SceneError, check_range
+from mitsuba_veg.integrators.scene_index import emitter_name
 from mitsuba_veg.meshes import make_mesh, triangle_geometry
 from mitsuba_veg.units import umol_per_joule
 
@@ -710,7 +711,7 @@ def scene_with_sensors(scene, sensors: SensorSet, emitters: dict | None = None):
         for i, em in enumerate(scene.emitters()):
             if mi.has_flag(em.flags(), mi.EmitterFlags.Surface):
                 continue  # area lights come with their shapes
-            d[em.id() or f"emitter{i}"] = em
+            d[emitter_name(em, i)] = em
     else:
         d.update(emitters)
     v, f, owner = sensors.mesh()
@@ -799,7 +800,7 @@ def beam_emitters(scene) -> list[str]:
     list of str
         Their ids (``emitter<i>`` for an emitter without one).
     """
-    return [em.id() or f"emitter{i}" for i, em in enumerate(scene.emitters())
+    return [emitter_name(em, i) for i, em in enumerate(scene.emitters())
             if mi.has_flag(em.flags(), mi.EmitterFlags.DeltaDirection)]
 
 

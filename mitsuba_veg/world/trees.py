@@ -25,6 +25,7 @@ import numpy as np
 import trimesh
 
 from ..errors import ParameterError
+from ..integrators.scene_index import emitter_name
 from ..meshes import triangle_geometry
 from ..trees import weber_penn as wp
 from ..trees.environment import Environment
@@ -249,6 +250,6 @@ def scene_with_trees(scenario, scene, bins: int = 4):
     for sh in scene.shapes():
         d[sh.id()] = sh
     for i, em in enumerate(scene.emitters()):
-        d[em.id() or f"emitter{i}"] = em
+        d[emitter_name(em, i)] = em
     d.update(shapes)
     return mi.load_dict(d, optimize=False), list(shapes)
