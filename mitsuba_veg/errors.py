@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 
 
 class MitsubaVegError(Exception):
@@ -54,6 +55,33 @@ class FolderBusy(ParameterError):
 
 class SceneError(MitsubaVegError, ValueError):
     """A scene lacks something a computation needs (a shape id, an emitter, a file ...)."""
+
+
+def plugin_error(exc: BaseException) -> str:
+    """The message of an error raised inside a Python plugin's constructor, without Mitsuba's
+    wrapping: a loader that fails to build a plugin raises ``RuntimeError("... failed to
+    instantiate <kind> plugin of type "<name>": Traceback ... <Error>: <message>")``; this
+    returns ``'<where>: <message>'`` (``where`` = the XML position and plugin), or the whole
+    message, whitespace collapsed, when it is not such an error.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The error.
+
+    Returns
+    -------
+    str
+        One line.
+    """
+    text = str(exc)
+    if "Traceback (most recent call last)" in text:
+        head = text.split("Traceback (most recent call last)")[0].rstrip(" :\n")
+        last = [ln.strip() for ln in text.splitlines() if ln.strip()][-1]
+        m = re.match(r"^[A-Za-z_][\w.]*(Error|Exception): (.*)$", last)
+        if m:
+            return f"{' '.join(head.split())}: {m.group(2)}"
+    return " ".join(text.split())
 
 
 def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=False,

@@ -28,7 +28,7 @@ from pathlib import Path
 import mitsuba as mi
 
 from .defaults import LIGHT, MAX_PHOTONS  # noqa: F401  (MAX_PHOTONS: part of this API)
-from .errors import ParameterError, unknown_field
+from .errors import ParameterError, plugin_error, unknown_field
 from .inputs import check_scene_files, input_hashes
 from .light.clear_sky import daylight as _daylight
 
@@ -540,10 +540,10 @@ def load_scene_file(path, field: str = "scene.file", source: str | None = None):
     check_scene_files(path, field, source)
     try:
         return mi.load_file(str(path), optimize=False)
-    except Exception as e:  # Mitsuba's own message names the XML problem
+    except Exception as e:  # Mitsuba's own message names the XML problem (a plugin's own
+        # error without Mitsuba's traceback around it)
         raise ParameterError(field, str(path), "a Mitsuba 3 XML scene that loads",
-                             f"correct the XML: {' '.join(str(e).split())[:400]}",
-                             source) from None
+                             f"correct the XML: {plugin_error(e)[:600]}", source) from None
 
 
 def _parse_value(text: str):

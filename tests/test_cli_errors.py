@@ -226,3 +226,23 @@ def test_render_warns_when_the_shipped_scenario_stands_in(world, tmp_path, caplo
     assert run.scenario.path.name == "scenario.toml"
     assert any("is gone" in r.getMessage() and "--scenario" in r.getMessage()
                for r in caplog.records)
+
+
+def test_a_plugins_own_error_reaches_the_user_without_mitsubas_traceback(tmp_path, capsys):
+    """A bad property of the package's plugin in a user's XML: Mitsuba wraps the plugin's error
+    in "failed to instantiate ... Traceback ..."; the command prints the plugin's own message
+    on one line (where in the XML, which plugin, the field, the allowed values, the fix)."""
+    from mitsuba_veg.errors import plugin_error
+    xml = tmp_path / "bad_bands.xml"
+    xml.write_text('<scene version="3.0.0">\n'
+                   '  <integrator type="veg_photon_irradiance">'
+                   '<string name="bands" value="par,purple"/></integrator>\n'
+                   '  <emitter type="directional" id="sun">'
+                   '<vector name="direction" value="0,-1,0"/></emitter>\n'
+                   '  <shape type="rectangle" id="g"/>\n</scene>\n')
+    assert main(["irradiance", str(xml), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert "line 2" in err and "veg_photon_irradiance" in err
+    assert "bands = 'par,purple' is invalid (allowed: comma-separated names of" in err
+    assert plugin_error(RuntimeError("plain\n  message")) == "plain message"
