@@ -397,7 +397,9 @@ def ref_spa(quick: bool) -> list[dict]:
     test_pv = "tests/test_sun_position.py::test_against_pvlib_spa"
     ex = "2003-10-17 12:30:30 −7 h, 39.742476° N 105.1786° W, 1830.14 m, 820 hPa, 11 °C, ΔT 67 s"
     cases = (f"{n} random times 1950-2100 and places (|lat| < 80°, 0-4000 m); pvlib's ΔT from "
-             "the package's Espenak & Meeus fit")
+             "the package's Espenak & Meeus fit; the package takes SPA's time-only part "
+             "(steps 1-6) from pvlib.spa, so this checks its time handling, observer part "
+             "(parallax, refraction, azimuth) and broadcasting")
     return [
         _row("spa_example_zenith", "spa", "NREL SPA worked example: zenith",
              "topocentric zenith angle vs 50.11162° of Reda & Andreas (2004) Table A5.1",

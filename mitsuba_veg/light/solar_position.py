@@ -1,6 +1,6 @@
-"""Sun position from the NREL Solar Position Algorithm (SPA), in pure numpy.
+"""Sun position from the NREL Solar Position Algorithm (SPA), in numpy.
 
-Implements the full SPA of Reda & Andreas, *Solar Position Algorithm for Solar Radiation
+This is the full SPA of Reda & Andreas, *Solar Position Algorithm for Solar Radiation
 Applications*, NREL/TP-560-34302 (revised January 2008; also Solar Energy 76 (2004) 577-589 and
 its corrigendum, Solar Energy 81 (2007) 838). "Eq. N", "§N" and "Table AN" below refer to that
 report. The report states an uncertainty of +-0.0003 deg for years -2000..6000 (given the exact
@@ -28,7 +28,11 @@ azimuth is measured clockwise from north (east = 90 deg), as SPA's Phi (eq. 46);
 unless they carry a timezone. :func:`sun_direction` maps (azimuth, elevation) to the scene frame
 +x east, +y up, +z south.
 
-This module imports numpy only (not Mitsuba), so it is cheap to import and to test.
+Steps 1-6 (the time-only part: the report's periodic-term tables and series) are pvlib's
+implementation of the same report (``pvlib.spa``, a dependency: one implementation, checked
+against the report's example in ``tests/test_sun_position.py``); this module adds the input
+checks (times in many forms, ranges, shapes), the default delta_t, the observer part broadcast
+over times x locations (steps 7-8) and the scene-frame directions. It does not import Mitsuba.
 """
 from __future__ import annotations
 
@@ -36,174 +40,12 @@ import datetime as _dt
 from typing import NamedTuple
 
 import numpy as np
+from pvlib import spa as _spa
 
 from ..errors import ParameterError
 
 __all__ = ["sun_position", "sun_ephemeris", "SunEphemeris", "sun_direction",
            "direction_to_angles", "julian_day", "default_delta_t"]
-
-# --------------------------------------------------------------------------------------------
-# Periodic terms (A [1e-8 rad or 1e-8 AU], B [rad], C [rad per Julian millennium]) of the Earth
-# heliocentric longitude L0..L5, latitude B0..B1 and radius vector R0..R4: report Table A4.2.
-# Each term contributes A cos(B + C JME) (eq. 9).
-# --------------------------------------------------------------------------------------------
-_L0 = np.array([
-    (175347046.0, 0.0, 0.0), (3341656.0, 4.6692568, 6283.07585), (34894.0, 4.6261, 12566.1517),
-    (3497.0, 2.7441, 5753.3849), (3418.0, 2.8289, 3.5231), (3136.0, 3.6277, 77713.7715),
-    (2676.0, 4.4181, 7860.4194), (2343.0, 6.1352, 3930.2097), (1324.0, 0.7425, 11506.7698),
-    (1273.0, 2.0371, 529.691), (1199.0, 1.1096, 1577.3435), (990.0, 5.233, 5884.927),
-    (902.0, 2.045, 26.298), (857.0, 3.508, 398.149), (780.0, 1.179, 5223.694),
-    (753.0, 2.533, 5507.553), (505.0, 4.583, 18849.228), (492.0, 4.205, 775.523),
-    (357.0, 2.92, 0.067), (317.0, 5.849, 11790.629), (284.0, 1.899, 796.298),
-    (271.0, 0.315, 10977.079), (243.0, 0.345, 5486.778), (206.0, 4.806, 2544.314),
-    (205.0, 1.869, 5573.143), (202.0, 2.458, 6069.777), (156.0, 0.833, 213.299),
-    (132.0, 3.411, 2942.463), (126.0, 1.083, 20.775), (115.0, 0.645, 0.98),
-    (103.0, 0.636, 4694.003), (102.0, 0.976, 15720.839), (102.0, 4.267, 7.114),
-    (99.0, 6.21, 2146.17), (98.0, 0.68, 155.42), (86.0, 5.98, 161000.69), (85.0, 1.3, 6275.96),
-    (85.0, 3.67, 71430.7), (80.0, 1.81, 17260.15), (79.0, 3.04, 12036.46), (75.0, 1.76, 5088.63),
-    (74.0, 3.5, 3154.69), (74.0, 4.68, 801.82), (70.0, 0.83, 9437.76), (62.0, 3.98, 8827.39),
-    (61.0, 1.82, 7084.9), (57.0, 2.78, 6286.6), (56.0, 4.39, 14143.5), (56.0, 3.47, 6279.55),
-    (52.0, 0.19, 12139.55), (52.0, 1.33, 1748.02), (51.0, 0.28, 5856.48), (49.0, 0.49, 1194.45),
-    (41.0, 5.37, 8429.24), (41.0, 2.4, 19651.05), (39.0, 6.17, 10447.39), (37.0, 6.04, 10213.29),
-    (37.0, 2.57, 1059.38), (36.0, 1.71, 2352.87), (36.0, 1.78, 6812.77), (33.0, 0.59, 17789.85),
-    (30.0, 0.44, 83996.85), (30.0, 2.74, 1349.87), (25.0, 3.16, 4690.48),
-])
-_L1 = np.array([
-    (628331966747.0, 0.0, 0.0), (206059.0, 2.678235, 6283.07585), (4303.0, 2.6351, 12566.1517),
-    (425.0, 1.59, 3.523), (119.0, 5.796, 26.298), (109.0, 2.966, 1577.344), (93.0, 2.59, 18849.23),
-    (72.0, 1.14, 529.69), (68.0, 1.87, 398.15), (67.0, 4.41, 5507.55), (59.0, 2.89, 5223.69),
-    (56.0, 2.17, 155.42), (45.0, 0.4, 796.3), (36.0, 0.47, 775.52), (29.0, 2.65, 7.11),
-    (21.0, 5.34, 0.98), (19.0, 1.85, 5486.78), (19.0, 4.97, 213.3), (17.0, 2.99, 6275.96),
-    (16.0, 0.03, 2544.31), (16.0, 1.43, 2146.17), (15.0, 1.21, 10977.08), (12.0, 2.83, 1748.02),
-    (12.0, 3.26, 5088.63), (12.0, 5.27, 1194.45), (12.0, 2.08, 4694.0), (11.0, 0.77, 553.57),
-    (10.0, 1.3, 6286.6), (10.0, 4.24, 1349.87), (9.0, 2.7, 242.73), (9.0, 5.64, 951.72),
-    (8.0, 5.3, 2352.87), (6.0, 2.65, 9437.76), (6.0, 4.67, 4690.48),
-])
-_L2 = np.array([
-    (52919.0, 0.0, 0.0), (8720.0, 1.0721, 6283.0758), (309.0, 0.867, 12566.152),
-    (27.0, 0.05, 3.52), (16.0, 5.19, 26.3), (16.0, 3.68, 155.42), (10.0, 0.76, 18849.23),
-    (9.0, 2.06, 77713.77), (7.0, 0.83, 775.52), (5.0, 4.66, 1577.34), (4.0, 1.03, 7.11),
-    (4.0, 3.44, 5573.14), (3.0, 5.14, 796.3), (3.0, 6.05, 5507.55), (3.0, 1.19, 242.73),
-    (3.0, 6.12, 529.69), (3.0, 0.31, 398.15), (3.0, 2.28, 553.57), (2.0, 4.38, 5223.69),
-    (2.0, 3.75, 0.98),
-])
-_L3 = np.array([
-    (289.0, 5.844, 6283.076), (35.0, 0.0, 0.0), (17.0, 5.49, 12566.15), (3.0, 5.2, 155.42),
-    (1.0, 4.72, 3.52), (1.0, 5.3, 18849.23), (1.0, 5.97, 242.73),
-])
-_L4 = np.array([
-    (114.0, 3.142, 0.0), (8.0, 4.13, 6283.08), (1.0, 3.84, 12566.15),
-])
-_L5 = np.array([
-    (1.0, 3.14, 0.0),
-])
-_B0 = np.array([
-    (280.0, 3.199, 84334.662), (102.0, 5.422, 5507.553), (80.0, 3.88, 5223.69),
-    (44.0, 3.7, 2352.87), (32.0, 4.0, 1577.34),
-])
-_B1 = np.array([
-    (9.0, 3.9, 5507.55), (6.0, 1.73, 5223.69),
-])
-_R0 = np.array([
-    (100013989.0, 0.0, 0.0), (1670700.0, 3.0984635, 6283.07585), (13956.0, 3.05525, 12566.1517),
-    (3084.0, 5.1985, 77713.7715), (1628.0, 1.1739, 5753.3849), (1576.0, 2.8469, 7860.4194),
-    (925.0, 5.453, 11506.77), (542.0, 4.564, 3930.21), (472.0, 3.661, 5884.927),
-    (346.0, 0.964, 5507.553), (329.0, 5.9, 5223.694), (307.0, 0.299, 5573.143),
-    (243.0, 4.273, 11790.629), (212.0, 5.847, 1577.344), (186.0, 5.022, 10977.079),
-    (175.0, 3.012, 18849.228), (110.0, 5.055, 5486.778), (98.0, 0.89, 6069.78),
-    (86.0, 5.69, 15720.84), (86.0, 1.27, 161000.69), (65.0, 0.27, 17260.15), (63.0, 0.92, 529.69),
-    (57.0, 2.01, 83996.85), (56.0, 5.24, 71430.7), (49.0, 3.25, 2544.31), (47.0, 2.58, 775.52),
-    (45.0, 5.54, 9437.76), (43.0, 6.01, 6275.96), (39.0, 5.36, 4694.0), (38.0, 2.39, 8827.39),
-    (37.0, 0.83, 19651.05), (37.0, 4.9, 12139.55), (36.0, 1.67, 12036.46), (35.0, 1.84, 2942.46),
-    (33.0, 0.24, 7084.9), (32.0, 0.18, 5088.63), (32.0, 1.78, 398.15), (28.0, 1.21, 6286.6),
-    (28.0, 1.9, 6279.55), (26.0, 4.59, 10447.39),
-])
-_R1 = np.array([
-    (103019.0, 1.10749, 6283.07585), (1721.0, 1.0644, 12566.1517), (702.0, 3.142, 0.0),
-    (32.0, 1.02, 18849.23), (31.0, 2.84, 5507.55), (25.0, 1.32, 5223.69), (18.0, 1.42, 1577.34),
-    (10.0, 5.91, 10977.08), (9.0, 1.42, 6275.96), (9.0, 0.27, 5486.78),
-])
-_R2 = np.array([
-    (4359.0, 5.7846, 6283.0758), (124.0, 5.579, 12566.152), (12.0, 3.14, 0.0),
-    (9.0, 3.63, 77713.77), (6.0, 1.87, 5573.14), (3.0, 5.47, 18849.23),
-])
-_R3 = np.array([
-    (145.0, 4.273, 6283.076), (7.0, 3.92, 12566.15),
-])
-_R4 = np.array([
-    (4.0, 2.56, 6283.08),
-])
-_NUTATION = np.array([
-    ( 0,  0,  0,  0,  1, -171996.0, -174.2, 92025.0, 8.9),
-    (-2,  0,  0,  2,  2, -13187.0, -1.6, 5736.0, -3.1),
-    ( 0,  0,  0,  2,  2, -2274.0, -0.2, 977.0, -0.5),
-    ( 0,  0,  0,  0,  2, 2062.0, 0.2, -895.0, 0.5),
-    ( 0,  1,  0,  0,  0, 1426.0, -3.4, 54.0, -0.1),
-    ( 0,  0,  1,  0,  0, 712.0, 0.1, -7.0, 0.0),
-    (-2,  1,  0,  2,  2, -517.0, 1.2, 224.0, -0.6),
-    ( 0,  0,  0,  2,  1, -386.0, -0.4, 200.0, 0.0),
-    ( 0,  0,  1,  2,  2, -301.0, 0.0, 129.0, -0.1),
-    (-2, -1,  0,  2,  2, 217.0, -0.5, -95.0, 0.3),
-    (-2,  0,  1,  0,  0, -158.0, 0.0, 0.0, 0.0),
-    (-2,  0,  0,  2,  1, 129.0, 0.1, -70.0, 0.0),
-    ( 0,  0, -1,  2,  2, 123.0, 0.0, -53.0, 0.0),
-    ( 2,  0,  0,  0,  0, 63.0, 0.0, 0.0, 0.0),
-    ( 0,  0,  1,  0,  1, 63.0, 0.1, -33.0, 0.0),
-    ( 2,  0, -1,  2,  2, -59.0, 0.0, 26.0, 0.0),
-    ( 0,  0, -1,  0,  1, -58.0, -0.1, 32.0, 0.0),
-    ( 0,  0,  1,  2,  1, -51.0, 0.0, 27.0, 0.0),
-    (-2,  0,  2,  0,  0, 48.0, 0.0, 0.0, 0.0),
-    ( 0,  0, -2,  2,  1, 46.0, 0.0, -24.0, 0.0),
-    ( 2,  0,  0,  2,  2, -38.0, 0.0, 16.0, 0.0),
-    ( 0,  0,  2,  2,  2, -31.0, 0.0, 13.0, 0.0),
-    ( 0,  0,  2,  0,  0, 29.0, 0.0, 0.0, 0.0),
-    (-2,  0,  1,  2,  2, 29.0, 0.0, -12.0, 0.0),
-    ( 0,  0,  0,  2,  0, 26.0, 0.0, 0.0, 0.0),
-    (-2,  0,  0,  2,  0, -22.0, 0.0, 0.0, 0.0),
-    ( 0,  0, -1,  2,  1, 21.0, 0.0, -10.0, 0.0),
-    ( 0,  2,  0,  0,  0, 17.0, -0.1, 0.0, 0.0),
-    ( 2,  0, -1,  0,  1, 16.0, 0.0, -8.0, 0.0),
-    (-2,  2,  0,  2,  2, -16.0, 0.1, 7.0, 0.0),
-    ( 0,  1,  0,  0,  1, -15.0, 0.0, 9.0, 0.0),
-    (-2,  0,  1,  0,  1, -13.0, 0.0, 7.0, 0.0),
-    ( 0, -1,  0,  0,  1, -12.0, 0.0, 6.0, 0.0),
-    ( 0,  0,  2, -2,  0, 11.0, 0.0, 0.0, 0.0),
-    ( 2,  0, -1,  2,  1, -10.0, 0.0, 5.0, 0.0),
-    ( 2,  0,  1,  2,  2, -8.0, 0.0, 3.0, 0.0),
-    ( 0,  1,  0,  2,  2, 7.0, 0.0, -3.0, 0.0),
-    (-2,  1,  1,  0,  0, -7.0, 0.0, 0.0, 0.0),
-    ( 0, -1,  0,  2,  2, -7.0, 0.0, 3.0, 0.0),
-    ( 2,  0,  0,  2,  1, -7.0, 0.0, 3.0, 0.0),
-    ( 2,  0,  1,  0,  0, 6.0, 0.0, 0.0, 0.0),
-    (-2,  0,  2,  2,  2, 6.0, 0.0, -3.0, 0.0),
-    (-2,  0,  1,  2,  1, 6.0, 0.0, -3.0, 0.0),
-    ( 2,  0, -2,  0,  1, -6.0, 0.0, 3.0, 0.0),
-    ( 2,  0,  0,  0,  1, -6.0, 0.0, 3.0, 0.0),
-    ( 0, -1,  1,  0,  0, 5.0, 0.0, 0.0, 0.0),
-    (-2, -1,  0,  2,  1, -5.0, 0.0, 3.0, 0.0),
-    (-2,  0,  0,  0,  1, -5.0, 0.0, 3.0, 0.0),
-    ( 0,  0,  2,  2,  1, -5.0, 0.0, 3.0, 0.0),
-    (-2,  0,  2,  0,  1, 4.0, 0.0, 0.0, 0.0),
-    (-2,  1,  0,  2,  1, 4.0, 0.0, 0.0, 0.0),
-    ( 0,  0,  1, -2,  0, 4.0, 0.0, 0.0, 0.0),
-    (-1,  0,  1,  0,  0, -4.0, 0.0, 0.0, 0.0),
-    (-2,  1,  0,  0,  0, -4.0, 0.0, 0.0, 0.0),
-    ( 1,  0,  0,  0,  0, -4.0, 0.0, 0.0, 0.0),
-    ( 0,  0,  1,  2,  0, 3.0, 0.0, 0.0, 0.0),
-    ( 0,  0, -2,  2,  2, -3.0, 0.0, 0.0, 0.0),
-    (-1, -1,  1,  0,  0, -3.0, 0.0, 0.0, 0.0),
-    ( 0,  1,  1,  0,  0, -3.0, 0.0, 0.0, 0.0),
-    ( 0, -1,  1,  2,  2, -3.0, 0.0, 0.0, 0.0),
-    ( 2, -1, -1,  2,  2, -3.0, 0.0, 0.0, 0.0),
-    ( 0,  0,  3,  2,  2, -3.0, 0.0, 0.0, 0.0),
-    ( 2, -1,  0,  2,  2, -3.0, 0.0, 0.0, 0.0),
-])
-
-_L_TERMS = (_L0, _L1, _L2, _L3, _L4, _L5)
-_B_TERMS = (_B0, _B1)
-_R_TERMS = (_R0, _R1, _R2, _R3, _R4)
-_NUT_Y = _NUTATION[:, :5]                                    # multipliers of X0..X4
-_NUT_A, _NUT_B, _NUT_C, _NUT_D = (_NUTATION[:, 5 + i] for i in range(4))  # [0.0001 arcsec]
 
 # Constants of the report.
 _SUN_RADIUS = 0.26667           # [deg], used by the refraction switch (as in NREL's spa.c)
@@ -212,9 +54,7 @@ _EARTH_RADIUS_EQ = 6378140.0    # [m], equatorial radius (eqs. 35-36)
 _FLATTENING_FACTOR = 0.99664719  # 1 - f (eqs. 34, 36)
 
 _JD_UNIX_EPOCH = 2440587.5      # Julian day of 1970-01-01T00:00 UTC
-_J2000 = 2451545.0              # Julian day of 2000-01-01T12:00 TT
 _US_PER_DAY = 86_400_000_000
-_CHUNK = 4096                   # times per block in the periodic sums (bounds temporary memory)
 
 _WHEN_ALLOWED = ("a datetime.datetime (naive = UTC), a numpy.datetime64 (UTC), an ISO 8601 "
                  "string, or an array/list of these")
@@ -409,83 +249,33 @@ def default_delta_t(when) -> np.ndarray | float:
 
 
 # --------------------------------------------------------------------------------------------
-# SPA
+# SPA: the time-only part (eqs. 5-31) from pvlib's implementation of the same report
 # --------------------------------------------------------------------------------------------
-def _periodic_sum(table: np.ndarray, jme: np.ndarray) -> np.ndarray:
-    """Sum_i A_i cos(B_i + C_i JME) over the rows of ``table`` (eqs. 9-10), for flat ``jme``."""
-    out = np.empty_like(jme)
-    a, b, c = table[:, 0], table[:, 1:2], table[:, 2:3]
-    for s in range(0, jme.size, _CHUNK):
-        x = jme[s:s + _CHUNK]
-        out[s:s + _CHUNK] = a @ np.cos(b + c * x[None, :])
-    return out
-
-
-def _earth_series(terms, jme: np.ndarray) -> np.ndarray:
-    """(X0 + X1 JME + X2 JME^2 + ...) / 1e8 (eq. 11) in [rad] or [AU]."""
-    acc = np.zeros_like(jme)
-    for table in reversed(terms):   # Horner
-        acc = acc * jme + _periodic_sum(table, jme)
-    return acc / 1e8
-
-
-def _nutation(jce: np.ndarray):
-    """Nutation in longitude and obliquity, dpsi, deps [deg] (eqs. 15-23), for flat ``jce``."""
-    x = np.stack([
-        297.85036 + jce * (445267.111480 + jce * (-0.0019142 + jce / 189474.0)),    # eq. 15
-        357.52772 + jce * (35999.050340 + jce * (-0.0001603 - jce / 300000.0)),     # eq. 16
-        134.96298 + jce * (477198.867398 + jce * (0.0086972 + jce / 56250.0)),      # eq. 17
-        93.27191 + jce * (483202.017538 + jce * (-0.0036825 + jce / 327270.0)),     # eq. 18
-        125.04452 + jce * (-1934.136261 + jce * (0.0020708 + jce / 450000.0)),      # eq. 19
-    ])                                                                              # [deg]
-    dpsi = np.empty_like(jce)
-    deps = np.empty_like(jce)
-    for s in range(0, jce.size, _CHUNK):
-        arg = np.deg2rad(_NUT_Y @ x[:, s:s + _CHUNK])            # sum_j X_j Y_ij
-        sin_a, cos_a = np.sin(arg), np.cos(arg)
-        t = jce[s:s + _CHUNK]
-        dpsi[s:s + _CHUNK] = _NUT_A @ sin_a + t * (_NUT_B @ sin_a)   # eqs. 20, 22
-        deps[s:s + _CHUNK] = _NUT_C @ cos_a + t * (_NUT_D @ cos_a)   # eqs. 21, 23
-    return dpsi / 36_000_000.0, deps / 36_000_000.0
-
-
 def _geocentric(jd: np.ndarray, delta_t: np.ndarray):
-    """Time-only part of SPA (eqs. 5-31) for flat arrays.
+    """Time-only part of SPA (eqs. 5-31) for flat arrays, by ``pvlib.spa`` (the NREL SPA's
+    periodic-term tables and series, a dependency of the package: one implementation).
 
     Returns the apparent sidereal time at Greenwich nu [deg], the geocentric right ascension
     alpha [deg] and declination delta [deg] of the Sun, and the Earth-Sun distance R [AU].
     """
-    jde = jd + delta_t / 86400.0                                     # eq. 5
-    jc = (jd - _J2000) / 36525.0                                     # eq. 6
-    jce = (jde - _J2000) / 36525.0                                   # eq. 7
-    jme = jce / 10.0                                                 # eq. 8
-
-    l_deg = np.rad2deg(_earth_series(_L_TERMS, jme)) % 360.0        # eqs. 9-12
-    b_deg = np.rad2deg(_earth_series(_B_TERMS, jme))
-    r_au = _earth_series(_R_TERMS, jme)
-
-    theta = (l_deg + 180.0) % 360.0                                  # eq. 13
-    beta = -b_deg                                                    # eq. 14
-    dpsi, deps = _nutation(jce)                                      # eqs. 15-23
-
-    u = jme / 10.0
-    eps0 = np.polyval([2.45, 5.79, 27.87, 7.12, -39.05, -249.67, -51.38, 1999.25, -1.55,
-                       -4680.93, 84381.448], u)                      # eq. 24 [arcsec]
-    eps = eps0 / 3600.0 + deps                                       # eq. 25 [deg]
-    dtau = -20.4898 / (3600.0 * r_au)                                # eq. 26
-    lam = theta + dpsi + dtau                                        # eq. 27
-
-    nu0 = (280.46061837 + 360.98564736629 * (jd - _J2000)
-           + jc * jc * (0.000387933 - jc / 38710000.0)) % 360.0      # eq. 28
-    eps_r = np.deg2rad(eps)
-    nu = nu0 + dpsi * np.cos(eps_r)                                  # eq. 29
-
-    lam_r, beta_r = np.deg2rad(lam), np.deg2rad(beta)
-    alpha = np.rad2deg(np.arctan2(np.sin(lam_r) * np.cos(eps_r)
-                                  - np.tan(beta_r) * np.sin(eps_r),
-                                  np.cos(lam_r))) % 360.0            # eq. 30
-    delta = np.rad2deg(np.arcsin(np.sin(beta_r) * np.cos(eps_r)
-                                 + np.cos(beta_r) * np.sin(eps_r) * np.sin(lam_r)))  # eq. 31
+    jde = _spa.julian_ephemeris_day(jd, delta_t)                         # eq. 5
+    jc = _spa.julian_century(jd)                                         # eq. 6
+    jce = _spa.julian_ephemeris_century(jde)                             # eq. 7
+    jme = _spa.julian_ephemeris_millennium(jce)                          # eq. 8
+    r_au = _spa.heliocentric_radius_vector(jme)                          # eqs. 9-12
+    theta = _spa.geocentric_longitude(_spa.heliocentric_longitude(jme))  # eq. 13
+    beta = _spa.geocentric_latitude(_spa.heliocentric_latitude(jme))     # eq. 14
+    x = [f(jce) for f in (_spa.mean_elongation, _spa.mean_anomaly_sun,   # eqs. 15-19
+                          _spa.mean_anomaly_moon, _spa.moon_argument_latitude,
+                          _spa.moon_ascending_longitude)]
+    nut = np.empty((2, len(jce)))
+    _spa.longitude_obliquity_nutation(jce, *x, nut)                      # eqs. 20-23
+    dpsi, deps = nut
+    eps = _spa.true_ecliptic_obliquity(_spa.mean_ecliptic_obliquity(jme), deps)  # eqs. 24-25
+    lam = _spa.apparent_sun_longitude(theta, dpsi, _spa.aberration_correction(r_au))  # 26-27
+    nu = _spa.apparent_sidereal_time(_spa.mean_sidereal_time(jd, jc), dpsi, eps)  # 28-29
+    alpha = _spa.geocentric_sun_right_ascension(lam, eps, beta)          # eq. 30
+    delta = _spa.geocentric_sun_declination(lam, eps, beta)              # eq. 31
     return nu, alpha, delta, r_au
 
 
