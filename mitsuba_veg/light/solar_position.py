@@ -32,7 +32,7 @@ Steps 1-6 (the time-only part: the report's periodic-term tables and series) are
 implementation of the same report (``pvlib.spa``, a dependency: one implementation, checked
 against the report's example in ``tests/test_sun_position.py``); this module adds the input
 checks (times in many forms, ranges, shapes), the default delta_t, the observer part broadcast
-over times x locations (steps 7-8) and the scene-frame directions. It does not import Mitsuba.
+over times x locations (steps 7-8) and the scene-frame directions. It imports neither Mitsuba nor (until a sun position is asked for) pvlib.
 """
 from __future__ import annotations
 
@@ -40,7 +40,6 @@ import datetime as _dt
 from typing import NamedTuple
 
 import numpy as np
-from pvlib import spa as _spa
 
 from ..errors import ParameterError
 
@@ -258,6 +257,9 @@ def _geocentric(jd: np.ndarray, delta_t: np.ndarray):
     Returns the apparent sidereal time at Greenwich nu [deg], the geocentric right ascension
     alpha [deg] and declination delta [deg] of the Sun, and the Earth-Sun distance R [AU].
     """
+    # imported here, as clear_sky does: pvlib's package import loads pandas, which
+    # ``import mitsuba_veg`` does not (tests/test_sweep.py)
+    from pvlib import spa as _spa
     jde = _spa.julian_ephemeris_day(jd, delta_t)                         # eq. 5
     jc = _spa.julian_century(jd)                                         # eq. 6
     jce = _spa.julian_ephemeris_century(jde)                             # eq. 7
