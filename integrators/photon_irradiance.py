@@ -950,8 +950,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         ``projector``) sends light in: (axis x, y, z, cos of its half angle), or None when it
         lights the whole sphere (or is not point-like).
 
-        Found once per emitter (and again when its description, ``to_world``, position or cone
-        change) from its intensity at 65,536 directions spread evenly over the sphere (a
+        Found once per emitter (and again when Mitsuba's description of it changes: position,
+        ``to_world``, cone, fov, all of which it lists) from its intensity at 65,536 directions spread evenly over the sphere (a
         Fibonacci lattice): the axis is the mean of the lit directions, the half angle the widest lit
         one plus two lattice spacings (1.6 deg), so no lit direction falls outside. A spot's
         photons are then drawn in its cone, not over the sphere (a 30 deg spot: 6.7 % of the
@@ -959,16 +959,9 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         """
         if self._kind(emitter) != "point":
             return None
-        # (Mitsuba's description holds what shapes the cone, e.g. a projector's fov, which
-        # ``traverse`` does not list)
-        key = [registry_id(emitter), str(emitter)]
-        params = mi.traverse(emitter)
-        for name in ("to_world", "position", "cutoff_angle", "beam_width"):
-            if name in params:
-                v = params[name]
-                key.append(tuple(np.asarray(v.matrix if hasattr(v, "matrix") else v,
-                                            dtype=float).ravel().tolist()))
-        key = tuple(key)
+        # Mitsuba's description holds all that shapes the cone (a projector's fov, which
+        # ``traverse`` does not list) and follows ``traverse`` updates; no device read per pass
+        key = (registry_id(emitter), str(emitter))
         if key in self._lobes:
             return self._lobes[key]
         n = 1 << 16

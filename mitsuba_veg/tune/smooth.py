@@ -46,8 +46,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import hashlib
 import datetime as _dt
+import hashlib
 import math
 import time
 from dataclasses import dataclass, field
