@@ -25,8 +25,10 @@ This is the kernel's default mode ("roulette"). Its other mode, "weights", conti
 up to ``max_depth`` hits in a cosine-weighted direction on the side it hit and multiplies its
 band powers by a_k = pi f_k(wi, wo) (or the override albedo): the same expectation, directions
 independent of the albedo. In that mode :meth:`PhotonIrradianceIntegrator.trace_paths` records
-the element and side of every hit, which the differentiable pass
-(:mod:`mitsuba_veg.tune.photon_ad`) replays: one kernel serves both passes.
+the element and side of every hit, which :meth:`PhotonIrradianceIntegrator.replay`
+(:mod:`.photon_replay`) evaluates for any albedos, differentiably: one kernel serves both passes,
+and the plugin's ``render_forward`` / ``render_backward`` (what ``mi.render(scene, params)``
+differentiates) are replays of such paths.
 
 Emitter sampling ("bounding-sphere aim", done tighter):
 - directional and infinite emitters (sun, sky): the direction comes from the emitter
@@ -90,6 +92,7 @@ from mitsuba_veg.errors import ParameterError, SceneError, check_range
 # are imported from here too: the plugin module is the integrator's public face)
 from .bands import (BANDS, COMPONENTS, DEFAULT_BANDS, SIDES, _SLOTS,  # noqa: F401
                     _band_name, _scalar, band_range, parse_bands)
+from . import photon_replay as _replay
 from .photon_result import (DeviceTallies, PhotonIrradianceResult,  # noqa: F401
                             PhotonPathRecord, fixed_point_scale)
 from .scene_index import (SceneIndex, _reg_id, emitter_name, registry_id,  # noqa: F401
@@ -310,6 +313,12 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     ``mi.render`` needs a sensor in the scene (Mitsuba's rule; the element output does not use
     it); :meth:`render` and :meth:`trace` do not.
+
+    Derivatives, the Mitsuba way: ``mi.render(scene, params)`` with gradients enabled on BSDF
+    reflectances or emitter parameters of ``params = mi.traverse(scene)``, then ``dr.backward``
+    (or ``dr.forward``) of a loss, reaches :meth:`render_backward` (:meth:`render_forward`):
+    replays of weights-mode paths (:meth:`trace_paths`, :meth:`replay`), exact derivatives of
+    the replayed estimate for Lambertian BSDFs; geometry is not differentiated.
     """
 
     def __init__(self, props=None):
@@ -696,7 +705,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
     def trace_paths(self, scene: mi.Scene, emitter, photons: int, seed: int = 0,
                     max_depth: int = 8, band=(360.0, 830.0),
-                    index: SceneIndex | None = None) -> PhotonPathRecord:
+                    index: SceneIndex | None = None, attach: bool = False) -> PhotonPathRecord:
         """Trace one emitter's photons in the "weights" mode and record every hit (no flux).
 
         The same kernel as :meth:`trace` (:meth:`_loop`): the same emission (aim, jittered
@@ -708,7 +717,7 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
 
             P_0 = w_0,   P_{k+1} = P_k a(e_k),   flux(e) = sum over hits k on e of P_k  [W]
 
-        which :func:`mitsuba_veg.tune.photon_ad.replay` evaluates (and differentiates).
+        which :meth:`replay` evaluates (and differentiates).
 
         Parameters
         ----------
@@ -728,12 +737,16 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             the emitter's power integrated over it.
         index : SceneIndex, optional
             The scene's element index (default: built and cached for the scene).
+        attach : bool
+            Compute ``w0`` again with Dr.Jit AD enabled (the same emission, the same numbers):
+            attached to the emitter's parameters that carry gradients.
 
         Returns
         -------
         PhotonPathRecord
             ``w0`` [W] per photon, ``elem`` and ``front`` per depth (the recorded depths: up
-            to the deepest cast), ``rays`` (ray casts made).
+            to the deepest cast), ``rays`` (ray casts made), the index's ``n_elements`` and
+            ``areas``.
         """
         check_range("photons", photons, 16, 2**26, fix="a photon count such as 200000")
         check_range("max_depth", max_depth, 1, 64)
@@ -768,6 +781,11 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         dr.eval(paths, rays_lane)
         rays = int(_scalar(dr.sum(_UInt64(rays_lane))))
         cast = int(_scalar(dr.max(rays_lane))) if n else 0   # deepest cast: depths recorded
+        if attach:
+            with dr.resume_grad():
+                w = self._photons(scene, [em], index, n, inp, lobes=[self._lobe(em)])[3]
+                w0 = (w[0] + w[1] + w[2] + w[3]) * _opaque(mi.Float, 0.25 * (hi - lo) / n)
+                w0 = dr.select(dr.isfinite(w0), w0, 0.0) * dr.full(mi.Float, 1.0, n)
         elems, fronts = [], []
         for k in range(cast):
             v = dr.gather(mi.UInt32, paths, lane + _opaque(mi.UInt32, k * n))
@@ -778,8 +796,155 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
             elems.append(e)
             fronts.append(front)
         return PhotonPathRecord(emitter=name, photons=n, max_depth=depth_max, band=(lo, hi),
-                                w0=w0, elem=elems, front=fronts, rays=rays,
+                                w0=w0, elem=elems, front=fronts, n_elements=index.n_elements,
+                                areas=np.asarray(index.areas, np.float64), rays=rays,
                                 seconds=_time.perf_counter() - t0)
+
+    def replay(self, record: PhotonPathRecord, albedo, strength=1.0, side: str = "front",
+               component: str = "both", irradiance: bool = False):
+        """Flux (or irradiance) per element of recorded paths for given albedos, differentiable.
+
+        P_0 = s w_0, P_(k+1) = P_k a(e_k, side_k), flux(e) += P_k at every hit
+        (:mod:`~mitsuba_veg.integrators.photon_replay`): Dr.Jit gathers and scatter-adds,
+        differentiable in both AD modes with respect to the albedos, the strength and (for a
+        record traced with ``attach=True``) the emitter's parameters.
+
+        Parameters
+        ----------
+        record : PhotonPathRecord
+            Paths from :meth:`trace_paths`.
+        albedo : Float64 or tuple of Float64
+            Albedo per element [-] (reflects on the side hit), or a ``(front, back)`` pair.
+        strength : float or Float64
+            Emitter strength factor [-].
+        side : str
+            ``"front"``, ``"back"`` or ``"both"``: the hits recorded.
+        component : str
+            ``"direct"``, ``"indirect"`` or ``"both"``.
+        irradiance : bool
+            Divide by the element areas: irradiance [W m-2] instead of flux [W].
+
+        Returns
+        -------
+        Float64
+            Flux [W] or irradiance [W m-2] per element, the float type of ``albedo``.
+        """
+        f = _replay.irradiance if irradiance else _replay.replay
+        return f(record, albedo, strength, side, component)
+
+    # ---- Mitsuba's differentiable entry points ------------------------------------------------
+    def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
+        """Forward-mode derivative of :meth:`render`'s element tensor (``mi.render`` calls it).
+
+        The derivative of the expected irradiance with respect to the parameters of ``params``
+        that carry gradients (``dr.enable_grad`` + ``dr.set_grad`` on ``mi.traverse(scene)``
+        entries, then ``params.update()``): the BSDFs' reflectances and the emitters' radiance,
+        irradiance, intensity or scale. It is estimated by replaying weights-mode paths
+        (:meth:`trace_paths`, :meth:`replay`) traced with ``seed`` (independent of the primal
+        pass's): every photon goes on up to ``max_depth`` hits and its power is a polynomial in
+        the albedos, so the derivative is exact for that sample of paths. Albedos are the BSDFs'
+        band means (:func:`~mitsuba_veg.integrators.photon_replay.bsdf_albedo`: exact for
+        Lambertian BSDFs with reflectances flat within each band). Geometry (vertex positions,
+        ``to_world``, emitter positions) is not differentiated: such a parameter with gradients
+        is refused.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene.
+        params : mi.SceneParameters
+            ``mi.traverse(scene)`` with gradients enabled where derivatives are wanted.
+        sensor : int or mi.Sensor
+            Unused (the element output does not use a sensor).
+        seed : int
+            Seed of the paths (added to the ``seed`` property).
+        spp : int
+            Must be 0, as for :meth:`render`.
+
+        Returns
+        -------
+        mi.TensorXf
+            The derivative of the element tensor, shape (elements, bands, 2, 2) [W m-2 per unit
+            of the parameters' tangents].
+        """
+        with dr.resume_grad():
+            img = self._render_ad(scene, params, seed, spp)
+            # (no parameter with gradients: a zero derivative, as Mitsuba's integrators give)
+            dr.forward_to(img, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+            return dr.grad(img)
+
+    def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
+        """Reverse-mode derivative of :meth:`render`'s element tensor (``mi.render`` calls it).
+
+        Accumulates ``grad_in`` (shape (elements, bands, 2, 2)) times the derivative of the
+        element tensor into the gradients of the parameters of ``params`` that carry gradients;
+        the estimate is :meth:`render_forward`'s.
+
+        Parameters
+        ----------
+        scene : mi.Scene
+            The scene.
+        params : mi.SceneParameters
+            ``mi.traverse(scene)`` with gradients enabled where derivatives are wanted.
+        grad_in : mi.TensorXf
+            Gradient of the objective with respect to the element tensor.
+        sensor : int or mi.Sensor
+            Unused.
+        seed : int
+            Seed of the paths (added to the ``seed`` property).
+        spp : int
+            Must be 0.
+        """
+        with dr.resume_grad():
+            img = self._render_ad(scene, params, seed, spp)
+            dr.set_grad(img, grad_in)
+            dr.enqueue(dr.ADMode.Backward, img)
+            dr.traverse(dr.ADMode.Backward, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        dr.eval()
+
+    #: last names of scene parameters that move geometry: the replay keeps its paths fixed
+    _GEOMETRY_KEYS = ("vertex_positions", "vertex_normals", "vertex_texcoords", "faces",
+                      "to_world", "position", "center", "radius", "direction", "target")
+
+    def _render_ad(self, scene, params, seed, spp):
+        """The element tensor of a weights-mode replay, attached to ``params`` (see
+        :meth:`render_forward`)."""
+        if self.output != "elements":
+            raise ParameterError("output", self.output, "'elements' for derivatives",
+                                 "differentiate the element tensor; the light map image is a "
+                                 "lookup of it")
+        if int(spp or 0) != 0:
+            raise ParameterError("spp", int(spp), "0 for output='elements'",
+                                 "set the effort with the integrator's photons property")
+        for key in (params.keys() if params is not None else ()):
+            if key.rsplit(".", 1)[-1] in self._GEOMETRY_KEYS and dr.grad_enabled(params[key]):
+                raise ParameterError(
+                    "params", key, "reflectance or emitter parameters",
+                    "the photon pass differentiates albedos and emitted power along fixed "
+                    "paths, not geometry: disable gradients on this parameter")
+        k = int(np.asarray(dr.ravel(seed))[0]) if not isinstance(seed, int) else int(seed)
+        stream = (self.seed + k) & 0x7FFFFFFF
+        index = scene_index(scene)
+        all_em = scene.emitters()
+        sel = self._select_emitters(all_em, self.emitters)
+        ems = [all_em[i] for i in sel]
+        ranges = [band_range(b) for b in self.bands]
+        counts = self.photon_counts(scene, ems, self.photons, ranges[0])
+        depth = self.max_depth if self.indirect else 1
+        n, nb = index.n_elements, len(ranges)
+        out = dr.zeros(mi.Float, n * nb * 4)
+        lane = dr.arange(mi.UInt32, n) * (nb * 4)
+        for j, band in enumerate(ranges):
+            albedo = _replay.bsdf_albedo(scene, index, band)
+            for i, em in enumerate(ems):
+                rec = self.trace_paths(scene, em, int(counts[i]),
+                                       seed=stream * 7919 + 104729 * j + 31 * i + 17,
+                                       max_depth=depth, band=band, index=index, attach=True)
+                for c, comp in enumerate(("direct", "indirect")):
+                    for s_, side in enumerate(("front", "back")):
+                        x = _replay.irradiance(rec, albedo, 1.0, side, comp)
+                        dr.scatter_add(out, x, lane + (j * 4 + c * 2 + s_))
+        return mi.TensorXf(out, (n, nb, 2, 2))
 
     # ---- helpers ----------------------------------------------------------------------------
     @staticmethod
@@ -1315,8 +1480,8 @@ class PhotonIrradianceIntegrator(mi.SamplingIntegrator):
         not depend on the albedo. With ``acc=None`` nothing is recorded in ``acc`` and the
         power stays the initial one (only the paths are wanted); with ``paths`` (UInt32 of
         ``n_lanes x max_d``, filled with ``_NO_ROW``) the k-th hit of photon ``lane`` stores
-        ``2 element + side`` (side 1 = back) at ``k n_lanes + lane``: what the differentiable
-        pass (:mod:`mitsuba_veg.tune.photon_ad`) replays.
+        ``2 element + side`` (side 1 = back) at ``k n_lanes + lane``: what :meth:`replay`
+        evaluates.
 
         Hits are found with ``ray_intersect_preliminary`` (the BVH traversal only). The element
         comes from the lookup table, the side from the element's geometric normal (a table,

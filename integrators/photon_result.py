@@ -647,9 +647,10 @@ class PhotonPathRecord:
     ``elem[k]`` (UInt32, one value per photon) is the element of the photon's k-th hit
     (``0xFFFFFFFF``: none), ``front[k]`` (Bool) whether it hit the element's front side (against
     its geometric normal). ``w0`` is each photon's initial power [W] (the emitter's power in the
-    band over the photon count, its 4 band wavelengths averaged). Made by
-    :meth:`PhotonIrradianceIntegrator.trace_paths`; replayed by
-    :mod:`mitsuba_veg.tune.photon_ad`.
+    band over the photon count, its 4 band wavelengths averaged; attached to the emitter's
+    parameters when traced with ``attach=True``). ``n_elements`` and ``areas`` [m2] are those
+    of the scene index. Made by :meth:`PhotonIrradianceIntegrator.trace_paths`; replayed by
+    :mod:`mitsuba_veg.integrators.photon_replay` (the plugin's :meth:`replay`).
     """
 
     emitter: str
@@ -659,5 +660,19 @@ class PhotonPathRecord:
     w0: object                   # mi.Float (photons) [W]
     elem: list
     front: list
+    n_elements: int = 0
+    areas: object = None         # numpy (n_elements,) [m2]
     rays: int = 0                # ray casts made
     seconds: float = 0.0
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the record on the device [bytes]: w0 (4) and per depth element (4) and
+        side (1) per photon.
+
+        Returns
+        -------
+        int
+            Bytes.
+        """
+        return self.photons * (4 + len(self.elem) * 5)

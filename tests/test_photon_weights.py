@@ -1,6 +1,7 @@
 """One photon kernel for the plain and the differentiable pass: the integrator's "weights" mode
 (every photon goes on, cosine-weighted, its power multiplied by the albedo) against its
-"roulette" mode, against the recorded paths that ``tune.photon_ad`` replays, and against a
+"roulette" mode, against the recorded paths that ``integrators.photon_replay`` replays, and
+against a
 light tracer written independently with Mitsuba's full ``ray_intersect``."""
 import inspect
 
@@ -12,9 +13,10 @@ import pytest
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.integrators import photon_irradiance as P
 from mitsuba_veg.light.validation import roof_wall_scene
-from mitsuba_veg.tune import photon_ad
+from mitsuba_veg.integrators import photon_replay
 
 F64 = dr.float64_array_t(mi.Float)
+TRACER = P.PhotonIrradianceIntegrator()
 ALBEDO = {"ground": 0.3, "roof": 0.5, "wall": 0.5}   # the BSDFs of roof_wall_scene
 
 
@@ -56,7 +58,7 @@ def test_weights_mode_has_the_expectation_of_roulette(scene):
 
 
 def test_weights_flux_equals_the_replay_of_the_recorded_paths(scene):
-    """Same seed, same stream: the kernel's own weights-mode flux and photon_ad's replay of
+    """Same seed, same stream: the kernel's own weights-mode flux and the replay of
     the paths it records agree element by element (only float rounding differs)."""
     s, idx = scene
     names = [e.id() for e in s.emitters()]
@@ -70,18 +72,18 @@ def test_weights_flux_equals_the_replay_of_the_recorded_paths(scene):
             reflectance=refl, max_depth=6)
         # the stream trace() gives its only batch of this emitter
         stream = ((((seed * 31 + e) * 17 + 0) * 1_000_003 + 0) & 0x7FFFFFFF)
-        paths = photon_ad.trace_paths(s, e_name, n, idx, max_depth=6, seed=stream,
+        paths = TRACER.trace_paths(s, e_name, n, index=idx, max_depth=6, seed=stream,
                                       band=(360.0, 830.0))
         assert res.flux[0, ..., 0].sum() > 0
         for side in ("front", "back"):
-            ours = np.asarray(photon_ad.replay(paths, F64(a), side=side))
+            ours = np.asarray(photon_replay.replay(paths, F64(a), side=side))
             ref = res.flux[0, :, :, P.SIDES.index(side), 0].sum(axis=1)
             assert np.allclose(ours, ref, rtol=1e-4, atol=1e-6 * ref.max()), (e_name, side)
         assert paths.rays == res.rays_traced
 
 
 def _reference_paths(scene, idx, emitter, n, seed, max_depth, band=(360.0, 830.0)):
-    """The former photon_ad light tracer (full ray_intersect, evaluated loop), kept here as an
+    """A former light tracer of the differentiable pass (full ray_intersect, evaluated loop), kept here as an
     independent reference: emission by the integrator, transport written separately."""
     integ = P.PhotonIrradianceIntegrator()
     em = [e for e in scene.emitters() if e.id() == emitter][0]
@@ -124,39 +126,47 @@ def test_recorded_paths_match_an_independent_light_tracer(scene):
     a = F64(_albedo(idx))
     for em in ("sun", "sky"):
         w0, elems, fronts = _reference_paths(s, idx, em, n, 11, depth)
-        paths = photon_ad.trace_paths(s, em, n, idx, max_depth=depth, seed=11)
+        paths = TRACER.trace_paths(s, em, n, index=idx, max_depth=depth, seed=11)
         # the same emission and the same first hits, photon by photon
         assert np.array_equal(np.asarray(paths.w0, dtype=np.float32), w0)
         assert np.array_equal(np.asarray(paths.elem[0]), elems[0])
         assert np.array_equal(np.asarray(paths.front[0]), fronts[0])
         # later bounces: the same distribution (the tangent frames differ: Mitsuba's full
         # interaction orients it by the uv parametrisation, the kernel by the normal alone)
-        ref = photon_ad.PhotonPaths(em, n, depth, (360.0, 830.0), F64(w0),
+        ref = P.PhotonPathRecord(em, n, depth, (360.0, 830.0), mi.Float(w0),
                                     [mi.UInt32(e) for e in elems], [mi.Bool(f) for f in fronts],
                                     idx.n_elements, np.asarray(idx.areas, float))
-        f_ours = np.asarray(photon_ad.replay(paths, a, side="both"))
-        f_ref = np.asarray(photon_ad.replay(ref, a, side="both"))
+        f_ours = np.asarray(photon_replay.replay(paths, a, side="both"))
+        f_ref = np.asarray(photon_replay.replay(ref, a, side="both"))
         for sid in ALBEDO:
             sl = idx.shape_slice(sid)
             assert f_ours[sl].sum() == pytest.approx(f_ref[sl].sum(), rel=0.02), (em, sid)
 
 
-def test_photon_ad_has_no_transport_loop_of_its_own(scene, monkeypatch):
-    src = inspect.getsource(photon_ad)
+def test_the_replay_has_no_transport_loop_and_tuning_traces_with_the_plugin(scene,
+                                                                            monkeypatch):
+    """The replay module only evaluates recorded paths; the light-study tuning and the relaxed
+    moss model trace them with the plugin's own kernel (PhotonIrradianceIntegrator.trace_paths)."""
+    from mitsuba_veg.tune import light_fit, smooth
+    src = inspect.getsource(photon_replay)
     for word in ("ray_intersect", "._emit(", "spawn_ray", "._loop(", "square_to_cosine",
                  "sample_direction"):
         assert word not in src, word
+    for mod in (light_fit, smooth):
+        assert ".trace_paths(" in inspect.getsource(mod)
     s, idx = scene
     calls = []
     orig = P.PhotonIrradianceIntegrator.trace_paths
 
     def spy(self, *args, **kw):
-        calls.append(kw.get("max_depth"))
+        calls.append(kw.get("max_depth", args[4] if len(args) > 4 else None))
         return orig(self, *args, **kw)
 
     monkeypatch.setattr(P.PhotonIrradianceIntegrator, "trace_paths", spy)
-    p = photon_ad.trace_paths(s, "sun", 1000, idx, max_depth=3, seed=1)
-    assert calls == [3] and len(p.elem) <= 3 and p.rays > 0
+    study = light_fit.LightStudy(s, ALBEDO, bands=("par",), photons=1000, max_depth=3)
+    assert calls == [3, 3]              # sun and sky, one band
+    p = study.paths[("sun", "par")]
+    assert len(p.elem) <= 3 and p.rays > 0 and p.n_elements == idx.n_elements
 
 
 def test_mode_is_checked(scene):
@@ -201,8 +211,8 @@ def test_recorded_paths_resolve_instances_and_full_interactions(case):
                                                emitters=[0], mode="weights", reflectance=refl,
                                                max_depth=5)
     stream = ((((4 * 31 + 0) * 17) * 1_000_003) & 0x7FFFFFFF)
-    paths = photon_ad.trace_paths(s, e_name, 50_000, idx, max_depth=5, seed=stream)
-    ours = np.asarray(photon_ad.replay(paths, F64(a), side="both"))
+    paths = TRACER.trace_paths(s, e_name, 50_000, index=idx, max_depth=5, seed=stream)
+    ours = np.asarray(photon_replay.replay(paths, F64(a), side="both"))
     ref = res.flux[0, :, :, :, 0].sum(axis=(1, 2))
     assert (ref > 0).sum() > 100
     assert np.allclose(ours, ref, rtol=1e-4, atol=1e-6 * ref.max())

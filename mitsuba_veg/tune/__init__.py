@@ -4,7 +4,6 @@
 - :mod:`.smooth`     the relaxed daily soil + moss model on a scenario's triangles
                      (:func:`prepare`, :class:`SmoothMossModel`);
 - :mod:`.dispersal`  expected propagule landing kernels (eqs 3.22-3.23);
-- :mod:`.photon_ad`  a differentiable photon pass (weights instead of Russian roulette);
 - :mod:`.grad`       gradients through many days (optionally checkpointed), finite differences;
 - :mod:`.fitting`        ``fit(scenario, target, params=[...], loss=..., steps=...)`` with Adam;
 - :mod:`.discrete`   the discrete run as a function of parameters (common random numbers) and
@@ -17,7 +16,7 @@
 """
 from __future__ import annotations
 
-from . import dispersal, grad, lifecycle, photon_ad, relax, smooth  # noqa: F401
+from . import dispersal, grad, lifecycle, relax, smooth  # noqa: F401
 from .fitting import FitResult, coverage_figure, coverage_from_checkpoint, fit  # noqa: F401
 from .grad import finite_difference, value_and_grad  # noqa: F401
 from . import leaf_colour  # noqa: F401
@@ -30,7 +29,7 @@ from .leaf_colour import (LeafColourFit, colour_sensitivity, fit_leaf_colour,  #
                           predict_leaf_colour)
 from .smooth import ModelData, RunResult, SmoothMossModel, prepare  # noqa: F401
 
-__all__ = ["relax", "lifecycle", "smooth", "dispersal", "photon_ad", "grad", "prepare",
+__all__ = ["relax", "lifecycle", "smooth", "dispersal", "grad", "prepare",
            "SmoothMossModel", "ModelData", "RunResult", "value_and_grad", "finite_difference",
            "fit", "FitResult", "coverage_figure", "coverage_from_checkpoint", "leaf_colour",
            "fit_leaf_colour", "LeafColourFit", "colour_sensitivity", "predict_leaf_colour",

@@ -2,7 +2,8 @@
 
 People designing a planting measure (or specify) the light on the ground: a PAR map [W m-2] or
 a red : far-red ratio map. :class:`LightStudy` traces the photon paths of a scene's emitters once
-per band with the differentiable photon pass (:mod:`mitsuba_veg.tune.photon_ad`: the
+per band with the integrator's weights-mode pass
+(:meth:`~mitsuba_veg.integrators.PhotonIrradianceIntegrator.trace_paths`: the
 integrator's own emission sampling and ray casts, every photon continued with a weight instead of
 Russian roulette) and replays them for any parameter values; :func:`fit_light` fits
 
@@ -29,9 +30,9 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError
-from ..integrators.photon_irradiance import BANDS, SceneIndex
+from ..integrators.photon_irradiance import BANDS, PhotonIrradianceIntegrator, SceneIndex
+from ..integrators.photon_replay import albedo_array
 from ..units import umol_per_joule
-from . import photon_ad
 from .discrete import patch_labels
 from .fitting import param_names
 
@@ -100,8 +101,10 @@ class LightStudy:
                     raise ParameterError(f"albedo[{sid!r}]", x, "[0, 1]")
                 self.base[b][self.shape_slices[sid]] = x
         t0 = time.perf_counter()
-        self.paths = {(e, b): photon_ad.trace_paths(scene, e, photons, self.index, max_depth,
-                                                    seed * 7919 + 13 * k + 7 * j, band=B[b])
+        self.integrator = PhotonIrradianceIntegrator()
+        self.paths = {(e, b): self.integrator.trace_paths(scene, e, photons,
+                                                          seed * 7919 + 13 * k + 7 * j, max_depth,
+                                                          band=B[b], index=self.index)
                       for k, e in enumerate(self.emitters) for j, b in enumerate(self.bands)}
         self.seconds = time.perf_counter() - t0
         self.F = dr.float64_array_t(mi.Float)
@@ -165,11 +168,11 @@ class LightStudy:
                 strength[c[1]] = v
             elif c[2] is None or c[2] == band:
                 alb[c[1]] = v
-        a = photon_ad.albedo_array(self.index.n_elements, self.base[band], alb,
-                                   self.shape_slices, F)
+        a = albedo_array(self.index.n_elements, self.base[band], alb, self.shape_slices, F)
         out = None
         for e in self.emitters:
-            x = photon_ad.irradiance(self.paths[(e, band)], a, strength.get(e, 1.0))
+            x = self.integrator.replay(self.paths[(e, band)], a, strength.get(e, 1.0),
+                                       irradiance=True)
             out = x if out is None else out + x
         return out
 

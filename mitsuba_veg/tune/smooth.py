@@ -30,7 +30,8 @@ Same physics as the discrete run (``daily/moss.py``), with three changes (docs/t
    (``Kernel.sibling_share``, ``Kernel.far_share``), and seen from a moss, the parent of
    every propagule, whose neighbourhood holds its own offspring (the moss pairs; docs/tuning.md).
 
-The light comes from up-front photon passes (:mod:`.photon_ad`: the day's sun path every
+The light comes from up-front photon passes (the integrator's weights-mode paths replayed by
+:meth:`~mitsuba_veg.integrators.PhotonIrradianceIntegrator.replay`: the day's sun path every
 ``light_every`` days, interpolated linearly in between, plus one sky pass), so it can be
 differentiated w.r.t. albedo and emitter strength; moss does not change the albedo here (the
 discrete run recomputes light daily with moss albedo). Soil: ``soil.py`` unchanged (eqs
@@ -58,6 +59,8 @@ import numpy as np
 
 from .. import soil as soil_model
 from ..errors import ParameterError
+from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, PhotonPathRecord
+from ..integrators.photon_replay import albedo_array, irradiance
 from ..daily import prepare_site
 from ..light.sunpath import day_sun_path
 from ..moss.species import PARAMETER_FIELDS
@@ -66,7 +69,6 @@ from . import relax
 from .dispersal import dispersal_kernel, pooled_share, sibling_overlap
 from .lifecycle import (GEMMA_STEP, SPORE_THRESHOLD, CohortLifeCycle, SpeciesState,
                         real_type, species_fitness)
-from .photon_ad import PhotonPaths, albedo_array, irradiance, trace_paths
 
 __all__ = ["ModelData", "LightSetup", "prepare", "with_daily_light", "SmoothMossModel", "State", "SpeciesState",
            "RunResult", "CLIMATE_PARAMS", "GEMMA_STEP", "SPORE_THRESHOLD", "NEIGHBOUR_CELLS"]
@@ -96,7 +98,7 @@ class LightSetup:
     f_sun: list
     f_sky: np.ndarray
     paths_sun: list | None = None
-    paths_sky: PhotonPaths | None = None
+    paths_sky: PhotonPathRecord | None = None
     photons: int = 0
     seconds: float = 0.0
     #: per light day, the sky fractions (None: the one ``f_sky`` on every day); set by
@@ -327,6 +329,7 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
     if ldays[-1] != n_days - 1:
         ldays.append(n_days - 1)
     alb = full(site.base_albedo[:, 0].astype(float), 0.0)
+    tracer = PhotonIrradianceIntegrator()
     a_dr = dr.float64_array_t(mi.Float)(alb)
     lat, lon = float(scn.get("site.latitude")), float(scn.get("site.longitude"))
     f_sun, p_sun = [], []
@@ -341,10 +344,11 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
             p_sun.append(None)
             continue
         site.sun.set_day(dirs, w)
-        p = trace_paths(site.scene, "sun", photons, idx, max_depth, seed * 7919 + 11 * k + 1)
+        p = tracer.trace_paths(site.scene, "sun", photons, seed * 7919 + 11 * k + 1, max_depth,
+                               index=idx)
         f_sun.append(np.asarray(irradiance(p, a_dr)) / (p.band[1] - p.band[0]))
         p_sun.append(p if differentiable_light else None)
-    p_sky = trace_paths(site.scene, "sky", photons, idx, max_depth, seed * 7919 + 3)
+    p_sky = tracer.trace_paths(site.scene, "sky", photons, seed * 7919 + 3, max_depth, index=idx)
     f_sky = np.asarray(irradiance(p_sky, a_dr)) / (p_sky.band[1] - p_sky.band[0])
     # band irradiance / band width = fraction of the unit (1 W m-2 nm-1) horizontal irradiance
     light = LightSetup(ldays, f_sun, f_sky, p_sun if differentiable_light else None,
