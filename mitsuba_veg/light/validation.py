@@ -6,8 +6,8 @@
 - :func:`path_reference`: per-triangle irradiance from Mitsuba's own ``path`` integrator with one
   ``irradiancemeter`` per triangle (each selected triangle becomes its own mesh carrying the
   sensor, so the geometry is unchanged), plus the direct irradiance of delta emitters
-  (directional suns) added by shadow rays, because an irradiancemeter never samples a delta
-  emitter at its own surface.
+  (suns, point and spot lights) added by shadow rays, because an irradiancemeter never samples
+  a delta emitter at its own surface.
 - :func:`as_meshes`: a scene dict whose mesh shapes (``rectangle``, ``cube``, ``obj``, ``ply``)
   are replaced by in-memory meshes with the same ids, so that :func:`path_reference` can cut
   triangles out of them (e.g. Mitsuba's ``mi.cornell_box()``).
@@ -169,8 +169,8 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
     Each triangle in ``triangles`` is cut out of its mesh (an in-memory ``mi.Mesh`` of the dict,
     see :func:`as_meshes`) into its own mesh carrying an ``irradiancemeter`` whose ``specfilm``
     integrates the band ``band`` [nm]; the scene is otherwise identical. The direct irradiance
-    of delta emitters is added with shadow rays (4096 points per triangle, from ``seed``). Each
-    triangle is rendered in 4 batches of ``spp / 4`` samples.
+    of delta emitters is added with shadow rays (``spp`` points per triangle, at least 4096, from
+    ``seed``). Each triangle is rendered in 4 batches of ``spp / 4`` samples.
 
     Parameters
     ----------
@@ -195,7 +195,7 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
         (len(triangles),) band-integrated front irradiance [W m-2].
     std_error : numpy.ndarray
         (len(triangles),) standard error [W m-2]: the path-traced part's (from the 4 batches)
-        and the shadow-ray part's (from its 4096 points) in quadrature.
+        and the shadow-ray part's (from its points) in quadrature.
 
     Raises
     ------
@@ -253,21 +253,25 @@ def path_reference(scene_dict: dict, shape_id: str, triangles, spp: int = 4096,
             vals.append(float(np.asarray(img).ravel()[0]))
         out[j] = np.mean(vals)
         err[j] = np.std(vals, ddof=1) / math.sqrt(batches)
-    # direct light of delta-direction emitters, which the irradiancemeter never samples; its
+    # direct light of delta emitters, which the irradiancemeter never samples; its
     # Monte-Carlo error adds to the path-traced batches' in quadrature
-    direct, direct_err = _delta_direct(scene, F[tris], V, (lo, hi), seed=seed)
+    direct, direct_err = _delta_direct(scene, F[tris], V, (lo, hi),
+                                      samples_per_tri=min(max(int(spp), 4096), 1 << 20),
+                                      seed=seed)
     return out + direct, np.sqrt(err**2 + direct_err**2)
 
 
 def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096, seed: int = 0):
-    """Direct irradiance [W m-2] of directional emitters on triangles, integrated over ``band``
-    [nm] (wavelengths drawn uniformly in the band), with shadow rays; and its standard error
+    """Direct irradiance [W m-2] of delta emitters (directional, point, spot, projector: the
+    ones an ``irradiancemeter`` never samples) on triangles, integrated over ``band`` [nm]
+    (wavelengths drawn uniformly in the band), with shadow rays; and its standard error
     [W m-2] (points and wavelengths from ``seed``)."""
     faces = np.asarray(faces)
     res = np.zeros(len(faces))
     se = np.zeros(len(faces))
     emitters = [e for e in scene.emitters()
-                if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)]
+                if mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)
+                or mi.has_flag(e.flags(), mi.EmitterFlags.DeltaPosition)]
     if not emitters:
         return res, se
     lo, hi = band
@@ -288,7 +292,9 @@ def _delta_direct(scene: mi.Scene, faces, V, band, samples_per_tri: int = 4096, 
             it.wavelengths = mi.Spectrum(*[mi.Float(lam[k].astype(np.float32)) for k in range(4)])
             ds, w = e.sample_direction(it, mi.Point2f(0.5, 0.5))
             cos = ds.d.x * float(n[0]) + ds.d.y * float(n[1]) + ds.d.z * float(n[2])
-            ray = mi.Ray3f(it.p + mi.Vector3f(*[float(c) * 1e-4 for c in n]), ds.d)
+            # (a point-like light: the shadow ray stops at it; a sun's distance is infinite)
+            ray = mi.Ray3f(it.p + mi.Vector3f(*[float(c) * 1e-4 for c in n]), ds.d,
+                           dr.minimum(ds.dist * (1.0 - 1e-4), dr.largest(mi.Float)))
             vis = ~scene.ray_test(ray)
             val = (w[0] + w[1] + w[2] + w[3]) * 0.25
             val = dr.select(vis & (cos > 0), val * cos, 0.0)
