@@ -212,7 +212,6 @@ def ref_beer(quick: bool) -> list[dict]:
     exp(−G LAI / cos θ), G = 0.5, from
     :func:`mitsuba_veg.foliage.attenuation.red_far_red_attenuation` (``lai_path`` =
     LAI / cos θ)."""
-    import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
     from mitsuba_veg.foliage.attenuation import red_far_red_attenuation
     from mitsuba_veg.foliage.canopy import random_leaf_cloud
     from mitsuba_veg.foliage.light_study import tree_scene
@@ -249,7 +248,6 @@ def ref_beer(quick: bool) -> list[dict]:
 def ref_sensors(quick: bool) -> list[dict]:
     """Virtual sensors in sensor mode (record and let photons pass) against analytic values:
     the same scenes and photon counts as ``tests/test_sensors.py``."""
-    import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
     from mitsuba_veg.foliage.canopy import random_leaf_cloud
     from mitsuba_veg.foliage.light_study import tree_scene
     from mitsuba_veg.light import sensors as S

@@ -1,6 +1,14 @@
-"""Mitsuba integrator plugins of mitsuba-veg (installed as ``mitsuba_veg.integrators``).
+"""The Mitsuba plugins of mitsuba-veg (installed as ``mitsuba_veg.integrators``), one module per
+plugin family:
 
-Importing this package registers every plugin with Mitsuba; ``import mitsuba_veg`` does it.
+- ``veg_photon_irradiance`` (integrator): :mod:`.photon_irradiance`;
+- ``veg_sky`` (emitter): :mod:`.veg_sky` (:class:`VegSky`, :func:`attach_scene`);
+- ``veg_sun_path`` and ``veg_sun_steps`` (emitters): :mod:`.veg_sun` (:class:`VegSunPath`,
+  :class:`VegSunSteps`, their base :class:`DeltaSun`);
+- ``veg_leaf`` (BSDF): :mod:`.veg_leaf` (:class:`LeafBSDF`).
+
+Each module registers its plugins at its end; importing this package registers every plugin
+with Mitsuba (``import mitsuba_veg`` does it).
 """
 from __future__ import annotations
 
@@ -8,8 +16,12 @@ import mitsuba as mi
 
 from .photon_irradiance import (BANDS, KERNEL_MODES, PhotonIrradianceIntegrator,
                                 PhotonIrradianceResult, PhotonPathRecord)
+from .veg_leaf import LeafBSDF
+from .veg_sky import VegSky, attach_scene
+from .veg_sun import DeltaSun, VegSunPath, VegSunSteps
 
 mi.register_integrator("veg_photon_irradiance", lambda props: PhotonIrradianceIntegrator(props))
 
 __all__ = ["PhotonIrradianceIntegrator", "PhotonIrradianceResult", "PhotonPathRecord", "BANDS",
-           "KERNEL_MODES"]
+           "KERNEL_MODES", "VegSky", "attach_scene", "DeltaSun", "VegSunPath", "VegSunSteps",
+           "LeafBSDF"]

@@ -13,6 +13,7 @@ dr = pytest.importorskip("drjit")
 
 import mitsuba_veg  # noqa: E402,F401  (selects the variant, registers the plugins)
 from mitsuba_veg.errors import ParameterError  # noqa: E402
+from mitsuba_veg.integrators.veg_sky import VegSky, attach_scene  # noqa: E402
 from mitsuba_veg.light import sky as sky_mod  # noqa: E402
 from mitsuba_veg.light.clear_sky import (  # noqa: E402
     Atmosphere, DEFAULT_ATMOSPHERE, band_irradiance, clear_sky_spectra, daylight,
@@ -286,8 +287,8 @@ def test_sample_ray_power_and_symbolic_calls():
     scene = mi.load_dict({"type": "scene", "sky": d["sky"], "sun": d["sun"],
                           "ground": {"type": "rectangle", "to_world":
                                      mi.ScalarTransform4f().rotate([1, 0, 0], -90).scale(2.0)}})
-    assert sky_mod.attach_scene(scene) == 1
-    sky = [e for e in scene.emitters() if isinstance(e, sky_mod.VegSky)][0]
+    assert attach_scene(scene) == 1
+    sky = [e for e in scene.emitters() if isinstance(e, VegSky)][0]
     n = 1 << 18
     s = _sampler(n, 7)
     ray, w = sky.sample_ray(0.0, s.next_1d(), s.next_2d(), s.next_2d())

@@ -8,7 +8,6 @@ import pytest
 import mitsuba as mi
 
 import mitsuba_veg as mv
-import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
 from mitsuba_veg.foliage.canopy import random_leaf_cloud
 from mitsuba_veg.foliage.light_study import (leaf_values, open_reference, run_light_study,
                                              tree_scene)

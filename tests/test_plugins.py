@@ -1,19 +1,20 @@
 """Every Mitsuba plugin of the package as a Mitsuba user meets it: a class docstring that is its
 parameter table (every property the plugin reads, and no other), loading from a scene dict and
-from XML with the same effect, and an unknown property refused."""
+from XML with the same effect, and an unknown property refused. Every plugin class lives in
+``integrators/`` (``mitsuba_veg.integrators``), the package's one plugins folder."""
 import inspect
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import mitsuba_veg as mv  # noqa: F401  (selects the variant, registers the plugins)
 import mitsuba as mi
-from mitsuba_veg.foliage.bsdf import LeafBSDF
 from mitsuba_veg.integrators.photon_irradiance import PhotonIrradianceIntegrator
-from mitsuba_veg.light.sensor_study import VegSunSteps
-from mitsuba_veg.light.sky import VegSky
-from mitsuba_veg.light.sunpath import VegSunPath
+from mitsuba_veg.integrators.veg_leaf import LeafBSDF
+from mitsuba_veg.integrators.veg_sky import VegSky
+from mitsuba_veg.integrators.veg_sun import VegSunPath, VegSunSteps
 
 # plugin name -> (class, kind, one non-default property as (XML tag, name, value), what shows
 # that the value took effect)
@@ -83,3 +84,34 @@ def test_loads_from_a_dict_and_from_xml_alike(name):
     # a property the plugin does not read is refused (Mitsuba's loader names it)
     with pytest.raises(Exception, match="unreferenced propert"):
         mi.load_dict({"type": name, prop: value, "not_a_property": 1.0, **base})
+
+
+def _registrations() -> dict[str, str]:
+    """Plugin name -> file (relative to the repository) of every ``mi.register_*`` call in the
+    package's source (``mitsuba_veg/`` and ``integrators/``); a name given as a module constant
+    is looked up in the same file."""
+    root = Path(__file__).resolve().parent.parent
+    out = {}
+    for folder in ("mitsuba_veg", "integrators"):
+        for path in (root / folder).rglob("*.py"):
+            src = path.read_text()
+            for arg in re.findall(r"\bmi\.register_\w+\(\s*([^,]+),", src):
+                name = arg.strip()
+                if not name.startswith(('"', "'")):
+                    found = re.search(rf"^{name}\s*=\s*(['\"]\w+['\"])", src, flags=re.M)
+                    assert found, f"{path}: cannot resolve the plugin name {name}"
+                    name = found.group(1)
+                out[name.strip("'\"")] = str(path.relative_to(root))
+    return out
+
+
+def test_every_plugin_lives_in_the_integrators_folder():
+    """``integrators/`` is the one plugins folder: every plugin the package registers is in the
+    table above (all five), each registered there, each class defined in a module of
+    ``mitsuba_veg.integrators`` (one file per plugin family)."""
+    regs = _registrations()
+    assert set(PLUGINS) == set(regs) == {"veg_photon_irradiance", "veg_sky", "veg_sun_path",
+                                         "veg_sun_steps", "veg_leaf"}
+    for name, (cls, *_) in PLUGINS.items():
+        assert regs[name].startswith("integrators/"), (name, regs[name])
+        assert cls.__module__.startswith("mitsuba_veg.integrators."), (name, cls.__module__)

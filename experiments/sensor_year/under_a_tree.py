@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 import mitsuba_veg  # noqa: F401  (variant, plugins)
-import mitsuba_veg.foliage  # noqa: F401  (registers veg_leaf)
 from mitsuba_veg.foliage.canopy import sphere_crown_tree
 from mitsuba_veg.foliage.light_series import grid_map_figure
 from mitsuba_veg.foliage.light_study import tree_scene

@@ -1,13 +1,14 @@
-"""Foliage: pigments and autumn colour (paper 003), leaf spectra (PROSPECT-D), the ``veg_leaf``
-BSDF, Barnsley maple leaves, insolation per leaf, red/far-red attenuation and spectral light
-studies. See docs/foliage.md.
+"""Foliage: pigments and autumn colour (paper 003), leaf spectra (PROSPECT-D), scene dicts of the
+``veg_leaf`` BSDF, Barnsley maple leaves, insolation per leaf, red/far-red attenuation and
+spectral light studies. See docs/foliage.md.
 
-Importing this package registers the Mitsuba BSDF plugin ``veg_leaf`` (a thin bi-Lambertian
-leaf with spectral reflectance and transmittance).
+The Mitsuba BSDF plugin ``veg_leaf`` (a thin bi-Lambertian leaf with spectral reflectance and
+transmittance) is :class:`mitsuba_veg.integrators.veg_leaf.LeafBSDF`, registered by
+:mod:`mitsuba_veg.integrators`; :func:`leaf_bsdf_dict` builds its scene dicts.
 """
 from __future__ import annotations
 
-from .bsdf import LeafBSDF, leaf_bsdf_dict, register as _register_bsdf
+from .bsdf import leaf_bsdf_dict
 from .pigments import (LeafTraits, pigments_at_stage, pigments_at_tau, stage_from_tau,
                        stage_table, tau_from_stage, vary_pigments)
 from .prospect import prospect_d
@@ -20,10 +21,7 @@ from .insolation import (InsolationResult, SunPath, instantaneous_insolation, le
                          shadow_scene, sky_view_factor, sun_path)
 from .light_study import run_light_study
 
-_register_bsdf()
-
-
-__all__ = ["LeafBSDF", "leaf_bsdf_dict", "LeafTraits", "pigments_at_stage", "pigments_at_tau",
+__all__ = ["leaf_bsdf_dict", "LeafTraits", "pigments_at_stage", "pigments_at_tau",
            "stage_from_tau", "stage_table", "tau_from_stage", "vary_pigments", "prospect_d",
            "LeafSpectra", "leaf_spectra", "mitsuba_spectrum", "spectrum_to_srgb",
            "absorbed_fraction", "growth_alphas", "red_far_red_attenuation", "with_leaf_optics",

@@ -3,11 +3,11 @@
 One light scene holds the scene's shapes, the sensors (:mod:`mitsuba_veg.light.sensors`, one
 mesh in sensor mode) and two emitters built once:
 
-- ``sun``: ``veg_sun_steps`` (:class:`VegSunSteps`), a delta-direction emitter holding the sun
-  directions of one time step (every ``sub_minutes`` while the sun is up: 6 per hour, up to
-  144 per day) with weights; its spectrum is the SPCTRAL2 beam (DNI) of a reference sun
-  (elevation 45°, day 172). Each step sets its directions (no rebuild, no recompile) and
-  traces one photon pass of the sun alone;
+- ``sun``: ``veg_sun_steps`` (:class:`mitsuba_veg.integrators.veg_sun.VegSunSteps`), a
+  delta-direction emitter holding the sun directions of one time step (every ``sub_minutes``
+  while the sun is up: 6 per hour, up to 144 per day) with weights; its spectrum is the
+  SPCTRAL2 beam (DNI) of a reference sun (elevation 45°, day 172). Each step sets its
+  directions (no rebuild, no recompile) and traces one photon pass of the sun alone;
 - ``sky``: ``veg_sky`` with a *uniform* (isotropic) radiance distribution and the SPCTRAL2
   diffuse spectrum (DHI) of the reference sun. Its light does not depend on the time except for
   a factor per band, so it is traced once, with ``sky_photons`` photons.
@@ -33,8 +33,6 @@ import time as _time
 from dataclasses import dataclass, field
 from functools import lru_cache
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from mitsuba_veg.defaults import check_light
@@ -44,124 +42,9 @@ from . import sensors as S
 from .clear_sky import band_irradiance, clear_sky_spectra, regular_spectrum
 from .photon import BANDS, photon_irradiance
 from .solar_position import sun_direction, sun_position
-from .sunpath import DeltaSun
 
 #: reference sun of the emitters' spectra
 REF_ELEVATION, REF_DOY = 45.0, 172
-#: sun directions one step can hold (a day at 10-minute sub-steps has at most 144)
-SLOTS = 256
-
-
-class VegSunSteps(DeltaSun):
-    """Mitsuba emitter ``veg_sun_steps``: the sun over one time step, a discrete set of
-    directions with weights and a spectrum.
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - irradiance
-         - spectrum or float
-         - 1.0
-         - Beam irradiance on a plane normal to the sun per unit weight [W m-2 nm-1]; a
-           number is a flat spectrum.
-
-    :meth:`set_directions` sets the step's directions (towards the sun)
-    and weights; a photon picks direction k with probability w_k / Σw and carries Σw × the
-    spectrum, so a pass gives Σ_k w_k × (the light of a sun in direction k). The tables have a
-    fixed size (:data:`SLOTS`) and opaque values: changing them does not recompile the kernel.
-    For the photon pass (``sample_direction``); ``sample_ray`` returns zero-weight rays.
-    """
-
-    def __init__(self, props: mi.Properties):
-        DeltaSun.__init__(self, props)
-        spec = props.get("irradiance", 1.0)
-        if isinstance(spec, (int, float)):
-            spec = mi.load_dict({"type": "uniform", "value": float(spec)})
-        self.m_spec = spec
-        self.set_directions(np.array([[0.0, 1.0, 0.0]]), np.array([1.0]))
-
-    def set_directions(self, directions, weights, seed: int = 0) -> None:
-        """Set the step's sun directions and weights (no rebuild, no recompile).
-
-        Parameters
-        ----------
-        directions : array_like
-            (K, 3) unit vectors towards the sun, K <= :data:`SLOTS`.
-        weights : array_like
-            (K,) weights w_k >= 0 [-] (Δt/T DNI_PAR(k) / DNI_PAR,ref in :func:`run_series`).
-        seed : int
-            Sets the random shift of the direction sequence (see :meth:`sample_direction`).
-        """
-        d = np.asarray(directions, float).reshape(-1, 3)
-        w = np.asarray(weights, float).reshape(-1)
-        if len(d) != len(w) or len(w) > SLOTS or (w < 0).any() or not np.isfinite(w).all():
-            raise ParameterError("sun directions", (len(d), len(w)), f"as many finite weights "
-                                 f">= 0 as directions, at most {SLOTS}")
-        total = float(w.sum())
-        cdf = np.ones(SLOTS)
-        dd = np.tile([0.0, 1.0, 0.0], (SLOTS, 1))
-        if total > 0:
-            cdf[:len(w)] = np.cumsum(w) / total
-            dd[:len(d)] = d
-        self.m_cdf = mi.Float(cdf.astype(np.float32))
-        self.m_dirs = mi.Vector3f(*[mi.Float(dd[:, k].astype(np.float32)) for k in range(3)])
-        self.m_total = dr.opaque(mi.Float, total)
-        self.m_shift = dr.opaque(mi.UInt32, int(np.random.default_rng(seed).integers(0, 2**32)))
-        self.total = total
-
-    def sample_direction(self, it, sample, active=True):
-        """One of the step's sun directions, with probability w_k / Σw over the random shift.
-
-        Parameters
-        ----------
-        it : mitsuba.Interaction3f
-            The reference point (its wavelengths evaluate the spectrum).
-        sample : mitsuba.Point2f
-            Uniform sample (only its width is used: see the comment in the body).
-        active : mitsuba.Bool
-            Active lanes.
-
-        Returns
-        -------
-        ds : mitsuba.DirectionSample3f
-            The delta direction towards the sun.
-        weight : mitsuba.Spectrum
-            Σw × the ``irradiance`` spectrum [W m-2 nm-1].
-        """
-        # The direction of photon i is not drawn independently but from a randomly shifted
-        # Weyl sequence over the photon index, frac(i (sqrt(2) - 1) + shift), so that each
-        # direction's photons are spread evenly over the pass's jittered-grid origin strata.
-        # Over the random shift each photon's direction follows the weights (unbiased). It
-        # helps little once a sensor gets under one photon per direction (a day of 144
-        # directions: the count on a small sensor is then Poisson-like, docs/sensors.md).
-        i = dr.arange(mi.UInt32, dr.width(sample.x))
-        bits = i * dr.opaque(mi.UInt32, 1779033704) + self.m_shift
-        u = mi.Float(bits >> 8) * dr.opaque(mi.Float, 2.0 ** -24)
-        k = dr.binary_search(0, SLOTS - 1,
-                             lambda i: dr.gather(mi.Float, self.m_cdf, i) <= u)
-        ds = self._direction_sample(it, dr.gather(mi.Vector3f, self.m_dirs, k, active))
-        ds.emitter = mi.EmitterPtr(self)
-        si = dr.zeros(mi.SurfaceInteraction3f)
-        si.wavelengths = it.wavelengths
-        value = self.m_spec.eval(si, active) * self.m_total
-        return ds, dr.select(active, value, 0.0)
-
-    def to_string(self):
-        """Mitsuba's description of the emitter.
-
-        Returns
-        -------
-        str
-            The total weight of the step.
-        """
-        return f"VegSunSteps[total weight={self.total:g}]"
-
-
-mi.register_emitter("veg_sun_steps", lambda props: VegSunSteps(props))
 
 
 # --------------------------------------------------------------------------------------------

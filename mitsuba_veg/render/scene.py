@@ -34,8 +34,8 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, SceneError, check_range
+from ..integrators.veg_sky import VegSky, attach_scene
 from ..light.clear_sky import daylight
-from ..light.sky import VegSky, attach_scene
 from ..meshes import make_mesh, triangle_geometry  # noqa: F401 (make_mesh re-exported)
 from ..terrain import classify_geology, load_texture_rgb
 from ..scenario import site_offset_hours, site_time
