@@ -1,7 +1,9 @@
 """The Mitsuba plugins of mitsuba-veg (installed as ``mitsuba_veg.integrators``), one module per
 plugin family:
 
-- ``veg_photon_irradiance`` (integrator): :mod:`.photon_irradiance`;
+- ``veg_photon_irradiance`` (integrator): :mod:`.photon_irradiance` (the plugin), with its
+  kernel :mod:`.photon_kernel`, element index :mod:`.scene_index`, result :mod:`.photon_result`,
+  differentiable replay :mod:`.photon_replay` and bands :mod:`.bands`;
 - ``veg_sky`` (emitter): :mod:`.veg_sky` (:class:`VegSky`, :func:`attach_scene`);
 - ``veg_sun_path`` and ``veg_sun_steps`` (emitters): :mod:`.veg_sun` (:class:`VegSunPath`,
   :class:`VegSunSteps`, their base :class:`DeltaSun`);
@@ -12,15 +14,11 @@ with Mitsuba (``import mitsuba_veg`` does it).
 """
 from __future__ import annotations
 
-import mitsuba as mi
-
 from .photon_irradiance import (BANDS, KERNEL_MODES, PhotonIrradianceIntegrator,
                                 PhotonIrradianceResult, PhotonPathRecord)
 from .veg_leaf import LeafBSDF
 from .veg_sky import VegSky, attach_scene
 from .veg_sun import DeltaSun, VegSunPath, VegSunSteps
-
-mi.register_integrator("veg_photon_irradiance", lambda props: PhotonIrradianceIntegrator(props))
 
 __all__ = ["PhotonIrradianceIntegrator", "PhotonIrradianceResult", "PhotonPathRecord", "BANDS",
            "KERNEL_MODES", "VegSky", "attach_scene", "DeltaSun", "VegSunPath", "VegSunSteps",

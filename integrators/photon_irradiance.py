@@ -677,4 +677,5 @@ class PhotonIrradianceIntegrator(PhotonKernel):
                         dr.scatter_add(out, x, lane + (j * 4 + c * 2 + s_))
         return mi.TensorXf(out, (n, nb, 2, 2))
 
-    # ---- helpers ----------------------------------------------------------------------------
+
+mi.register_integrator("veg_photon_irradiance", lambda props: PhotonIrradianceIntegrator(props))
