@@ -4,7 +4,9 @@ reproduces the uninterrupted run exactly.
 
 The state is read back from the device only here, every ``checkpoint_every`` days: the soil
 water, the moss population (the spot grid is rebuilt from it), the leaves' phenology and the
-canopy's blades, the sensor readings so far, the history and the timings.
+canopy's blades, the sensor readings so far, the history and the timings; in a world whose
+trees grow from their light, the year's leaf-light sums, the growth log and the growth trees
+as they are now (a resumed run rebuilds its light scene with them).
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from ..errors import ParameterError
 from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
+from ..world.trees import tree_from_state, tree_state
 
 
 def fingerprint(sim) -> str:
@@ -50,6 +53,11 @@ def save(sim) -> None:
     """
     st = sim.state
     d = st.moss.pop.to_numpy()
+    if st.year is not None:
+        d.update(st.year.to_numpy())
+        for i in sim.pipeline.growth.trees:
+            d.update(tree_state(sim.site.trees[i], f"growth_trees/{i}"))
+        d["growth_log"] = np.array(json.dumps(st.growth_log))
     if st.leaves is not None:
         d.update(st.leaves.to_numpy())
         d.update(sim.site.canopy.state())
@@ -96,6 +104,17 @@ def load(sim) -> bool:
                              "mitsuba-veg run", f"it cannot be read ({type(e).__name__}); "
                              "run again with --fresh to start over") from None
     check_resume(fp, fingerprint(sim), p)  # names the field or file that changed
+    growth_log = json.loads(str(d["growth_log"])) if "growth_log" in d else []
+    if growth_log and sim.pipeline.growth is not None:
+        # the trees grew before the checkpoint: the light scene of the trees as they are now
+        trees = list(sim.site.trees)
+        try:
+            for i in sim.pipeline.growth.trees:
+                trees[i] = tree_from_state(d, f"growth_trees/{i}")
+        except (KeyError, ValueError) as e:
+            raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
+                                 f"use --fresh ({e})") from None
+        sim._rebuild(trees)
     if day > sim.days:
         raise ParameterError("--days", sim.days, f">= {day}: the checkpoint in "
                              f"{sim.out} already holds day {day}",
@@ -109,6 +128,9 @@ def load(sim) -> bool:
             sim.site.canopy.load_state(d, sim.pipeline.scene_params)
         if sim.sensors is not None:
             st.sensor_days = list(np.asarray(d["sensor_days"]))
+        if st.year is not None:
+            st.year.load_numpy(d)
+            st.growth_log = growth_log
         O = np.asarray(d["O"], np.float64)
         if O.shape != (sim.site.n_terrain,):
             raise ValueError(f"O: {O.shape} != ({sim.site.n_terrain},)")

@@ -53,7 +53,9 @@ class DayLightResult:
     ``f_sun``, ``f_sky``, ``S`` per terrain element; ``leaf`` {band: W m-2} and ``S_leaf``
     [W m-2] per leaf (None without leaves); ``ground`` and ``ground_sky`` {band: W m-2} per
     ground element; ``sensors`` (n, quantities, components) NumPy readings (None without
-    sensors); ``result`` the pass itself.
+    sensors); ``result`` the pass itself; ``S_leaf_net`` [W m-2] per leaf, the insolation on
+    the side its geometric normal faces minus the other side's (only for worlds whose trees
+    grow from their light, else None).
     """
 
     f_sun: object
@@ -66,6 +68,7 @@ class DayLightResult:
     ground_sky: dict
     sensors: np.ndarray | None
     result: PhotonIrradianceResult
+    S_leaf_net: object = None
 
 
 class DayLight:
@@ -97,6 +100,8 @@ class DayLight:
         self.max_depth = int(cfg.light_cfg["max_depth"])
         self.indirect = bool(cfg.light_cfg["indirect"])
         self.seed = int(cfg.seed)
+        # the leaves' net insolation (front - back) for trees that grow from their light
+        self.leaf_net = any(wt.model == "growth" for wt in site.trees)
         idx = site.index
         integ = site.integrator
         modes, override = {}, {}
@@ -231,7 +236,7 @@ class DayLight:
             fk = res.device_flux(1, k, self.d_ground_rows)
             ground[b] = (sb * fs + sd * fk) / self.d_ground_area
             ground_sky[b] = sd * fk / self.d_ground_area
-        leaf = S_leaf = None
+        leaf = S_leaf = S_net = None
         if canopy is not None and self.leaf_elems is not None:
             area = dr.maximum(leaf_area, 1e-12)
             leaf = {}
@@ -248,9 +253,19 @@ class DayLight:
             # the leaves' insolation as the terrain's S (total band, flat unit spectrum)
             S_leaf = (B * s_sun * lf[0, "total"] + D * s_sky * lf[1, "total"]) / area \
                 / WIDTH_TOTAL
+            if self.leaf_net:
+                # front minus back (the light vector of the trees that grow from their light)
+                kt = self.band_index["total"]
+                nf = []
+                for e in (0, 1):
+                    d = [res.device_flux(e, kt, r, side="front")
+                         - res.device_flux(e, kt, r, side="back")
+                         for r in (self.d_leaf_row_a, self.d_leaf_row_b)]
+                    nf.append(d[0] + dr.select(self.d_leaf_two, d[1], 0.0))
+                S_net = (B * s_sun * nf[0] + D * s_sky * nf[1]) / area / WIDTH_TOTAL
         sensors = self._sensors(res, vals) if site.sensors is not None else None
         return DayLightResult(f_sun, f_sky, S, leaf, S_leaf, leaf_area, ground, ground_sky,
-                              sensors, res)
+                              sensors, res, S_net)
 
     def _sensors(self, res, vals: DayValues) -> np.ndarray:
         """The day's sensor readings (n, quantities, components), read back (they are written

@@ -8,8 +8,13 @@ parameters) on Dr.Jit arrays of the variant's backend::
              band irradiances per leaf and per ground element            (daily/light.py)
     soil     eqs 3.2-3.16 and the bucket: Ts, rhs, theta, next water    (daily/soil.py)
     leaves   the day's leaf insolation -> autumn clock, leaf fall       (daily/leaves.py)
+    growth   the leaves' light -> the year's sums of the trees that grow (daily/growth.py)
     moss     germination, growth, death, gemmae, spores                 (daily/moss.py)
     record   a few dozen sums on the device, read back once             (daily/record.py)
+
+After 31 December the trees of ``model = "growth"`` grow one generation from their year's
+light (:meth:`Simulation.regrow`): the light scene is rebuilt with them; the soil water and the
+moss carry over (the terrain's elements come first and do not change), the leaves start bare.
 
 A moss-only scenario is a world without trees (no leaves stage). State (:class:`DayState`):
 the soil water, the moss population and its spot grid, the leaves; nothing of it is read back
@@ -41,7 +46,9 @@ from ..moss.population import MOSS, PROPAGULE
 from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
+from ..world.trees import regrow
 from .config import MossConfig
+from .growth import DayGrowth, YearLight
 from .inputs import DayInputs
 from .leaves import DayLeaves
 from .light import DayLight
@@ -69,6 +76,10 @@ class DayState:
         Every day's record.
     sensor_days : list of numpy.ndarray
         Every day's sensor readings (with sensors).
+    year : YearLight or None
+        The growth year's leaf light so far (trees of ``model = "growth"``).
+    growth_log : list of dict
+        One row per tree and year-end growth step (generation, tips, deaths, size).
     """
 
     day: int
@@ -77,6 +88,8 @@ class DayState:
     leaves: Phenology | None = None
     history: list = field(default_factory=list)
     sensor_days: list = field(default_factory=list)
+    year: YearLight | None = None
+    growth_log: list = field(default_factory=list)
 
 
 class DayPipeline:
@@ -97,6 +110,8 @@ class DayPipeline:
         self.leaves = DayLeaves(site) if site.canopy is not None and site.canopy.n_leaves \
             else None
         self.light = DayLight(site, inputs, light_strength)
+        self.growth = DayGrowth(site) if self.leaves is not None and self.light.leaf_net \
+            else None
         self.moss = DayMoss(site)
         self.record = DayRecord(site)
         self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
@@ -112,7 +127,8 @@ class DayPipeline:
         O = mi.Float64(self.site.O0)
         dr.eval(O)
         return DayState(0, O, self.moss.new_state(),
-                        self.leaves.new_state() if self.leaves is not None else None)
+                        self.leaves.new_state() if self.leaves is not None else None,
+                        year=self.growth.new_state() if self.growth is not None else None)
 
     def run_day(self, st: DayState) -> tuple[dict, dict]:
         """Simulate day ``st.day`` (the stages of the module docstring); ``st`` is updated.
@@ -152,6 +168,8 @@ class DayPipeline:
                rhs32]
         if light.leaf is not None:
             out += [light.S_leaf, *light.leaf.values()]
+        if self.growth is not None:
+            out += self.growth.accumulate(st.year, light, vals)
         dr.eval(out, *light.ground.values(), *light.ground_sky.values())
         t3 = time.perf_counter()
         if self.leaves is not None:
@@ -379,7 +397,71 @@ class Simulation:
         self.last_fields = fields
         for k, v in rec["seconds"].items():
             self.timings[k] = self.timings.get(k, 0.0) + v
+        if self.pipeline.growth is not None and \
+                self.pipeline.growth.is_year_end(self.date(self.day - 1)):
+            t0 = time.perf_counter()
+            self.regrow()
+            self.timings["growth"] = self.timings.get("growth", 0.0) + \
+                time.perf_counter() - t0
         return rec
+
+    def regrow(self) -> list:
+        """The year's end: every tree of ``model = "growth"`` grows one generation from the
+        light its leaves received this year (:mod:`mitsuba_veg.daily.growth`), and the light
+        scene is rebuilt with the new trees (module docstring).
+
+        Returns
+        -------
+        list of dict
+            One row per tree that grew (also appended to the state's ``growth_log``).
+        """
+        st = self.state
+        g = self.pipeline.growth
+        lights = g.tip_lights(st.year)
+        if not lights:                       # bare all year: a new year of sums
+            st.year = g.new_state()
+            return []
+        base = self.config.scn.load_scene(daylight=False)
+        trees = list(self.site.trees)
+        year = self.date(self.day - 1).year
+        rows = []
+        for i, light in lights.items():
+            others = [t for j, t in enumerate(trees) if j != i]
+            old = trees[i]
+            seed = (int(self.seed) * 7919 + 104_729 * i + year) & 0x7FFFFFFF
+            trees[i] = regrow(old, light, base, others, seed)
+            m = trees[i].tree.metrics()
+            rows.append({"year": year, "day": self.day, "tree": old.name,
+                         "generation": int(trees[i].info["generations"]),
+                         "tips": int(len(light.received["light"])),
+                         "died": int(np.sum(light.received["light"]
+                                            < trees[i].tree.attrs["params"]["death_threshold"])),
+                         "received_mean": float(np.mean(light.received["light"])),
+                         "red_far_red_mean": float(np.mean(light.ratio())),
+                         "leaves": int(len(trees[i].leaf_area)),
+                         "height_m": float(m["height"]),
+                         "crown_radius_m": float(trees[i].crown_radius()),
+                         "crown_shift_m": [float(x) for x in
+                                           trees[i].crown_centre() - trees[i].position[[0, 2]]],
+                         "live_segments": int(trees[i].tree.alive.sum())})
+        self._rebuild(trees)
+        st.growth_log.extend(rows)
+        return rows
+
+    def _rebuild(self, trees: list) -> None:
+        """A new site and pipeline with these trees; the soil water, the moss, the records
+        and the day carry over, the leaves start bare and the year's sums at zero."""
+        old = self.state
+        self.site = build_site(self.config, trees=trees)
+        if self.albedo:
+            self.site.set_albedo(self.albedo)
+        self.pipeline = DayPipeline(self.site, self.inputs, self.light_strength)
+        st = self.pipeline.new_state()
+        st.day, st.O, st.history = old.day, old.O, old.history
+        st.sensor_days, st.growth_log = old.sensor_days, old.growth_log
+        st.moss.pop = old.moss.pop
+        st.moss.grid.rebuild(st.moss.pop.pos, st.moss.pop.state)
+        self.state = st
 
     def run(self, resume: bool = True, on_day=None) -> dict:
         """Run (or resume) to ``self.days`` days.
@@ -461,7 +543,9 @@ class Simulation:
             (``covered_area_m2`` [m2], ``moss_alive``, ``propagules``, ``alive_by_species``,
             per-region covered and total area [m2] and live moss, ``propagules_crowded_out``),
             ``timings_s`` (totals and ``per_day`` [s]), ``days_record`` (the daily records),
-            ``versions``; a world adds ``world`` and, with sensors, ``sensors``.
+            ``versions``; a world adds ``world`` (with trees that grow from their light its
+            ``growth_years``: one row per tree and year-end step) and, with sensors,
+            ``sensors``.
         """
         counts = self.counts()[:self.site.n_terrain]
         cov = np.minimum(counts * self.grid_cell() ** 2, self.site.areas)
@@ -506,6 +590,9 @@ class Simulation:
                           "stage_bins": self.config.stage_bins,
                           "phenology": self.config.phenology.to_dict(),
                           "trees_built_s": self.site.tree_seconds}
+            if self.state.year is not None:
+                # the year-end growth steps of the trees that grow from their light
+                s["world"]["growth_years"] = self.state.growth_log
         path = self.write_sensors()
         if path is not None:
             v = np.stack(self.state.sensor_days)

@@ -126,7 +126,7 @@ class Site:
         self._to_device()
 
     # ---- building -------------------------------------------------------------------------
-    def _build(self, with_trees: bool = True) -> None:
+    def _build(self, with_trees: bool = True, trees=None) -> None:
         cfg = self.config
         scn = cfg.scn
         base = scn.load_scene(daylight=False)
@@ -136,8 +136,8 @@ class Site:
         self.terrain_shapes = [sh.id() for sh in base.shapes() if sh.is_mesh()]
         if with_trees and scn.get("trees"):
             t0 = time.perf_counter()
-            self.trees = build_trees(scn.get("trees"), base, scn.root, str(scn.path),
-                                     progress=False)
+            self.trees = list(trees) if trees is not None else \
+                build_trees(scn.get("trees"), base, scn.root, str(scn.path), progress=False)
             self.tree_seconds = time.perf_counter() - t0
             self.canopy = Canopy(self.trees, cfg.stage_bins)
             d.update(self.canopy.shapes())
@@ -291,7 +291,7 @@ class Site:
         dr.eval(self.d_living, self.d_M, self.d_h, self.d_areas, self.d_base_albedo)
 
 
-def build_site(config: MossConfig, with_trees: bool = True) -> Site:
+def build_site(config: MossConfig, with_trees: bool = True, trees=None) -> Site:
     """Build a run's site (module docstring).
 
     Parameters
@@ -301,6 +301,9 @@ def build_site(config: MossConfig, with_trees: bool = True) -> Site:
     with_trees : bool
         Put the scenario's ``[[trees]]`` and ``[[sensors]]`` into the light scene (tuning's
         moss-only model leaves them out).
+    trees : list of WorldTree, optional
+        The trees as they are now (a world whose trees grew), instead of building the
+        scenario's ``[[trees]]``.
 
     Returns
     -------
@@ -308,7 +311,7 @@ def build_site(config: MossConfig, with_trees: bool = True) -> Site:
         The site.
     """
     site = Site(config)
-    site._build(with_trees)
+    site._build(with_trees, trees)
     return site
 
 

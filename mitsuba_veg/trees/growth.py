@@ -283,6 +283,28 @@ class _Forest:
         self.nseg = n
         self.children_alive = np.zeros(n, np.int64)
 
+    @classmethod
+    def from_tree(cls, tree: Tree, p: GrowthParams, env=None) -> "_Forest":
+        """The forest state of one tree grown by this model (its ``attrs`` hold the tips: the
+        leaf spheres' segments, their phyllotaxis frames ``tip_u``), to grow it further."""
+        f = cls.__new__(cls)
+        f.p, f.env, f.blocked, f.n_trees = p, env, 0, 1
+        n = len(tree)
+        f.start, f.end = [tree.start.copy()], [tree.end.copy()]
+        f.parent = [tree.parent.copy()]
+        f.level = [tree.level.copy()]
+        f.tree = [np.zeros(n, np.int64)]
+        f.gen = [np.asarray(tree.attrs["generation"], np.int64).copy()]
+        f.kind = [np.asarray(tree.attrs["lateral"], bool).astype(np.int64)]
+        f.alive = tree.alive.copy()
+        f.tip = np.asarray(tree.attrs["leaf_sphere_segment"], np.int64).copy()
+        f.tip_dir = _norm(tree.end[f.tip] - tree.start[f.tip])
+        f.tip_u = np.asarray(tree.attrs["tip_u"], float).reshape(-1, 3).copy()
+        f.nseg = n
+        par = tree.parent[(tree.parent >= 0) & f.alive]
+        f.children_alive = np.bincount(par, minlength=n).astype(np.int64)
+        return f
+
     def arrays(self):
         return (np.concatenate(self.start), np.concatenate(self.end),
                 np.concatenate(self.parent), np.concatenate(self.level),
@@ -554,6 +576,124 @@ def grow(params: GrowthParams | None = None, generations: int = 10, position=(0.
     return grow_forest([position], params, generations, scene, seed, progress, engine)[0]
 
 
+class TipLight:
+    """The light of a tree's leaf spheres from elsewhere (the world's daily photon passes):
+    what :meth:`_Forest.branch` reads, as :class:`~mitsuba_veg.trees.leaflight.LeafLight` gives
+    it from the model's own sky.
+
+    Parameters
+    ----------
+    received : array_like
+        (N,) received light relative to the open [-] (eq 2.3's quantity).
+    red_far_red : array_like
+        (N,) red : far-red ratio relative to the open [-] (eq 2.5's quantity).
+    vector : array_like
+        (N, 3) unit light vectors (eq 2.4's quantity).
+    """
+
+    def __init__(self, received, red_far_red, vector):
+        self.received = {"light": np.asarray(received, float)}
+        self._rfr = np.asarray(red_far_red, float)
+        self.vector = _norm(np.asarray(vector, float).reshape(-1, 3))
+
+    def ratio(self, num="red", den="far_red") -> np.ndarray:
+        """The red : far-red ratio per sphere (the only ratio this light knows).
+
+        Parameters
+        ----------
+        num, den : str
+            ``"red"`` and ``"far_red"``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) ratio [-].
+        """
+        if (num, den) != ("red", "far_red"):
+            raise ParameterError("ratio", f"{num}/{den}", "red/far_red")
+        return self._rfr
+
+    def subset(self, keep) -> "TipLight":
+        """The spheres selected by a mask.
+
+        Parameters
+        ----------
+        keep : array_like
+            (N,) boolean mask.
+
+        Returns
+        -------
+        TipLight
+            The selected spheres' light.
+        """
+        return TipLight(self.received["light"][keep], self._rfr[keep], self.vector[keep])
+
+
+def grow_step(tree: Tree, light: TipLight, params: GrowthParams | None = None, seed: int = 0,
+              scene=None) -> Tree:
+    """One more generation of a tree grown by this model, with its tips' light given.
+
+    The step of :func:`grow_forest` (§2.3) with the light of every leaf sphere from elsewhere
+    (a world's daily photon passes over a year) instead of the model's own sky: tips whose
+    received light is below ``death_threshold`` die (eq 2.6) and parents whose children all
+    died fall (§2.3.5); the survivors branch, shade-avoiding where red : far-red is below
+    ``shade_threshold`` (eq 2.5, §2.3.4) and turned towards their light vector by
+    ``phototropism`` (§2.3.3). The new tips get leaf spheres; their light comes with the next
+    step (``attrs["light"]`` NaN). The pipe model gives every segment its new radius.
+
+    Parameters
+    ----------
+    tree : Tree
+        A tree from :func:`grow` / :func:`grow_forest` or this function (its ``attrs`` hold
+        the tips and their phyllotaxis frames).
+    light : TipLight
+        Light of each of the tree's leaf spheres (``attrs["leaf_sphere_segment"]`` order).
+    params : GrowthParams, optional
+        The tree's parameters (default: ``attrs["params"]``).
+    seed : int
+        Seed of the new leaf blades.
+    scene : optional
+        Obstacles for the new segments (as for :func:`grow_forest`).
+
+    Returns
+    -------
+    Tree
+        The tree one generation older (dead branches dropped from the leaves, kept in the
+        structure with ``alive = False``).
+
+    Raises
+    ------
+    ParameterError
+        When ``tree`` was not grown by this model or ``light`` does not hold one value per
+        leaf sphere.
+    """
+    if "tip_u" not in tree.attrs or "leaf_sphere_segment" not in tree.attrs:
+        raise ParameterError("tree", tree.name, "a tree grown by paper 001's model (grow)",
+                             "grow it with mitsuba_veg.trees.grow")
+    p = GrowthParams.from_dict(tree.attrs["params"]) if params is None else params
+    n_tips = len(tree.attrs["leaf_sphere_segment"])
+    if len(light.received["light"]) != n_tips:
+        raise ParameterError("light", f"{len(light.received['light'])} spheres",
+                             f"one per leaf sphere of the tree ({n_tips})")
+    env = Environment.coerce(scene)
+    forest = _Forest.from_tree(tree, p, env)
+    t0 = time.perf_counter()
+    dead = light.received["light"] < p.death_threshold
+    forest.kill(forest.tip[dead])
+    keep = ~dead
+    forest.tip = forest.tip[keep]
+    forest.tip_dir = forest.tip_dir[keep]
+    forest.tip_u = forest.tip_u[keep]
+    gen = int(np.concatenate(forest.gen).max()) + 1
+    forest.branch(light.subset(keep), gen)
+    hist = list(tree.attrs.get("history", [])) + [{
+        "generation": gen, "tips": int(n_tips), "died": int(dead.sum()),
+        "blocked": forest.blocked, "light": "given", "seconds": time.perf_counter() - t0}]
+    out = _to_trees(forest, None, p, int(seed), hist)[0]
+    out.name = tree.name
+    return out.drop_dead_leaves()
+
+
 def branching(params: GrowthParams | None = None, generations: int = 10,
               position=(0.0, 0.0, 0.0), seed: int = 0) -> Tree:
     """The pure branching model (no light: no death, no phototropism, no shade avoidance).
@@ -624,14 +764,19 @@ def _to_trees(forest, light, p, seed, hist) -> list[Tree]:
         leaves = _leaf_blades(centers, remap[tip_seg_global], R, p, rng)
         tr = Tree(start[idx], end[idx], r[idx], r[idx], par, level[idx], alive[idx].copy(),
                   None, leaves, name=f"tree{t}")
+        m = int(sel.sum())
         tr.attrs.update({
             "model": "growth_001",
             "leaf_sphere_center": centers,
             "leaf_sphere_radius": R,
             "leaf_sphere_segment": remap[tip_seg_global],
-            "light": light.received["light"][sel],
-            "red_far_red": light.ratio("red", "far_red")[sel],
-            "light_vector": light.vector[sel],
+            # the new tips of a step whose light comes next year have none yet (NaN)
+            "light": light.received["light"][sel] if light is not None else np.full(m, np.nan),
+            "red_far_red": light.ratio("red", "far_red")[sel] if light is not None
+            else np.full(m, np.nan),
+            "light_vector": light.vector[sel] if light is not None
+            else np.full((m, 3), np.nan),
+            "tip_u": forest.tip_u[sel],
             "generation": gen[idx],
             "lateral": kind[idx].astype(bool),
             "params": p.to_dict(),

@@ -35,7 +35,7 @@ NORMAL, KNOT, SPROUTED_KNOT = 0, 1, 2
 POINT_ATTRS = ("leaf_sphere_center",)
 #: per-leaf-sphere attrs (one row per sphere, aligned with ``leaf_sphere_segment``)
 LEAF_SPHERE_ATTRS = ("leaf_sphere_center", "leaf_sphere_segment", "light", "red_far_red",
-                     "light_vector")
+                     "light_vector", "tip_u")
 
 
 @dataclass

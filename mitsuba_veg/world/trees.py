@@ -17,6 +17,7 @@ Trees are built in the order of the entries; every tree is an obstacle for the o
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,10 +30,10 @@ from ..integrators.scene_index import emitter_name
 from ..meshes import triangle_geometry
 from ..trees import weber_penn as wp
 from ..trees.environment import Environment
-from ..trees.growth import GrowthParams, grow
+from ..trees.growth import GrowthParams, TipLight, grow, grow_step
 from ..trees.junction import tree_mesh
 from ..trees.nongrowth import deform
-from ..trees.structure import Tree, leaf_quads, scaled_tree, tube_mesh
+from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh
 from .canopy import Canopy
 
 MODELS = ("growth", "weber_penn", "mesh")
@@ -197,6 +198,133 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
             raise ParameterError(f"{field_}.model", model, ", ".join(MODELS), None, source)
         out.append(wt)
     return out
+
+
+def regrow(wt: WorldTree, light: TipLight, base_scene, others, seed: int) -> WorldTree:
+    """A growth tree one generation older, grown from the light given per leaf sphere.
+
+    Paper 001's step (:func:`mitsuba_veg.trees.growth.grow_step`: death below the threshold,
+    shade avoidance, phototropism) with the scene's meshes and the other trees as obstacles of
+    the new segments; the wood and the leaf blades are rebuilt.
+
+    Parameters
+    ----------
+    wt : WorldTree
+        A tree of ``model = "growth"``.
+    light : TipLight
+        The light of each of its leaf spheres (the world's daily passes over a year).
+    base_scene : mi.Scene
+        The scenario's light scene (terrain, buildings).
+    others : list of WorldTree
+        The world's other trees (obstacles).
+    seed : int
+        Seed of the new leaf blades.
+
+    Returns
+    -------
+    WorldTree
+        The new tree (``info["generations"]`` one more).
+
+    Raises
+    ------
+    ParameterError
+        When ``wt`` is not a growth tree.
+    """
+    if wt.model != "growth" or wt.tree is None:
+        raise ParameterError("tree", wt.name, "a tree of model 'growth'")
+    tree = grow_step(wt.tree, light, seed=seed, scene=_obstacles(base_scene, others))
+    info = dict(wt.info)
+    info["generations"] = int(info.get("generations", 0)) + 1
+    return _tree_to_world(wt.name, wt.model, tree, wt.position, info)
+
+
+_TREE_FIELDS = ("start", "end", "radius_start", "radius_end", "parent", "level", "alive", "kind")
+_LEAF_FIELDS = ("position", "normal", "size", "segment", "up")
+_ATTR_ARRAYS = ("leaf_sphere_center", "leaf_sphere_segment", "light", "red_far_red",
+                "light_vector", "tip_u", "generation", "lateral")
+_ATTR_JSON = ("params", "history", "seed", "model", "leaf_sphere_radius")
+
+
+def tree_state(wt: WorldTree, prefix: str) -> dict:
+    """A growth tree as plain arrays (a checkpoint's), keys ``<prefix>/...``.
+
+    Parameters
+    ----------
+    wt : WorldTree
+        A tree with a branch structure.
+    prefix : str
+        Key prefix.
+
+    Returns
+    -------
+    dict
+        Arrays of the structure, its leaves and its leaf spheres; JSON strings of the rest.
+    """
+    t = wt.tree
+    d = {f"{prefix}/{f}": np.asarray(getattr(t, f)) for f in _TREE_FIELDS}
+    for f in _LEAF_FIELDS:
+        v = getattr(t.leaves, f)
+        if v is not None:
+            d[f"{prefix}/leaves/{f}"] = np.asarray(v)
+    d[f"{prefix}/leaves/sphere"] = np.asarray(t.leaves.attrs.get("sphere", np.zeros(0)))
+    for f in _ATTR_ARRAYS:
+        d[f"{prefix}/attrs/{f}"] = np.asarray(t.attrs[f])
+    meta = {f: t.attrs.get(f) for f in _ATTR_JSON}
+    meta.update({"name": wt.name, "model": wt.model, "info": wt.info,
+                 "position": [float(x) for x in wt.position]})
+    d[f"{prefix}/meta"] = np.array(json.dumps(meta, default=float))
+    return d
+
+
+def tree_from_state(d: dict, prefix: str) -> WorldTree:
+    """The tree written by :func:`tree_state`.
+
+    Parameters
+    ----------
+    d : dict
+        The arrays.
+    prefix : str
+        Their key prefix.
+
+    Returns
+    -------
+    WorldTree
+        The tree (wood and leaf blades rebuilt from the structure, as when it grew).
+    """
+    meta = json.loads(str(d[f"{prefix}/meta"]))
+    up = d.get(f"{prefix}/leaves/up")
+    leaves = Leaves(*(np.asarray(d[f"{prefix}/leaves/{f}"]) for f in _LEAF_FIELDS[:4]),
+                    None if up is None else np.asarray(up),
+                    {"sphere": np.asarray(d[f"{prefix}/leaves/sphere"], np.int64)})
+    tree = Tree(*(np.asarray(d[f"{prefix}/{f}"]) for f in _TREE_FIELDS[:6]),
+                alive=np.asarray(d[f"{prefix}/alive"]), kind=np.asarray(d[f"{prefix}/kind"]),
+                leaves=leaves, name=meta["name"])
+    tree.attrs.update({f: np.asarray(d[f"{prefix}/attrs/{f}"]) for f in _ATTR_ARRAYS})
+    tree.attrs.update({f: meta[f] for f in _ATTR_JSON})
+    return _tree_to_world(meta["name"], meta["model"], tree, np.asarray(meta["position"]),
+                          meta["info"])
+
+
+def world_tree(name: str, model: str, tree: Tree, position, info: dict) -> WorldTree:
+    """A world tree from a branch structure (wood as tubes, one quad per leaf).
+
+    Parameters
+    ----------
+    name, model : str
+        The tree's name and model (``"growth"``, ``"weber_penn"``).
+    tree : Tree
+        Its structure (metres).
+    position : array_like
+        Its base [m].
+    info : dict
+        What the run's summary reports about it.
+
+    Returns
+    -------
+    WorldTree
+        The tree.
+    """
+    return _tree_to_world(name, model, tree, position, info)
 
 
 def _load_mesh(path: Path, field_: str, source):

@@ -1,0 +1,259 @@
+"""The growth year of the world's trees that grow from their light (paper 001 in the world).
+
+Every day the leaves of the trees of ``model = "growth"`` add the light the world's photon
+pass gave them (:class:`YearLight`, device arrays, one value per leaf):
+
+- S_l: the two-sided insolation [W m-2 d] (the autumn clock's S_leaf);
+- R_l, FR_l: the red (655-665 nm) and far-red (725-735 nm) band irradiance on both sides
+  [W m-2 d];
+- N_l: the insolation on the side the blade's geometric normal g_l faces minus the other
+  side's [W m-2 d]: the component g_l · F of the net flux vector F;
+- and, on the days the leaf is on the tree, the open's references: the horizontal insolation
+  B + D and the open's red and far-red band irradiance (B and D times the day's clear-sky band
+  shapes times the band width).
+
+At the end of each calendar year (the night of 31 December, when the leaves are down) every
+growth tree grows one generation (:func:`mitsuba_veg.world.trees.regrow`, paper 001 §2.3) with
+each leaf sphere's light from its leaves' sums (:meth:`DayGrowth.tip_lights`):
+
+    received  = Σ S_l / Σ B + D                          (eq 2.3's fraction of the open's light)
+    R:FR      = (Σ R_l / Σ FR_l) / (Σ R_open / Σ FR_open)  (eq 2.5's ratio, 1 in the open)
+    vector    = F / |F|,  F = argmin Σ (g_l · F − N_l)²      (eq 2.4's direction: where the net
+                                                           light comes from)
+
+over the sphere's leaves. The model's own sky (paper 001's H x V cells) is not used: the light
+is the world's, with its sun path, sky, walls, other trees and their leaves' optics.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..light.photon import band_range
+from ..trees.growth import TipLight
+
+#: the model of the trees that grow from their light
+GROWTH_MODEL = "growth"
+
+
+class YearLight:
+    """Per-leaf sums of the growth year so far (module docstring), on the device.
+
+    Parameters
+    ----------
+    n : int
+        Leaves of the canopy.
+    """
+
+    FIELDS = ("S", "red", "far_red", "net", "open_S", "open_red", "open_far_red")
+
+    def __init__(self, n: int):
+        self.n = int(n)
+        for f in self.FIELDS:
+            setattr(self, f, dr.zeros(mi.Float64, self.n))
+        self.days = 0
+
+    def arrays(self) -> list:
+        """The sums, in :attr:`FIELDS` order.
+
+        Returns
+        -------
+        list
+            mi.Float64 arrays, one value per leaf.
+        """
+        return [getattr(self, f) for f in self.FIELDS]
+
+    def to_numpy(self) -> dict:
+        """The sums for a checkpoint.
+
+        Returns
+        -------
+        dict
+            ``year_light/<field>`` -> (n,) float64, ``year_light/days``.
+        """
+        d = {f"year_light/{f}": np.asarray(getattr(self, f), np.float64) for f in self.FIELDS}
+        d["year_light/days"] = np.array(self.days)
+        return d
+
+    def load_numpy(self, d: dict) -> None:
+        """Restore the sums from a checkpoint (:meth:`to_numpy`).
+
+        Parameters
+        ----------
+        d : dict
+            The checkpoint's arrays.
+
+        Raises
+        ------
+        ValueError
+            When a sum does not have one value per leaf.
+        """
+        for f in self.FIELDS:
+            v = np.asarray(d[f"year_light/{f}"], np.float64)
+            if v.shape != (self.n,):
+                raise ValueError(f"year_light/{f}: {v.shape} != ({self.n},)")
+            setattr(self, f, mi.Float64(v))
+        self.days = int(d["year_light/days"])
+
+
+class DayGrowth:
+    """The growth stage: the day's leaf light into the year's sums, and the year's end
+    (module docstring).
+
+    Parameters
+    ----------
+    site : Site
+        The run's site; its trees of ``model = "growth"`` grow.
+    """
+
+    def __init__(self, site):
+        self.site = site
+        c = site.canopy
+        self.trees = [i for i, wt in enumerate(site.trees)
+                      if wt.model == GROWTH_MODEL and wt.tree is not None]
+        self.n = c.n_leaves
+        # each leaf's geometric normal (its first triangle's: the pass's "front" side)
+        t = c.tri[c._first]
+        g = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        self.normals = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
+        self.widths = {b: band_range(b)[1] - band_range(b)[0] for b in ("red", "far_red")}
+
+    def new_state(self) -> YearLight:
+        """Empty sums for a new year.
+
+        Returns
+        -------
+        YearLight
+            Zeros, one per leaf.
+        """
+        return YearLight(self.n)
+
+    def accumulate(self, yl: YearLight, light, vals) -> list:
+        """Add the day's leaf light (module docstring) to the sums; unevaluated.
+
+        Parameters
+        ----------
+        yl : YearLight
+            The sums (updated).
+        light : DayLightResult
+            The day's light (its ``S_leaf``, ``leaf``, ``S_leaf_net``, ``leaf_area``).
+        vals : DayValues
+            The day's inputs (B, D, band shapes).
+
+        Returns
+        -------
+        list
+            The new sums, for the day's evaluation.
+        """
+        on = dr.select(light.leaf_area > 0, 1.0, 0.0)
+        B, D = mi.Float64(vals.weather["beam"]), mi.Float64(vals.weather["diffuse"])
+
+        def band(b):
+            return (B * mi.Float64(vals.shapes["beam", b])
+                    + D * mi.Float64(vals.shapes["diffuse", b])) * self.widths[b]
+        yl.S = yl.S + light.S_leaf
+        yl.red = yl.red + light.leaf["red"]
+        yl.far_red = yl.far_red + light.leaf["far_red"]
+        yl.net = yl.net + light.S_leaf_net
+        yl.open_S = yl.open_S + on * (B + D)
+        yl.open_red = yl.open_red + on * band("red")
+        yl.open_far_red = yl.open_far_red + on * band("far_red")
+        yl.days += 1
+        return yl.arrays()
+
+    @staticmethod
+    def is_year_end(date: _dt.date) -> bool:
+        """Whether the trees grow after this day: the last day of a calendar year.
+
+        Parameters
+        ----------
+        date : datetime.date
+            The day just simulated.
+
+        Returns
+        -------
+        bool
+            True on 31 December.
+        """
+        return date.month == 12 and date.day == 31
+
+    def tip_lights(self, yl: YearLight) -> dict:
+        """The light of every leaf sphere of every growth tree from the year's sums (read
+        back once a year).
+
+        Parameters
+        ----------
+        yl : YearLight
+            The year's sums.
+
+        Returns
+        -------
+        dict
+            ``{tree index: TipLight}`` for the trees whose leaves were out this year.
+        """
+        c = self.site.canopy
+        v = {f: np.asarray(getattr(yl, f), np.float64) for f in YearLight.FIELDS}
+        out = {}
+        for i in self.trees:
+            wt = self.site.trees[i]
+            leaves = np.flatnonzero(c.tree_of == i)
+            m = len(wt.tree.attrs["leaf_sphere_segment"])
+            sphere = np.asarray(wt.tree.leaves.attrs["sphere"], np.int64)
+            if len(sphere) != len(leaves) or m == 0:
+                continue
+            lt = sphere_light({f: x[leaves] for f, x in v.items()}, self.normals[leaves],
+                              sphere, m)
+            if lt is not None:
+                out[i] = lt
+        return out
+
+
+def sphere_light(sums: dict, normals, sphere, m: int):
+    """The light of ``m`` leaf spheres from their leaves' year sums (module docstring).
+
+    Parameters
+    ----------
+    sums : dict
+        Per leaf: ``S``, ``red``, ``far_red``, ``net``, ``open_S``, ``open_red``,
+        ``open_far_red`` (:class:`YearLight`'s fields, as NumPy arrays).
+    normals : array_like
+        (leaves, 3) unit geometric normal of each leaf.
+    sphere : array_like
+        (leaves,) the leaf sphere of each leaf, 0 .. m - 1.
+    m : int
+        Leaf spheres.
+
+    Returns
+    -------
+    TipLight or None
+        Received light relative to the open, red : far-red relative to the open and the unit
+        light vector of each sphere; None when no leaf was out (no light to grow from).
+    """
+    sphere = np.asarray(sphere, np.int64)
+    g = np.asarray(normals, float).reshape(-1, 3)
+
+    def per(x):
+        return np.bincount(sphere, weights=np.asarray(x, float), minlength=m)
+    open_s = per(sums["open_S"])
+    if not np.any(open_s > 0):
+        return None
+    lit = open_s > 0
+    received = np.where(lit, per(sums["S"]) / np.maximum(open_s, 1e-300), 0.0)
+    open_ratio = per(sums["open_red"]) / np.maximum(per(sums["open_far_red"]), 1e-300)
+    ratio = per(sums["red"]) / np.maximum(per(sums["far_red"]), 1e-300)
+    rfr = np.where(lit, ratio / np.maximum(open_ratio, 1e-300), 1.0)
+    # the net flux vector F per sphere by least squares: (Σ g gᵀ) F = Σ g N
+    A = np.zeros((m, 3, 3))
+    np.add.at(A, sphere, g[:, :, None] * g[:, None, :])
+    b = np.zeros((m, 3))
+    np.add.at(b, sphere, g * np.asarray(sums["net"], float)[:, None])
+    reg = 1e-9 * np.maximum(np.trace(A, axis1=1, axis2=2), 1e-30)[:, None, None]
+    F = np.linalg.solve(A + reg * np.eye(3), b[:, :, None])[:, :, 0]
+    norm = np.linalg.norm(F, axis=1)
+    vec = np.where(norm[:, None] > 0, F / np.maximum(norm, 1e-300)[:, None],
+                   np.array([0.0, 1.0, 0.0]))
+    # a sphere whose leaves were never out got no light: it dies
+    return TipLight(received, rfr, vec)
