@@ -149,6 +149,25 @@ SCHEMA: dict[str, Field] = {
         "leaves_file": Field("file", doc="mesh: the foliage, one leaf element per triangle"),
         "scale": _num("float", 1e-4, 1e4, "mesh: scale factor"),
     }),
+    "stand": Field("table", doc="trees laid out over the terrain, grown together by paper 001's "
+                   "model (docs/forest.md)", fields={
+        "plot": Field("any", doc="[x0, z0, x1, z1] [m] or [[x, z], ...] (a polygon)"),
+        "density": _num("float", 1e-3, 1e5, "[trees/ha] of map area"),
+        "mix": Field("any", doc="{species = weight}: \"growth\" (Weber-Penn presets in a "
+                     "world stand: not yet)"),
+        "placement": Field("choice", choices=("poisson_disc", "clumped")),
+        "min_spacing": _num("float", 0.0, 1e3, "[m] smallest distance between two trees"),
+        "cluster": Field("choice", choices=("thomas", "matern")),
+        "cluster_radius": _num("float", 1e-3, 1e4, "[m] clumped placement"),
+        "parent_density": _num("float", 1e-3, 1e5, "[1/ha] cluster centres"),
+        "height_mean": _num("float", 0.05, 200.0, "[m] (Weber-Penn stand trees)"),
+        "height_cv": _num("float", 0.0, 2.0, "[-]"),
+        "height_range": Field("any", doc="[lo, hi] [m]"),
+        "variants": _num("int", 1, 1000, "geometry variants per preset"),
+        "seed": _num("int", 0, 2**31 - 1),
+        "generations": _num("int", 0, 20, "growth model generations G at set-up"),
+        "growth": Field("any", doc="GrowthParams fields (unit [m] sets the size)"),
+    }),
     "phenology": Field("table", fields={
         "leaf_out_doy": _num("int", 1, 366, "day of year leaf-out starts"),
         "leaf_out_days": _num("int", 1, 180, "days from bud to full blade"),

@@ -177,3 +177,62 @@ def test_multi_year_world_resumes_exactly(tmp_path):
         assert strip(b["days_record"]) == strip(a["days_record"]), stop
         assert json.dumps(b["world"]["growth_years"]) == json.dumps(growth)
         assert b["world"]["trees"] == a["world"]["trees"]
+    # the render's trees day by day: the run folder's trees/2026.npz from 1 January on
+    from mitsuba_veg.render.history import load_run
+    from mitsuba_veg.render.world import grown_trees, world_trees
+    run_a = load_run(tmp_path / "a")
+    assert [first for first, _ in grown_trees(run_a)] == [23]       # 10 Dec + 22 days
+    before, _ = world_trees(run_a, 22)
+    after, offsets = world_trees(run_a, 23)
+    assert len(after[0]) > len(before[0])
+    assert offsets[-1][1] == len(after[0].leaves) == growth[0]["leaves"]
+
+
+def test_forest_stand_scenario_grows_its_stand_together_on_the_floor(tmp_path):
+    """scenes/forest_stand: the [stand] lays out 36 growth trees on 0.1 ha of sloped, rolling
+    ground (Poisson-disc, >= 3 m apart) and grows them together; each stands on the terrain;
+    the logs and rocks are terrain where moss may live; a day of the world runs."""
+    from mitsuba_veg.daily import Simulation
+    from mitsuba_veg.scenario import load_scenario
+    scn = load_scenario(ROOT / "scenes" / "forest_stand" / "scenario.toml",
+                        ["light.photons=100000", "simulation.checkpoint_every=0"])
+    sim = Simulation(scn, tmp_path / "run", days=2, progress=False)
+    sim.setup()
+    trees = sim.site.trees
+    assert len(trees) == 36 and [t.name for t in trees[:2]] == ["stand_000", "stand_001"]
+    assert all(t.model == "growth" and t.info["stand"] for t in trees)
+    xz = np.array([t.position[[0, 2]] for t in trees])
+    d = np.hypot(*(xz[:, None, :] - xz[None, :, :]).transpose(2, 0, 1))
+    assert d[~np.eye(36, dtype=bool)].min() >= 3.0
+    # every base on the ground mesh: the photon pass hits the ground at the trunk's foot
+    import trimesh
+    ground = trimesh.load(ROOT / "scenes" / "forest_stand" / "ground.ply", force="mesh")
+    tri = np.asarray(ground.vertices)[np.asarray(ground.faces)]          # (F, 3, 3)
+    a, b, c = (tri[:, k][:, [0, 2]] for k in range(3))
+    y = np.full(36, np.nan)
+    for i, p in enumerate(xz):                      # barycentric in the map plane
+        v0, v1, v2 = b - a, c - a, p - a
+        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+        u = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        v = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        k = np.flatnonzero((u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9))[0]
+        y[i] = (1 - u[k] - v[k]) * tri[k, 0, 1] + u[k] * tri[k, 1, 1] + v[k] * tri[k, 2, 1]
+    np.testing.assert_allclose([t.position[1] for t in trees], y, atol=0.02)
+    assert len(set(sim.site.terrain_shapes)) == 17              # ground, 6 logs, 10 rocks
+    sim.initialise()
+    rec = sim.step()
+    assert set(rec["trees"]) == {t.name for t in trees}
+
+
+def test_world_stand_refuses_weber_penn_members(tmp_path):
+    d = tmp_path / "scen"
+    shutil.copytree(ROOT / "scenes" / "forest_stand", d)
+    text = (d / "scenario.toml").read_text().replace("mix = { growth = 1.0 }",
+                                                     "mix = { growth = 1.0, quaking_aspen = 1.0 }")
+    (d / "scenario.toml").write_text(text)
+    from mitsuba_veg.daily import Simulation
+    from mitsuba_veg.scenario import load_scenario
+    sim = Simulation(load_scenario(d / "scenario.toml"), tmp_path / "run", days=1,
+                     progress=False)
+    with pytest.raises(ParameterError, match="stand.mix"):
+        sim.setup()

@@ -104,7 +104,7 @@ def run_irradiance(scene_path, out, photons=None, seed=None, max_depth=None, ind
             ov.append(f'light.when="{when}"')
         scn = load_scenario(scene_path, ov)
         scene = scn.load_scene()
-        if scn.get("trees"):   # a world: its trees in full green leaf
+        if scn.get("trees") or scn.get("stand"):   # a world: its trees in full green leaf
             scene, tree_shapes = scene_with_trees(scn, scene)
         settings.update({k: scn.get(f"light.{k}") for k in settings})
         regions = scn.get("regions", {})

@@ -46,7 +46,8 @@ from ..moss.population import MOSS, PROPAGULE
 from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
-from ..world.trees import regrow
+from ..outputs import atomic_write
+from ..world.trees import regrow, tree_state
 from .config import MossConfig
 from .growth import DayGrowth, YearLight
 from .inputs import DayInputs
@@ -392,17 +393,20 @@ class Simulation:
         dict
             The day's record.
         """
+        g = self.pipeline.growth
+        if g is not None and self.day > 0 and g.is_year_end(self.date(self.day - 1)) and \
+                not (self.state.growth_log and self.state.growth_log[-1]["day"] == self.day):
+            # the night after 31 December (the day's records, maps and checkpoint of 31
+            # December show the trees that grew that year)
+            t0 = time.perf_counter()
+            self.regrow()
+            self.timings["growth"] = self.timings.get("growth", 0.0) + \
+                time.perf_counter() - t0
         rec, fields = self.pipeline.run_day(self.state)
         self.last = HostFields(fields)
         self.last_fields = fields
         for k, v in rec["seconds"].items():
             self.timings[k] = self.timings.get(k, 0.0) + v
-        if self.pipeline.growth is not None and \
-                self.pipeline.growth.is_year_end(self.date(self.day - 1)):
-            t0 = time.perf_counter()
-            self.regrow()
-            self.timings["growth"] = self.timings.get("growth", 0.0) + \
-                time.perf_counter() - t0
         return rec
 
     def regrow(self) -> list:
@@ -420,13 +424,21 @@ class Simulation:
         lights = g.tip_lights(st.year)
         if not lights:                       # bare all year: a new year of sums
             st.year = g.new_state()
+            st.growth_log.append({"year": self.date(self.day - 1).year, "day": self.day,
+                                  "tree": None, "grew": False})
             return []
         base = self.config.scn.load_scene(daylight=False)
         trees = list(self.site.trees)
         year = self.date(self.day - 1).year
         rows = []
+        # obstacles of a tree's new segments: the scene and the trees whose crowns it may reach
+        # (all pairs would cost a stand of n trees n environments of n trees a year)
+        xz = np.array([t.crown_centre() for t in trees])
+        reach = np.array([t.crown_radius() for t in trees])
         for i, light in lights.items():
-            others = [t for j, t in enumerate(trees) if j != i]
+            d = np.hypot(*(xz - xz[i]).T)
+            others = [t for j, t in enumerate(trees)
+                      if j != i and d[j] <= reach[i] + reach[j] + 2.0]
             old = trees[i]
             seed = (int(self.seed) * 7919 + 104_729 * i + year) & 0x7FFFFFFF
             trees[i] = regrow(old, light, base, others, seed)
@@ -437,6 +449,7 @@ class Simulation:
                          "died": int(np.sum(light.received["light"]
                                             < trees[i].tree.attrs["params"]["death_threshold"])),
                          "received_mean": float(np.mean(light.received["light"])),
+                         "received_min": float(np.min(light.received["light"])),
                          "red_far_red_mean": float(np.mean(light.ratio())),
                          "leaves": int(len(trees[i].leaf_area)),
                          "height_m": float(m["height"]),
@@ -446,7 +459,20 @@ class Simulation:
                          "live_segments": int(trees[i].tree.alive.sum())})
         self._rebuild(trees)
         st.growth_log.extend(rows)
+        self._write_trees(year)
         return rows
+
+    def _write_trees(self, year: int) -> None:
+        """``trees/<year>.npz`` in the run folder: the growth trees from the next day on (the
+        render draws each day's trees from these)."""
+        g = self.pipeline.growth
+        d = {"day": np.array(self.day), "indices": np.array(g.trees, np.int64)}
+        for i in g.trees:
+            d.update(tree_state(self.site.trees[i], str(i)))
+        folder = self.out / "trees"
+        folder.mkdir(parents=True, exist_ok=True)
+        with atomic_write(folder / f"{year}.npz", folder / f".{year}.tmp.npz") as tmp:
+            np.savez_compressed(tmp, **d)
 
     def _rebuild(self, trees: list) -> None:
         """A new site and pipeline with these trees; the soil water, the moss, the records
@@ -489,7 +515,7 @@ class Simulation:
         # half-written files of a process killed while writing (the real files are replaced
         # atomically, so these are never read)
         for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
-                        "snapshots/.day_*.tmp.npz", "days.tmp.gif"):
+                        "snapshots/.day_*.tmp.npz", "days.tmp.gif", "trees/.*.tmp.npz"):
             for q in self.out.glob(pattern):
                 q.unlink()
         if not resumed:

@@ -52,7 +52,15 @@ class DayRecord:
         self.ground_sl = gsl
         self.d_ground_area = mi.Float64(site.index.areas[gsl])
         self.d_ground_elems = mi.UInt32(np.arange(gsl.start, gsl.stop, dtype=np.uint32))
-        self.d_crowns = [mi.Bool(m) for m in site.crowns] + [mi.Bool(site.open_ground)]
+        # the ground under each crown, and in the open, as (ground element, group) pairs: one
+        # segmented sum per field for all groups (crowns of a stand overlap)
+        groups = list(site.crowns) + [site.open_ground]
+        pe = [np.flatnonzero(m) for m in groups]
+        self.n_groups = len(groups)
+        self.d_pair_elem = mi.UInt32(np.concatenate(pe).astype(np.uint32) if pe else
+                                     np.zeros(0, np.uint32))
+        self.d_pair_group = mi.UInt32(np.repeat(np.arange(len(pe)), [len(x) for x in pe])
+                                      .astype(np.uint32))
         c = site.canopy
         self.world = c is not None and c.n_leaves > 0
         if self.world:
@@ -171,24 +179,25 @@ class DayRecord:
                 "S": dr.gather(mi.Float64, light.S, e),
                 "Ts": dr.gather(mi.Float64, soil.surface.Ts, e),
                 "rhs": dr.gather(mi.Float64, soil.surface.rhs, e)}
-        for k, m in enumerate(self.d_crowns):
-            t.add(f"g{k}:area", w, mask=m)
-            for f in _GROUND_FIELDS:
-                t.add(f"g{k}:{f}", vals[f] * w, mask=m, signed=f == "rhs")
+        pe, pg, ng = self.d_pair_elem, self.d_pair_group, self.n_groups
+        t.add("g:area", dr.gather(mi.Float64, w, pe), segments=pg, n_segments=ng)
+        for f in _GROUND_FIELDS:
+            t.add(f"g:{f}", dr.gather(mi.Float64, vals[f] * w, pe), segments=pg, n_segments=ng,
+                  signed=f == "rhs")
 
     def _ground_stats(self, s: dict, k: int) -> dict:
-        area = float(s[f"g{k}:area"][0])
+        area = float(s["g:area"][k])
         if area <= 0:
             return {"area_m2": 0.0, "par_W_m2": None, "red_far_red": None,
                     "red_far_red_sky": None, "moss_cover": None, "S_W_m2": None,
                     "Ts_K": None, "rhs": None}
 
         def mean(f):
-            return float(s[f"g{k}:{f}"][0] / area)
+            return float(s[f"g:{f}"][k] / area)
 
         def rfr(red, fr):
-            r = float(s[f"g{k}:{red}"][0]) * self.u_red
-            f = float(s[f"g{k}:{fr}"][0]) * self.u_fr
+            r = float(s[f"g:{red}"][k]) * self.u_red
+            f = float(s[f"g:{fr}"][k]) * self.u_fr
             return r / f if f > 0 else None
         return {"area_m2": area, "par_W_m2": mean("par"),
                 "red_far_red": rfr("red", "far_red"), "red_far_red_sky": rfr("red_sky",

@@ -32,7 +32,7 @@ from ..moss.spatial import SpotGrid, max_per_element
 from ..scenario import Scenario
 from ..terrain import Terrain
 from ..world.canopy import Canopy
-from ..world.trees import build_trees
+from ..world.trees import scenario_trees
 from .config import BANDS, MossConfig
 
 
@@ -134,10 +134,9 @@ class Site:
         for sh in base.shapes():
             d[sh.id()] = sh
         self.terrain_shapes = [sh.id() for sh in base.shapes() if sh.is_mesh()]
-        if with_trees and scn.get("trees"):
+        if with_trees and (scn.get("trees") or scn.get("stand")):
             t0 = time.perf_counter()
-            self.trees = list(trees) if trees is not None else \
-                build_trees(scn.get("trees"), base, scn.root, str(scn.path), progress=False)
+            self.trees = list(trees) if trees is not None else scenario_trees(scn, base)
             self.tree_seconds = time.perf_counter() - t0
             self.canopy = Canopy(self.trees, cfg.stage_bins)
             d.update(self.canopy.shapes())

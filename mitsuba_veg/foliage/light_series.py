@@ -148,9 +148,10 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     start, end = _date("--from", start), _date("--to", end)
     SS.step_starts(start, end, step)            # refuses a reversed or too long period first
     scn = load_scenario(p, overrides)
-    if scn.get("trees"):
+    if scn.get("trees") or scn.get("stand"):
         # the series' light scene is the scene file's shapes: it would leave the trees out
-        raise ParameterError("trees", f"{len(scn.get('trees'))} [[trees]] entries",
+        raise ParameterError("trees", f"{len(scn.get('trees') or [])} [[trees]] entries"
+                             + (" and a [stand]" if scn.get("stand") else ""),
                              "a scenario without [[trees]] for a light-study time series",
                              "a world run (mitsuba-veg run) reads the [[sensors]] under its "
                              "trees every day (sensors_daily.csv)", str(p))

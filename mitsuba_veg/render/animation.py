@@ -23,7 +23,7 @@ from .film import to_srgb8, write_png
 from .history import load_run
 from .scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters
 from .still import check_image, render
-from .world import trees_for_run
+from .world import tree_version, trees_for_run
 
 ANIMATE_DEFAULTS = {"width": 480, "height": 270, "spp": 8, "frames": 31, "fps": 6,
                     "camera": "overview", "gif_width": 360}
@@ -287,7 +287,8 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     run, out, fdir, days, fps, opts, o, folder = prepare_animation(
         run_dir, out, scenario, camera=camera, width=width, height=height, spp=spp,
         frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed)
-    tree_list, seasons = trees_for_run(run, trees)
+    version = tree_version(run, days[-1]) if trees is None else 0
+    tree_list, seasons = trees_for_run(run, trees, days[-1])
     terrain = Terrain.from_scenario(run.scenario)
     last = run.frame(days[-1])
     emitters = None
@@ -307,6 +308,11 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
         for k in order:
             day = days[k]
             fr = last if k == len(days) - 1 else run.frame(day)
+            if trees is None and tree_version(run, day) != version:
+                # the world's trees grew at a year's end: this frame's trees, a new scene
+                version = tree_version(run, day)
+                tree_list, seasons = trees_for_run(run, trees, day)
+                rs = None
             for s in seasons:
                 s.apply(fr.date)
             t1 = time.perf_counter()

@@ -158,7 +158,7 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
         opts["hour"] = float(hour)
     if max_depth is not None:
         opts["max_depth"] = int(max_depth)
-    tree_list, seasons = trees_for_run(run, trees)
+    tree_list, seasons = trees_for_run(run, trees, day)
     for s in seasons:
         s.apply(frame.date)
     terrain = Terrain.from_scenario(run.scenario)

@@ -6,7 +6,8 @@ import logging
 
 import numpy as np
 
-from ..world import build_trees
+from ..world.trees import scenario_trees as world_scenario_trees
+from ..world.trees import tree_from_state
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
@@ -45,14 +46,40 @@ class WorldLeaves:
             lv.attrs["fallen"] = ~st["leaf_on"][a:b].astype(bool)
 
 
-def world_trees(run):
-    """The trees of a world run (``[[trees]]``), rebuilt from its scenario as the run built them
-    (same seeds). Trees given as meshes are drawn by the light scene only (not by the render).
+def grown_trees(run) -> list:
+    """The run's year-end growth steps: ``[(first day, path)]`` of its ``trees/<year>.npz``
+    (written by the daily loop), by day.
+
+    Parameters
+    ----------
+    run : Run
+        A loaded run.
+
+    Returns
+    -------
+    list of (int, pathlib.Path)
+        The 1-based day from which each file's trees stand, and the file.
+    """
+    out = []
+    for p in sorted((run.dir / "trees").glob("[0-9]*.npz")) if (run.dir / "trees").is_dir() \
+            else []:
+        with np.load(p) as z:
+            out.append((int(z["day"]) + 1, p))
+    return sorted(out)
+
+
+def world_trees(run, day: int | None = None):
+    """The trees of a world run (``[[trees]]`` and ``[stand]``) on a day: rebuilt from its
+    scenario as the run built them (same seeds), with the trees that grew at a year's end as
+    they stood that day (``trees/<year>.npz``). Trees given as meshes are drawn by the light
+    scene only (not by the render).
 
     Parameters
     ----------
     run : Run
         A loaded run (:func:`mitsuba_veg.render.history.load_run`).
+    day : int, optional
+        The run's day (1-based); default: the last.
 
     Returns
     -------
@@ -61,11 +88,17 @@ def world_trees(run):
     offsets : list of (int, int)
         Each tree's leaves in the run's leaf arrays (start, stop).
     """
-    entries = run.scenario.get("trees") or []
-    if not entries:
+    if not (run.scenario.get("trees") or run.scenario.get("stand")):
         return [], []
     base = run.scenario.load_scene(daylight=False)
-    built = build_trees(entries, base, run.scenario.root, str(run.scenario.path))
+    built = world_scenario_trees(run.scenario, base)
+    day = run.final_day if day is None else int(day)
+    versions = [p for first, p in grown_trees(run) if first <= day]
+    if versions:
+        with np.load(versions[-1]) as z:
+            d = dict(z)
+        for i in np.asarray(d["indices"], np.int64):
+            built[int(i)] = tree_from_state(d, str(int(i)))
     trees, offsets, n = [], [], 0
     for wt in built:
         m = len(wt.leaf_area)
@@ -79,7 +112,26 @@ def world_trees(run):
     return trees, offsets
 
 
-def trees_for_run(run, trees):
+def tree_version(run, day: int) -> int:
+    """How many year-end growth steps of the run lie before ``day`` (1-based): frames with
+    the same number draw the same trees.
+
+    Parameters
+    ----------
+    run : Run
+        A loaded run.
+    day : int
+        The day.
+
+    Returns
+    -------
+    int
+        0 before the first step.
+    """
+    return sum(1 for first, _ in grown_trees(run) if first <= int(day))
+
+
+def trees_for_run(run, trees, day: int | None = None):
     """The trees of a render and the seasons that set their leaves frame by frame.
 
     Parameters
@@ -90,6 +142,9 @@ def trees_for_run(run, trees):
         Trees to draw instead of the run's (``[]`` for none); ``None``: a world run's
         ``[[trees]]`` (in each frame's leaf state) and the scenario's ``[[render.trees]]``
         (decoration, with their calendar phenology).
+    day : int, optional
+        The day (1-based) whose trees a world run draws (its trees grow at each year's end;
+        :func:`tree_version`); default the last.
 
     Returns
     -------
@@ -99,7 +154,7 @@ def trees_for_run(run, trees):
     """
     world, seasons = [], []
     if trees is None:
-        world, offsets = world_trees(run)
+        world, offsets = world_trees(run, day)
         if world:
             seasons.append(WorldLeaves(run, world, offsets))
     tl = scenario_trees(run.scenario) if trees is None else list(trees)

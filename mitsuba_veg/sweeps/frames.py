@@ -53,7 +53,7 @@ def render_frame(spec: dict) -> dict:
                                            spec.get("host_workers") or {}))
     run = load_run(spec["run_dir"], spec.get("scenario"))
     o = RenderOptions(**spec["options"]).validate()
-    tree_list, seasons = trees_for_run(run, None)
+    tree_list, seasons = trees_for_run(run, None, int(spec["day"]))
     fr = run.frame(int(spec["day"]))
     for s in seasons:
         s.apply(fr.date)

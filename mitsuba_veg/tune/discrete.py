@@ -130,8 +130,9 @@ class DiscreteMossModel:
             raise ParameterError("seeds", list(seeds), "at least one seed")
         self.world = bool(world)
         if self.world:
-            if not self.scenario.get("trees"):
-                raise ParameterError("trees", None, "at least one [[trees]] entry for world=True",
+            if not (self.scenario.get("trees") or self.scenario.get("stand")):
+                raise ParameterError("trees", None, "at least one [[trees]] entry or a [stand] "
+                                     "for world=True",
                                      "add trees to the scenario or use world=False")
         else:
             # the moss alone: a world without trees (nor sensors)

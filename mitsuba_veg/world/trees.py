@@ -30,7 +30,8 @@ from ..integrators.scene_index import emitter_name
 from ..meshes import triangle_geometry
 from ..trees import weber_penn as wp
 from ..trees.environment import Environment
-from ..trees.growth import GrowthParams, TipLight, grow, grow_step
+from ..trees.growth import GrowthParams, TipLight, grow, grow_forest, grow_step
+from ..trees.stand import GROWTH, StandSpec, layout
 from ..trees.junction import tree_mesh
 from ..trees.nongrowth import deform
 from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh
@@ -327,6 +328,85 @@ def world_tree(name: str, model: str, tree: Tree, position, info: dict) -> World
     return _tree_to_world(name, model, tree, position, info)
 
 
+def build_stand(cfg: dict, base_scene, built: list, source: str | None = None,
+                progress: bool = False) -> list[WorldTree]:
+    """The scenario's ``[stand]``: trees laid out over the terrain
+    (:func:`mitsuba_veg.trees.stand.layout`: density, Poisson-disc or clumped placement, seed)
+    and grown **together** by paper 001's model (:func:`mitsuba_veg.trees.growth.grow_forest`,
+    §3.3: the trees shade each other as they grow) in the light of the scene and the trees
+    built before them, each based on the terrain below it.
+
+    Parameters
+    ----------
+    cfg : dict
+        The ``[stand]`` table (StandSpec fields, ``generations``, ``growth``).
+    base_scene : mi.Scene
+        The scenario's light scene (terrain, buildings, floor objects).
+    built : list of WorldTree
+        The ``[[trees]]`` built before (obstacles).
+    source : str, optional
+        Scenario file named in error messages.
+    progress : bool
+        Progress bar of the growth model.
+
+    Returns
+    -------
+    list of WorldTree
+        ``stand_000``, ``stand_001``, ... (model ``growth``: they grow every year in a run).
+
+    Raises
+    ------
+    ParameterError
+        For a bad stand field, or a species other than ``"growth"`` in the mix (Weber-Penn
+        trees in a world stand need the instanced canopy, not there yet).
+    """
+    spec_d = {k: v for k, v in cfg.items() if k not in ("generations", "growth")}
+    spec = StandSpec.from_dict(spec_d, source)
+    other = sorted(k for k, w in spec.mix.items() if k != GROWTH and float(w) > 0)
+    if other:
+        raise ParameterError("stand.mix", dict(spec.mix), '{ growth = 1 } in a world stand',
+                             "Weber-Penn trees of a world stand need an instanced canopy (not "
+                             "there yet): place them as [[trees]] entries", source)
+    stand = layout(spec)
+    params = GrowthParams.from_dict(dict(cfg.get("growth", {}) or {}), source,
+                                    prefix="stand.growth.")
+    gens = int(cfg.get("generations", 6))
+    env = _obstacles(base_scene, built)
+    grown = grow_forest(stand.positions[:, [0, 2]], params, gens, scene=env, seed=spec.seed,
+                        progress=progress)
+    out = []
+    for i, t in enumerate(grown):
+        t.drop_dead_leaves()
+        out.append(_tree_to_world(f"stand_{i:03d}", "growth", t, t.start[0],
+                                  {"generations": gens, "unit_m": params.unit, "stand": True}))
+    return out
+
+
+def scenario_trees(scenario, base_scene, progress: bool = False) -> list[WorldTree]:
+    """Every tree of a world scenario as a run builds it: the ``[[trees]]`` entries in order,
+    then the ``[stand]``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The loaded scenario.
+    base_scene : mi.Scene
+        Its light scene (obstacles).
+    progress : bool
+        Progress bars of the growth models.
+
+    Returns
+    -------
+    list of WorldTree
+        The trees (empty without either).
+    """
+    src = str(scenario.path)
+    trees = build_trees(scenario.get("trees"), base_scene, scenario.root, src, progress)
+    if scenario.get("stand"):
+        trees += build_stand(scenario.get("stand"), base_scene, trees, src, progress)
+    return trees
+
+
 def _load_mesh(path: Path, field_: str, source):
     if not path.is_file():
         raise ParameterError(field_, str(path), "an existing PLY/OBJ/GLB file (relative to the "
@@ -372,7 +452,7 @@ def scene_with_trees(scenario, scene, bins: int = 4):
         Shape ids of the trees (``trees_bark``, ``trees_leaves``).
     """
 
-    trees = build_trees(scenario.get("trees"), scene, scenario.root, str(scenario.path))
+    trees = scenario_trees(scenario, scene)
     shapes = Canopy(trees, bins).shapes(full_leaf=True)
     d = {"type": "scene"}
     for sh in scene.shapes():
