@@ -67,6 +67,16 @@ def test_grow_step_death_shade_avoidance_and_phototropism():
         grow_step(t, TipLight(np.ones(3), np.ones(3), up[:3]), p)
 
 
+def test_foliage_transmission_of_a_leaf_sphere():
+    """Beer-Lambert through a sphere of random blades: u = n 0.6 s² / (4/3 π R³),
+    T = exp(-u/2 4R/3) (hand values); the forest stand's foliage lets about paper 001's α
+    through, the default mesh foliage almost all of it."""
+    u = 40 * 0.6 * 2.0 ** 2 / (4.0 / 3.0 * np.pi * 4.0 ** 3)
+    assert GrowthParams(leaves_per_sphere=40, leaf_size=2.0).foliage_transmission() == \
+        pytest.approx(np.exp(-0.5 * u * 16.0 / 3.0), rel=1e-12) == pytest.approx(0.38484, abs=1e-5)
+    assert GrowthParams().foliage_transmission() == pytest.approx(0.98225, abs=1e-5)
+
+
 def test_sphere_light_from_the_leaves_year_sums():
     """Received light and R:FR relative to the open, and the light vector as the least-squares
     net flux F with g_l . F = N_l over a sphere's leaves (hand-made sums)."""

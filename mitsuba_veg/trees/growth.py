@@ -191,6 +191,27 @@ class GrowthParams:
         except ParameterError as e:
             raise ParameterError(prefix + e.field, e.value, e.allowed, e.fix, source) from None
 
+    def foliage_transmission(self) -> float:
+        """Share of the light that crosses a leaf sphere's blades unhit, on average [-].
+
+        The mesh's blades (``leaves_per_sphere`` quads of ``leaf_size`` x 0.6 ``leaf_size``)
+        spread through the sphere of radius R: leaf area density u = n 0.6 s² / (4/3 π R³),
+        random orientation (projection G = 1/2), mean chord 4R/3 (Beer-Lambert):
+        T = exp(-G u 4R/3). Where the light comes from the world's photon passes (trees that
+        grow year after year) this should be near the model's α (``alpha``), the share paper
+        001's sphere lets through, so that a crown shades its inner spheres as the model's
+        light does (docs/deviations.md).
+
+        Returns
+        -------
+        float
+            T [-].
+        """
+        R = float(self.leaf_radius)
+        u = self.leaves_per_sphere * 0.6 * float(self.leaf_size) ** 2 / (4.0 / 3.0 * math.pi
+                                                                          * R ** 3)
+        return math.exp(-0.5 * u * 4.0 * R / 3.0)
+
     def replace(self, **kw) -> "GrowthParams":
         """A validated copy with some fields changed.
 
