@@ -201,12 +201,31 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
     return out
 
 
-def regrow(wt: WorldTree, light: TipLight, base_scene, others, seed: int) -> WorldTree:
+def obstacles(base_scene, trees=()):
+    """The obstacles of growing branches: the scene's meshes and the given trees' wood and
+    leaves (an :class:`~mitsuba_veg.trees.environment.Environment`).
+
+    Parameters
+    ----------
+    base_scene : mi.Scene
+        The scenario's light scene (terrain, buildings, floor objects).
+    trees : sequence of WorldTree
+        Trees to add.
+
+    Returns
+    -------
+    Environment
+        The obstacles.
+    """
+    return _obstacles(base_scene, list(trees))
+
+
+def regrow(wt: WorldTree, light: TipLight, env, seed: int) -> WorldTree:
     """A growth tree one generation older, grown from the light given per leaf sphere.
 
     Paper 001's step (:func:`mitsuba_veg.trees.growth.grow_step`: death below the threshold,
-    shade avoidance, phototropism) with the scene's meshes and the other trees as obstacles of
-    the new segments; the wood and the leaf blades are rebuilt.
+    shade avoidance, phototropism) with ``env`` as the obstacles of the new segments; the wood
+    and the leaf blades are rebuilt.
 
     Parameters
     ----------
@@ -214,10 +233,8 @@ def regrow(wt: WorldTree, light: TipLight, base_scene, others, seed: int) -> Wor
         A tree of ``model = "growth"``.
     light : TipLight
         The light of each of its leaf spheres (the world's daily passes over a year).
-    base_scene : mi.Scene
-        The scenario's light scene (terrain, buildings).
-    others : list of WorldTree
-        The world's other trees (obstacles).
+    env : Environment
+        Obstacles of its new segments (:func:`obstacles`).
     seed : int
         Seed of the new leaf blades.
 
@@ -233,7 +250,7 @@ def regrow(wt: WorldTree, light: TipLight, base_scene, others, seed: int) -> Wor
     """
     if wt.model != "growth" or wt.tree is None:
         raise ParameterError("tree", wt.name, "a tree of model 'growth'")
-    tree = grow_step(wt.tree, light, seed=seed, scene=_obstacles(base_scene, others))
+    tree = grow_step(wt.tree, light, seed=seed, scene=env)
     info = dict(wt.info)
     info["generations"] = int(info.get("generations", 0)) + 1
     return _tree_to_world(wt.name, wt.model, tree, wt.position, info)
