@@ -190,6 +190,9 @@ def test_multi_year_world_resumes_exactly(tmp_path):
     # the render's trees day by day: the run folder's trees/2026.npz from 1 January on
     from mitsuba_veg.render.history import load_run
     from mitsuba_veg.render.world import grown_trees, world_trees
+    table = (tmp_path / "a" / "trees_yearly.csv").read_text().splitlines()
+    assert table[0].startswith("year,tree,generation") and len(table) == 2
+    assert table[1].startswith("2026,by_the_house,7,")
     run_a = load_run(tmp_path / "a")
     assert [first for first, _ in grown_trees(run_a)] == [23]       # 10 Dec + 22 days
     before, _ = world_trees(run_a, 22)

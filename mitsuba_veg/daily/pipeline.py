@@ -470,6 +470,17 @@ class Simulation:
         folder.mkdir(parents=True, exist_ok=True)
         with atomic_write(folder / f"{year}.npz", folder / f".{year}.tmp.npz") as tmp:
             np.savez_compressed(tmp, **d)
+        # the table people open: one row per tree and year-end step
+        cols = ["year", "tree", "generation", "tips", "died", "received_mean", "received_min",
+                "red_far_red_mean", "leaves", "height_m", "crown_radius_m", "crown_shift_m",
+                "live_segments"]
+        lines = [",".join(cols)]
+        for r in self.state.growth_log:
+            if r.get("tree"):
+                v = [r[c] if c != "crown_shift_m" else float(np.hypot(*r[c])) for c in cols]
+                lines.append(",".join(f"{x:.6g}" if isinstance(x, float) else str(x) for x in v))
+        with atomic_write(self.out / "trees_yearly.csv", self.out / ".trees_yearly.tmp.csv") as t:
+            Path(t).write_text("\n".join(lines) + "\n")
 
     def _rebuild(self, trees: list) -> None:
         """A new site and pipeline with these trees; the soil water, the moss, the records
@@ -512,7 +523,8 @@ class Simulation:
         # half-written files of a process killed while writing (the real files are replaced
         # atomically, so these are never read)
         for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
-                        "snapshots/.day_*.tmp.npz", "days.tmp.gif", "trees/.*.tmp.npz"):
+                        "snapshots/.day_*.tmp.npz", "days.tmp.gif", "trees/.*.tmp.npz",
+                        ".trees_yearly.tmp.csv"):
             for q in self.out.glob(pattern):
                 q.unlink()
         if not resumed:
