@@ -190,6 +190,11 @@ def test_multi_year_world_resumes_exactly(tmp_path):
     # the render's trees day by day: the run folder's trees/2026.npz from 1 January on
     from mitsuba_veg.render.history import load_run
     from mitsuba_veg.render.world import grown_trees, world_trees
+    # --fresh clears the grown trees and their table with the rest of the run's outputs
+    mv.run(scen, out=tmp_path / "b23", days=2, overrides=ov, progress=False, frames=False,
+           resume=False)
+    assert not (tmp_path / "b23" / "trees").exists()
+    assert not (tmp_path / "b23" / "trees_yearly.csv").exists()
     table = (tmp_path / "a" / "trees_yearly.csv").read_text().splitlines()
     assert table[0].startswith("year,tree,generation") and len(table) == 2
     assert table[1].startswith("2026,by_the_house,7,")
