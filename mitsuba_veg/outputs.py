@@ -741,12 +741,14 @@ class SnapshotWriter:
     def __call__(self, sim, rec) -> None:
         every = max(int(self.every or getattr(sim, "frame_every", 10) or 10), 1)
         if sim.day % every == 0 or sim.day == sim.days or sim.day == 1:
-            extra = None
+            # live moss per terrain element (the glTF export's moss cover)
+            extra = {"moss_counts": np.asarray(sim.counts()[:sim.site.n_terrain])
+                     .astype(np.uint32)}
             phen = getattr(sim, "phen", None)
             if phen is not None:   # a world: every leaf's state (the render draws it)
-                extra = {"leaf_tau": np.asarray(phen.tau).astype(np.float16),
-                         "leaf_grown": np.asarray(phen.grown).astype(np.float16),
-                         "leaf_on": np.asarray(phen.on_tree)}
+                extra.update({"leaf_tau": np.asarray(phen.tau).astype(np.float16),
+                              "leaf_grown": np.asarray(phen.grown).astype(np.float16),
+                              "leaf_on": np.asarray(phen.on_tree)})
             write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
                            date=rec.get("date"), extra=extra)
 

@@ -472,3 +472,28 @@ def test_canopy_vertex_updates_are_bounded_and_tables_exact():
     assert 5 <= len(days) <= 16
     assert np.all(np.diff(days) >= Canopy.min_update_days)
     assert np.asarray(ph.fallen).any()
+
+
+def test_a_day_of_the_world_exports_as_gltf(summer, tmp_path):
+    """``mitsuba-veg export-gltf``: the day's terrain meshes with their moss cover, the tree's
+    wood and the leaves on it (autumn-stage colours), loaded back by trimesh with the right
+    counts."""
+    import trimesh
+    from mitsuba_veg.cli import main
+    _, tmp = summer
+    out = tmp_path / "day.glb"
+    assert main(["export-gltf", str(tmp / "run"), "--day", "2", "--out", str(out),
+                 "--quiet"]) == 0
+    sc = trimesh.load(out)
+    names = set(sc.geometry)
+    assert {"ground", "house", "wall", "oak.wood", "oak.leaves"} <= names
+    from mitsuba_veg.render.gltf_day import export_day
+    info = export_day(tmp / "run", 2, tmp_path / "again.glb")
+    by = {m["name"]: m["triangles"] for m in info["meshes"]}
+    assert len(sc.geometry["oak.leaves"].faces) == by["oak.leaves"] == \
+        2 * info["leaves_on_trees"] > 0
+    assert len(sc.geometry["ground"].faces) == by["ground"] == 3200
+    assert info["moss_cover_m2"] > 0
+    summ = json.loads((tmp / "run" / "summary.json").read_text())
+    assert info["moss_cover_m2"] == pytest.approx(summ["days_record"][1]["covered_area_m2"],
+                                                  rel=1e-6)

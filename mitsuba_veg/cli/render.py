@@ -1,4 +1,5 @@
-"""``mitsuba-veg render RUN_DIR`` and ``mitsuba-veg animate RUN_DIR``.
+"""``mitsuba-veg render RUN_DIR``, ``mitsuba-veg animate RUN_DIR`` and
+``mitsuba-veg export-gltf RUN_DIR``.
 
 :func:`run_render` renders the last day of a moss run (or ``day``) from one or more camera
 presets and writes, per camera, ``render_<camera>.exr`` (RGB + red/far-red bands + R:FR),
@@ -18,11 +19,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..render.animation import ANIMATE_DEFAULTS
+from ..render.gltf_day import export_day
 from ..render.still import RENDER_DEFAULTS, run_render
 from ..sweeps.frames import run_animate
 from .args import add_out, add_quiet, iso_datetime, ranged
 
-__all__ = ["add_parsers", "run_render", "run_animate"]
+__all__ = ["add_parsers", "run_render", "run_animate", "export_day"]
 
 
 def add_parsers(subparsers) -> None:
@@ -82,6 +84,27 @@ def add_parsers(subparsers) -> None:
     a.add_argument("--workers", type=ranged(int, 1, 1024, "processes"), metavar="N",
                    help="render the frames as Dask tasks on a local cluster of N processes")
     a.set_defaults(func=_cmd_animate)
+    g = subparsers.add_parser("export-gltf", help="a day of a run as glTF (.glb): terrain with "
+                              "its moss cover, the trees with their leaves' colours")
+    g.add_argument("run_dir", help="a run folder (mitsuba-veg run ... --out DIR)")
+    g.add_argument("--day", type=ranged(int, 1, 100_000, "day"),
+                   help="simulated day (default: the last with a snapshot)")
+    g.add_argument("--out", metavar="FILE.glb",
+                   help="the file (default RUN_DIR/gltf/day_NNNN.glb)")
+    g.add_argument("--scenario", metavar="TOML",
+                   help="scenario file of the run (default: the one summary.json names)")
+    add_quiet(g)
+    g.set_defaults(func=_cmd_export_gltf)
+
+
+def _cmd_export_gltf(a) -> int:
+    info = export_day(a.run_dir, a.day, a.out, a.scenario)
+    if not a.quiet:
+        tris = sum(m["triangles"] for m in info["meshes"])
+        print(f"day {info['day']} ({info['date']}): {len(info['meshes'])} meshes, {tris:,d} "
+              f"triangles, {info['leaves_on_trees']:,d} leaves on the trees, moss cover "
+              f"{info['moss_cover_m2']:.3f} m2 -> {info['path']}")
+    return 0
 
 
 def _cmd_render(a) -> int:

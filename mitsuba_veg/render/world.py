@@ -103,6 +103,7 @@ def world_trees(run, day: int | None = None):
     for wt in built:
         m = len(wt.leaf_area)
         if wt.tree is not None:
+            wt.tree.name = wt.name          # the world's name (summaries, glTF meshes)
             trees.append(wt.tree)
             offsets.append((n, n + m))
         else:
