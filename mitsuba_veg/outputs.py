@@ -56,7 +56,8 @@ _KIND_FILES = {"run": ("checkpoint.npz",), "irradiance": ("irradiance.npz",),
 #: files and folders of a moss run that belong to one run (cleared when a run starts afresh)
 RUN_OUTPUTS = ("checkpoint.npz", "checkpoint.tmp.npz", "summary.json", "summary.json.tmp",
                "days.gif", "days.tmp.gif", "maps", "snapshots", "render", "animation",
-               "sensors_daily.csv", "sensors_daily.csv.tmp", "trees", "trees_yearly.csv")
+               "sensors_daily.csv", "sensors_daily.csv.tmp", "trees", "trees_yearly.csv", "years",
+               "floor_years.png")
 #: output folders nested in a run folder that are cleared with the run (their own manifests)
 _RUN_CHILD_KINDS = ("render", "animate")
 #: a run folder written before manifests existed: the files adopted as the package's, by name

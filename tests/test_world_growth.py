@@ -158,6 +158,14 @@ def test_tree_by_the_house_grows_away_from_it_from_the_days_light(tmp_path, monk
     # the regrowth itself: one generation more, the scene rebuilt, the next day lit
     monkeypatch.undo()
     rows = sim.regrow()
+    # the floor's year: its maps and its row (DLI, R:FR, gap fraction, moss cover)
+    floor = sim.state.floor_log[-1]
+    print("floor", floor)
+    assert floor["year"] == 2026 and floor["days"] == sim.day
+    assert 0.3 < floor["gap_fraction"] < 1.1 and floor["dli_mol_m2_d"] > 0
+    assert 0.5 < floor["red_far_red"] < 1.5 and floor["moss_covered_m2"] > 0
+    assert (tmp_path / "run" / "years" / "floor_2026.png").stat().st_size > 0
+    assert (tmp_path / "run" / "floor_years.png").stat().st_size > 0
     after = sim.site.trees[0]
     assert rows[0]["generation"] == 7 and len(after.tree) > n0
     assert sim.site.canopy.n_leaves == len(after.leaf_area) > len(before.leaf_area)

@@ -58,6 +58,7 @@ def save(sim) -> None:
         for i in sim.pipeline.growth.trees:
             d.update(tree_state(sim.site.trees[i], f"growth_trees/{i}"))
         d["growth_log"] = np.array(json.dumps(st.growth_log))
+        d["floor_log"] = np.array(json.dumps(st.floor_log))
     if st.leaves is not None:
         d.update(st.leaves.to_numpy())
         d.update(sim.site.canopy.state())
@@ -131,6 +132,7 @@ def load(sim) -> bool:
         if st.year is not None:
             st.year.load_numpy(d)
             st.growth_log = growth_log
+            st.floor_log = json.loads(str(d["floor_log"])) if "floor_log" in d else []
         O = np.asarray(d["O"], np.float64)
         if O.shape != (sim.site.n_terrain,):
             raise ValueError(f"O: {O.shape} != ({sim.site.n_terrain},)")

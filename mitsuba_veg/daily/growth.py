@@ -27,33 +27,44 @@ is the world's, with its sun path, sky, walls, other trees and their leaves' opt
 from __future__ import annotations
 
 import datetime as _dt
+from pathlib import Path
 
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..atomic import atomic_write
 from ..light.photon import band_range
+from ..plots import _mpl, plan_map
 from ..trees.growth import TipLight
+from ..units import umol_per_joule
 
 #: the model of the trees that grow from their light
 GROWTH_MODEL = "growth"
 
 
 class YearLight:
-    """Per-leaf sums of the growth year so far (module docstring), on the device.
+    """Per-leaf sums of the growth year so far (module docstring), and per ground triangle the
+    floor's (PAR, red and far-red irradiance [W m-2 d], sky fraction [d]: the yearly floor
+    maps), on the device.
 
     Parameters
     ----------
     n : int
         Leaves of the canopy.
+    n_ground : int
+        Triangles of the ground.
     """
 
     FIELDS = ("S", "red", "far_red", "net", "open_S", "open_red", "open_far_red")
+    FLOOR_FIELDS = ("floor_par", "floor_red", "floor_far_red", "floor_sky")
 
-    def __init__(self, n: int):
-        self.n = int(n)
+    def __init__(self, n: int, n_ground: int = 0):
+        self.n, self.n_ground = int(n), int(n_ground)
         for f in self.FIELDS:
             setattr(self, f, dr.zeros(mi.Float64, self.n))
+        for f in self.FLOOR_FIELDS:
+            setattr(self, f, dr.zeros(mi.Float64, self.n_ground))
         self.days = 0
 
     def arrays(self) -> list:
@@ -64,7 +75,7 @@ class YearLight:
         list
             mi.Float64 arrays, one value per leaf.
         """
-        return [getattr(self, f) for f in self.FIELDS]
+        return [getattr(self, f) for f in self.FIELDS + self.FLOOR_FIELDS]
 
     def to_numpy(self) -> dict:
         """The sums for a checkpoint.
@@ -74,7 +85,8 @@ class YearLight:
         dict
             ``year_light/<field>`` -> (n,) float64, ``year_light/days``.
         """
-        d = {f"year_light/{f}": np.asarray(getattr(self, f), np.float64) for f in self.FIELDS}
+        d = {f"year_light/{f}": np.asarray(getattr(self, f), np.float64)
+             for f in self.FIELDS + self.FLOOR_FIELDS}
         d["year_light/days"] = np.array(self.days)
         return d
 
@@ -91,10 +103,11 @@ class YearLight:
         ValueError
             When a sum does not have one value per leaf.
         """
-        for f in self.FIELDS:
+        for f in self.FIELDS + self.FLOOR_FIELDS:
             v = np.asarray(d[f"year_light/{f}"], np.float64)
-            if v.shape != (self.n,):
-                raise ValueError(f"year_light/{f}: {v.shape} != ({self.n},)")
+            n = self.n if f in self.FIELDS else self.n_ground
+            if v.shape != (n,):
+                raise ValueError(f"year_light/{f}: {v.shape} != ({n},)")
             setattr(self, f, mi.Float64(v))
         self.days = int(d["year_light/days"])
 
@@ -120,6 +133,8 @@ class DayGrowth:
         g = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
         self.normals = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
         self.widths = {b: band_range(b)[1] - band_range(b)[0] for b in ("red", "far_red")}
+        gsl = site.ground_slice
+        self.d_ground = dr.arange(mi.UInt32, gsl.start, gsl.stop)
 
     def new_state(self) -> YearLight:
         """Empty sums for a new year.
@@ -127,9 +142,10 @@ class DayGrowth:
         Returns
         -------
         YearLight
-            Zeros, one per leaf.
+            Zeros, one per leaf and per ground triangle.
         """
-        return YearLight(self.n)
+        gsl = self.site.ground_slice
+        return YearLight(self.n, gsl.stop - gsl.start)
 
     def accumulate(self, yl: YearLight, light, vals) -> list:
         """Add the day's leaf light (module docstring) to the sums; unevaluated.
@@ -161,6 +177,11 @@ class DayGrowth:
         yl.open_S = yl.open_S + on * (B + D)
         yl.open_red = yl.open_red + on * band("red")
         yl.open_far_red = yl.open_far_red + on * band("far_red")
+        # the floor: its bands and its sky fraction (the terrain comes first in the index)
+        yl.floor_par = yl.floor_par + light.ground["par"]
+        yl.floor_red = yl.floor_red + light.ground["red"]
+        yl.floor_far_red = yl.floor_far_red + light.ground["far_red"]
+        yl.floor_sky = yl.floor_sky + dr.gather(mi.Float64, light.f_sky, self.d_ground)
         yl.days += 1
         return yl.arrays()
 
@@ -257,3 +278,134 @@ def sphere_light(sums: dict, normals, sphere, m: int):
                    np.array([0.0, 1.0, 0.0]))
     # a sphere whose leaves were never out got no light: it dies
     return TipLight(received, rfr, vec)
+
+
+def floor_year(yl: YearLight, areas, cover) -> dict:
+    """The floor's year from the year's sums: per ground triangle the mean PAR [W m-2], the
+    daily light integral DLI [mol m-2 d-1], the red : far-red photon ratio and the sky fraction
+    [-] (the share of the open's sky light that reaches it, direct and reflected: the floor's
+    gap fraction), and their area-weighted means with the moss cover (read back once a year).
+
+    Parameters
+    ----------
+    yl : YearLight
+        The year's sums (``days`` of them).
+    areas : array_like
+        (ground triangles,) areas [m2].
+    cover : array_like
+        (ground triangles,) moss cover at the year's end [-].
+
+    Returns
+    -------
+    dict
+        ``maps`` (``par_W_m2``, ``dli_mol_m2_d``, ``red_far_red``, ``sky_fraction``, ``cover``:
+        NumPy arrays) and the means (``dli_mol_m2_d``, ``red_far_red``, ``gap_fraction``,
+        ``moss_cover``, ``moss_covered_m2``, ``days``).
+    """
+    days = max(int(yl.days), 1)
+    a = np.asarray(areas, float)
+    par = np.asarray(yl.floor_par, float) / days
+    red = np.asarray(yl.floor_red, float) * umol_per_joule(*band_range("red"))
+    fr = np.asarray(yl.floor_far_red, float) * umol_per_joule(*band_range("far_red"))
+    sky = np.asarray(yl.floor_sky, float) / days
+    dli = par * umol_per_joule(*band_range("par")) * 86_400 / 1e6
+    rfr = np.where(fr > 0, red / np.maximum(fr, 1e-300), np.nan)
+    cover = np.asarray(cover, float)
+    w = a / max(a.sum(), 1e-30)
+    return {"maps": {"par_W_m2": par, "dli_mol_m2_d": dli, "red_far_red": rfr,
+                     "sky_fraction": sky, "cover": cover},
+            "days": int(yl.days),
+            "dli_mol_m2_d": float((dli * w).sum()),
+            "red_far_red": float(red.sum() / fr.sum()) if fr.sum() > 0 else None,
+            "gap_fraction": float((sky * w).sum()),
+            "moss_cover": float((cover * w).sum()),
+            "moss_covered_m2": float((cover * a).sum())}
+
+
+def floor_figure(path, vertices, faces, year: int, floor: dict, trees=()) -> str:
+    """``years/floor_<year>.png``: the floor seen from above, four panels (moss cover at the
+    year's end, DLI, red : far-red, sky fraction) with the crowns (dashed) and trunks.
+
+    Parameters
+    ----------
+    path : path-like
+        The PNG (written atomically).
+    vertices, faces : array_like
+        The ground mesh.
+    year : int
+        The year shown.
+    floor : dict
+        :func:`floor_year`'s result.
+    trees : sequence of WorldTree
+        The trees of that year.
+
+    Returns
+    -------
+    str
+        The path written.
+    """
+    plt = _mpl()
+    m = floor["maps"]
+    fig, axs = plt.subplots(1, 4, figsize=(17, 4.1), constrained_layout=True)
+    plan_map(axs[0], vertices, faces, m["cover"], title="moss cover at the year's end",
+             label="cover [-]", cmap="Greens", vmin=0.0, vmax=1.0)
+    plan_map(axs[1], vertices, faces, m["dli_mol_m2_d"], title="daily light integral",
+             label="DLI [mol m$^{-2}$ d$^{-1}$]", cmap="inferno", vmin=0.0)
+    plan_map(axs[2], vertices, faces, m["red_far_red"], title="red : far-red",
+             label="R:FR [-]", cmap="RdYlGn", vmin=0.0)
+    plan_map(axs[3], vertices, faces, m["sky_fraction"], title="sky fraction (gap fraction)",
+             label="[-]", cmap="Blues", vmin=0.0, vmax=1.0)
+    for ax in axs:
+        ax.autoscale(False)
+        for wt in trees:
+            r, (cx, cz) = wt.crown_radius(), wt.crown_centre()
+            ax.add_patch(plt.Circle((cx, -cz), r, fill=False, ls="--", lw=0.6,
+                                    color="tab:green"))
+            ax.plot(wt.position[0], -wt.position[2], "^", color="saddlebrown", ms=3)
+    rfr = floor["red_far_red"]
+    fig.suptitle(f"{year}: moss cover {floor['moss_covered_m2']:.2f} m², DLI "
+                 f"{floor['dli_mol_m2_d']:.1f} mol m⁻² d⁻¹, R:FR "
+                 + (f"{rfr:.2f}" if rfr is not None else "-")
+                 + f", gap fraction {floor['gap_fraction']:.2f}", fontsize=11)
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_write(p, p.with_name(f".{p.stem}.tmp.png")) as tmp:
+        fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    return str(p)
+
+
+def floor_years_figure(path, rows: list) -> str:
+    """``floor_years.png``: the floor's moss cover, DLI, R:FR and gap fraction year by year.
+
+    Parameters
+    ----------
+    path : path-like
+        The PNG (written atomically).
+    rows : list of dict
+        One per year: ``year`` and :func:`floor_year`'s means.
+
+    Returns
+    -------
+    str
+        The path written.
+    """
+    plt = _mpl()
+    years = [r["year"] for r in rows]
+    fig, axs = plt.subplots(1, 4, figsize=(15, 3.4), constrained_layout=True)
+    for ax, key, label in zip(axs, ("moss_covered_m2", "dli_mol_m2_d", "red_far_red",
+                                    "gap_fraction"),
+                              ("moss cover [m²]", "DLI [mol m⁻² d⁻¹]", "R:FR [-]",
+                               "gap fraction [-]")):
+        ax.plot(years, [r[key] if r[key] is not None else np.nan for r in rows], "o-",
+                color="tab:green" if key == "moss_covered_m2" else "tab:blue")
+        ax.set_xlabel("year")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    fig.suptitle("the forest floor year by year", fontsize=11)
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_write(p, p.with_name(f".{p.stem}.tmp.png")) as tmp:
+        fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    return str(p)

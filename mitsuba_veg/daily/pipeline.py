@@ -49,7 +49,7 @@ from . import checkpoint as ckpt
 from ..outputs import atomic_write
 from ..world.trees import obstacles, regrow, tree_state
 from .config import MossConfig
-from .growth import DayGrowth, YearLight
+from .growth import DayGrowth, YearLight, floor_figure, floor_year, floor_years_figure
 from .inputs import DayInputs
 from .leaves import DayLeaves
 from .light import DayLight
@@ -81,6 +81,8 @@ class DayState:
         The growth year's leaf light so far (trees of ``model = "growth"``).
     growth_log : list of dict
         One row per tree and year-end growth step (generation, tips, deaths, size).
+    floor_log : list of dict
+        One row per year: the floor's DLI, R:FR, gap fraction and moss cover.
     """
 
     day: int
@@ -91,6 +93,7 @@ class DayState:
     sensor_days: list = field(default_factory=list)
     year: YearLight | None = None
     growth_log: list = field(default_factory=list)
+    floor_log: list = field(default_factory=list)
 
 
 class DayPipeline:
@@ -421,6 +424,7 @@ class Simulation:
         """
         st = self.state
         g = self.pipeline.growth
+        self._floor_year()
         lights = g.tip_lights(st.year)
         if not lights:                       # bare all year: a new year of sums
             st.year = g.new_state()
@@ -459,6 +463,21 @@ class Simulation:
         self._write_trees(year)
         return rows
 
+    def _floor_year(self) -> dict:
+        """The ending year's floor (its light maps, gap fraction, moss cover): a row of
+        ``floor_log``, ``years/floor_<year>.png`` and ``floor_years.png``."""
+        st, site = self.state, self.site
+        year = self.date(self.day - 1).year
+        gsl = site.ground_slice
+        cov = self.covered_area()[gsl] / np.maximum(site.index.areas[gsl], 1e-30)
+        fl = floor_year(st.year, site.index.areas[gsl], cov)
+        row = {"year": year, "day": self.day, **{k: v for k, v in fl.items() if k != "maps"}}
+        st.floor_log.append(row)
+        v, f = site.index.geometry[site.ground_id]
+        floor_figure(self.out / "years" / f"floor_{year}.png", v, f, year, fl, site.trees)
+        floor_years_figure(self.out / "floor_years.png", st.floor_log)
+        return row
+
     def _write_trees(self, year: int) -> None:
         """``trees/<year>.npz`` in the run folder: the growth trees from the next day on (the
         render draws each day's trees from these)."""
@@ -493,6 +512,7 @@ class Simulation:
         st = self.pipeline.new_state()
         st.day, st.O, st.history = old.day, old.O, old.history
         st.sensor_days, st.growth_log = old.sensor_days, old.growth_log
+        st.floor_log = old.floor_log
         st.moss.pop = old.moss.pop
         st.moss.grid.rebuild(st.moss.pop.pos, st.moss.pop.state)
         self.state = st
@@ -524,7 +544,7 @@ class Simulation:
         # atomically, so these are never read)
         for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
                         "snapshots/.day_*.tmp.npz", "days.tmp.gif", "trees/.*.tmp.npz",
-                        ".trees_yearly.tmp.csv"):
+                        ".trees_yearly.tmp.csv", "years/.*.tmp.png", ".floor_years.tmp.png"):
             for q in self.out.glob(pattern):
                 q.unlink()
         if not resumed:
@@ -628,6 +648,7 @@ class Simulation:
             if self.state.year is not None:
                 # the year-end growth steps of the trees that grow from their light
                 s["world"]["growth_years"] = self.state.growth_log
+                s["world"]["floor_years"] = self.state.floor_log
         path = self.write_sensors()
         if path is not None:
             v = np.stack(self.state.sensor_days)
