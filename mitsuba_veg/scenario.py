@@ -140,6 +140,10 @@ SCHEMA: dict[str, Field] = {
         "overrides": Field("any", doc="Weber-Penn parameters"),
         "height": _num("float", 0.05, 200.0, "[m] scale a Weber-Penn tree to this height"),
         "adapt": Field("bool", doc="Weber-Penn: deform by paper 002's rules in the scene"),
+        "age": _num("float", 0.5, 1000.0, "[years] Weber-Penn: its age at the start; it then "
+                    "grows every 31 December along a Chapman-Richards curve through its "
+                    "height (docs/world.md)"),
+        "age_rate": _num("float", 1e-4, 2.0, "[1/year] k of that curve (default 0.05)"),
         "voxel_size": _num("float", 0.01, 10.0, "[m] voxels of the non-growth light"),
         "death_threshold": _num("float", 0.0, 1.0, "adapt: paper 002's T/N threshold "
                                 "(mean leaf light, default 0.5)"),

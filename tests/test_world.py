@@ -497,3 +497,24 @@ def test_a_day_of_the_world_exports_as_gltf(summer, tmp_path):
     summ = json.loads((tmp / "run" / "summary.json").read_text())
     assert info["moss_cover_m2"] == pytest.approx(summ["days_record"][1]["covered_area_m2"],
                                                   rel=1e-6)
+
+
+def test_weber_penn_tree_ages_along_its_height_curve(tmp_path):
+    """A Weber-Penn tree with an ``age`` grows every 31 December along the Chapman-Richards
+    curve H(a) = H_max (1 - exp(-k a))^1.5 through its height: 4 m at 10 years with k = 0.05
+    is (0.42305 / 0.39347)^1.5 = 1.1149 x taller a year later (hand value)."""
+    from mitsuba_veg.world.trees import age_curve
+    f = float(age_curve(11, 0.05) / age_curve(10, 0.05))
+    assert f == pytest.approx(((1 - np.exp(-0.55)) / (1 - np.exp(-0.5))) ** 1.5, rel=1e-12)
+    assert f == pytest.approx(1.1149, abs=1e-4)
+    aged = ONE_TREE.replace("seed = 3\n", "seed = 3\nage = 10.0\nage_rate = 0.05\n")
+    scen = _world(tmp_path, aged, start="2026-12-30")
+    s = mv.run(scen, out=tmp_path / "run", days=3, overrides=SMALL, progress=False,
+               frames=False)
+    rows = [r for r in s["world"]["growth_years"] if r.get("tree") == "oak"]
+    assert len(rows) == 1 and rows[0]["model"] == "weber_penn" and rows[0]["age"] == 11.0
+    assert rows[0]["height_m"] == pytest.approx(4.0 * f, rel=1e-6)
+    tree = s["world"]["trees"][0]
+    assert tree["age"] == 11.0 and tree["crown_radius_m"] == pytest.approx(
+        rows[0]["crown_radius_m"])
+    assert len(s["world"]["floor_years"]) == 1 and s["world"]["floor_years"][0]["year"] == 2026

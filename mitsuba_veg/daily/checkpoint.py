@@ -20,7 +20,7 @@ from ..errors import ParameterError
 from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
-from ..world.trees import tree_from_state, tree_state
+from ..world.trees import age_tree, tree_from_state, tree_state
 
 
 def fingerprint(sim) -> str:
@@ -112,6 +112,11 @@ def load(sim) -> bool:
         try:
             for i in sim.pipeline.growth.trees:
                 trees[i] = tree_from_state(d, f"growth_trees/{i}")
+            for i in sim.pipeline.growth.ageing:      # as many years older as it aged
+                years = sum(1 for r in growth_log if r.get("tree") == trees[i].name
+                            and r.get("model") == "weber_penn")
+                if years:
+                    trees[i] = age_tree(trees[i], years)
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
                                  f"use --fresh ({e})") from None

@@ -127,6 +127,9 @@ class DayGrowth:
         c = site.canopy
         self.trees = [i for i, wt in enumerate(site.trees)
                       if wt.model == GROWTH_MODEL and wt.tree is not None]
+        #: Weber-Penn trees that age every year (``age`` in their scenario entry)
+        self.ageing = [i for i, wt in enumerate(site.trees)
+                       if wt.model == "weber_penn" and wt.info.get("age") is not None]
         self.n = c.n_leaves
         # each leaf's geometric normal (its first triangle's: the pass's "front" side)
         t = c.tri[c._first]
@@ -173,7 +176,8 @@ class DayGrowth:
         yl.S = yl.S + light.S_leaf
         yl.red = yl.red + light.leaf["red"]
         yl.far_red = yl.far_red + light.leaf["far_red"]
-        yl.net = yl.net + light.S_leaf_net
+        if light.S_leaf_net is not None:
+            yl.net = yl.net + light.S_leaf_net
         yl.open_S = yl.open_S + on * (B + D)
         yl.open_red = yl.open_red + on * band("red")
         yl.open_far_red = yl.open_far_red + on * band("far_red")

@@ -47,7 +47,7 @@ from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
 from ..outputs import atomic_write
-from ..world.trees import obstacles, regrow, tree_state
+from ..world.trees import age_tree, obstacles, regrow, tree_state
 from .config import MossConfig
 from .growth import DayGrowth, YearLight, floor_figure, floor_year, floor_years_figure
 from .inputs import DayInputs
@@ -114,8 +114,10 @@ class DayPipeline:
         self.leaves = DayLeaves(site) if site.canopy is not None and site.canopy.n_leaves \
             else None
         self.light = DayLight(site, inputs, light_strength)
-        self.growth = DayGrowth(site) if self.leaves is not None and self.light.leaf_net \
-            else None
+        ageing = any(wt.model == "weber_penn" and wt.info.get("age") is not None
+                     for wt in site.trees)
+        self.growth = DayGrowth(site) if self.leaves is not None and \
+            (self.light.leaf_net or ageing) else None
         self.moss = DayMoss(site)
         self.record = DayRecord(site)
         self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
@@ -425,26 +427,32 @@ class Simulation:
         st = self.state
         g = self.pipeline.growth
         self._floor_year()
-        lights = g.tip_lights(st.year)
-        if not lights:                       # bare all year: a new year of sums
-            st.year = g.new_state()
-            st.growth_log.append({"year": self.date(self.day - 1).year, "day": self.day,
-                                  "tree": None, "grew": False})
-            return []
-        base = self.config.scn.load_scene(daylight=False)
-        trees = list(self.site.trees)
+        lights = g.tip_lights(st.year) if g.trees else {}
         year = self.date(self.day - 1).year
+        if not lights and not g.ageing:      # bare all year: a new year of sums
+            st.year = g.new_state()
+            st.growth_log.append({"year": year, "day": self.day, "tree": None,
+                                  "grew": False})
+            return []
+        trees = list(self.site.trees)
         rows = []
         # obstacles of the new segments: the scene's meshes (walls, rocks, logs, terrain), one
         # environment for every tree; neighbouring crowns may interlace (an environment per
         # tree with its neighbours cost a 36-tree stand 4 s a year)
-        env = obstacles(base)
+        env = obstacles(self.config.scn.load_scene(daylight=False)) if lights else None
+        for i in g.ageing:                    # Weber-Penn trees one year older
+            trees[i] = age_tree(trees[i], 1)
+            rows.append({"year": year, "day": self.day, "tree": trees[i].name,
+                         "model": "weber_penn", "age": trees[i].info["age"],
+                         "leaves": int(len(trees[i].leaf_area)),
+                         "height_m": float(trees[i].info["height_m"]),
+                         "crown_radius_m": float(trees[i].crown_radius())})
         for i, light in lights.items():
             old = trees[i]
             seed = (int(self.seed) * 7919 + 104_729 * i + year) & 0x7FFFFFFF
             trees[i] = regrow(old, light, env, seed)
             m = trees[i].tree.metrics()
-            rows.append({"year": year, "day": self.day, "tree": old.name,
+            rows.append({"year": year, "day": self.day, "tree": old.name, "model": "growth",
                          "generation": int(trees[i].info["generations"]),
                          "tips": int(len(light.received["light"])),
                          "died": int(np.sum(light.received["light"]
@@ -490,13 +498,14 @@ class Simulation:
         with atomic_write(folder / f"{year}.npz", folder / f".{year}.tmp.npz") as tmp:
             np.savez_compressed(tmp, **d)
         # the table people open: one row per tree and year-end step
-        cols = ["year", "tree", "generation", "tips", "died", "received_mean", "received_min",
-                "red_far_red_mean", "leaves", "height_m", "crown_radius_m", "crown_shift_m",
-                "live_segments"]
+        cols = ["year", "tree", "model", "generation", "age", "tips", "died", "received_mean",
+                "received_min", "red_far_red_mean", "leaves", "height_m", "crown_radius_m",
+                "crown_shift_m", "live_segments"]
         lines = [",".join(cols)]
         for r in self.state.growth_log:
             if r.get("tree"):
-                v = [r[c] if c != "crown_shift_m" else float(np.hypot(*r[c])) for c in cols]
+                v = [r.get(c, "") if c != "crown_shift_m" or c not in r
+                     else float(np.hypot(*r[c])) for c in cols]
                 lines.append(",".join(f"{x:.6g}" if isinstance(x, float) else str(x) for x in v))
         with atomic_write(self.out / "trees_yearly.csv", self.out / ".trees_yearly.tmp.csv") as t:
             Path(t).write_text("\n".join(lines) + "\n")

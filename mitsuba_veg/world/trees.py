@@ -185,6 +185,10 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
             base = tree.start[0] if len(tree) else np.zeros(3)
             tree = scaled_tree(tree, f, pos - base)
             info = {"preset": cfg.get("preset", "quaking_aspen"), "scale": f}
+            if cfg.get("age") is not None:       # it ages every 31 December (age_tree)
+                info.update({"age": float(cfg["age"]),
+                             "age_rate": float(cfg.get("age_rate", AGE_RATE)),
+                             "height_m": float(h * f)})
             if cfg.get("adapt", False):
                 res = deform([tree], _obstacles(base_scene, out), shade_from="leaves",
                              voxel_size=float(cfg.get("voxel_size", 0.25)),
@@ -199,6 +203,59 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
             raise ParameterError(f"{field_}.model", model, ", ".join(MODELS), None, source)
         out.append(wt)
     return out
+
+
+#: shape exponent p of the Chapman-Richards height curve H(a) = H_max (1 - exp(-k a))^p
+AGE_SHAPE = 1.5
+#: default rate k of the height curve [1/year]
+AGE_RATE = 0.05
+
+
+def age_curve(age, rate: float = AGE_RATE, shape: float = AGE_SHAPE):
+    """Relative height of a tree of ``age`` years on the Chapman-Richards curve,
+    (1 - exp(-k a))^p [-] (H / H_max).
+
+    Parameters
+    ----------
+    age : float or array_like
+        Age [years], > 0.
+    rate : float
+        k [1/year].
+    shape : float
+        p [-].
+
+    Returns
+    -------
+    float or numpy.ndarray
+        H(a) / H_max.
+    """
+    return (1.0 - np.exp(-float(rate) * np.asarray(age, float))) ** float(shape)
+
+
+def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
+    """A Weber-Penn tree ``years`` older: scaled about its base by H(a + years) / H(a) of
+    :func:`age_curve` (a Chapman-Richards curve through its height at its scenario age, so the
+    height, the branch lengths and radii and the leaves grow alike: a uniform scaling).
+
+    Parameters
+    ----------
+    wt : WorldTree
+        A tree whose ``info`` holds ``age`` [years] and ``age_rate`` [1/year].
+    years : int
+        Years to age it.
+
+    Returns
+    -------
+    WorldTree
+        The older tree (``info["age"]`` + years, ``info["height_m"]``).
+    """
+    a, k = float(wt.info["age"]), float(wt.info["age_rate"])
+    f = float(age_curve(a + years, k) / age_curve(a, k))
+    tree = scaled_tree(wt.tree, f)
+    info = dict(wt.info)
+    info["age"] = a + years
+    info["height_m"] = float(tree.metrics()["height"])      # measured on the scaled tree
+    return _tree_to_world(wt.name, wt.model, tree, wt.position, info)
 
 
 def obstacles(base_scene, trees=()):
