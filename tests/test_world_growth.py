@@ -204,8 +204,8 @@ def test_multi_year_world_resumes_exactly(tmp_path):
     assert not (tmp_path / "b23" / "trees").exists()
     assert not (tmp_path / "b23" / "trees_yearly.csv").exists()
     table = (tmp_path / "a" / "trees_yearly.csv").read_text().splitlines()
-    assert table[0].startswith("year,tree,generation") and len(table) == 2
-    assert table[1].startswith("2026,by_the_house,7,")
+    assert table[0].startswith("year,tree,model,generation,age") and len(table) == 2
+    assert table[1].startswith("2026,by_the_house,growth,7,,")
     run_a = load_run(tmp_path / "a")
     assert [first for first, _ in grown_trees(run_a)] == [23]       # 10 Dec + 22 days
     before, _ = world_trees(run_a, 22)
