@@ -518,3 +518,19 @@ def test_weber_penn_tree_ages_along_its_height_curve(tmp_path):
     assert tree["age"] == 11.0 and tree["crown_radius_m"] == pytest.approx(
         rows[0]["crown_radius_m"])
     assert len(s["world"]["floor_years"]) == 1 and s["world"]["floor_years"][0]["year"] == 2026
+
+
+@pytest.mark.slow
+def test_render_years_draws_each_years_last_day(tmp_path):
+    """``mitsuba-veg render RUN --years``: one render per calendar year of the run, on its last
+    snapshot day (an ageing tree across a new year)."""
+    aged = ONE_TREE.replace("seed = 3\n", "seed = 3\nage = 10.0\n")
+    scen = _world(tmp_path, aged, start="2026-12-30")
+    mv.run(scen, out=tmp_path / "run", days=3, overrides=SMALL, progress=False)
+    from mitsuba_veg.cli import main
+    assert main(["render", str(tmp_path / "run"), "--years", "--camera", "overview", "--width",
+                 "48", "--height", "32", "--spp", "2", "--quiet"]) == 0
+    j = {y: json.loads((tmp_path / "run" / f"render_{y}" / "render.json").read_text())
+         for y in (2026, 2027)}
+    assert (j[2026]["day"], j[2027]["day"]) == (1, 3)
+    assert (tmp_path / "run" / "render_2027" / "render_overview.png").stat().st_size > 0

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..render.animation import ANIMATE_DEFAULTS
 from ..render.gltf_day import export_day
-from ..render.still import RENDER_DEFAULTS, run_render
+from ..render.still import RENDER_DEFAULTS, run_render, run_render_years
 from ..sweeps.frames import run_animate
 from .args import add_out, add_quiet, iso_datetime, ranged
 
@@ -64,6 +64,9 @@ def add_parsers(subparsers) -> None:
                         "the day shown at --hour)")
     r.add_argument("--max-depth", type=ranged(int, 1, 1000, "bounces"),
                    help="path length of the render (default 8)")
+    r.add_argument("--years", action="store_true",
+                   help="render the last snapshot day of every year of the run (a stand year "
+                        "by year) into RUN_DIR/render_<year> (or <--out>_<year>)")
     r.set_defaults(func=_cmd_render)
     a = subparsers.add_parser("animate", help="animate the days of a moss run (MP4 + GIF)")
     common(a, "animation", ANIMATE_DEFAULTS["spp"])
@@ -108,6 +111,17 @@ def _cmd_export_gltf(a) -> int:
 
 
 def _cmd_render(a) -> int:
+    if a.years:
+        ys = run_render_years(a.run_dir, a.out, camera=a.camera, width=a.width,
+                              height=a.height, spp=a.spp, day=a.day, when=a.when, hour=a.hour,
+                              max_depth=a.max_depth, scenario=a.scenario,
+                              progress=not a.quiet)["years"]
+        for year, y in ys.items():
+            print(f"{year}: day {y['day']} ({y['date']})")
+            for f in y["files"].values():
+                for p in f.values():
+                    print(f"  {p}")
+        return 0
     s = run_render(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height, spp=a.spp,
                    day=a.day, when=a.when, hour=a.hour, max_depth=a.max_depth,
                    scenario=a.scenario, progress=not a.quiet)

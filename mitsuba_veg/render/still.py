@@ -10,7 +10,7 @@ import mitsuba as mi
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..errors import check_range
+from ..errors import ParameterError, check_range
 from ..outputs import OutputFolder, write_json
 from ..backend import versions
 from . import film as _film
@@ -185,6 +185,71 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
     write_json(out / "render.json", summary)
     folder.release()
     return summary
+
+
+def year_end_days(run) -> list:
+    """The last snapshot day of every calendar year of a run: ``[(year, day)]``.
+
+    Parameters
+    ----------
+    run : Run
+        A loaded run.
+
+    Returns
+    -------
+    list of (int, int)
+        Years and their last snapshot days (1-based), by year.
+    """
+    last = {}
+    for d, _ in sorted(run.snapshots):
+        last[run.date(d).year] = d
+    return sorted(last.items())
+
+
+def run_render_years(run_dir, out=None, *, scenario=None, progress=True, **kw) -> dict:
+    """Render the last snapshot day of every year of a run (a stand year by year, from the
+    same cameras): ``run_render`` into ``<out>_<year>`` folders.
+
+    Parameters
+    ----------
+    run_dir : path-like
+        The run folder.
+    out : path-like, optional
+        Prefix of the output folders (default ``RUN_DIR/render``: ``render_2026``, ...).
+    scenario : path-like, optional
+        The run's scenario file.
+    progress : bool, optional
+        Progress bars.
+    **kw
+        The image settings of :func:`run_render` (camera, width, height, spp, hour,
+        max_depth, seed).
+
+    Returns
+    -------
+    dict
+        ``{"years": {year: {"day", "date", "files"}}}``.
+
+    Raises
+    ------
+    ParameterError
+        When the run has no snapshots (run it with frames), or ``day``/``when`` is given.
+    """
+    for k in ("day", "when"):
+        if kw.pop(k, None) is not None:
+            raise ParameterError(f"--{k}", "given", "not with --years (each year's last "
+                                 "snapshot day is rendered)")
+    run = load_run(run_dir, scenario)
+    days = year_end_days(run)
+    if not days:
+        raise ParameterError("RUN_DIR", str(run_dir), "a run with snapshots (frames)",
+                             "run it again without --no-frames")
+    base = Path(out) if out is not None else Path(run_dir) / "render"
+    years = {}
+    for year, day in days:
+        s = run_render(run_dir, base.with_name(f"{base.name}_{year}"), day=day,
+                       scenario=scenario, progress=progress, **kw)
+        years[year] = {"day": s["day"], "date": s["date"], "files": s["files"]}
+    return {"years": years}
 
 
 def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps=None):
