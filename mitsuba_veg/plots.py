@@ -5,6 +5,8 @@ triangle, with a colour bar in the quantity's units.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .atomic import atomic_write
@@ -198,6 +200,31 @@ def result_geometry(result, shape_id: str):
     if geo is None:
         raise ValueError(f"no mesh geometry stored for '{shape_id}'")
     return geo
+
+
+def save_figure(fig, path, dpi: int = 80) -> str:
+    """Write a Matplotlib figure as PNG atomically (parent folders made) and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or pathlib.Path
+        The PNG.
+    dpi : int, optional
+        Resolution [dots per inch]; default 80.
+
+    Returns
+    -------
+    str
+        The written path.
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_write(p, p.with_name(f".{p.stem}.tmp.png")) as tmp:
+        fig.savefig(tmp, dpi=dpi)
+    _mpl().close(fig)
+    return str(p)
 
 
 def loss_curve_figure(history: list[dict], path, loss_name: str = "") -> str:

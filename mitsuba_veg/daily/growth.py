@@ -27,15 +27,13 @@ is the world's, with its sun path, sky, walls, other trees and their leaves' opt
 from __future__ import annotations
 
 import datetime as _dt
-from pathlib import Path
 
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..atomic import atomic_write
 from ..light.photon import band_range
-from ..plots import _mpl, plan_map
+from ..plots import _mpl, plan_map, save_figure
 from ..trees.growth import TipLight
 from ..units import umol_per_joule
 
@@ -371,12 +369,7 @@ def floor_figure(path, vertices, faces, year: int, floor: dict, trees=()) -> str
                  f"{floor['dli_mol_m2_d']:.1f} mol m⁻² d⁻¹, R:FR "
                  + (f"{rfr:.2f}" if rfr is not None else "-")
                  + f", gap fraction {floor['gap_fraction']:.2f}", fontsize=11)
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_write(p, p.with_name(f".{p.stem}.tmp.png")) as tmp:
-        fig.savefig(tmp, dpi=80)
-    plt.close(fig)
-    return str(p)
+    return save_figure(fig, path)
 
 
 def floor_years_figure(path, rows: list) -> str:
@@ -407,9 +400,4 @@ def floor_years_figure(path, rows: list) -> str:
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     fig.suptitle("the forest floor year by year", fontsize=11)
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_write(p, p.with_name(f".{p.stem}.tmp.png")) as tmp:
-        fig.savefig(tmp, dpi=80)
-    plt.close(fig)
-    return str(p)
+    return save_figure(fig, path)
