@@ -220,7 +220,7 @@ def run_render_years(run_dir, out=None, *, scenario=None, progress=True, **kw) -
         The run's scenario file.
     progress : bool, optional
         Progress bars.
-    **kw
+    **kw : dict
         The image settings of :func:`run_render` (camera, width, height, spp, hour,
         max_depth, seed).
 
