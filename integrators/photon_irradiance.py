@@ -664,17 +664,19 @@ class PhotonIrradianceIntegrator(PhotonKernel):
         depth = self.max_depth if self.indirect else 1
         n, nb = index.n_elements, len(ranges)
         out = dr.zeros(mi.Float, n * nb * 4)
-        lane = dr.arange(mi.UInt32, n) * (nb * 4)
+        q = dr.arange(mi.UInt32, 4 * n)                    # (element, component, side) slots
+        e = q // 4
+        target = e * (nb * 4) + (q % 4)
+        inv_area = dr.gather(mi.Float, mi.Float(1.0 / np.maximum(index.areas, 1e-30)), e)
         for j, band in enumerate(ranges):
             albedo = _replay.bsdf_albedo(scene, index, band)
             for i, em in enumerate(ems):
                 rec = self.trace_paths(scene, em, int(counts[i]),
                                        seed=stream * 7919 + 104729 * j + 31 * i + 17,
                                        max_depth=depth, band=band, index=index, attach=True)
-                for c, comp in enumerate(("direct", "indirect")):
-                    for s_, side in enumerate(("front", "back")):
-                        x = _replay.irradiance(rec, albedo, 1.0, side, comp)
-                        dr.scatter_add(out, x, lane + (j * 4 + c * 2 + s_))
+                # the four components of every element in one replay of the paths
+                x = _replay.replay_slots(rec, albedo, 1.0) * inv_area
+                dr.scatter_add(out, x, target + j * 4)
         return mi.TensorXf(out, (n, nb, 2, 2))
 
 

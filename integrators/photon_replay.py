@@ -38,7 +38,8 @@ from mitsuba_veg.errors import ParameterError, SceneError
 from .photon_result import PhotonPathRecord
 from .scene_index import _children, _reg_id, _spatially_varying
 
-__all__ = ["replay", "irradiance", "albedo_array", "bsdf_albedo", "SIDES", "COMPONENTS"]
+__all__ = ["replay", "replay_slots", "irradiance", "albedo_array", "bsdf_albedo", "SIDES",
+           "COMPONENTS"]
 
 _INVALID = 0xFFFFFFFF
 #: sides a replay records: front (against the geometric normal), back, or both
@@ -89,6 +90,40 @@ def replay(record: PhotonPathRecord, albedo, strength=1.0, side: str = "front",
     if component not in COMPONENTS:
         raise ParameterError("component", component, "'direct', 'indirect' or 'both'")
     F = _float_type(albedo)
+    n = record.n_elements
+    slots = replay_slots(record, albedo, strength, w0)
+    e4 = dr.arange(mi.UInt32, n) * 4
+    sides = {"front": (0,), "back": (1,), "both": (0, 1)}[side]
+    comps = {"direct": (0,), "indirect": (1,), "both": (0, 1)}[component]
+    flux = dr.zeros(F, n)
+    for c in comps:
+        for sd in sides:
+            flux = flux + dr.gather(F, slots, e4 + (c * 2 + sd))
+    return flux
+
+
+def replay_slots(record: PhotonPathRecord, albedo, strength=1.0, w0=None):
+    """The replay's flux per element, component and side in one pass over the paths:
+    ``out[4 e + 2 c + s]`` [W] with c = 0 direct (first hits), 1 indirect, s = 0 front, 1 back
+    (module docstring; :func:`replay` sums the ones asked for).
+
+    Parameters
+    ----------
+    record : PhotonPathRecord
+        Paths from :meth:`PhotonIrradianceIntegrator.trace_paths`.
+    albedo : Float64 or tuple of Float64
+        As for :func:`replay`.
+    strength : float or Float64
+        Emitter strength factor [-].
+    w0 : Float, optional
+        As for :func:`replay`.
+
+    Returns
+    -------
+    Float64
+        (4 x elements) flux [W], the float type of ``albedo``.
+    """
+    F = _float_type(albedo)
     pair = albedo if isinstance(albedo, tuple) else (albedo, albedo)
     if len(pair) != 2:
         raise ParameterError("albedo", f"a tuple of {len(pair)}", "one array or (front, back)")
@@ -97,16 +132,15 @@ def replay(record: PhotonPathRecord, albedo, strength=1.0, side: str = "front",
             raise ParameterError("albedo", f"width {dr.width(a)}",
                                  f"one albedo per element ({record.n_elements})")
     a_front, a_back = (F(a) for a in pair)
-    flux = dr.zeros(F, record.n_elements)
+    out = dr.zeros(F, 4 * record.n_elements)
     beta = F(record.w0 if w0 is None else w0) * strength
     for k, (e, front) in enumerate(zip(record.elem, record.front)):
         valid = e != _INVALID
-        rec = valid if side == "both" else (valid & front if side == "front" else valid & ~front)
-        if component == "both" or (component == "direct") == (k == 0):
-            dr.scatter_add(flux, beta, e, rec)
+        slot = e * 4 + (2 if k > 0 else 0) + dr.select(front, 0, 1)
+        dr.scatter_add(out, beta, slot, valid)
         a = dr.select(front, dr.gather(F, a_front, e, valid), dr.gather(F, a_back, e, valid))
         beta = beta * a
-    return flux
+    return out
 
 
 def irradiance(record: PhotonPathRecord, albedo, strength=1.0, side: str = "front",
@@ -245,21 +279,22 @@ def bsdf_albedo(scene: mi.Scene, index, band, dtype=None):
     F = dtype or mi.Float
     lo, hi = float(band[0]), float(band[1])
     n = _ALBEDO_LANES
-    per = {}
+    # each element's BSDF as a slot of a small table (host, one pass over the shapes); slot 0:
+    # no BSDF (albedo 0)
+    slot = np.zeros(index.n_elements, np.uint32)
+    bsdfs: dict = {}
+    for sl, b in element_bsdfs(scene, index):
+        if b is not None:
+            slot[sl] = bsdfs.setdefault(_reg_id(b), (len(bsdfs) + 1, b))[0]
+    table = {1.0: [F(0.0)], -1.0: [F(0.0)]}
+    i = dr.arange(mi.Float, n)
+    wl = [lo + (hi - lo) * (i * 4 + j + 0.5) / (4 * n) for j in range(4)]
     with dr.resume_grad():
-        for sl, b in element_bsdfs(scene, index):
-            if b is None:
-                continue
-            reg = _reg_id(b)
-            if reg in per:
-                continue
+        for _, b in bsdfs.values():
             if _spatially_varying(b):
                 raise SceneError(f"BSDF '{b.id() or b.class_name()}' varies over its surface "
                                  "(a texture): the differentiable replay takes one albedo per "
                                  "shape; use a uniform reflectance for the parameter studied")
-            i = dr.arange(mi.Float, n)
-            wl = [lo + (hi - lo) * (i * 4 + j + 0.5) / (4 * n) for j in range(4)]
-            sides = []
             for z in (1.0, -1.0):
                 si = dr.zeros(mi.SurfaceInteraction3f, n)
                 si.n = mi.Normal3f(0, 0, 1)
@@ -268,17 +303,9 @@ def bsdf_albedo(scene: mi.Scene, index, band, dtype=None):
                 si.wavelengths = mi.Spectrum(*wl)
                 f = b.eval(mi.BSDFContext(), si, mi.Vector3f(0, 0, z), mi.Bool(True))
                 v = mi.Spectrum(f) * dr.pi          # pi f cos / cos (cos = 1)
-                sides.append(dr.mean(v[0] + v[1] + v[2] + v[3]) * 0.25)
-            per[reg] = sides
-    front = dr.zeros(F, index.n_elements)
-    back = dr.zeros(F, index.n_elements)
-    ids = dr.arange(mi.UInt32, index.n_elements)
-    with dr.resume_grad():
-        for sl, b in element_bsdfs(scene, index):
-            if b is None:
-                continue
-            af, ab = per[_reg_id(b)]
-            m = (ids >= sl.start) & (ids < sl.stop)
-            front = dr.select(m, F(af), front)
-            back = dr.select(m, F(ab), back)
+                table[z].append(F(dr.mean(v[0] + v[1] + v[2] + v[3]) * 0.25))
+        # one differentiable gather per side from the (BSDFs + 1)-entry tables
+        idx = mi.UInt32(slot)
+        front = dr.gather(F, dr.concat(table[1.0]), idx)
+        back = dr.gather(F, dr.concat(table[-1.0]), idx)
     return front, back

@@ -1,20 +1,11 @@
 """The Mitsuba emitter ``veg_sky``: a separable clear-sky environment, L(w, lam) = S(lam) f(w).
 
 ``S`` is a spectrum (property ``radiance``, W m-2 sr-1 nm-1: the radiance of a *uniform* sky with
-the same horizontal irradiance, i.e. DHI/pi) and ``f`` a relative radiance distribution over the
-upper hemisphere, zero below the horizon, normalised so that
-
-    integral over the upper hemisphere of f(w) cos(theta) dw = pi,
-
-hence the horizontal diffuse irradiance of the emitter is exactly pi * S(lambda) (= the SPCTRAL2
-DHI when built by :func:`mitsuba_veg.light.daylight`). ``f`` has the Perez et al. (1993) form
-
-    f ~ (1 + a exp(b / cos theta)) (1 + c exp(d gamma) + e cos^2 gamma)
-
-(theta: zenith angle of w, gamma: angle between w and the sun) with coefficients from the Perez
-all-weather model (sky clearness epsilon, brightness delta), or the CIE standard clear skies
-(types 12 and 13, written in the same form), or a uniform sky. The radiance model (the
-coefficients, f, its normalisation and the sampling table) is :mod:`mitsuba_veg.light.sky`.
+the same horizontal irradiance, i.e. DHI/pi) and ``f`` the relative radiance distribution of
+:mod:`mitsuba_veg.light.sky` (Perez all-weather, CIE clear skies 12/13 or uniform; zero below the
+horizon, normalised so that the emitter's horizontal diffuse irradiance is exactly pi S(lam)).
+That module holds the radiance model: the coefficients, f, its normalisation and the sampling
+table.
 
 Directions are importance-sampled from a piecewise-constant table of f over a latitude-longitude
 grid of the upper hemisphere (cells uniform in cos(theta) and azimuth inside, so that the pdf is
