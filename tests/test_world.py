@@ -497,6 +497,16 @@ def test_a_day_of_the_world_exports_as_gltf(summer, tmp_path):
     summ = json.loads((tmp / "run" / "summary.json").read_text())
     assert info["moss_cover_m2"] == pytest.approx(summ["days_record"][1]["covered_area_m2"],
                                                   rel=1e-6)
+    from mitsuba_veg.errors import ParameterError
+    # a file of the user's is never overwritten; the run's own gltf/ folder is marked as the
+    # package's, and a second export of the day replaces the first
+    with pytest.raises(ParameterError, match="does not exist yet"):
+        export_day(tmp / "run", 2, out)
+    a = export_day(tmp / "run", 2)
+    b = export_day(tmp / "run", 2)
+    assert a["path"] == b["path"] == str(tmp / "run" / "gltf" / "day_0002.glb")
+    from mitsuba_veg.outputs import folder_kind
+    assert folder_kind(tmp / "run" / "gltf") == "gltf"
 
 
 def test_weber_penn_tree_ages_along_its_height_curve(tmp_path):

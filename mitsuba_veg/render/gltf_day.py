@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import ParameterError, check_range
 from ..export_gltf import GltfWorld
 from ..foliage.pigments import N_STAGES
+from ..outputs import OutputFolder
 from ..meshes import triangle_geometry
 from ..trees.structure import leaf_quads
 from .history import _read_snapshot, load_run
@@ -56,7 +57,9 @@ def export_day(run_dir, day: int | None = None, path=None, scenario=None) -> dic
     day : int, optional
         Simulated day (1-based); default the last with a snapshot.
     path : path-like, optional
-        The ``.glb`` file (default ``RUN_DIR/gltf/day_NNNN.glb``).
+        The ``.glb`` file, which must not exist yet (default ``RUN_DIR/gltf/day_NNNN.glb``:
+        a folder claimed and marked as a ``gltf`` result, where a later export of the day
+        replaces the earlier one).
     scenario : path-like, optional
         The run's scenario (default: the one its summary names).
 
@@ -70,7 +73,7 @@ def export_day(run_dir, day: int | None = None, path=None, scenario=None) -> dic
     ------
     ParameterError
         Without a snapshot on or before ``day`` (the moss and leaves of a day come from
-        snapshots: run with frames), or for a day outside the run.
+        snapshots: run with frames), for a day outside the run, or if ``path`` exists.
     """
     run = load_run(run_dir, scenario)
     last = run.snapshots[-1][0] if run.snapshots else 0
@@ -113,7 +116,17 @@ def export_day(run_dir, day: int | None = None, path=None, scenario=None) -> dic
                          face_leaf=np.repeat(np.arange(len(sel)), 2))
             info["meshes"].append({"name": f"{name}.leaves", "triangles": int(len(qf))})
             info["leaves_on_trees"] += int(len(sel))
-    path = Path(path) if path is not None else Path(run_dir) / "gltf" / f"day_{day:04d}.glb"
+    if path is None:
+        # the run's own gltf/ folder, claimed and marked like a render's: a later export
+        # replaces what an earlier one wrote there, never a file of the user's
+        path = Path(run_dir) / "gltf" / f"day_{day:04d}.glb"
+        with OutputFolder(path.parent, "gltf", info={"run": str(run.dir)}, reads=run.dir):
+            info["path"] = str(w.export(path))
+        return info
+    path = Path(path)
+    if path.exists():
+        raise ParameterError("--out", str(path), "a file that does not exist yet",
+                             "choose another file name, or remove this one yourself")
     path.parent.mkdir(parents=True, exist_ok=True)
     info["path"] = str(w.export(path))
     return info
