@@ -25,6 +25,7 @@ Frame (project convention): +y up, +x east, +z south; the grid's azimuth is cloc
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -276,6 +277,13 @@ def normalisation(sun, coeffs, n_theta=768):
     ParameterError
         If the radiance is zero everywhere above the horizon.
     """
+    # the same sky is set up again and again (every scene a world rebuilds): remembered
+    return _normalisation(tuple(float(v) for v in np.asarray(sun, float).reshape(-1)),
+                          tuple(float(c) for c in coeffs), int(n_theta))
+
+
+@functools.lru_cache(maxsize=256)
+def _normalisation(sun, coeffs, n_theta):
     th = (np.arange(n_theta) + 0.5) * (0.5 * math.pi / n_theta)
     ph = (np.arange(4 * n_theta) + 0.5) * (2 * math.pi / (4 * n_theta))
     ct, st = np.cos(th)[:, None], np.sin(th)[:, None]
