@@ -157,7 +157,12 @@ def test_tree_by_the_house_grows_away_from_it_from_the_days_light(tmp_path, monk
     assert east(own) > east(vertical) + 0.05 and east(own) > 0.2
     # the regrowth itself: one generation more, the scene rebuilt, the next day lit
     monkeypatch.undo()
+    grid = sim.state.moss.grid
     rows = sim.regrow()
+    # the moss keep their cells: the same grid, and the new scene's grid has its origin (the
+    # terrain's box, which a taller crown does not move)
+    assert sim.state.moss.grid is grid
+    assert np.array_equal(sim.site.new_grid().lo, grid.lo)
     # the floor's year: its maps and its row (DLI, R:FR, gap fraction, moss cover)
     floor = sim.state.floor_log[-1]
     print("floor", floor)

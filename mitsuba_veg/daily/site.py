@@ -100,8 +100,27 @@ class Site:
         SpotGrid
             The grid.
         """
-        lo, hi = np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max)
+        lo, hi = self.terrain_bbox()
         return SpotGrid(lo, hi, self.grid_cell(), int(self.config.moss_cfg["capacity"]))
+
+    def terrain_bbox(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounding box of the terrain's meshes (where moss lives) [m].
+
+        The spot grid's origin follows it, not the whole scene: trees that grow (or are
+        placed) change the scene's box, and a grid whose origin moved would put moss that
+        kept their positions into other cells.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            (min, max) corners; the scene's box where the scene has no terrain meshes.
+        """
+        vs = [self.index.geometry[s][0] for s in self.terrain_shapes
+              if s in self.index.geometry]
+        if not vs:
+            return np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max)
+        v = np.concatenate([np.asarray(x, float).reshape(-1, 3) for x in vs])
+        return v.min(0), v.max(0)
 
     @property
     def grid(self) -> SpotGrid:
@@ -156,7 +175,7 @@ class Site:
         self.index = SceneIndex.build(self.scene)
         self.integrator = PhotonIrradianceIntegrator()
         self._setup_terrain()
-        lo, hi = np.array(self.index.aim_bbox.min), np.array(self.index.aim_bbox.max)
+        lo, hi = self.terrain_bbox()
         size = float(cfg.moss_cfg["size"])
         span = float(np.max(hi - lo))
         smallest = span / (SpotGrid.max_cells_per_axis - 3)
