@@ -101,6 +101,9 @@ SCHEMA: dict[str, Field] = {
         "start_date": Field("date", doc="YYYY-MM-DD"),
         "checkpoint_every": _num("int", 0, 100_000, "days between checkpoints (0: at the end)"),
         "frame_every": _num("int", 1, 100_000, "days between maps and snapshots"),
+        "light_every": _num("int", 1, 365, "days between photon passes (1: every day); the "
+                            "days between reuse the last pass's fractions with their own "
+                            "weather"),
     }),
     "climate": Field("table", fields={
         "temperature": _num("float", 200.0, 340.0, "[K]"),

@@ -30,7 +30,7 @@ MOSS_DEFAULTS = {
     "shapes": None,             # shapes moss may live on (default: all meshes)
 }
 SIM_DEFAULTS = {"days": 300, "start_date": "2026-03-01", "checkpoint_every": 10,
-                "frame_every": 10}
+                "frame_every": 10, "light_every": 1}
 
 
 class MossConfig:
@@ -49,6 +49,8 @@ class MossConfig:
         Simulated days [d].
     start : datetime.date
         The date of day 0.
+    light_every : int
+        Days between photon passes (``simulation.light_every``; 1: every day).
     moss_cfg, light_cfg : dict
         The scenario's [moss] (with defaults) and light settings; ``seed`` the light seed.
     species : list of Species
@@ -72,6 +74,9 @@ class MossConfig:
                                  None, src) from None
         self.checkpoint_every = int(sim["checkpoint_every"])
         self.frame_every = int(sim["frame_every"])
+        self.light_every = int(sim["light_every"])
+        check_range("simulation.light_every", self.light_every, 1, 365, source=src,
+                    fix="1 traces the light every day; e.g. 3 every third day")
         m = {**MOSS_DEFAULTS, **scenario.get("moss", {})}
         self.moss_cfg = m
         check_range("moss.capacity", m["capacity"], 16, 50_000_000, source=src)

@@ -20,6 +20,14 @@ Moss cover enters the pass as per-element albedo; the leaves' stages and fall as
 BSDF and mode tables (:mod:`mitsuba_veg.world.canopy`). All three tables are device arrays
 written in place each day: new contents, the same kernel.
 
+A light schedule (``simulation.light_every = N``) traces a pass on the days whose number is a
+multiple of N (and on the first day of a process or of a rebuilt scene); the days between keep
+the last pass's tallies (per element and emitter the fraction of a unit horizontal irradiance)
+and scale them by their own beam, diffuse and band shapes. The sun's path and the scene's
+state (moss albedo, leaf stages, leaves out) are then those of the pass's day; the weather is
+the day's own. Forest gap models take their light once a year; N = 3-7 costs a stand's moss a
+lag of a few days in the light (docs/world.md measures it).
+
 The photon split between sun and sky follows the power each sends towards the geometry, as
 ``trace`` does by default; it is computed for every day at set-up (the sun's exactly from its
 directions and the aiming rectangle of each, the sky's by one pilot), not by a pilot pass and
@@ -100,6 +108,9 @@ class DayLight:
         self.max_depth = int(cfg.light_cfg["max_depth"])
         self.indirect = bool(cfg.light_cfg["indirect"])
         self.seed = int(cfg.seed)
+        self.every = int(cfg.light_every)
+        #: (day, PhotonIrradianceResult) of the last pass, reused until the next one
+        self.held = None
         # the leaves' net insolation (front - back) for trees that grow from their light
         self.leaf_net = any(wt.model == "growth" for wt in site.trees)
         idx = site.index
@@ -141,6 +152,8 @@ class DayLight:
             self.d_leaf_row_b = mi.UInt32(lrows[np.where(two, first + 1, first)]
                                           .astype(np.uint32))
             self.d_leaf_two = mi.Bool(two)
+            # each leaf's first triangle in the leaf mesh (its mode: on the tree or hidden)
+            self.d_leaf_first = mi.UInt32(np.asarray(first, np.uint32))
         else:
             self.leaf_elems = None
         if site.sensors is not None:
@@ -194,6 +207,12 @@ class DayLight:
         """
         day = vals.day
         site = self.site
+        if self.held is not None and not self.traces(day):
+            _, res, pass_area = self.held
+            shown = None
+            if leaf_tables is not None and self.leaf_elems is not None:
+                shown = dr.gather(mi.UInt32, leaf_tables[0], self.d_leaf_first) == SURFACE
+            return self._light(res, vals, leaf_area, canopy, pass_area, shown)
         dirs, w, _ = self.inputs.sun.day(day)
         site.sun.set_day(dirs, w, size=max(self.SUN_STEPS, len(w)))
         t = self.tables
@@ -215,6 +234,31 @@ class DayLight:
                                     max_depth=self.max_depth, bands=BANDS,
                                     indirect=self.indirect, tables=t,
                                     counts=self.counts[day], frozen=self.frozen)
+        self.held = (day, res, leaf_area)
+        return self._light(res, vals, leaf_area, canopy)
+
+    def traces(self, day: int) -> bool:
+        """Whether day ``day`` is a pass day of the schedule (module docstring; the first day of
+        a process or scene traces whatever its number).
+
+        Parameters
+        ----------
+        day : int
+            Day number [d].
+
+        Returns
+        -------
+        bool
+            ``day % light_every == 0``.
+        """
+        return day % self.every == 0
+
+    def _light(self, res, vals: DayValues, leaf_area, canopy, pass_area=None,
+               shown=None) -> DayLightResult:
+        """The day's light from a pass's tallies and the day's own weather and band shapes;
+        ``pass_area``: the leaves' areas on the pass's day, when it was an earlier day, and
+        ``shown``: which leaves are on the tree today."""
+        site = self.site
         s_sun, s_sky = self.strength
         kt = self.band_index["total"]
         rows = self.d_terrain_rows
@@ -239,6 +283,12 @@ class DayLight:
         leaf = S_leaf = S_net = None
         if canopy is not None and self.leaf_elems is not None:
             area = dr.maximum(leaf_area, 1e-12)
+            if pass_area is not None:
+                # the pass's irradiance on the leaves on the tree on both days; a leaf fallen
+                # since gets none (its flux over an infinite area), one out since none yet
+                # (it was hidden in the pass)
+                on = leaf_area > 0 if shown is None else shown
+                area = dr.select(on, dr.maximum(pass_area, 1e-12), dr.inf)
             leaf = {}
             lf = {}
             for b, k in self.band_index.items():

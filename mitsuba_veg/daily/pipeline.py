@@ -16,6 +16,11 @@ After 31 December the trees of ``model = "growth"`` grow one generation from the
 light (:meth:`Simulation.regrow`): the light scene is rebuilt with them; the soil water and the
 moss carry over (the terrain's elements come first and do not change), the leaves start bare.
 
+With ``simulation.light_every = N`` the light stage traces its pass every N-th day and the
+days between scale the last pass by their own weather (:mod:`mitsuba_veg.daily.light`);
+checkpoints are then written on days after which a pass follows, so that a resumed run needs
+no earlier pass (:meth:`Simulation.resumable`).
+
 A moss-only scenario is a world without trees (no leaves stage). State (:class:`DayState`):
 the soil water, the moss population and its spot grid, the leaves; nothing of it is read back
 on a normal day: the host reads the day's record and, on their days, writes maps, snapshots
@@ -257,6 +262,8 @@ class Simulation:
                         "record": 0.0}
         self.state: DayState | None = None
         self.last: dict = {}
+        self._env = None        # the growth's obstacles (the scenario's meshes), built once
+        self._year_out_s = 0.0  # seconds of the last year end's outputs (figures, tree files)
 
     # ---- set-up ---------------------------------------------------------------------------
     def setup(self) -> None:
@@ -405,8 +412,9 @@ class Simulation:
             # December show the trees that grew that year)
             t0 = time.perf_counter()
             self.regrow()
+            # the year's figures and tree files are outputs (timed as such in regrow)
             self.timings["growth"] = self.timings.get("growth", 0.0) + \
-                time.perf_counter() - t0
+                time.perf_counter() - t0 - self._year_out_s
         rec, fields = self.pipeline.run_day(self.state)
         self.last = HostFields(fields)
         self.last_fields = fields
@@ -426,7 +434,10 @@ class Simulation:
         """
         st = self.state
         g = self.pipeline.growth
+        t0 = time.perf_counter()
         self._floor_year()
+        self._year_out_s = time.perf_counter() - t0
+        self.timings["output"] += self._year_out_s
         lights = g.tip_lights(st.year) if g.trees else {}
         year = self.date(self.day - 1).year
         if not lights and not g.ageing:      # bare all year: a new year of sums
@@ -439,7 +450,10 @@ class Simulation:
         # obstacles of the new segments: the scene's meshes (walls, rocks, logs, terrain), one
         # environment for every tree; neighbouring crowns may interlace (an environment per
         # tree with its neighbours cost a 36-tree stand 4 s a year)
-        env = obstacles(self.config.scn.load_scene(daylight=False)) if lights else None
+        if lights and self._env is None:
+            # the scenario's own meshes do not change: one environment for the whole run
+            self._env = obstacles(self.config.scn.load_scene(daylight=False))
+        env = self._env if lights else None
         for i in g.ageing:                    # Weber-Penn trees one year older
             trees[i] = age_tree(trees[i], 1)
             rows.append({"year": year, "day": self.day, "tree": trees[i].name,
@@ -468,12 +482,17 @@ class Simulation:
                          "live_segments": int(trees[i].tree.alive.sum())})
         self._rebuild(trees)
         st.growth_log.extend(rows)
+        t0 = time.perf_counter()
         self._write_trees(year)
+        dt = time.perf_counter() - t0
+        self._year_out_s += dt
+        self.timings["output"] += dt
         return rows
 
     def _floor_year(self) -> dict:
         """The ending year's floor (its light maps, gap fraction, moss cover): a row of
-        ``floor_log``, ``years/floor_<year>.png`` and ``floor_years.png``."""
+        ``floor_log``, ``years/floor_<year>.png`` with its arrays per ground triangle in
+        ``years/floor_<year>.npz``, and ``floor_years.png``."""
         st, site = self.state, self.site
         year = self.date(self.day - 1).year
         gsl = site.ground_slice
@@ -483,6 +502,10 @@ class Simulation:
         st.floor_log.append(row)
         v, f = site.index.geometry[site.ground_id]
         floor_figure(self.out / "years" / f"floor_{year}.png", v, f, year, fl, site.trees)
+        # the figure's numbers per ground triangle, for the user's own analysis
+        folder = self.out / "years"
+        with atomic_write(folder / f"floor_{year}.npz", folder / f".floor_{year}.tmp.npz") as t:
+            np.savez_compressed(t, area_m2=site.index.areas[gsl], **fl["maps"])
         floor_years_figure(self.out / "floor_years.png", st.floor_log)
         return row
 
@@ -522,8 +545,9 @@ class Simulation:
         st.day, st.O, st.history = old.day, old.O, old.history
         st.sensor_days, st.growth_log = old.sensor_days, old.growth_log
         st.floor_log = old.floor_log
-        st.moss.pop = old.moss.pop
-        st.moss.grid.rebuild(st.moss.pop.pos, st.moss.pop.state)
+        # the moss keep their slots and cells (the grid's origin is the terrain's, which
+        # the trees do not move)
+        st.moss = old.moss
         self.state = st
 
     def run(self, resume: bool = True, on_day=None) -> dict:
@@ -553,7 +577,7 @@ class Simulation:
         # atomically, so these are never read)
         for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
                         "snapshots/.day_*.tmp.npz", "days.tmp.gif", "trees/.*.tmp.npz",
-                        ".trees_yearly.tmp.csv", "years/.*.tmp.png", ".floor_years.tmp.png"):
+                        ".trees_yearly.tmp.csv", "years/.*.tmp.png", "years/.*.tmp.npz", ".floor_years.tmp.png"):
             for q in self.out.glob(pattern):
                 q.unlink()
         if not resumed:
@@ -562,6 +586,7 @@ class Simulation:
         if self.progress:
             bar = tqdm(total=self.days, initial=self.day, unit="day", desc="days")
         stop = _InterruptFlag()
+        due = told = False
         try:
             with stop:
                 while self.day < self.days:
@@ -573,17 +598,35 @@ class Simulation:
                     t0 = time.perf_counter()
                     if on_day is not None:
                         on_day(self, rec)
-                    if self.checkpoint_every and self.day % self.checkpoint_every == 0:
+                    due |= bool(self.checkpoint_every) and self.day % self.checkpoint_every == 0
+                    if due and self.resumable():
                         ckpt.save(self)
+                        due = False
                     self.timings["output"] += time.perf_counter() - t0
-                    if stop.requested:
+                    if stop.requested and self.resumable():
                         ckpt.save(self)
                         raise Interrupted(self.day, self.checkpoint_path)
+                    if stop.requested and not told:
+                        told = True
+                        tqdm.write("interrupted: running on to the next photon pass "
+                                   f"(simulation.light_every = {self.pipeline.light.every}) "
+                                   "for a checkpoint that resumes exactly")
         finally:
             if bar is not None:
                 bar.close()
         ckpt.save(self)
         return self.summary(resumed)
+
+    def resumable(self) -> bool:
+        """Whether a checkpoint written now resumes exactly: the next day traces a new photon
+        pass (``simulation.light_every``), so a resumed run needs no earlier pass.
+
+        Returns
+        -------
+        bool
+            Always with a pass every day.
+        """
+        return self.pipeline.light.traces(self.day)
 
     @property
     def checkpoint_path(self) -> Path:
@@ -627,7 +670,8 @@ class Simulation:
             "settings": {"light": self.light_cfg, "moss": self.moss_cfg,
                          "climate": self.climate.__dict__, "simulation": {
                              "start_date": self.start.isoformat(),
-                             "checkpoint_every": self.checkpoint_every}},
+                             "checkpoint_every": self.checkpoint_every,
+                             "light_every": self.pipeline.light.every}},
             "species": [sp.name for sp in self.species],
             "spot_grid": {"cell_m": self.grid.cell},
             "final": {"covered_area_m2": float(cov.sum()),
