@@ -25,7 +25,7 @@ import numpy as np
 from .. import soil as soil_model
 from ..errors import ParameterError, check_range
 from ..integrators.photon_irradiance import BANDS as BAND_RANGES
-from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex
+from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, scene_index
 from ..light import sensors as sensors_mod
 from ..meshes import make_mesh
 from ..moss.spatial import SpotGrid, max_per_element
@@ -172,7 +172,8 @@ class Site:
         self.scene = mi.load_dict(d, optimize=False)
         ems = {e.id(): e for e in self.scene.emitters()}
         self.sun, self.sky = ems["sun"], ems["sky"]
-        self.index = SceneIndex.build(self.scene)
+        # the pass's own cache: its tables and pilot find this index instead of a second one
+        self.index = scene_index(self.scene)
         self.integrator = PhotonIrradianceIntegrator()
         self._setup_terrain()
         lo, hi = self.terrain_bbox()
