@@ -121,3 +121,27 @@ def test_leaves_fallen_since_the_pass_get_no_light(tmp_path):
         print("day", day, "on the tree tonight", int(on.sum()), "lit", int((S > 0).sum()))
     # the autumn is fast enough to test both kinds of leaf on the days between passes
     assert fell_between > 0 and lit_between > 0
+
+
+def test_ctrl_c_runs_on_to_the_next_pass_day_then_checkpoints(tmp_path, capsys):
+    """Ctrl-C after day 4 with a pass every third day: the run goes on to day 6 (day 6 traces),
+    writes its checkpoint there and stops; resumed, it ends as the uninterrupted run."""
+    import os
+    import signal
+    from mitsuba_veg.daily.pipeline import Interrupted
+    ov = ["simulation.light_every=3", "simulation.checkpoint_every=0"]
+
+    def ctrl_c_after_day_4(sim, rec):
+        if sim.day == 4:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    b = _sim(tmp_path / "b", 9, ov)
+    with pytest.raises(Interrupted) as e:
+        b.run(on_day=ctrl_c_after_day_4)
+    assert e.value.day == 6
+    assert int(np.load(tmp_path / "b" / "checkpoint.npz")["day"]) == 6
+    assert "next photon pass" in capsys.readouterr().out
+    sb = _sim(tmp_path / "b", 9, ov).run()
+    sa = _sim(tmp_path / "a", 9, ov).run()
+    strip = lambda recs: [{k: v for k, v in r.items() if k != "seconds"} for r in recs]  # noqa
+    assert sb["resumed"] and strip(sb["days_record"]) == strip(sa["days_record"])
