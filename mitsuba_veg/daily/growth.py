@@ -36,6 +36,7 @@ from ..light.photon import band_range
 from ..plots import _mpl, plan_map, save_figure
 from ..trees.growth import TipLight
 from ..units import umol_per_joule
+from ..world.trees import ages
 
 #: the model of the trees that grow from their light
 GROWTH_MODEL = "growth"
@@ -126,8 +127,7 @@ class DayGrowth:
         self.trees = [i for i, wt in enumerate(site.trees)
                       if wt.model == GROWTH_MODEL and wt.tree is not None]
         #: Weber-Penn trees that age every year (``age`` in their scenario entry)
-        self.ageing = [i for i, wt in enumerate(site.trees)
-                       if wt.model == "weber_penn" and wt.info.get("age") is not None]
+        self.ageing = [i for i, wt in enumerate(site.trees) if ages(wt)]
         self.n = c.n_leaves
         # each leaf's geometric normal (its first triangle's: the pass's "front" side)
         t = c.tri[c._first]

@@ -52,7 +52,7 @@ from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
 from ..outputs import atomic_write
-from ..world.trees import age_tree, obstacles, regrow, tree_state
+from ..world.trees import age_tree, ages, obstacles, regrow, tree_state
 from .config import MossConfig
 from .growth import DayGrowth, YearLight, floor_figure, floor_year, floor_years_figure
 from .inputs import DayInputs
@@ -119,10 +119,8 @@ class DayPipeline:
         self.leaves = DayLeaves(site) if site.canopy is not None and site.canopy.n_leaves \
             else None
         self.light = DayLight(site, inputs, light_strength)
-        ageing = any(wt.model == "weber_penn" and wt.info.get("age") is not None
-                     for wt in site.trees)
         self.growth = DayGrowth(site) if self.leaves is not None and \
-            (self.light.leaf_net or ageing) else None
+            (self.light.leaf_net or any(ages(wt) for wt in site.trees)) else None
         self.moss = DayMoss(site)
         self.record = DayRecord(site)
         self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
@@ -577,7 +575,8 @@ class Simulation:
         # atomically, so these are never read)
         for pattern in ("checkpoint.tmp.npz", "*.json.tmp", "maps/.day_*.tmp.png",
                         "snapshots/.day_*.tmp.npz", "days.tmp.gif", "trees/.*.tmp.npz",
-                        ".trees_yearly.tmp.csv", "years/.*.tmp.png", "years/.*.tmp.npz", ".floor_years.tmp.png"):
+                        ".trees_yearly.tmp.csv", "years/.*.tmp.png", "years/.*.tmp.npz",
+                        ".floor_years.tmp.png"):
             for q in self.out.glob(pattern):
                 q.unlink()
         if not resumed:

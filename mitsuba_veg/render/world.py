@@ -7,7 +7,7 @@ import logging
 import numpy as np
 
 from ..world.trees import scenario_trees as world_scenario_trees
-from ..world.trees import age_tree, tree_from_state
+from ..world.trees import age_tree, ages, tree_from_state
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
@@ -100,7 +100,7 @@ def world_trees(run, day: int | None = None):
         for i in np.asarray(d["indices"], np.int64):
             built[int(i)] = tree_from_state(d, str(int(i)))
         for i, wt in enumerate(built):   # Weber-Penn trees a year older at every year's end
-            if wt.model == "weber_penn" and wt.info.get("age") is not None:
+            if ages(wt):
                 built[i] = age_tree(wt, len(versions))
     trees, offsets, n = [], [], 0
     for wt in built:

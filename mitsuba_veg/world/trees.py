@@ -232,6 +232,23 @@ def age_curve(age, rate: float = AGE_RATE, shape: float = AGE_SHAPE):
     return (1.0 - np.exp(-float(rate) * np.asarray(age, float))) ** float(shape)
 
 
+def ages(wt: WorldTree) -> bool:
+    """Whether a tree ages every 31 December (:func:`age_tree`): a Weber-Penn tree whose
+    scenario entry gives its ``age``.
+
+    Parameters
+    ----------
+    wt : WorldTree
+        A world tree.
+
+    Returns
+    -------
+    bool
+        True for an ageing Weber-Penn tree.
+    """
+    return wt.model == "weber_penn" and wt.info.get("age") is not None
+
+
 def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
     """A Weber-Penn tree ``years`` older: scaled about its base by H(a + years) / H(a) of
     :func:`age_curve` (a Chapman-Richards curve through its height at its scenario age, so the
