@@ -4,6 +4,7 @@ lookup tables that turn a hit into its element and BSDF (module docstring of
 :mod:`mitsuba_veg.integrators.photon_irradiance`)."""
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import drjit as dr
@@ -36,6 +37,13 @@ def scene_index(scene: mi.Scene) -> "SceneIndex":
         _INDEX_CACHE.clear()
         _INDEX_CACHE.update(scene=scene, index=SceneIndex.build(scene))
     return _INDEX_CACHE["index"]
+
+
+def forget_scene_index() -> None:
+    """Let go of the cached scene and its index (:func:`scene_index`), so that a scene being
+    replaced is freed before its successor is built (a large stand's rebuild holds one, not
+    two)."""
+    _INDEX_CACHE.clear()
 
 
 # --------------------------------------------------------------------------------------------
@@ -131,6 +139,38 @@ def _box_corners(bmin, bmax):
                      for z in (bmin[2], bmax[2])], dtype=np.float64)
 
 
+class MeshGeometry(Mapping):
+    """Shape id -> (vertices (n, 3) [m] float64, faces (m, 3) int64) of the scene's plain
+    meshes, read from the meshes' own buffers when first asked for (and kept).
+
+    A large scene's leaves and wood are not copied to the host unless someone reads them
+    (a 1-ha stand's would be 2 GB); the terrain's are read by the site at once.
+
+    Parameters
+    ----------
+    shapes : dict
+        Shape id -> Mitsuba mesh.
+    """
+
+    def __init__(self, shapes: dict):
+        self._shapes = dict(shapes)
+        self._arrays: dict = {}
+
+    def __getitem__(self, sid):
+        if sid not in self._arrays:
+            self._arrays[sid] = _mesh_arrays(self._shapes[sid])
+        return self._arrays[sid]
+
+    def __contains__(self, sid) -> bool:
+        return sid in self._shapes
+
+    def __iter__(self):
+        return iter(self._shapes)
+
+    def __len__(self) -> int:
+        return len(self._shapes)
+
+
 @dataclass
 class SceneIndex:
     """Maps Mitsuba shapes to a flat range of *elements* (one per triangle, one per non-mesh).
@@ -158,7 +198,8 @@ class SceneIndex:
     lookup: mi.UInt32            # registry id of a shape/instance -> its (local) offset
     aim_bbox: mi.ScalarBoundingBox3f  # geometry that photons are aimed at
     n_elements: int = 0
-    geometry: dict = field(default_factory=dict)  # shape id -> (vertices, faces) of plain meshes
+    geometry: Mapping = field(default_factory=dict)  # shape id -> (vertices, faces) of plain
+    # meshes (:class:`MeshGeometry`)
     #: shapes counted as a single element: {shape id: Mitsuba class name}
     single_element: dict = field(default_factory=dict)
     #: instances: {instance id: shapegroup id}
@@ -319,7 +360,7 @@ class SceneIndex:
                 areas.append(a)
                 normals.append(nrm)
                 cents.append(c)
-                geometry[sid] = (v, f)
+                geometry[sid] = sh
                 reg_offset[_reg_id(sh)] = offset
                 tn = tri_normals(sh, f)
                 if tn is not None:
@@ -408,7 +449,7 @@ class SceneIndex:
             full_lookup = mi.UInt32(fl)
         return SceneIndex(ids, offsets, counts, np.concatenate(areas), np.concatenate(normals),
                           np.concatenate(cents), mi.UInt32(lookup), bbox, int(counts.sum()),
-                          geometry, single, instances,
+                          MeshGeometry(geometry), single, instances,
                           {k: slice(o, o + c) for k, (o, c) in sub_local.items()},
                           mi.UInt32(blook), analytic, needs_full, mi.UInt32(gbase),
                           mi.UInt32(np.array(g_local + [0], np.uint32)),

@@ -156,12 +156,11 @@ SCHEMA: dict[str, Field] = {
         "leaves_file": Field("file", doc="mesh: the foliage, one leaf element per triangle"),
         "scale": _num("float", 1e-4, 1e4, "mesh: scale factor"),
     }),
-    "stand": Field("table", doc="trees laid out over the terrain, grown together by paper 001's "
-                   "model (docs/forest.md)", fields={
+    "stand": Field("table", doc="trees laid out over the terrain: Weber-Penn presets and/or "
+                   "trees grown together by paper 001's model (docs/forest.md)", fields={
         "plot": Field("any", doc="[x0, z0, x1, z1] [m] or [[x, z], ...] (a polygon)"),
         "density": _num("float", 1e-3, 1e5, "[trees/ha] of map area"),
-        "mix": Field("any", doc="{species = weight}: \"growth\" (Weber-Penn presets in a "
-                     "world stand: not yet)"),
+        "mix": Field("any", doc="{species = weight}: Weber-Penn presets and \"growth\""),
         "placement": Field("choice", choices=("poisson_disc", "clumped")),
         "min_spacing": _num("float", 0.0, 1e3, "[m] smallest distance between two trees"),
         "cluster": Field("choice", choices=("thomas", "matern")),
@@ -174,6 +173,10 @@ SCHEMA: dict[str, Field] = {
         "seed": _num("int", 0, 2**31 - 1),
         "generations": _num("int", 0, 20, "growth model generations G at set-up"),
         "growth": Field("any", doc="GrowthParams fields (unit [m] sets the size)"),
+        "age": _num("float", 0.5, 1000.0, "[years] Weber-Penn members: their age at the start; "
+                    "they grow every 31 December along a Chapman-Richards curve through their "
+                    "height (docs/world.md)"),
+        "age_rate": _num("float", 1e-4, 2.0, "[1/year] k of that curve (default 0.05)"),
     }),
     "phenology": Field("table", fields={
         "leaf_out_doy": _num("int", 1, 366, "day of year leaf-out starts"),

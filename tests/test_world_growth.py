@@ -219,6 +219,23 @@ def test_multi_year_world_resumes_exactly(tmp_path):
     assert offsets[-1][1] == len(after[0].leaves) == growth[0]["leaves"]
 
 
+def _ground_y(xz):
+    """Height of scenes/forest_stand's ground mesh at map points (x, z) [m]."""
+    import trimesh
+    ground = trimesh.load(ROOT / "scenes" / "forest_stand" / "ground.ply", force="mesh")
+    tri = np.asarray(ground.vertices)[np.asarray(ground.faces)]          # (F, 3, 3)
+    a, b, c = (tri[:, k][:, [0, 2]] for k in range(3))
+    y = np.full(len(xz), np.nan)
+    for i, p in enumerate(xz):                      # barycentric in the map plane
+        v0, v1, v2 = b - a, c - a, p - a
+        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+        u = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        v = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        k = np.flatnonzero((u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9))[0]
+        y[i] = (1 - u[k] - v[k]) * tri[k, 0, 1] + u[k] * tri[k, 1, 1] + v[k] * tri[k, 2, 1]
+    return y
+
+
 def test_forest_stand_scenario_grows_its_stand_together_on_the_floor(tmp_path):
     """scenes/forest_stand: the [stand] lays out 36 growth trees on 0.1 ha of sloped, rolling
     ground (Poisson-disc, >= 3 m apart) and grows them together; each stands on the terrain;
@@ -236,34 +253,96 @@ def test_forest_stand_scenario_grows_its_stand_together_on_the_floor(tmp_path):
     d = np.hypot(*(xz[:, None, :] - xz[None, :, :]).transpose(2, 0, 1))
     assert d[~np.eye(36, dtype=bool)].min() >= 3.0
     # every base on the ground mesh: the photon pass hits the ground at the trunk's foot
-    import trimesh
-    ground = trimesh.load(ROOT / "scenes" / "forest_stand" / "ground.ply", force="mesh")
-    tri = np.asarray(ground.vertices)[np.asarray(ground.faces)]          # (F, 3, 3)
-    a, b, c = (tri[:, k][:, [0, 2]] for k in range(3))
-    y = np.full(36, np.nan)
-    for i, p in enumerate(xz):                      # barycentric in the map plane
-        v0, v1, v2 = b - a, c - a, p - a
-        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
-        u = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
-        v = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
-        k = np.flatnonzero((u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9))[0]
-        y[i] = (1 - u[k] - v[k]) * tri[k, 0, 1] + u[k] * tri[k, 1, 1] + v[k] * tri[k, 2, 1]
-    np.testing.assert_allclose([t.position[1] for t in trees], y, atol=0.02)
+    np.testing.assert_allclose([t.position[1] for t in trees], _ground_y(xz), atol=0.02)
     assert len(set(sim.site.terrain_shapes)) == 17              # ground, 6 logs, 10 rocks
     sim.initialise()
     rec = sim.step()
     assert set(rec["trees"]) == {t.name for t in trees}
 
 
-def test_world_stand_refuses_weber_penn_members(tmp_path):
+def _aspen_stand(tmp_path, extra=""):
+    """scenes/forest_stand with a stand of Weber-Penn aspens (0.09 ha, 9 trees, 2 variants,
+    aged 10 at the start) over its floor."""
     d = tmp_path / "scen"
     shutil.copytree(ROOT / "scenes" / "forest_stand", d)
-    text = (d / "scenario.toml").read_text().replace("mix = { growth = 1.0 }",
-                                                     "mix = { growth = 1.0, quaking_aspen = 1.0 }")
-    (d / "scenario.toml").write_text(text)
+    text = (d / "scenario.toml").read_text()
+    old = text[text.index("[stand]"):]
+    (d / "scenario.toml").write_text(text.replace(old, """[stand]
+plot = [-15.0, -15.0, 15.0, 15.0]
+density = 100.0
+mix = { quaking_aspen = 1.0 }
+min_spacing = 5.0
+height_mean = 5.0
+variants = 2
+seed = 3
+age = 10.0
+""" + extra))
+    return d / "scenario.toml"
+
+
+def test_weber_penn_stand_members_placed_on_the_floor_and_ageing(tmp_path):
+    """A world stand of Weber-Penn aspens: each member is its variant (2 generated, from the
+    stand's seed) turned by its yaw and scaled to its height from the layout, standing on the
+    terrain; every 31 December it grows along the Chapman-Richards age curve; a run stopped
+    before the year's end and resumed after it repeats the uninterrupted one."""
     from mitsuba_veg.daily import Simulation
     from mitsuba_veg.scenario import load_scenario
-    sim = Simulation(load_scenario(d / "scenario.toml"), tmp_path / "run", days=1,
-                     progress=False)
-    with pytest.raises(ParameterError, match="stand.mix"):
-        sim.setup()
+    from mitsuba_veg.trees import weber_penn as wp
+    from mitsuba_veg.trees.stand import StandSpec, layout
+    from mitsuba_veg.world.trees import age_curve
+    scen = _aspen_stand(tmp_path)
+    ov = ["light.photons=20000", "simulation.checkpoint_every=1", "moss.initial=50",
+          "simulation.start_date=2026-12-30", "simulation.light_every=1"]
+    sim = Simulation(load_scenario(scen, ov), tmp_path / "probe", days=1, progress=False)
+    sim.setup()
+    trees = sim.site.trees
+    st = layout(StandSpec(plot=[-15.0, -15.0, 15.0, 15.0], density=100.0,
+                          mix={"quaking_aspen": 1.0}, min_spacing=5.0, height_mean=5.0,
+                          variants=2, seed=3))
+    assert len(trees) == len(st) == 9
+    assert all(t.model == "weber_penn" and t.info["stand"] for t in trees)
+    assert {t.info["variant"] for t in trees} == {0, 1}
+    np.testing.assert_allclose([t.position[[0, 2]] for t in trees], st.positions[:, [0, 2]])
+    # its height is the layout's, its base on the terrain (the ground's height below it)
+    np.testing.assert_allclose([t.tree.metrics()["height"] for t in trees], st.heights,
+                               rtol=1e-9)
+    np.testing.assert_allclose([t.position[1] for t in trees],
+                               _ground_y(st.positions[:, [0, 2]]), atol=0.02)
+    # the member is its variant turned and scaled: distances between its leaves scale by
+    # height / variant height, whatever the yaw
+    for t, yaw in zip(trees, st.yaw):
+        v = wp.generate("quaking_aspen", seed=st.variant_seed("quaking_aspen",
+                                                              t.info["variant"]))
+        f = t.info["scale"]
+        p0, p1 = v.leaves.position[:200], t.tree.leaves.position[:200]
+        np.testing.assert_allclose(np.linalg.norm(p1[1:] - p1[:1], axis=1),
+                                   f * np.linalg.norm(p0[1:] - p0[:1], axis=1), rtol=1e-9)
+        a = np.radians(yaw)
+        d0, d1 = v.leaves.position[5] - v.start[0], t.tree.leaves.position[5] - t.position
+        np.testing.assert_allclose(d1, f * np.array([np.cos(a) * d0[0] + np.sin(a) * d0[2],
+                                                     d0[1],
+                                                     -np.sin(a) * d0[0] + np.cos(a) * d0[2]]),
+                                   atol=1e-9)
+    assert len(trees[0].leaf_area) > 10_000
+    # the twigs are prisms, the rest tubes of 6 sides
+    t = trees[0].tree
+    twig = t.level == t.level.max()
+    assert len(trees[0].bark[1]) == 12 * int((~twig).sum()) + 6 * int(twig.sum())
+
+    def run(out, days):
+        return mv.run(scen, out=out, days=days, overrides=ov, progress=False, frames=False)
+    a = run(tmp_path / "a", 3)
+    rows = [r for r in a["world"]["growth_years"] if r.get("model") == "weber_penn"]
+    assert len(rows) == 9 and {r["age"] for r in rows} == {11.0}
+    h0 = {t.name: t.info["height_m"] for t in trees}
+    ratio = float(age_curve(11.0) / age_curve(10.0))
+    for r in rows:
+        assert r["height_m"] == pytest.approx(h0[r["tree"]] * ratio, rel=1e-9)
+    strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa
+    run(tmp_path / "b", 1)
+    b = run(tmp_path / "b", 3)
+    assert b["resumed"]
+    assert strip(b["days_record"]) == strip(a["days_record"])
+    assert b["world"]["trees"] == a["world"]["trees"]
+
+

@@ -115,8 +115,8 @@ def load(sim) -> bool:
             for i in sim.pipeline.growth.ageing:      # as many years older as it aged
                 years = sum(1 for r in growth_log if r.get("tree") == trees[i].name
                             and r.get("model") == "weber_penn")
-                if years:
-                    trees[i] = age_tree(trees[i], years)
+                for _ in range(years):   # year by year, as the run did: the same floats
+                    trees[i] = age_tree(trees[i], 1)
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
                                  f"use --fresh ({e})") from None

@@ -317,7 +317,10 @@ class DayMoss:
         flip = u.sum(1) > 1
         u[flip] = 1 - u[flip]
         pts = np.zeros((n, 3))
-        for sid, (v, f) in idx.geometry.items():  # a few shapes, not per moss
+        for sid in self.site.terrain_shapes:      # a few shapes, not per moss
+            if sid not in idx.geometry:
+                continue
+            v, f = idx.geometry[sid]
             sl = idx.shape_slice(sid)
             sel = (tri >= sl.start) & (tri < sl.stop)
             if sel.any():

@@ -33,6 +33,8 @@ random numbers derive from (seed, day), every sum is an integer or fixed-point s
 """
 from __future__ import annotations
 
+import ctypes
+import gc
 import signal
 import threading
 import time
@@ -46,6 +48,7 @@ from tqdm.auto import tqdm
 
 from ..backend import versions
 from ..errors import MitsubaVegError
+from ..integrators.scene_index import forget_scene_index
 from ..light import sensors as sensors_mod
 from ..moss.population import MOSS, PROPAGULE
 from ..scenario import Scenario
@@ -403,8 +406,9 @@ class Simulation:
         dict
             The day's record.
         """
-        g = self.pipeline.growth
-        if g is not None and self.day > 0 and g.is_year_end(self.date(self.day - 1)) and \
+        # (no local reference to the stages: the regrowth lets the old scene go)
+        if self.pipeline.growth is not None and self.day > 0 and \
+                DayGrowth.is_year_end(self.date(self.day - 1)) and \
                 not (self.state.growth_log and self.state.growth_log[-1]["day"] == self.day):
             # the night after 31 December (the day's records, maps and checkpoint of 31
             # December show the trees that grew that year)
@@ -478,8 +482,9 @@ class Simulation:
                          "crown_shift_m": [float(x) for x in
                                            trees[i].crown_centre() - trees[i].position[[0, 2]]],
                          "live_segments": int(trees[i].tree.alive.sum())})
+        g = st = None            # the old stages and state hold the old scene: let it go
         self._rebuild(trees)
-        st.growth_log.extend(rows)
+        self.state.growth_log.extend(rows)
         t0 = time.perf_counter()
         self._write_trees(year)
         dt = time.perf_counter() - t0
@@ -535,6 +540,14 @@ class Simulation:
         """A new site and pipeline with these trees; the soil water, the moss, the records
         and the day carry over, the leaves start bare and the year's sums at zero."""
         old = self.state
+        # the old scene, its tables and the day's fields go first: a large stand's rebuild
+        # then holds one light scene, not two
+        self.state = self.pipeline = self.site = None
+        self.last, self.last_fields = {}, None
+        forget_scene_index()
+        gc.collect()                     # Mitsuba objects in reference cycles
+        dr.flush_malloc_cache()          # the freed device memory back to the system
+        _trim_heap()
         self.site = build_site(self.config, trees=trees)
         if self.albedo:
             self.site.set_albedo(self.albedo)
@@ -745,6 +758,16 @@ class Interrupted(MitsubaVegError):
         self.day, self.checkpoint = day, checkpoint
         super().__init__(f"interrupted after day {day}; checkpoint written to {checkpoint}. "
                          "Run the same command again to resume")
+
+
+def _trim_heap() -> None:
+    """Hand the C heap's free pages back to the system (glibc's ``malloc_trim``; nothing
+    elsewhere): after a large scene is freed its pages would otherwise stay with the process
+    and the next scene would be built beside them."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
 
 
 class _InterruptFlag:

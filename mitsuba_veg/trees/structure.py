@@ -412,6 +412,63 @@ def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
     return t
 
 
+#: attrs holding unit directions that turn with the tree
+DIRECTION_ATTRS = ("frame_x", "light_vector", "tip_u")
+
+
+def placed_tree(tree, factor: float = 1.0, yaw: float = 0.0, position=None):
+    """A copy of ``tree`` turned by ``yaw`` about +y through its base, scaled about its base by
+    ``factor`` and moved so that its base is at ``position`` [m].
+
+    The placement of a stand's tree (:meth:`mitsuba_veg.trees.stand.Stand.transforms`:
+    ``p' = position + factor R_y(yaw) (p - base)``, with ``x' = cos(yaw) x + sin(yaw) z``,
+    ``z' = -sin(yaw) x + cos(yaw) z``). Points (segments, leaves, ``POINT_ATTRS``) move;
+    directions (leaf normals and axes, ``DIRECTION_ATTRS``) turn; lengths scale as in
+    :func:`scaled_tree`.
+
+    Parameters
+    ----------
+    tree : Tree
+        The tree; its base is the start of its first segment.
+    factor : float
+        Scale factor [-].
+    yaw : float
+        Turn about +y [deg].
+    position : array_like, optional
+        (3,) new base [m]; default None: the base stays.
+
+    Returns
+    -------
+    Tree
+        The placed copy.
+    """
+    t = tree.copy()
+    base = t.start[0].copy() if len(t) else np.zeros(3)
+    a = np.radians(float(yaw))
+    c, s = np.cos(a), np.sin(a)
+    R = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+    def point(p):
+        return (np.asarray(p, float) - base) @ R.T + base
+
+    t.start, t.end = point(t.start), point(t.end)
+    lv = t.leaves
+    lv.position = point(lv.position)
+    lv.normal = np.asarray(lv.normal, float) @ R.T
+    if lv.up is not None:
+        lv.up = np.asarray(lv.up, float) @ R.T
+    for k in POINT_ATTRS:
+        if k in t.attrs and np.ndim(t.attrs[k]) == 2:
+            t.attrs[k] = point(t.attrs[k])
+    for k in DIRECTION_ATTRS:
+        if k in t.attrs and np.ndim(t.attrs[k]) == 2:
+            t.attrs[k] = np.asarray(t.attrs[k], float) @ R.T
+    if getattr(tree, "weber_penn", None) is not None:
+        t.weber_penn = tree.weber_penn
+    offset = np.zeros(3) if position is None else np.asarray(position, float) - base
+    return scaled_tree(t, factor, offset)
+
+
 def segment_depth(parent) -> np.ndarray:
     """Ancestor count per segment for a parents-first ``parent`` array.
 

@@ -30,14 +30,18 @@ from ..integrators.scene_index import emitter_name
 from ..meshes import triangle_geometry
 from ..trees import weber_penn as wp
 from ..trees.environment import Environment
-from ..trees.growth import GrowthParams, TipLight, grow, grow_forest, grow_step
+from ..trees.growth import GrowthParams, TipLight, base_positions, grow, grow_forest, grow_step
 from ..trees.stand import GROWTH, StandSpec, layout
 from ..trees.junction import tree_mesh
 from ..trees.nongrowth import deform
-from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh
+from ..trees.structure import Leaves, Tree, leaf_quads, placed_tree, scaled_tree, tube_mesh
 from .canopy import Canopy
 
 MODELS = ("growth", "weber_penn", "mesh")
+#: sides of the wood tubes of growth trees and of a stand's Weber-Penn trees
+TUBE_SIDES = 6
+#: sides of the twigs (deepest level) of a stand's Weber-Penn trees
+TWIG_SIDES = 3
 
 
 @dataclass
@@ -97,11 +101,20 @@ class WorldTree:
 
 def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
     a = tree.alive if tree.alive is not None else np.ones(len(tree), bool)
-    if getattr(tree, "weber_penn", None) is not None:
+    if getattr(tree, "weber_penn", None) is not None and info.get("bark") != "tubes":
         b, _ = tree_mesh(tree, smooth=True, leaves=False)
         bark = (np.asarray(b.vertices, float), np.asarray(b.faces, np.int64))
+    elif info.get("bark") == "tubes" and len(tree):
+        # a stand's Weber-Penn tree: the twigs (its deepest level, where the leaves hang, a
+        # few mm thick) as triangular prisms, the rest as tubes
+        twig = tree.level == tree.level.max()
+        parts = [tube_mesh(tree.start[m], tree.end[m], tree.radius_start[m], tree.radius_end[m],
+                           k) for m, k in ((a & ~twig, TUBE_SIDES), (a & twig, TWIG_SIDES))]
+        bark = (np.concatenate([parts[0][0], parts[1][0]]),
+                np.concatenate([parts[0][1], parts[1][1] + len(parts[0][0])]))
     else:
-        bark = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], 6)
+        bark = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a],
+                         TUBE_SIDES)
     if len(tree.leaves):
         v, _f = leaf_quads(tree.leaves)
         quads = np.asarray(v, float).reshape(-1, 4, 3)
@@ -419,18 +432,31 @@ def world_tree(name: str, model: str, tree: Tree, position, info: dict) -> World
     return _tree_to_world(name, model, tree, position, info)
 
 
+#: stand fields that are not :class:`~mitsuba_veg.trees.stand.StandSpec` fields
+STAND_WORLD_FIELDS = ("generations", "growth", "age", "age_rate")
+
+
 def build_stand(cfg: dict, base_scene, built: list, source: str | None = None,
                 progress: bool = False) -> list[WorldTree]:
     """The scenario's ``[stand]``: trees laid out over the terrain
-    (:func:`mitsuba_veg.trees.stand.layout`: density, Poisson-disc or clumped placement, seed)
-    and grown **together** by paper 001's model (:func:`mitsuba_veg.trees.growth.grow_forest`,
-    §3.3: the trees shade each other as they grow) in the light of the scene and the trees
-    built before them, each based on the terrain below it.
+    (:func:`mitsuba_veg.trees.stand.layout`: density, species mix, Poisson-disc or clumped
+    placement, size spread, seed), each based on the terrain below it.
+
+    - Weber-Penn members (a preset in the mix): ``variants`` trees per preset are generated
+      (paper 004; seeds from the stand's seed) and every member is its variant turned by its
+      yaw and scaled to its height (:func:`~mitsuba_veg.trees.structure.placed_tree`). Their
+      wood is drawn as tubes of :data:`TUBE_SIDES` sides along the segments (not the
+      smooth junction mesh of a ``[[trees]]`` entry: a tenth of the triangles, docs/forest.md).
+      With ``age`` [years] they age every 31 December along :func:`age_curve` (``age_rate``).
+    - Growth members (``"growth"``): grown **together** by paper 001's model
+      (:func:`mitsuba_veg.trees.growth.grow_forest`, §3.3: they shade each other as they grow)
+      in the light of the scene, the trees built before and the stand's Weber-Penn members.
 
     Parameters
     ----------
     cfg : dict
-        The ``[stand]`` table (StandSpec fields, ``generations``, ``growth``).
+        The ``[stand]`` table (StandSpec fields, ``generations``, ``growth``, ``age``,
+        ``age_rate``).
     base_scene : mi.Scene
         The scenario's light scene (terrain, buildings, floor objects).
     built : list of WorldTree
@@ -443,34 +469,54 @@ def build_stand(cfg: dict, base_scene, built: list, source: str | None = None,
     Returns
     -------
     list of WorldTree
-        ``stand_000``, ``stand_001``, ... (model ``growth``: they grow every year in a run).
+        ``stand_000``, ``stand_001``, ... in the layout's order (growth members grow every
+        year in a run; Weber-Penn members with an ``age`` age).
 
     Raises
     ------
     ParameterError
-        For a bad stand field, or a species other than ``"growth"`` in the mix (Weber-Penn
-        trees in a world stand need the instanced canopy, not there yet).
+        For a bad stand field.
     """
-    spec_d = {k: v for k, v in cfg.items() if k not in ("generations", "growth")}
+    spec_d = {k: v for k, v in cfg.items() if k not in STAND_WORLD_FIELDS}
     spec = StandSpec.from_dict(spec_d, source)
-    other = sorted(k for k, w in spec.mix.items() if k != GROWTH and float(w) > 0)
-    if other:
-        raise ParameterError("stand.mix", dict(spec.mix), '{ growth = 1 } in a world stand',
-                             "Weber-Penn trees of a world stand need an instanced canopy (not "
-                             "there yet): place them as [[trees]] entries", source)
     stand = layout(spec)
-    params = GrowthParams.from_dict(dict(cfg.get("growth", {}) or {}), source,
-                                    prefix="stand.growth.")
-    gens = int(cfg.get("generations", 6))
     env = _obstacles(base_scene, built)
-    grown = grow_forest(stand.positions[:, [0, 2]], params, gens, scene=env, seed=spec.seed,
-                        progress=progress)
-    out = []
-    for i, t in enumerate(grown):
-        t.drop_dead_leaves()
-        out.append(_tree_to_world(f"stand_{i:03d}", "growth", t, t.start[0],
-                                  {"generations": gens, "unit_m": params.unit, "stand": True}))
-    return out
+    species = np.asarray(stand.species, str)
+    out: dict[int, WorldTree] = {}
+    wp_idx = np.flatnonzero(species != GROWTH)
+    if len(wp_idx):
+        base = base_positions(stand.positions[wp_idx][:, [0, 2]], env)
+        variants = {}
+        for sp, v in stand.variant_keys():
+            t = wp.generate(sp, seed=stand.variant_seed(sp, v))
+            variants[sp, v] = (t, float(t.metrics()["height"]))
+        age = cfg.get("age")
+        for j, i in enumerate(wp_idx):
+            sp, v = str(species[i]), int(stand.variants[i])
+            t, h0 = variants[sp, v]
+            f = float(stand.heights[i]) / h0 if h0 > 0 else 1.0
+            tree = placed_tree(t, f, float(stand.yaw[i]), base[j])
+            info = {"preset": sp, "variant": v, "scale": f, "stand": True, "bark": "tubes",
+                    "height_m": float(h0 * f)}
+            if age is not None:
+                info.update({"age": float(age), "age_rate": float(cfg.get("age_rate",
+                                                                          AGE_RATE))})
+            out[int(i)] = _tree_to_world(f"stand_{i:03d}", "weber_penn", tree, base[j], info)
+    g_idx = np.flatnonzero(species == GROWTH)
+    if len(g_idx):
+        params = GrowthParams.from_dict(dict(cfg.get("growth", {}) or {}), source,
+                                        prefix="stand.growth.")
+        gens = int(cfg.get("generations", 6))
+        if out:      # the stand's Weber-Penn members shade the growing ones
+            env = _obstacles(base_scene, list(built) + [out[i] for i in sorted(out)])
+        grown = grow_forest(stand.positions[g_idx][:, [0, 2]], params, gens, scene=env,
+                            seed=spec.seed, progress=progress)
+        for i, t in zip(g_idx, grown):
+            t.drop_dead_leaves()
+            out[int(i)] = _tree_to_world(f"stand_{i:03d}", "growth", t, t.start[0],
+                                         {"generations": gens, "unit_m": params.unit,
+                                          "stand": True})
+    return [out[i] for i in sorted(out)]
 
 
 def scenario_trees(scenario, base_scene, progress: bool = False) -> list[WorldTree]:

@@ -1,0 +1,193 @@
+"""A year of a 1-hectare Weber-Penn stand: more than 5 million leaves on the 2-core machine.
+
+    python benchmarks/forest_hectare.py [--days 366] [--density 300] [--photons 1000000]
+                                        [--out DIR] [--set key=value ...]
+
+Writes a scenario into the run folder (``scenario/``): a 100 m x 100 m rolling ground (1 ha,
+a 5° south-facing slope with 0.3 m of relief, 1 m resolution) with logs and rocks clear of the
+tree bases, a ``[stand]`` of quaking aspens (Weber-Penn, paper 004; ``--density`` trees/ha,
+Poisson-disc >= 3.5 m apart, three geometry variants, 12 m tall on average, aged 20 so that
+they grow every 31 December) and a moss floor, the light schedule of ``scenes/forest_stand``
+(a pass every fourth day, ``--photons`` a pass). Then runs it from 1 January for ``--days``
+days (the default crosses the year's end: the trees age, the scene is rebuilt) and prints:
+
+- the set-up (trees, leaves, recorded elements, seconds) and the resident memory before and
+  after it and after the first photon pass, with the memory per leaf;
+- every 30 days the wall time and the memory;
+- the year's end (ageing and rebuild) and its share of the year's time;
+- the process's peak resident memory against the machine's 24 GB.
+"""
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+GB = 1e9
+
+
+def rss() -> float:
+    """Resident memory of the process now [bytes]."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return float(line.split()[1]) * 1e3
+    return float("nan")
+
+
+def peak() -> float:
+    """Peak resident memory of the process so far [bytes]."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1e3
+
+
+def write_scenario(folder: Path, density: float, photons: int) -> Path:
+    """The 1-ha scenario (module docstring) in ``folder``; returns its scenario.toml."""
+    from mitsuba_veg.forest_floor import rolling_ground, scatter_floor, write_ply
+    from mitsuba_veg.trees.stand import StandSpec, layout
+    folder.mkdir(parents=True, exist_ok=True)
+    stand = {"plot": [-50.0, -50.0, 50.0, 50.0], "density": density,
+             "mix": {"quaking_aspen": 1.0}, "placement": "poisson_disc", "min_spacing": 3.5,
+             "height_mean": 12.0, "height_cv": 0.15, "variants": 3, "seed": 11}
+    ground = rolling_ground((-50.0, -50.0, 50.0, 50.0), slope_deg=5.0, aspect_deg=180.0,
+                            roughness=0.3, roughness_scale=15.0, seed=4, resolution=1.0)
+    bases = layout(StandSpec.from_dict(stand)).positions[:, [0, 2]]
+    floor = scatter_floor(ground, logs=20, rocks=30, seed=6, avoid=bases, clearance=1.0,
+                          log_length=(2.0, 6.0), log_radius=(0.12, 0.35),
+                          rock_radius=(0.25, 0.7))
+    ground.write_ply(folder / "ground.ply")
+    xml = ['<scene version="3.0.0">', '  <shape type="ply" id="ground">',
+           '    <string name="filename" value="ground.ply"/>',
+           '    <bsdf type="diffuse"><spectrum name="reflectance" value="0.12"/></bsdf>',
+           '  </shape>']
+    depth = ["ground = 200.0"]
+    for obj in floor:
+        write_ply(folder / f"{obj.name}.ply", obj.vertices, obj.faces)
+        xml += [f'  <shape type="ply" id="{obj.name}">',
+                f'    <string name="filename" value="{obj.name}.ply"/>',
+                '    <bsdf type="diffuse"><spectrum name="reflectance" value="'
+                f'{0.18 if obj.kind == "log" else 0.3}"/></bsdf>', '  </shape>']
+        depth.append(f"{obj.name} = {20.0 if obj.kind == 'log' else 2.0}")
+    xml.append("</scene>")
+    (folder / "scene.xml").write_text("\n".join(xml) + "\n")
+    mix = ", ".join(f"{k} = {v}" for k, v in stand["mix"].items())
+    plot = ", ".join(str(x) for x in stand["plot"])
+    text = f"""[scene]
+file = "scene.xml"
+
+[site]
+latitude = 35.0
+longitude = 139.0
+
+[light]
+photons = {photons}
+max_depth = 8
+indirect = true
+seed = 0
+
+[terrain]
+ground = "ground"
+
+[terrain.soil_depth_mm]
+{chr(10).join(depth)}
+
+[simulation]
+start_date = "2026-01-01"
+checkpoint_every = 0
+frame_every = 30
+light_every = 4
+
+[climate]
+temperature = 288.15
+humidity = 0.73
+
+[moss]
+species = ["bryum_argenteum", "hypnum_plumaeforme", "polytrichum"]
+capacity = 262144
+initial = 20000
+size = 0.1
+
+[stand]
+plot = [{plot}]
+density = {density}
+mix = {{ {mix} }}
+placement = "poisson_disc"
+min_spacing = {stand['min_spacing']}
+height_mean = {stand['height_mean']}
+height_cv = {stand['height_cv']}
+variants = {stand['variants']}
+seed = {stand['seed']}
+age = 20.0
+"""
+    (folder / "scenario.toml").write_text(text)
+    return folder / "scenario.toml"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--days", type=int, default=366)
+    ap.add_argument("--density", type=float, default=300.0, help="trees/ha")
+    ap.add_argument("--photons", type=int, default=1_000_000)
+    ap.add_argument("--out", default=None, help="run folder (default: a temporary one)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="scenario override")
+    a = ap.parse_args(argv)
+    import mitsuba_veg  # noqa: F401
+    from mitsuba_veg.daily import Simulation
+    from mitsuba_veg.moss.population import MOSS
+    from mitsuba_veg.scenario import load_scenario
+    out = Path(a.out) if a.out else Path(tempfile.mkdtemp(prefix="forest_hectare_"))
+    scn = load_scenario(write_scenario(out / "scenario", a.density, a.photons), a.set)
+    sim = Simulation(scn, out / "run", days=a.days, progress=False)
+    m0, t0 = rss(), time.perf_counter()
+    sim.setup()
+    sim.initialise()
+    t_setup, m_setup = time.perf_counter() - t0, rss()
+    leaves = sim.site.canopy.n_leaves
+    n_rec = sim.pipeline.light.tables.n_rec
+    print(f"set-up {t_setup:.1f} s: {len(sim.site.trees)} trees on 1 ha, {leaves:,d} leaves, "
+          f"{sim.site.index.n_elements:,d} triangles in the light scene"
+          f" ({n_rec:,d} of them recorded: terrain and leaves)"
+          + f"; memory {m0 / GB:.2f} GB before, {m_setup / GB:.2f} GB after", flush=True)
+    t_run = time.perf_counter()
+    n_log, year_end_s, year_end_day = 0, 0.0, None
+    while sim.day < a.days:
+        t_day = time.perf_counter()
+        sim.step()
+        dt = time.perf_counter() - t_day
+        if sim.day == 1:
+            m1 = rss()
+            print(f"day 1 (a photon pass, kernels compiled): {dt:.1f} s, memory {m1 / GB:.2f} "
+                  f"GB: {(m1 - m0) / leaves:,.0f} bytes per leaf with its share of the wood, "
+                  "the floor and the pass", flush=True)
+        if len(sim.state.growth_log) > n_log:
+            n_log = len(sim.state.growth_log)
+            year_end_s, year_end_day = dt, sim.day
+            aged = [r for r in sim.state.growth_log if r.get("model") == "weber_penn"]
+            print(f"year end (night after day {sim.day - 1}): {len(aged)} trees aged to "
+                  f"{aged[-1]['age']:.0f} years, mean height "
+                  f"{np.mean([r['height_m'] for r in aged[-len(sim.site.trees):]]):.2f} m; "
+                  f"that day {dt:.1f} s, memory {rss() / GB:.2f} GB", flush=True)
+        if sim.day % 30 == 0:
+            el = time.perf_counter() - t_run
+            print(f"day {sim.day:4d}: {el:7.1f} s ({el / sim.day:.2f} s a day), moss "
+                  f"{sim.pop.count(MOSS):,d}, memory {rss() / GB:.2f} GB (peak "
+                  f"{peak() / GB:.2f})", flush=True)
+    wall = time.perf_counter() - t_run
+    print(f"{a.days} days: {wall:.0f} s ({wall / a.days:.2f} s a day) after a set-up of "
+          f"{t_setup:.0f} s; peak memory {peak() / GB:.2f} GB of the machine's 24 GB "
+          f"(ratio {peak() / 24e9:.2f}); {leaves:,d} leaves")
+    if year_end_day is not None:
+        print(f"year end: the day with the ageing and the rebuild took {year_end_s:.1f} s, "
+              f"{year_end_s / wall:.3f} of the run's time")
+    if not a.out:
+        shutil.rmtree(out, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
