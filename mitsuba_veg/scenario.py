@@ -143,6 +143,9 @@ SCHEMA: dict[str, Field] = {
         "overrides": Field("any", doc="Weber-Penn parameters"),
         "height": _num("float", 0.05, 200.0, "[m] scale a Weber-Penn tree to this height"),
         "adapt": Field("bool", doc="Weber-Penn: deform by paper 002's rules in the scene"),
+        "adapt_yearly": Field("bool", doc="Weber-Penn: paper 002's death rule every 31 "
+                              "December from its leaves' light in the year's passes "
+                              "(death_threshold; docs/forest.md)"),
         "age": _num("float", 0.5, 1000.0, "[years] Weber-Penn: its age at the start; it then "
                     "grows every 31 December along a Chapman-Richards curve through its "
                     "height (docs/world.md)"),
@@ -177,6 +180,11 @@ SCHEMA: dict[str, Field] = {
                     "they grow every 31 December along a Chapman-Richards curve through their "
                     "height (docs/world.md)"),
         "age_rate": _num("float", 1e-4, 2.0, "[1/year] k of that curve (default 0.05)"),
+        "adapt_yearly": Field("bool", doc="Weber-Penn members: paper 002's death rule every 31 "
+                              "December from their leaves' light (docs/forest.md)"),
+        "death_threshold": _num("float", 0.0, 1.0, "adapt_yearly: T/N, the mean leaf light "
+                                "relative to the open below which a subtree dies (default "
+                                "0.5)"),
     }),
     "phenology": Field("table", fields={
         "leaf_out_doy": _num("int", 1, 366, "day of year leaf-out starts"),

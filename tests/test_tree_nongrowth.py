@@ -188,3 +188,35 @@ def test_death_rule_has_no_cliff(spacing, sample_kw):
                              death_count="branches")
     if spacing == 6.0:
         assert sum(t.metrics()["live_branches"] for t in cliff.trees) == 0
+
+
+def test_death_rule_on_leaf_light_by_hand():
+    """Paper 002's death rule with a light per leaf (the world's yearly rule): the binary tree
+    0 -> (1, 2), 1 -> (3, 4), 2 -> (5, 6) with one leaf on each tip, lights 0.9, 0.1, 0.2, 0.3,
+    threshold 0.5. Bottom up: tips 4, 5, 6 die (< 0.5); segment 2 has no live leaf left (N = 0)
+    and dies; segment 1 keeps leaf 3 (T/N = 0.9) and the trunk too. Judged on the intact tree
+    (simultaneous) the trunk has 1.5 / 4 = 0.375 and the tree dies at 0.5; at 0.3 segment 1
+    (0.5) and the trunk live, 2 (0.25) dies with 5 and 6 (6 has 0.3, not below, but falls with
+    its parent), 4 (0.1) dies. A threshold above every leaf's light kills the whole tree."""
+    t = _binary(2)
+    tips = np.array([3, 4, 5, 6])
+    t.leaves = Leaves(t.end[tips], np.tile([0.0, 0.0, 1.0], (4, 1)), np.full(4, 0.1), tips)
+    t.weber_penn = {"preset": "test"}
+    light = np.array([0.9, 0.1, 0.2, 0.3])
+    res = nongrowth.death_by_leaf_light(t, light, 0.5)
+    assert res.trees.alive.tolist() == [True, True, False, True, False, False, False]
+    assert res.trees.leaves.segment.tolist() == [3] and res.stats[0]["died"] == 4
+    assert res.trees.weber_penn == {"preset": "test"}          # still a Weber-Penn tree
+    assert t.alive.all() and len(t.leaves) == 4                # the input is not changed
+    # judged on the intact tree the trunk's leaves average 0.375: below 0.5 the tree dies
+    sim = nongrowth.death_by_leaf_light(t, light, 0.5, order="simultaneous")
+    assert not sim.trees.alive.any()
+    sim = nongrowth.death_by_leaf_light(t, light, 0.3, order="simultaneous")
+    assert sim.trees.alive.tolist() == [True, True, False, True, False, False, False]
+    whole = nongrowth.death_by_leaf_light([t], [light], 0.95)
+    assert not whole.trees[0].alive.any() and len(whole.trees[0].leaves) == 0
+    assert whole.stats[0]["died_per_tree"] == [7]
+    with pytest.raises(ParameterError, match="leaf_light"):
+        nongrowth.death_by_leaf_light(t, light[:3], 0.5)
+    with pytest.raises(ParameterError, match="order"):
+        nongrowth.death_by_leaf_light(t, light, 0.5, order="top_down")

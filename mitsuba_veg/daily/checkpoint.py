@@ -20,7 +20,7 @@ from ..errors import ParameterError
 from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
-from ..world.trees import age_tree, tree_from_state, tree_state
+from ..world.trees import age_tree, tree_from_state, tree_state, with_alive
 
 
 def fingerprint(sim) -> str:
@@ -57,6 +57,8 @@ def save(sim) -> None:
         d.update(st.year.to_numpy())
         for i in sim.pipeline.growth.trees:
             d.update(tree_state(sim.site.trees[i], f"growth_trees/{i}"))
+        for i in sim.pipeline.growth.adapting:   # paper 002's dead subtrees so far
+            d[f"adapted_trees/{i}"] = np.asarray(sim.site.trees[i].tree.alive, bool)
         d["growth_log"] = np.array(json.dumps(st.growth_log))
         d["floor_log"] = np.array(json.dumps(st.floor_log))
     if st.leaves is not None:
@@ -112,11 +114,13 @@ def load(sim) -> bool:
         try:
             for i in sim.pipeline.growth.trees:
                 trees[i] = tree_from_state(d, f"growth_trees/{i}")
+            for i in sim.pipeline.growth.adapting:    # without the subtrees that died
+                trees[i] = with_alive(trees[i], d[f"adapted_trees/{i}"])
             for i in sim.pipeline.growth.ageing:      # as many years older as it aged
                 years = sum(1 for r in growth_log if r.get("tree") == trees[i].name
-                            and r.get("model") == "weber_penn")
-                for _ in range(years):   # year by year, as the run did: the same floats
-                    trees[i] = age_tree(trees[i], 1)
+                            and r.get("model") == "weber_penn" and "age" in r)
+                if years:
+                    trees[i] = age_tree(trees[i], years)
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
                                  f"use --fresh ({e})") from None

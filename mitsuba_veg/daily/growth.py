@@ -36,7 +36,7 @@ from ..light.photon import band_range
 from ..plots import _mpl, plan_map, save_figure
 from ..trees.growth import TipLight
 from ..units import umol_per_joule
-from ..world.trees import ages
+from ..world.trees import adapts, ages
 
 #: the model of the trees that grow from their light
 GROWTH_MODEL = "growth"
@@ -128,6 +128,8 @@ class DayGrowth:
                       if wt.model == GROWTH_MODEL and wt.tree is not None]
         #: Weber-Penn trees that age every year (``age`` in their scenario entry)
         self.ageing = [i for i, wt in enumerate(site.trees) if ages(wt)]
+        #: Weber-Penn trees that paper 002's death rule adapts every year (``adapt_yearly``)
+        self.adapting = [i for i, wt in enumerate(site.trees) if adapts(wt)]
         self.n = c.n_leaves
         # each leaf's geometric normal (its first triangle's: the pass's "front" side)
         t = c.tri[c._first]
@@ -231,6 +233,35 @@ class DayGrowth:
                               sphere, m)
             if lt is not None:
                 out[i] = lt
+        return out
+
+
+    def leaf_lights(self, yl: YearLight) -> dict:
+        """The year's light of every leaf of the trees that adapt (paper 002), relative to the
+        open: Σ S_l / Σ (B + D) over the days the leaf was out (read back once a year).
+
+        Parameters
+        ----------
+        yl : YearLight
+            The year's sums.
+
+        Returns
+        -------
+        dict
+            ``{tree index: (leaves,) float64}`` for the adapting trees whose leaves were out
+            this year.
+        """
+        if not self.adapting:
+            return {}
+        c = self.site.canopy
+        S = np.asarray(yl.S, np.float64)
+        open_s = np.asarray(yl.open_S, np.float64)
+        out = {}
+        for i in self.adapting:
+            leaves = np.flatnonzero(c.tree_of == i)
+            o = open_s[leaves]
+            if len(leaves) and np.any(o > 0):
+                out[i] = np.where(o > 0, S[leaves] / np.maximum(o, 1e-300), 0.0)
         return out
 
 

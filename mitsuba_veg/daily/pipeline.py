@@ -55,7 +55,8 @@ from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
 from ..outputs import atomic_write
-from ..world.trees import age_tree, ages, obstacles, regrow, tree_state
+from ..world.trees import (adapt_tree, adapts, age_tree, ages, obstacles, regrow,
+                           tree_state)
 from .config import MossConfig
 from .growth import DayGrowth, YearLight, floor_figure, floor_year, floor_years_figure
 from .inputs import DayInputs
@@ -123,7 +124,8 @@ class DayPipeline:
             else None
         self.light = DayLight(site, inputs, light_strength)
         self.growth = DayGrowth(site) if self.leaves is not None and \
-            (self.light.leaf_net or any(ages(wt) for wt in site.trees)) else None
+            (self.light.leaf_net or any(ages(wt) or adapts(wt) for wt in site.trees)) \
+            else None
         self.moss = DayMoss(site)
         self.record = DayRecord(site)
         self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
@@ -441,8 +443,9 @@ class Simulation:
         self._year_out_s = time.perf_counter() - t0
         self.timings["output"] += self._year_out_s
         lights = g.tip_lights(st.year) if g.trees else {}
+        leaf_lights = g.leaf_lights(st.year)
         year = self.date(self.day - 1).year
-        if not lights and not g.ageing:      # bare all year: a new year of sums
+        if not lights and not g.ageing and not leaf_lights:  # bare all year: new sums
             st.year = g.new_state()
             st.growth_log.append({"year": year, "day": self.day, "tree": None,
                                   "grew": False})
@@ -456,13 +459,21 @@ class Simulation:
             # the scenario's own meshes do not change: one environment for the whole run
             self._env = obstacles(self.config.scn.load_scene(daylight=False))
         env = self._env if lights else None
-        for i in g.ageing:                    # Weber-Penn trees one year older
-            trees[i] = age_tree(trees[i], 1)
-            rows.append({"year": year, "day": self.day, "tree": trees[i].name,
-                         "model": "weber_penn", "age": trees[i].info["age"],
-                         "leaves": int(len(trees[i].leaf_area)),
-                         "height_m": float(trees[i].info["height_m"]),
-                         "crown_radius_m": float(trees[i].crown_radius())})
+        # Weber-Penn trees: paper 002's death rule from their leaves' year light, then a
+        # year older (one row each)
+        for i in sorted(set(g.ageing) | set(leaf_lights)):
+            row = {"year": year, "day": self.day, "tree": trees[i].name, "model": "weber_penn"}
+            if i in leaf_lights:
+                trees[i], st_ = adapt_tree(trees[i], leaf_lights[i])
+                row.update(st_)
+                row["live_segments"] = int(trees[i].tree.alive.sum())
+            if i in g.ageing:
+                trees[i] = age_tree(trees[i], 1)
+                row.update({"age": trees[i].info["age"],
+                            "height_m": float(trees[i].info["height_m"])})
+            row.update({"leaves": int(len(trees[i].leaf_area)),
+                        "crown_radius_m": float(trees[i].crown_radius())})
+            rows.append(row)
         for i, light in lights.items():
             old = trees[i]
             seed = (int(self.seed) * 7919 + 104_729 * i + year) & 0x7FFFFFFF
@@ -516,17 +527,20 @@ class Simulation:
         """``trees/<year>.npz`` in the run folder: the growth trees from the next day on (the
         render draws each day's trees from these)."""
         g = self.pipeline.growth
-        d = {"day": np.array(self.day), "indices": np.array(g.trees, np.int64)}
+        d = {"day": np.array(self.day), "indices": np.array(g.trees, np.int64),
+             "adapted": np.array(g.adapting, np.int64)}
         for i in g.trees:
             d.update(tree_state(self.site.trees[i], str(i)))
+        for i in g.adapting:           # paper 002's dead subtrees: the live segments
+            d[f"alive/{i}"] = np.asarray(self.site.trees[i].tree.alive, bool)
         folder = self.out / "trees"
         folder.mkdir(parents=True, exist_ok=True)
         with atomic_write(folder / f"{year}.npz", folder / f".{year}.tmp.npz") as tmp:
             np.savez_compressed(tmp, **d)
         # the table people open: one row per tree and year-end step
         cols = ["year", "tree", "model", "generation", "age", "tips", "died", "received_mean",
-                "received_min", "red_far_red_mean", "leaves", "height_m", "crown_radius_m",
-                "crown_shift_m", "live_segments"]
+                "received_min", "red_far_red_mean", "leaf_light_mean", "leaves", "height_m",
+                "crown_radius_m", "crown_shift_m", "live_segments"]
         lines = [",".join(cols)]
         for r in self.state.growth_log:
             if r.get("tree"):

@@ -7,7 +7,7 @@ import logging
 import numpy as np
 
 from ..world.trees import scenario_trees as world_scenario_trees
-from ..world.trees import age_tree, ages, tree_from_state
+from ..world.trees import age_tree, ages, tree_from_state, with_alive
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
@@ -99,6 +99,8 @@ def world_trees(run, day: int | None = None):
             d = dict(z)
         for i in np.asarray(d["indices"], np.int64):
             built[int(i)] = tree_from_state(d, str(int(i)))
+        for i in np.asarray(d.get("adapted", np.zeros(0)), np.int64):   # paper 002's deaths
+            built[int(i)] = with_alive(built[int(i)], d[f"alive/{int(i)}"])
         for i, wt in enumerate(built):   # Weber-Penn trees a year older at every year's end
             if ages(wt):
                 built[i] = age_tree(wt, len(versions))

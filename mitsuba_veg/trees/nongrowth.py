@@ -287,36 +287,117 @@ def _death(stand, vs, tips, threshold, order="bottom_up", count="tips"):
     tip_light = np.zeros(n)
     tip_light[tips] = light
     before = stand.alive.copy()
-    alive = stand.alive.copy()
     if count == "tips":
-        units = np.zeros(n, bool)
-        units[tips] = True                # N = the subtree's tips (its leaves)
+        units = np.zeros(n)
+        units[tips] = 1.0                 # N = the subtree's tips (its leaves)
     else:
-        units = stand.unit_start(before)  # branches as they are when the rule starts
-    if order == "simultaneous":
-        T = _subtree_sum(stand, tip_light, alive)
-        N = _subtree_sum(stand, (alive & units).astype(float), alive)
-        alive &= ~((T < threshold * N) | (N == 0))
-    else:
-        # deepest subtrees first; a subtree's T and N count only what is still alive
-        for d in range(int(stand.depth.max()) if n else -1, -1, -1):
-            T = _subtree_sum(stand, tip_light * alive, alive)
-            N = _subtree_sum(stand, (alive & units).astype(float), alive)
-            idx = np.nonzero((stand.depth == d) & alive)[0]
-            # N = 0: every tip of the subtree is dead, it has no leaves left (N = tips)
-            alive[idx[(T[idx] < threshold * N[idx]) | (N[idx] == 0)]] = False
-    # a dead subtree root kills its descendants (parents first, level by level)
-    for d in range(1, int(stand.depth.max()) + 1 if n else 0):
-        idx = np.nonzero(stand.depth == d)[0]
-        alive[idx] &= alive[stand.parent[idx]]
-    stand.alive = alive
-    died = before & ~alive
+        units = stand.unit_start(before).astype(float)  # branches as the rule starts
+    died = _death_rule(stand, tip_light, units, threshold, order)
     per_tree = np.bincount(stand.tree_of[died], minlength=len(stand.trees))
     return {"tips": int(len(tips)), "tip_light_mean": float(light.mean()) if len(light) else 0.0,
             "died": int(died.sum()), "died_per_tree": per_tree.tolist(), "order": order,
             "count": count,
             "rays": vs.stats.get("rays", 0), "dda_steps": vs.stats.get("dda_steps", 0),
             "light_s": vs.stats.get("light_s", 0.0)}
+
+
+def _death_rule(stand, light, units, threshold, order="bottom_up"):
+    """Paper 002's branch death on ``stand`` (§5.1): a subtree dies where T < threshold x N,
+    T the sum of ``light`` and N the sum of ``units`` over its live segments (N = 0: nothing
+    left to carry it, it dies). Sets ``stand.alive``; returns the segments that died."""
+    n = len(stand.parent)
+    before = stand.alive.copy()
+    alive = stand.alive.copy()
+    if order == "simultaneous":
+        T = _subtree_sum(stand, light, alive)
+        N = _subtree_sum(stand, units * alive, alive)
+        alive &= ~((T < threshold * N) | (N == 0))
+    else:
+        # deepest subtrees first; a subtree's T and N count only what is still alive
+        for d in range(int(stand.depth.max()) if n else -1, -1, -1):
+            T = _subtree_sum(stand, light * alive, alive)
+            N = _subtree_sum(stand, units * alive, alive)
+            idx = np.nonzero((stand.depth == d) & alive)[0]
+            alive[idx[(T[idx] < threshold * N[idx]) | (N[idx] == 0)]] = False
+    # a dead subtree root kills its descendants (parents first, level by level)
+    for d in range(1, int(stand.depth.max()) + 1 if n else 0):
+        idx = np.nonzero(stand.depth == d)[0]
+        alive[idx] &= alive[stand.parent[idx]]
+    stand.alive = alive
+    return before & ~alive
+
+
+def death_by_leaf_light(trees, leaf_light, threshold: float = 0.5,
+                        order: str = "bottom_up") -> DeformResult:
+    """Paper 002's branch-death rule (§5.1) with a light given per leaf instead of the voxel
+    space: a tree that knows the light each of its leaves received (the world's daily photon
+    passes over a year) drops the subtrees whose leaves got too little.
+
+    Each leaf is a tip carrying a leaf (the paper's unit): for every subtree T is the sum of
+    its live leaves' light and N their number, so T/N is their mean light; it dies where
+    T/N < ``threshold`` or where no live leaf is left on it (N = 0), deepest subtrees first
+    (``order="bottom_up"``) or all judged on the intact trees (``"simultaneous"``). A tree
+    whose whole crown falls below the threshold dies whole: it leaves its place empty.
+
+    Parameters
+    ----------
+    trees : Tree or list of Tree
+        The trees (copies are changed, not these).
+    leaf_light : array_like or list of array_like
+        Per tree, one value per leaf (in ``tree.leaves`` order) [-]: relative to the open
+        (1 = the open's light).
+    threshold : float
+        T/N below which a subtree dies [-], >= 0.
+    order : str
+        ``"bottom_up"`` (default) or ``"simultaneous"``.
+
+    Returns
+    -------
+    DeformResult
+        The trees without their dead subtrees and those subtrees' leaves (one Tree when one was
+        given), and one statistics row (``rule`` "death", ``died`` segments, ``died_per_tree``,
+        ``leaf_light_mean``, ``seconds``).
+
+    Raises
+    ------
+    ParameterError
+        For a leaf-light array whose length is not the tree's leaves, a negative threshold or
+        an unknown order.
+    """
+    t0 = time.perf_counter()
+    single = isinstance(trees, Tree)
+    trees = [trees] if single else list(trees)
+    lights = [leaf_light] if single else list(leaf_light)
+    check_range("threshold", threshold, 0.0, None)
+    if order not in ("bottom_up", "simultaneous"):
+        raise ParameterError("order", order, "'bottom_up' or 'simultaneous'")
+    if len(lights) != len(trees):
+        raise ParameterError("leaf_light", f"{len(lights)} arrays", f"one per tree "
+                             f"({len(trees)})")
+    for i, (t, x) in enumerate(zip(trees, lights)):
+        if np.shape(x) != (len(t.leaves),):
+            raise ParameterError(f"leaf_light[{i}]", f"shape {np.shape(x)}",
+                                 f"({len(t.leaves)},): one value per leaf of the tree")
+    copies = [t.copy() for t in trees]
+    for c, t in zip(copies, trees):       # a Weber-Penn tree stays one (its wood mesh)
+        if getattr(t, "weber_penn", None) is not None:
+            c.weber_penn = t.weber_penn
+    trees = copies
+    stand = _Stand(trees)
+    n = len(stand.parent)
+    x = np.concatenate([np.asarray(v, float) for v in lights]) if n else np.zeros(0)
+    light = np.bincount(stand.leaf_seg, weights=x, minlength=n)
+    units = np.bincount(stand.leaf_seg, minlength=n).astype(float)
+    died = _death_rule(stand, light, units, float(threshold), order)
+    stand.moved = False
+    stand.write_back()
+    for t in trees:
+        t.drop_dead_leaves()
+    st = {"rule": "death", "died": int(died.sum()),
+          "died_per_tree": np.bincount(stand.tree_of[died], minlength=len(trees)).tolist(),
+          "leaf_light_mean": float(x.mean()) if len(x) else 0.0,
+          "seconds": time.perf_counter() - t0}
+    return DeformResult(trees[0] if single else trees, [st], time.perf_counter() - t0)
 
 
 def _subtree_sum(stand, values, alive):

@@ -33,7 +33,7 @@ from ..trees.environment import Environment
 from ..trees.growth import GrowthParams, TipLight, base_positions, grow, grow_forest, grow_step
 from ..trees.stand import GROWTH, StandSpec, layout
 from ..trees.junction import tree_mesh
-from ..trees.nongrowth import deform
+from ..trees.nongrowth import death_by_leaf_light, deform
 from ..trees.structure import Leaves, Tree, leaf_quads, placed_tree, scaled_tree, tube_mesh
 from .canopy import Canopy
 
@@ -202,6 +202,8 @@ def build_trees(entries, base_scene, root: Path, source: str | None = None,
                 info.update({"age": float(cfg["age"]),
                              "age_rate": float(cfg.get("age_rate", AGE_RATE)),
                              "height_m": float(h * f)})
+            if cfg.get("adapt_yearly", False):   # paper 002's death rule every 31 December
+                info["death_threshold"] = float(cfg.get("death_threshold", 0.5))
             if cfg.get("adapt", False):
                 res = deform([tree], _obstacles(base_scene, out), shade_from="leaves",
                              voxel_size=float(cfg.get("voxel_size", 0.25)),
@@ -263,9 +265,11 @@ def ages(wt: WorldTree) -> bool:
 
 
 def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
-    """A Weber-Penn tree ``years`` older: scaled about its base by H(a + years) / H(a) of
-    :func:`age_curve` (a Chapman-Richards curve through its height at its scenario age, so the
-    height, the branch lengths and radii and the leaves grow alike: a uniform scaling).
+    """A Weber-Penn tree ``years`` older: scaled about its base by H(a + 1) / H(a) of
+    :func:`age_curve` for each year (a Chapman-Richards curve through its height at its
+    scenario age, so the height, the branch lengths and radii and the leaves grow alike: a
+    uniform scaling). Year by year, so that a run, its resumed copy and the render get the
+    same numbers.
 
     Parameters
     ----------
@@ -280,12 +284,90 @@ def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
         The older tree (``info["age"]`` + years, ``info["height_m"]``).
     """
     a, k = float(wt.info["age"]), float(wt.info["age_rate"])
-    f = float(age_curve(a + years, k) / age_curve(a, k))
-    tree = scaled_tree(wt.tree, f)
+    tree = wt.tree
+    for y in range(int(years)):
+        tree = scaled_tree(tree, float(age_curve(a + y + 1, k) / age_curve(a + y, k)))
     info = dict(wt.info)
     info["age"] = a + years
-    info["height_m"] = float(tree.metrics()["height"])      # measured on the scaled tree
+    info["height_m"] = float(tree.metrics()["height"]) if tree.alive.any() else 0.0
     return _tree_to_world(wt.name, wt.model, tree, wt.position, info)
+
+
+def adapts(wt: WorldTree) -> bool:
+    """Whether paper 002's death rule adapts a tree every 31 December from its leaves' light
+    (:func:`adapt_tree`): a Weber-Penn tree with ``adapt_yearly`` (its ``death_threshold``).
+
+    Parameters
+    ----------
+    wt : WorldTree
+        A world tree.
+
+    Returns
+    -------
+    bool
+        True when it adapts every year.
+    """
+    return wt.model == "weber_penn" and wt.info.get("death_threshold") is not None \
+        and wt.tree is not None
+
+
+def adapt_tree(wt: WorldTree, leaf_light) -> tuple[WorldTree, dict]:
+    """Paper 002's branch death (§5.1) on a tree from the light its leaves received in the
+    year's daily passes (:func:`mitsuba_veg.trees.nongrowth.death_by_leaf_light`: a subtree
+    whose leaves' mean light relative to the open is below ``info["death_threshold"]`` dies
+    and falls with its leaves; a whole crown below it, the whole tree).
+
+    Parameters
+    ----------
+    wt : WorldTree
+        A tree that adapts (:func:`adapts`).
+    leaf_light : array_like
+        (leaves,) each leaf's year light relative to the open [-].
+
+    Returns
+    -------
+    tree : WorldTree
+        The tree without its dead subtrees.
+    stats : dict
+        ``died`` (segments), ``leaf_light_mean``, ``alive`` (whether any segment lives).
+    """
+    res = death_by_leaf_light(wt.tree, leaf_light, float(wt.info["death_threshold"]))
+    st = res.stats[0]
+    out = _tree_to_world(wt.name, wt.model, res.trees, wt.position, wt.info)
+    return out, {"died": int(st["died"]), "leaf_light_mean": float(st["leaf_light_mean"]),
+                 "alive": bool(res.trees.alive.any())}
+
+
+def with_alive(wt: WorldTree, alive) -> WorldTree:
+    """The tree with only the segments ``alive`` marks (and the leaves on them): a tree that
+    lost subtrees over the years (:func:`adapt_tree`) rebuilt from its scenario and its mask.
+
+    Parameters
+    ----------
+    wt : WorldTree
+        The tree as the scenario builds it.
+    alive : array_like
+        (segments,) bool.
+
+    Returns
+    -------
+    WorldTree
+        The tree with those segments.
+
+    Raises
+    ------
+    ValueError
+        When the mask does not have one value per segment.
+    """
+    alive = np.asarray(alive, bool)
+    if alive.shape != (len(wt.tree),):
+        raise ValueError(f"alive: {alive.shape} != ({len(wt.tree)},)")
+    t = wt.tree.copy()
+    if getattr(wt.tree, "weber_penn", None) is not None:
+        t.weber_penn = wt.tree.weber_penn
+    t.alive = t.alive & alive
+    t.drop_dead_leaves()
+    return _tree_to_world(wt.name, wt.model, t, wt.position, wt.info)
 
 
 def obstacles(base_scene, trees=()):
@@ -433,7 +515,8 @@ def world_tree(name: str, model: str, tree: Tree, position, info: dict) -> World
 
 
 #: stand fields that are not :class:`~mitsuba_veg.trees.stand.StandSpec` fields
-STAND_WORLD_FIELDS = ("generations", "growth", "age", "age_rate")
+STAND_WORLD_FIELDS = ("generations", "growth", "age", "age_rate", "adapt_yearly",
+                      "death_threshold")
 
 
 def build_stand(cfg: dict, base_scene, built: list, source: str | None = None,
@@ -501,6 +584,8 @@ def build_stand(cfg: dict, base_scene, built: list, source: str | None = None,
             if age is not None:
                 info.update({"age": float(age), "age_rate": float(cfg.get("age_rate",
                                                                           AGE_RATE))})
+            if cfg.get("adapt_yearly", False):
+                info["death_threshold"] = float(cfg.get("death_threshold", 0.5))
             out[int(i)] = _tree_to_world(f"stand_{i:03d}", "weber_penn", tree, base[j], info)
     g_idx = np.flatnonzero(species == GROWTH)
     if len(g_idx):
