@@ -533,7 +533,7 @@ def test_weber_penn_tree_ages_along_its_height_curve(tmp_path):
 @pytest.mark.slow
 def test_render_years_draws_each_years_last_day(tmp_path):
     """``mitsuba-veg render RUN --years``: one render per calendar year of the run, on its last
-    snapshot day (an ageing tree across a new year)."""
+    snapshot day (an ageing tree across a new year), and the years' animation per camera."""
     aged = ONE_TREE.replace("seed = 3\n", "seed = 3\nage = 10.0\n")
     scen = _world(tmp_path, aged, start="2026-12-30")
     mv.run(scen, out=tmp_path / "run", days=3, overrides=SMALL, progress=False)
@@ -544,3 +544,9 @@ def test_render_years_draws_each_years_last_day(tmp_path):
          for y in (2026, 2027)}
     assert (j[2026]["day"], j[2027]["day"]) == (1, 3)
     assert (tmp_path / "run" / "render_2027" / "render_overview.png").stat().st_size > 0
+    # the years as an animation: one frame a year, from the same camera
+    from PIL import Image
+    with Image.open(tmp_path / "run" / "render_years" / "overview.gif") as gif:
+        assert gif.n_frames == 2 and gif.size == (48, 32)
+    meta = json.loads((tmp_path / "run" / "render_years" / "render_years.json").read_text())
+    assert sorted(meta["years"]) == ["2026", "2027"] and list(meta["files"]) == ["overview"]

@@ -66,7 +66,8 @@ def add_parsers(subparsers) -> None:
                    help="path length of the render (default 8)")
     r.add_argument("--years", action="store_true",
                    help="render the last snapshot day of every year of the run (a stand year "
-                        "by year) into RUN_DIR/render_<year> (or <--out>_<year>)")
+                        "by year) into RUN_DIR/render_<year> (or <--out>_<year>), and the "
+                        "years as a GIF per camera into RUN_DIR/render_years")
     r.set_defaults(func=_cmd_render)
     a = subparsers.add_parser("animate", help="animate the days of a moss run (MP4 + GIF)")
     common(a, "animation", ANIMATE_DEFAULTS["spp"])
@@ -112,15 +113,17 @@ def _cmd_export_gltf(a) -> int:
 
 def _cmd_render(a) -> int:
     if a.years:
-        ys = run_render_years(a.run_dir, a.out, camera=a.camera, width=a.width,
-                              height=a.height, spp=a.spp, day=a.day, when=a.when, hour=a.hour,
-                              max_depth=a.max_depth, scenario=a.scenario,
-                              progress=not a.quiet)["years"]
-        for year, y in ys.items():
+        res = run_render_years(a.run_dir, a.out, camera=a.camera, width=a.width,
+                               height=a.height, spp=a.spp, day=a.day, when=a.when,
+                               hour=a.hour, max_depth=a.max_depth, scenario=a.scenario,
+                               progress=not a.quiet)
+        for year, y in res["years"].items():
             print(f"{year}: day {y['day']} ({y['date']})")
             for f in y["files"].values():
                 for p in f.values():
                     print(f"  {p}")
+        for cam, gif in res["animations"].items():
+            print(f"the years, {cam}: {gif}")
         return 0
     s = run_render(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height, spp=a.spp,
                    day=a.day, when=a.when, hour=a.hour, max_depth=a.max_depth,

@@ -19,7 +19,7 @@ from tqdm.auto import tqdm
 from ..errors import ParameterError, check_range
 from ..outputs import OutputFolder, atomic_write, write_json
 from ..backend import versions
-from .film import to_srgb8, write_png
+from .film import to_srgb8, write_gif, write_png
 from .history import load_run
 from .scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters
 from .still import check_image, render
@@ -103,40 +103,6 @@ def write_mp4(frames_dir: Path, pattern: str, path: Path, fps: int) -> Path | No
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
                 raise RuntimeError(f"ffmpeg failed: {r.stderr.strip()[-400:]}")
-    return path
-
-
-def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> Path:
-    """An animated GIF of PNG frames (the last frame held 1.5 s).
-
-    Parameters
-    ----------
-    frames : list of path-like
-        The frames in order.
-    path : Path
-        The GIF (written atomically).
-    fps : int
-        Frames per second.
-    width : int, optional
-        Downscale to this width [pixels].
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
-    imgs = []
-    for f in frames:
-        im = Image.open(f).convert("RGB")
-        if width and im.size[0] > width:
-            im = im.resize((width, round(im.size[1] * width / im.size[0])), Image.LANCZOS)
-        imgs.append(im.convert("P", palette=Image.ADAPTIVE, colors=255))
-    durations = [int(1000 / fps)] * len(imgs)
-    if durations:
-        durations[-1] = 1500      # hold the last day
-    with atomic_write(path) as tmp:
-        imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=durations, loop=0,
-                     optimize=True)
     return path
 
 

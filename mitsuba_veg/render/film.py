@@ -24,6 +24,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from ..atomic import atomic_write
 from ..errors import ParameterError
@@ -297,7 +298,6 @@ def write_png(path, img8) -> Path:
     pathlib.Path
         ``path``.
     """
-    from PIL import Image
     path = Path(path)
     with atomic_write(path) as tmp:
         Image.fromarray(np.asarray(img8, np.uint8)).save(tmp, optimize=True)
@@ -358,3 +358,37 @@ def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None 
     img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
     plt.close(fig)
     return img
+
+
+def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> Path:
+    """An animated GIF of PNG frames (the last frame held 1.5 s).
+
+    Parameters
+    ----------
+    frames : list of path-like
+        The frames in order.
+    path : Path
+        The GIF (written atomically).
+    fps : int
+        Frames per second.
+    width : int, optional
+        Downscale to this width [pixels].
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    imgs = []
+    for f in frames:
+        im = Image.open(f).convert("RGB")
+        if width and im.size[0] > width:
+            im = im.resize((width, round(im.size[1] * width / im.size[0])), Image.LANCZOS)
+        imgs.append(im.convert("P", palette=Image.ADAPTIVE, colors=255))
+    durations = [int(1000 / fps)] * len(imgs)
+    if durations:
+        durations[-1] = 1500      # hold the last day
+    with atomic_write(path) as tmp:
+        imgs[0].save(tmp, save_all=True, append_images=imgs[1:], duration=durations, loop=0,
+                     optimize=True)
+    return path

@@ -86,6 +86,8 @@ def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None
 
 
 RENDER_DEFAULTS = {"width": 800, "height": 450, "spp": 24, "cameras": ("overview", "shelter")}
+#: frames per second of the years' animation (``render --years``)
+YEARS_FPS = 1
 
 
 def _cameras(camera) -> list[str]:
@@ -208,7 +210,8 @@ def year_end_days(run) -> list:
 
 def run_render_years(run_dir, out=None, *, scenario=None, progress=True, **kw) -> dict:
     """Render the last snapshot day of every year of a run (a stand year by year, from the
-    same cameras): ``run_render`` into ``<out>_<year>`` folders.
+    same cameras): ``run_render`` into ``<out>_<year>`` folders, and an animated GIF of the
+    years per camera in ``<out>_years/<camera>.gif``.
 
     Parameters
     ----------
@@ -227,7 +230,8 @@ def run_render_years(run_dir, out=None, *, scenario=None, progress=True, **kw) -
     Returns
     -------
     dict
-        ``{"years": {year: {"day", "date", "files"}}}``.
+        ``{"years": {year: {"day", "date", "files"}}, "animations": {camera: GIF}}``: the
+        years' animations (one frame a year, :data:`YEARS_FPS`) in ``<out>_years/``.
 
     Raises
     ------
@@ -244,12 +248,25 @@ def run_render_years(run_dir, out=None, *, scenario=None, progress=True, **kw) -
         raise ParameterError("RUN_DIR", str(run_dir), "a run with snapshots (frames)",
                              "run it again without --no-frames")
     base = Path(out) if out is not None else Path(run_dir) / "render"
+    # claimed first: a folder another process writes is refused before hours of renders
+    anim = OutputFolder(base.with_name(f"{base.name}_years"), "render_years",
+                        info={"run": str(run.dir)}, reads=run.dir)
     years = {}
     for year, day in days:
         s = run_render(run_dir, base.with_name(f"{base.name}_{year}"), day=day,
                        scenario=scenario, progress=progress, **kw)
         years[year] = {"day": s["day"], "date": s["date"], "files": s["files"]}
-    return {"years": years}
+    # the years as an animation per camera (one frame a year)
+    gifs = {}
+    for cam in next(iter(years.values()))["files"] if years else ():
+        frames = [y["files"][cam]["png"] for y in years.values()]
+        gifs[cam] = str(_film.write_gif(frames, anim.path / f"{cam}.gif", YEARS_FPS))
+    write_json(anim.path / "render_years.json",
+               {"command": "render --years", "run": str(run.dir),
+                "years": {str(k): {"day": v["day"], "date": v["date"]} for k, v in years.items()},
+                "files": gifs, "versions": versions()})
+    anim.release()
+    return {"years": years, "animations": gifs}
 
 
 def check_image(width, height, spp, max_depth=None, frames=None, every=None, fps=None):

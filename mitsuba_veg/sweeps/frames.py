@@ -17,8 +17,8 @@ from ..errors import ParameterError
 from ..outputs import write_json
 from ..render import animation
 from ..render.animation import (ANIMATE_DEFAULTS, default_light, label_frame, prepare_animation,
-                                write_gif, write_mp4)
-from ..render.film import to_srgb8, write_png
+                                write_mp4)
+from ..render.film import to_srgb8, write_gif, write_png
 from ..render.history import load_run
 from ..render.scene import RenderOptions, Terrain, build_scene, render_time, sky_emitters
 from ..render.still import render
