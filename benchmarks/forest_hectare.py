@@ -1,15 +1,15 @@
 """A year of a 1-hectare Weber-Penn stand: more than 5 million leaves on the 2-core machine.
 
-    python benchmarks/forest_hectare.py [--days 366] [--density 300] [--photons 1000000]
-                                        [--out DIR] [--set key=value ...]
+    python benchmarks/forest_hectare.py [--days 366] [--photons 1000000] [--out DIR]
+                                        [--set key=value ...]
 
-Writes a scenario into the run folder (``scenario/``): a 100 m x 100 m rolling ground (1 ha,
-a 5° south-facing slope with 0.3 m of relief, 1 m resolution) with logs and rocks clear of the
-tree bases, a ``[stand]`` of quaking aspens (Weber-Penn, paper 004; ``--density`` trees/ha,
-Poisson-disc >= 3.5 m apart, three geometry variants, 12 m tall on average, aged 20 so that
-they grow every 31 December) and a moss floor, the light schedule of ``scenes/forest_stand``
-(a pass every fourth day, ``--photons`` a pass). Then runs it from 1 January for ``--days``
-days (the default crosses the year's end: the trees age, the scene is rebuilt) and prints:
+Runs ``scenes/forest_hectare`` (a 100 m x 100 m rolling ground, 1 ha, on a 5° south-facing
+slope with 0.3 m of relief, 20 logs and 30 rocks clear of the tree bases; a ``[stand]`` of 300
+quaking aspens per hectare: Weber-Penn, paper 004, Poisson-disc >= 3.5 m apart, three geometry
+variants, 12 m tall on average, aged 20 so that they grow every 31 December; a moss floor; a
+photon pass every fourth day, ``--photons`` a pass; no checkpoints) from 1 January for
+``--days`` days (the default crosses the year's end: the trees age, the scene is rebuilt) and
+prints:
 
 - the set-up (trees, leaves, recorded elements, seconds) and the resident memory before and
   after it and after the first photon pass, with the memory per leaf;
@@ -45,92 +45,9 @@ def peak() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1e3
 
 
-def write_scenario(folder: Path, density: float, photons: int) -> Path:
-    """The 1-ha scenario (module docstring) in ``folder``; returns its scenario.toml."""
-    from mitsuba_veg.forest_floor import rolling_ground, scatter_floor, write_ply
-    from mitsuba_veg.trees.stand import StandSpec, layout
-    folder.mkdir(parents=True, exist_ok=True)
-    stand = {"plot": [-50.0, -50.0, 50.0, 50.0], "density": density,
-             "mix": {"quaking_aspen": 1.0}, "placement": "poisson_disc", "min_spacing": 3.5,
-             "height_mean": 12.0, "height_cv": 0.15, "variants": 3, "seed": 11}
-    ground = rolling_ground((-50.0, -50.0, 50.0, 50.0), slope_deg=5.0, aspect_deg=180.0,
-                            roughness=0.3, roughness_scale=15.0, seed=4, resolution=1.0)
-    bases = layout(StandSpec.from_dict(stand)).positions[:, [0, 2]]
-    floor = scatter_floor(ground, logs=20, rocks=30, seed=6, avoid=bases, clearance=1.0,
-                          log_length=(2.0, 6.0), log_radius=(0.12, 0.35),
-                          rock_radius=(0.25, 0.7))
-    ground.write_ply(folder / "ground.ply")
-    xml = ['<scene version="3.0.0">', '  <shape type="ply" id="ground">',
-           '    <string name="filename" value="ground.ply"/>',
-           '    <bsdf type="diffuse"><spectrum name="reflectance" value="0.12"/></bsdf>',
-           '  </shape>']
-    depth = ["ground = 200.0"]
-    for obj in floor:
-        write_ply(folder / f"{obj.name}.ply", obj.vertices, obj.faces)
-        xml += [f'  <shape type="ply" id="{obj.name}">',
-                f'    <string name="filename" value="{obj.name}.ply"/>',
-                '    <bsdf type="diffuse"><spectrum name="reflectance" value="'
-                f'{0.18 if obj.kind == "log" else 0.3}"/></bsdf>', '  </shape>']
-        depth.append(f"{obj.name} = {20.0 if obj.kind == 'log' else 2.0}")
-    xml.append("</scene>")
-    (folder / "scene.xml").write_text("\n".join(xml) + "\n")
-    mix = ", ".join(f"{k} = {v}" for k, v in stand["mix"].items())
-    plot = ", ".join(str(x) for x in stand["plot"])
-    text = f"""[scene]
-file = "scene.xml"
-
-[site]
-latitude = 35.0
-longitude = 139.0
-
-[light]
-photons = {photons}
-max_depth = 8
-indirect = true
-seed = 0
-
-[terrain]
-ground = "ground"
-
-[terrain.soil_depth_mm]
-{chr(10).join(depth)}
-
-[simulation]
-start_date = "2026-01-01"
-checkpoint_every = 0
-frame_every = 30
-light_every = 4
-
-[climate]
-temperature = 288.15
-humidity = 0.73
-
-[moss]
-species = ["bryum_argenteum", "hypnum_plumaeforme", "polytrichum"]
-capacity = 262144
-initial = 20000
-size = 0.1
-
-[stand]
-plot = [{plot}]
-density = {density}
-mix = {{ {mix} }}
-placement = "poisson_disc"
-min_spacing = {stand['min_spacing']}
-height_mean = {stand['height_mean']}
-height_cv = {stand['height_cv']}
-variants = {stand['variants']}
-seed = {stand['seed']}
-age = 20.0
-"""
-    (folder / "scenario.toml").write_text(text)
-    return folder / "scenario.toml"
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--days", type=int, default=366)
-    ap.add_argument("--density", type=float, default=300.0, help="trees/ha")
     ap.add_argument("--photons", type=int, default=1_000_000)
     ap.add_argument("--out", default=None, help="run folder (default: a temporary one)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -141,7 +58,8 @@ def main(argv=None) -> int:
     from mitsuba_veg.moss.population import MOSS
     from mitsuba_veg.scenario import load_scenario
     out = Path(a.out) if a.out else Path(tempfile.mkdtemp(prefix="forest_hectare_"))
-    scn = load_scenario(write_scenario(out / "scenario", a.density, a.photons), a.set)
+    scn = load_scenario(ROOT / "scenes" / "forest_hectare" / "scenario.toml",
+                        [f"light.photons={a.photons}", "simulation.checkpoint_every=0"] + a.set)
     sim = Simulation(scn, out / "run", days=a.days, progress=False)
     m0, t0 = rss(), time.perf_counter()
     sim.setup()

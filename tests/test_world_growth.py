@@ -477,3 +477,27 @@ def test_moss_follows_a_closing_canopy_and_a_gap(tmp_path, sun):
     else:
         assert gap[0] > gap[1] > gap[2], cover
         assert closing[0] < closing[1] < closing[2], cover
+
+
+def test_forest_hectare_scenario_holds_300_aspens_and_5_million_leaves():
+    """scenes/forest_hectare: its [stand] lays 300 quaking aspens on the hectare, >= 3.5 m
+    apart, each one of three Weber-Penn variants; their leaves add up to more than 5 million
+    (6,728,166: the number benchmarks/forest_hectare.py and docs/forest.md report). The world
+    itself (10 GB, 93 s to set up) is the benchmark's."""
+    from mitsuba_veg.scenario import load_scenario
+    from mitsuba_veg.trees import weber_penn as wp
+    from mitsuba_veg.trees.stand import StandSpec, layout
+    from mitsuba_veg.world.trees import STAND_WORLD_FIELDS
+    scn = load_scenario(ROOT / "scenes" / "forest_hectare" / "scenario.toml")
+    cfg = scn.get("stand")
+    st = layout(StandSpec.from_dict({k: v for k, v in cfg.items()
+                                     if k not in STAND_WORLD_FIELDS}))
+    assert len(st) == 300 and st.area == pytest.approx(1e4)
+    xz = st.positions[:, [0, 2]]
+    d = np.hypot(*(xz[:, None, :] - xz[None, :, :]).transpose(2, 0, 1))
+    assert d[~np.eye(300, dtype=bool)].min() >= 3.5
+    leaves = {k: len(wp.generate(k[0], seed=st.variant_seed(*k)).leaves)
+              for k in st.variant_keys()}
+    assert len(leaves) == 3
+    assert sum(leaves[str(s), int(v)] for s, v in zip(st.species, st.variants)) == 6_728_166
+    assert cfg["age"] == 20.0 and scn.get("simulation.days") == 3650
