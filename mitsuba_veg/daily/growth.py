@@ -235,7 +235,6 @@ class DayGrowth:
                 out[i] = lt
         return out
 
-
     def leaf_lights(self, yl: YearLight) -> dict:
         """The year's light of every leaf of the trees that adapt (paper 002), relative to the
         open: Σ S_l / Σ (B + D) over the days the leaf was out (read back once a year).
