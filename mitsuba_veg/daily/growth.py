@@ -224,10 +224,10 @@ class DayGrowth:
         out = {}
         for i in self.trees:
             wt = self.site.trees[i]
-            leaves = np.flatnonzero(c.tree_of == i)
+            leaves = c.leaves_of(i)
             m = len(wt.tree.attrs["leaf_sphere_segment"])
             sphere = np.asarray(wt.tree.leaves.attrs["sphere"], np.int64)
-            if len(sphere) != len(leaves) or m == 0:
+            if len(sphere) != leaves.stop - leaves.start or m == 0:
                 continue
             lt = sphere_light({f: x[leaves] for f, x in v.items()}, self.normals[leaves],
                               sphere, m)
@@ -257,9 +257,9 @@ class DayGrowth:
         open_s = np.asarray(yl.open_S, np.float64)
         out = {}
         for i in self.adapting:
-            leaves = np.flatnonzero(c.tree_of == i)
+            leaves = c.leaves_of(i)
             o = open_s[leaves]
-            if len(leaves) and np.any(o > 0):
+            if len(o) and np.any(o > 0):
                 out[i] = np.where(o > 0, S[leaves] / np.maximum(o, 1e-300), 0.0)
         return out
 

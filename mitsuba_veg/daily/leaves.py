@@ -34,8 +34,8 @@ class DayLeaves:
         # sunnier (higher, outer) leaves unfold a few days earlier
         shift = np.zeros(c.n_leaves)
         for t_i, _ in enumerate(site.trees):
-            m = c.tree_of == t_i
-            if m.any():
+            m = c.leaves_of(t_i)
+            if m.stop > m.start:
                 p = c.centre[m]
                 h = (p[:, 1] - p[:, 1].min()) / max(float(np.ptp(p[:, 1])), 1e-9)
                 shift[m] = -4.0 * h

@@ -109,7 +109,7 @@ class DayLight:
         self.indirect = bool(cfg.light_cfg["indirect"])
         self.seed = int(cfg.seed)
         self.every = int(cfg.light_every)
-        #: (day, PhotonIrradianceResult) of the last pass, reused until the next one
+        #: (day, PhotonIrradianceResult, leaf areas) of the last pass, reused until the next
         self.held = None
         # the leaves' net insolation (front - back) for trees that grow from their light
         self.leaf_net = any(wt.model == "growth" for wt in site.trees)

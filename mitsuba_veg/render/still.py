@@ -249,23 +249,22 @@ def run_render_years(run_dir, out=None, *, scenario=None, progress=True, **kw) -
                              "run it again without --no-frames")
     base = Path(out) if out is not None else Path(run_dir) / "render"
     # claimed first: a folder another process writes is refused before hours of renders
-    anim = OutputFolder(base.with_name(f"{base.name}_years"), "render_years",
-                        info={"run": str(run.dir)}, reads=run.dir)
-    years = {}
-    for year, day in days:
-        s = run_render(run_dir, base.with_name(f"{base.name}_{year}"), day=day,
-                       scenario=scenario, progress=progress, **kw)
-        years[year] = {"day": s["day"], "date": s["date"], "files": s["files"]}
-    # the years as an animation per camera (one frame a year)
-    gifs = {}
-    for cam in next(iter(years.values()))["files"] if years else ():
-        frames = [y["files"][cam]["png"] for y in years.values()]
-        gifs[cam] = str(_film.write_gif(frames, anim.path / f"{cam}.gif", YEARS_FPS))
-    write_json(anim.path / "render_years.json",
-               {"command": "render --years", "run": str(run.dir),
-                "years": {str(k): {"day": v["day"], "date": v["date"]} for k, v in years.items()},
-                "files": gifs, "versions": versions()})
-    anim.release()
+    with OutputFolder(base.with_name(f"{base.name}_years"), "render_years",
+                      info={"run": str(run.dir)}, reads=run.dir) as anim:
+        years = {}
+        for year, day in days:
+            s = run_render(run_dir, base.with_name(f"{base.name}_{year}"), day=day,
+                           scenario=scenario, progress=progress, **kw)
+            years[year] = {"day": s["day"], "date": s["date"], "files": s["files"]}
+        # the years as an animation per camera (one frame a year)
+        gifs = {cam: str(_film.write_gif([y["files"][cam]["png"] for y in years.values()],
+                                         anim.path / f"{cam}.gif", YEARS_FPS))
+                for cam in s["files"]}
+        write_json(anim.path / "render_years.json",
+                   {"command": "render --years", "run": str(run.dir),
+                    "years": {str(k): {"day": v["day"], "date": v["date"]}
+                              for k, v in years.items()},
+                    "files": gifs, "versions": versions()})
     return {"years": years, "animations": gifs}
 
 

@@ -98,6 +98,8 @@ class Canopy:
         self.face_leaf = np.concatenate(owner) if owner else np.zeros(0, np.int64)
         self.area = np.concatenate(area) if area else np.zeros(0)
         self.tree_of = np.concatenate(tree_of) if tree_of else np.zeros(0, np.int64)
+        # the leaves of a tree are consecutive: tree t owns leaves [start[t], start[t + 1])
+        self._tree_start = np.r_[0, np.cumsum([len(x) for x in tree_of])].astype(np.int64)
         self.centre = np.zeros((n, 3))
         if n:
             np.add.at(self.centre, self.face_leaf, self.tri.mean(1))
@@ -124,6 +126,21 @@ class Canopy:
         self._stale_prev, self._stale_days = -1, 0
         self.stage_bsdfs: list = []
         self.mesh_updates = 0                 # leaf-mesh vertex updates (BVH rebuilds) so far
+
+    def leaves_of(self, t: int) -> slice:
+        """The leaves of tree ``t`` (consecutive in every per-leaf table).
+
+        Parameters
+        ----------
+        t : int
+            Index of the tree in :attr:`trees`.
+
+        Returns
+        -------
+        slice
+            Its leaves.
+        """
+        return slice(int(self._tree_start[t]), int(self._tree_start[t + 1]))
 
     # ---- the scene's shapes -------------------------------------------------------------
     def bin_stage(self, b: int) -> float:
