@@ -17,7 +17,7 @@ from mitsuba_veg.meshes import triangle_geometry
 _INDEX_CACHE: dict = {}
 
 
-def scene_index(scene: mi.Scene) -> "SceneIndex":
+def scene_index(scene: mi.Scene, reference: dict | None = None) -> "SceneIndex":
     """The :class:`SceneIndex` of a scene, built once for the last scene seen.
 
     The cache holds the scene itself: keyed by ``id()`` alone, a new scene allocated where a
@@ -27,15 +27,20 @@ def scene_index(scene: mi.Scene) -> "SceneIndex":
     ----------
     scene : mi.Scene
         The scene.
+    reference : dict, optional
+        ``{mesh id: (vertices (n, 3), faces (m, 3))}``: the geometry whose areas, normals and
+        centroids the index gives those meshes instead of their vertices now (a canopy built
+        with its blades collapsed: its elements keep their full blades' areas and normals).
+        Given, the index is built anew.
 
     Returns
     -------
     SceneIndex
         The scene's element index.
     """
-    if _INDEX_CACHE.get("scene") is not scene:
+    if reference is not None or _INDEX_CACHE.get("scene") is not scene:
         _INDEX_CACHE.clear()
-        _INDEX_CACHE.update(scene=scene, index=SceneIndex.build(scene))
+        _INDEX_CACHE.update(scene=scene, index=SceneIndex.build(scene, reference))
     return _INDEX_CACHE["index"]
 
 
@@ -246,13 +251,16 @@ class SceneIndex:
                                            .ravel())
 
     @staticmethod
-    def build(scene: mi.Scene) -> "SceneIndex":
+    def build(scene: mi.Scene, reference: dict | None = None) -> "SceneIndex":
         """Index the shapes of ``scene``; refuses (``SceneError``) what it cannot resolve.
 
         Parameters
         ----------
         scene : mi.Scene
             The scene (load with ``optimize=False`` to keep every shape and its id).
+        reference : dict, optional
+            ``{top-level mesh id: (vertices, faces)}`` whose areas, normals and centroids the
+            index gives those meshes instead of their vertices now (:func:`scene_index`).
 
         Returns
         -------
@@ -355,6 +363,11 @@ class SceneIndex:
                 inst_matrix[_reg_id(sh)] = T
             elif sh.is_mesh() and sh.face_count() > 0:
                 v, f = _mesh_arrays(sh)
+                if reference and sid in reference:
+                    v, f_ref = reference[sid]
+                    if np.shape(f_ref) != f.shape or not np.array_equal(f_ref, f):
+                        raise SceneError(f"mesh '{sid}': the reference geometry's faces are "
+                                         "not the mesh's")
                 a, nrm, c = triangle_geometry(v, f)
                 counts.append(len(f))
                 areas.append(a)
@@ -383,7 +396,13 @@ class SceneIndex:
             # aim at geometry that can receive light: not at emitter shapes (e.g. a distant
             # area "sun") nor at sensor shapes
             if not (sh.is_emitter() or sh.is_sensor()):
-                bbox.expand(sh.bbox())
+                if reference and sid in reference:
+                    # the reference geometry's box (collapsed blades grow out later)
+                    rv = np.asarray(reference[sid][0], np.float32)
+                    bbox.expand(mi.ScalarBoundingBox3f(mi.ScalarPoint3f(*rv.min(0)),
+                                                       mi.ScalarPoint3f(*rv.max(0))))
+                else:
+                    bbox.expand(sh.bbox())
         if not bbox.valid():
             bbox = scene.bbox()
         # shading normals need Mitsuba's full interaction too, except with instances, where

@@ -80,12 +80,28 @@ def triangle_geometry(vertices, faces) -> tuple[np.ndarray, np.ndarray, np.ndarr
     centroids : numpy.ndarray
         (m, 3) centroids [m].
     """
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces)
-    p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    cross = np.cross(p1 - p0, p2 - p0)
-    norm = np.linalg.norm(cross, axis=1)
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(faces).reshape(-1, 3)
+    # component by component: np.cross and np.linalg.norm copy strided (m, 3) arrays (a
+    # hectare's 21.6 M triangles took 17 s, now 2.5x less); the same operations in the same
+    # order as (p1 - p0) x (p2 - p0), |c| and (p0 + p1 + p2) / 3, so the same bits
+    x, y, z = (np.ascontiguousarray(v[:, k]) for k in range(3))
+    i0, i1, i2 = f[:, 0], f[:, 1], f[:, 2]
+    ax, ay, az = x[i0], y[i0], z[i0]
+    bx, by, bz = x[i1], y[i1], z[i1]
+    qx, qy, qz = x[i2], y[i2], z[i2]
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = qx - ax, qy - ay, qz - az
+    cx = uy * wz - uz * wy
+    cy = uz * wx - ux * wz
+    cz = ux * wy - uy * wx
+    norm = np.sqrt(cx * cx + cy * cy + cz * cz)
+    normals = np.empty((len(f), 3))
     with np.errstate(invalid="ignore", divide="ignore"):
-        normals = cross / norm[:, None]
+        normals[:, 0], normals[:, 1], normals[:, 2] = cx / norm, cy / norm, cz / norm
     normals[norm <= 0.0] = 0.0
-    return 0.5 * norm, normals, (p0 + p1 + p2) / 3.0
+    centroids = np.empty((len(f), 3))
+    centroids[:, 0] = (ax + bx + qx) / 3.0
+    centroids[:, 1] = (ay + by + qy) / 3.0
+    centroids[:, 2] = (az + bz + qz) / 3.0
+    return 0.5 * norm, normals, centroids

@@ -179,6 +179,43 @@ def test_tree_by_the_house_grows_away_from_it_from_the_days_light(tmp_path, monk
     assert rec["trees"]["by_the_house"]["leaves"] == len(after.leaf_area)
 
 
+def test_a_scene_rebuilt_bare_keeps_the_full_blades_in_its_index(tmp_path):
+    """The year's end builds its new scene with every blade collapsed (its leaves start bare:
+    no vertex update and no second BVH build on the first day). Its index keeps the full
+    blades' areas, normals and centroids (what a scene built with them and collapsed later
+    has), and its leaf mesh holds exactly the vertices that collapsing the full mesh gives."""
+    import drjit as dr
+    import mitsuba as mi
+    from mitsuba_veg.daily.config import MossConfig
+    from mitsuba_veg.daily.site import build_site
+    from mitsuba_veg.scenario import load_scenario
+    from mitsuba_veg.world.canopy import LEAF_MESH
+    cfg = MossConfig(load_scenario(_growth_world(tmp_path), ["light.photons=20000"]), 10)
+    full = build_site(cfg)
+    bare = build_site(cfg, trees=full.trees, bare=True)
+    assert bare.canopy.n_leaves == full.canopy.n_leaves > 500
+    assert bare.index.n_elements == full.index.n_elements
+    for k in ("areas", "normals", "centroids"):
+        assert np.array_equal(getattr(bare.index, k), getattr(full.index, k)), k
+    # the photons aim at the full crowns' box (the blades grow out later)
+    assert str(bare.index.aim_bbox) == str(full.index.aim_bbox)
+    assert np.array_equal(np.asarray(bare.index.kernel_normals),
+                          np.asarray(full.index.kernel_normals))
+    leaf = full.index.shape_slice(LEAF_MESH)
+    assert np.all(full.index.areas[leaf] > 0)
+    assert np.all(np.asarray(bare.canopy._scale) == 0.0)
+
+    def leaf_vertices(site):
+        sh = [s for s in site.scene.shapes() if s.id() == LEAF_MESH][0]
+        return np.asarray(sh.vertex_positions_buffer())
+    # the full scene's blades collapsed as the first day of a bare year does
+    before = leaf_vertices(full)
+    full.canopy._set_blades(mi.traverse(full.scene), dr.zeros(mi.Float64, full.canopy.n_leaves))
+    after = leaf_vertices(full)
+    assert not np.array_equal(before, after)
+    assert np.array_equal(leaf_vertices(bare), after)
+
+
 @pytest.mark.slow
 def test_multi_year_world_resumes_exactly(tmp_path):
     """A run that crosses a year-end regrowth, stopped before it or after it and resumed, gives

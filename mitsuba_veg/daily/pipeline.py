@@ -551,8 +551,9 @@ class Simulation:
             Path(t).write_text("\n".join(lines) + "\n")
 
     def _rebuild(self, trees: list) -> None:
-        """A new site and pipeline with these trees; the soil water, the moss, the records
-        and the day carry over, the leaves start bare and the year's sums at zero."""
+        """A new site and pipeline with these trees (the leaf mesh built bare); the soil
+        water, the moss, the records and the day carry over, the leaves start bare and the
+        year's sums at zero."""
         old = self.state
         # the old scene, its tables and the day's fields go first: a large stand's rebuild
         # then holds one light scene, not two
@@ -562,7 +563,8 @@ class Simulation:
         gc.collect()                     # Mitsuba objects in reference cycles
         dr.flush_malloc_cache()          # the freed device memory back to the system
         _trim_heap()
-        self.site = build_site(self.config, trees=trees)
+        # the new leaves start bare: their blades collapsed in the mesh from the start
+        self.site = build_site(self.config, trees=trees, bare=True)
         if self.albedo:
             self.site.set_albedo(self.albedo)
         self.pipeline = DayPipeline(self.site, self.inputs, self.light_strength)

@@ -145,7 +145,7 @@ class Site:
         self._to_device()
 
     # ---- building -------------------------------------------------------------------------
-    def _build(self, with_trees: bool = True, trees=None) -> None:
+    def _build(self, with_trees: bool = True, trees=None, bare: bool = False) -> None:
         cfg = self.config
         scn = cfg.scn
         base = scn.load_scene(daylight=False)
@@ -158,7 +158,7 @@ class Site:
             self.trees = list(trees) if trees is not None else scenario_trees(scn, base)
             self.tree_seconds = time.perf_counter() - t0
             self.canopy = Canopy(self.trees, cfg.stage_bins)
-            d.update(self.canopy.shapes())
+            d.update(self.canopy.shapes(bare=bare))
         if with_trees:
             self.sensors = sensors_mod.from_scenario(scn, base)
             if self.sensors is not None:
@@ -173,7 +173,10 @@ class Site:
         ems = {e.id(): e for e in self.scene.emitters()}
         self.sun, self.sky = ems["sun"], ems["sky"]
         # the pass's own cache: its tables and pilot find this index instead of a second one
-        self.index = scene_index(self.scene)
+        # a canopy built bare: its elements' areas and normals are those of the full blades
+        # (as in a scene built with them, whose blades collapse later)
+        ref = self.canopy.reference_geometry() if bare and self.canopy is not None else None
+        self.index = scene_index(self.scene, ref)
         self.integrator = PhotonIrradianceIntegrator()
         self._setup_terrain()
         lo, hi = self.terrain_bbox()
@@ -310,7 +313,8 @@ class Site:
         dr.eval(self.d_living, self.d_M, self.d_h, self.d_areas, self.d_base_albedo)
 
 
-def build_site(config: MossConfig, with_trees: bool = True, trees=None) -> Site:
+def build_site(config: MossConfig, with_trees: bool = True, trees=None,
+               bare: bool = False) -> Site:
     """Build a run's site (module docstring).
 
     Parameters
@@ -323,6 +327,9 @@ def build_site(config: MossConfig, with_trees: bool = True, trees=None) -> Site:
     trees : list of WorldTree, optional
         The trees as they are now (a world whose trees grew), instead of building the
         scenario's ``[[trees]]``.
+    bare : bool
+        The leaf mesh with every blade collapsed (:meth:`Canopy.shapes`): the scene rebuilt at
+        the year's end, whose leaves start bare.
 
     Returns
     -------
@@ -330,7 +337,7 @@ def build_site(config: MossConfig, with_trees: bool = True, trees=None) -> Site:
         The site.
     """
     site = Site(config)
-    site._build(with_trees, trees)
+    site._build(with_trees, trees, bare)
     return site
 
 

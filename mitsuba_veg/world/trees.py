@@ -61,10 +61,17 @@ class WorldTree:
     tree: Tree | None = None         # the branch structure (growth / Weber-Penn)
     info: dict = field(default_factory=dict)
 
+    #: the crown's measures, computed once (a tree's arrays are not changed in place: ageing,
+    #: growth and death make a new WorldTree); the year's end asks for them per tree several
+    #: times (rows, the floor's crowns, the figure), at 22,000 leaves a tree
+    _measures: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
     @property
     def leaf_centre(self) -> np.ndarray:
         """(m, 3) centre of each leaf element's blade [m] (mean of its corners)."""
-        return self.leaf_vertices.mean(axis=1)
+        if "centre" not in self._measures:
+            self._measures["centre"] = self.leaf_vertices.mean(axis=1)
+        return self._measures["centre"]
 
     def crown_centre(self) -> np.ndarray:
         """Horizontal centre (x, z) of the crown [m].
@@ -77,10 +84,11 @@ class WorldTree:
         numpy.ndarray
             (2,) x and z [m].
         """
-        c = self.leaf_centre
-        if len(c) == 0:
-            return self.position[[0, 2]].astype(float)
-        return c[:, [0, 2]].mean(axis=0)
+        if "crown_centre" not in self._measures:
+            c = self.leaf_centre
+            self._measures["crown_centre"] = (self.position[[0, 2]].astype(float) if len(c) == 0
+                                              else c[:, [0, 2]].mean(axis=0))
+        return self._measures["crown_centre"].copy()
 
     def crown_radius(self) -> float:
         """Horizontal radius of the crown around its centre [m].
@@ -92,11 +100,12 @@ class WorldTree:
         float
             Radius [m] (0 without leaves).
         """
-        c = self.leaf_centre
-        if len(c) == 0:
-            return 0.0
-        m = self.crown_centre()
-        return float(np.percentile(np.hypot(c[:, 0] - m[0], c[:, 2] - m[1]), 90))
+        if "crown_radius" not in self._measures:
+            c = self.leaf_centre
+            m = self.crown_centre()
+            self._measures["crown_radius"] = 0.0 if len(c) == 0 else \
+                float(np.percentile(np.hypot(c[:, 0] - m[0], c[:, 2] - m[1]), 90))
+        return self._measures["crown_radius"]
 
 
 def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
@@ -285,12 +294,21 @@ def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
     """
     a, k = float(wt.info["age"]), float(wt.info["age_rate"])
     tree = wt.tree
+    (bv, bf), quads, area = wt.bark, wt.leaf_vertices, wt.leaf_area
     for y in range(int(years)):
-        tree = scaled_tree(tree, float(age_curve(a + y + 1, k) / age_curve(a + y, k)))
+        f = float(age_curve(a + y + 1, k) / age_curve(a + y, k))
+        # the meshes scale with the tree (tubes, junctions and blades are linear in the
+        # positions and sizes): meshing a hectare's 300 trees again cost 10 s a year
+        base = tree.start[0].copy() if len(tree) else np.zeros(3)
+        tree = scaled_tree(tree, f)
+        bv = (np.asarray(bv, float) - base) * f + base
+        quads = (quads - base) * f + base
+        area = area * (f * f)
     info = dict(wt.info)
     info["age"] = a + years
     info["height_m"] = float(tree.metrics()["height"]) if tree.alive.any() else 0.0
-    return _tree_to_world(wt.name, wt.model, tree, wt.position, info)
+    return WorldTree(wt.name, wt.model, np.asarray(wt.position, float), (bv, bf), quads, area,
+                     tree, info)
 
 
 def adapts(wt: WorldTree) -> bool:
