@@ -362,12 +362,16 @@ class SceneIndex:
                 inst_base[_reg_id(sh)] = g_base[gname]
                 inst_matrix[_reg_id(sh)] = T
             elif sh.is_mesh() and sh.face_count() > 0:
-                v, f = _mesh_arrays(sh)
                 if reference and sid in reference:
+                    # the reference's vertices, not the mesh's (not read: 6.7 M collapsed
+                    # blades are 1 GB of float64)
                     v, f_ref = reference[sid]
+                    f = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
                     if np.shape(f_ref) != f.shape or not np.array_equal(f_ref, f):
                         raise SceneError(f"mesh '{sid}': the reference geometry's faces are "
                                          "not the mesh's")
+                else:
+                    v, f = _mesh_arrays(sh)
                 a, nrm, c = triangle_geometry(v, f)
                 counts.append(len(f))
                 areas.append(a)
