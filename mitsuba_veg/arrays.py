@@ -597,8 +597,8 @@ class Tally:
         k_all = len(self._cols)
         # 1. per float column: the largest value (bits of non-negative floats order like the
         #    values), and whether any value is negative, NaN or infinite
-        top = dr.zeros(mi.UInt32, k_all)
-        bad = dr.zeros(mi.UInt32, k_all)
+        # (one array for both: one memset)
+        top_bad = dr.zeros(mi.UInt32, 2 * k_all)
         for i, (_, kind, x, seg, n_seg, mask) in enumerate(self._cols):
             if kind != "sum":
                 continue
@@ -606,11 +606,11 @@ class Tally:
             xf = dr.select(xf == 0.0, 0.0, xf)  # -0.0 has the largest bit pattern
             m = self._lanes(x, seg, n_seg, mask)
             ok = (xf >= 0.0) & dr.isfinite(xf)  # False for NaN
-            dr.scatter_reduce(dr.ReduceOp.Max, top, dr.reinterpret_array(mi.UInt32, xf),
+            dr.scatter_reduce(dr.ReduceOp.Max, top_bad, dr.reinterpret_array(mi.UInt32, xf),
                               mi.UInt32(i), m & ok, mode=dr.ReduceMode.Local)
-            dr.scatter_reduce(dr.ReduceOp.Max, bad, mi.UInt32(1), mi.UInt32(i), m & ~ok,
-                              mode=dr.ReduceMode.Local)
-        dr.eval(top, bad)
+            dr.scatter_reduce(dr.ReduceOp.Max, top_bad, mi.UInt32(1), mi.UInt32(k_all + i),
+                              m & ~ok, mode=dr.ReduceMode.Local)
+        dr.eval(top_bad)
         # 2. fixed-point sums; the scale of column i: 2^62 / (width x max), on the device
         offsets, n_rows = [], 0
         for c in self._cols:
@@ -627,14 +627,15 @@ class Tally:
             else:
                 # (an opaque index: a literal one would make Dr.Jit copy the value at once)
                 xmax = mi.Float64(dr.reinterpret_array(
-                    mi.Float, dr.gather(mi.UInt32, top, zero_index() + i)))
+                    mi.Float, dr.gather(mi.UInt32, top_bad, zero_index() + i)))
                 scale = dr.select(xmax > 0, _FIX_TOTAL / (xmax * n), 0.0)
                 q = mi.UInt64(dr.round(dr.maximum(mi.Float64(x), 0.0) * scale))
             dr.scatter_add(acc, q, s + offsets[i], m, mode=dr.ReduceMode.Local)
         dr.eval(acc)
         a = np.asarray(acc).astype(np.float64)
-        tops = np.asarray(top).view(np.float32).astype(np.float64)
-        b = np.asarray(bad)
+        tb = np.asarray(top_bad)
+        tops = tb[:k_all].view(np.float32).astype(np.float64)
+        b = tb[k_all:]
         raw = {}
         for i, (name, kind, x, _, n_seg, _) in enumerate(self._cols):
             # the unit of column i: the inverse of the kernel's scale

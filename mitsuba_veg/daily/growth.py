@@ -136,8 +136,6 @@ class DayGrowth:
         g = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
         self.normals = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
         self.widths = {b: band_range(b)[1] - band_range(b)[0] for b in ("red", "far_red")}
-        gsl = site.ground_slice
-        self.d_ground = dr.arange(mi.UInt32, gsl.start, gsl.stop)
 
     def new_state(self) -> YearLight:
         """Empty sums for a new year.
@@ -185,7 +183,7 @@ class DayGrowth:
         yl.floor_par = yl.floor_par + light.ground["par"]
         yl.floor_red = yl.floor_red + light.ground["red"]
         yl.floor_far_red = yl.floor_far_red + light.ground["far_red"]
-        yl.floor_sky = yl.floor_sky + dr.gather(mi.Float64, light.f_sky, self.d_ground)
+        yl.floor_sky = yl.floor_sky + light.f_sky_ground
         yl.days += 1
         return yl.arrays()
 

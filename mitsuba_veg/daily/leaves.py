@@ -71,8 +71,9 @@ class DayLeaves:
         tuple
             (modes, BSDF registry ids) of the leaf triangles, on the device.
         """
-        ph.start_of_day(date)
-        self.canopy.update(scene_params, ph.tau, ph.grown, ph.on_tree)
+        # the phenology's state and the canopy's tables in one kernel
+        ph.start_of_day(date, evaluate=False)
+        self.canopy.update(scene_params, ph.tau, ph.grown, ph.on_tree, also=ph.arrays())
         return self.canopy.trace_tables()
 
     def end(self, ph: Phenology, date, S_leaf) -> None:

@@ -77,6 +77,7 @@ class DayLightResult:
     sensors: np.ndarray | None
     result: PhotonIrradianceResult
     S_leaf_net: object = None
+    f_sky_ground: object = None
 
 
 class DayLight:
@@ -191,8 +192,9 @@ class DayLight:
         ----------
         vals : DayValues
             The day's inputs on the device.
-        cover : mi.Float64
-            Moss cover per terrain element [-] (0..1): the albedo follows it.
+        cover : mi.Float64 or callable
+            Moss cover per terrain element [-] (0..1): the albedo follows it; or a function
+            of terrain element indices (mi.UInt32) that gives their cover.
         leaf_tables : tuple, optional
             (modes, BSDF registry ids) of the leaf triangles (:meth:`Canopy.trace_tables`).
         leaf_area : mi.Float64, optional
@@ -219,7 +221,7 @@ class DayLight:
         # moss cover as albedo of the terrain (the pass's reflectance table, written in place)
         n4 = site.n_terrain * 4
         j = dr.arange(mi.UInt32, n4)
-        c = mi.Float(dr.gather(mi.Float64, cover, j // 4))
+        c = mi.Float(cover(j // 4) if callable(cover) else dr.gather(mi.Float64, cover, j // 4))
         alb = (1.0 - c) * dr.gather(mi.Float, self.d_base_albedo, j) + \
             c * dr.gather(mi.Float, self.d_moss_albedo, j % 4)
         dr.scatter(t.refl[0], alb, j)
@@ -266,8 +268,11 @@ class DayLight:
         f_sky = res.device_flux(1, kt, rows) / self.d_terrain_area / WIDTH_TOTAL
         if s_sun != 1.0:
             f_sun = f_sun * s_sun
+        f_sky_ground = res.device_flux(1, kt, self.d_ground_rows) / self.d_ground_area \
+            / WIDTH_TOTAL
         if s_sky != 1.0:
             f_sky = f_sky * s_sky
+            f_sky_ground = f_sky_ground * s_sky
         wd = vals.weather
         B, D = wd["beam"], wd["diffuse"]
         S = insolation(B, D, f_sun, f_sky)
@@ -315,7 +320,7 @@ class DayLight:
                 S_net = (B * s_sun * nf[0] + D * s_sky * nf[1]) / area / WIDTH_TOTAL
         sensors = self._sensors(res, vals) if site.sensors is not None else None
         return DayLightResult(f_sun, f_sky, S, leaf, S_leaf, leaf_area, ground, ground_sky,
-                              sensors, res, S_net)
+                              sensors, res, S_net, f_sky_ground)
 
     def _sensors(self, res, vals: DayValues) -> np.ndarray:
         """The day's sensor readings (n, quantities, components), read back (they are written

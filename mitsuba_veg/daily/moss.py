@@ -32,18 +32,21 @@ def parents_in_order(gemma, spores) -> mi.UInt32:
     Parameters
     ----------
     gemma, spores : mi.Bool
-        Per slot: releases a gemma, releases a spore.
+        Per slot: releases a gemma, releases a spore. ``gemma`` may also be a function of slot
+        indices (mi.UInt32) giving the mask at them: then it is evaluated inside this kernel
+        (a gather from an unevaluated mask evaluates it first, a kernel of its own).
 
     Returns
     -------
     mi.UInt32
         Parent slots, gemmae first.
     """
-    cap = dr.width(gemma)
+    cap = dr.width(spores)
     lane = dr.arange(mi.UInt32, 2 * cap)
     second = lane >= cap
     slot = dr.select(second, lane - cap, lane)
-    m = dr.select(second, dr.gather(mi.Bool, spores, slot), dr.gather(mi.Bool, gemma, slot))
+    g = gemma(slot) if callable(gemma) else dr.gather(mi.Bool, gemma, slot)
+    m = dr.select(second, dr.gather(mi.Bool, spores, slot), g)
     par = dr.gather(mi.UInt32, slot, dr.compress(m))
     dr.eval(par)
     return par
@@ -115,13 +118,18 @@ class DayMoss:
         """
         return per_element_count(st.pop.elem, st.pop.moss, self.n)
 
-    def cover(self, counts) -> mi.Float64:
+    def cover(self, counts, elems=None) -> mi.Float64:
         """Moss cover per terrain element: min(m size² / area, 1) [-].
 
         Parameters
         ----------
         counts : mi.UInt32
             Live moss per terrain element.
+        elems : mi.UInt32, optional
+            The terrain elements wanted (default: all, in order). With them the cover is
+            computed at their width from ``counts`` and the areas, fused into the kernel that
+            reads it (a gather from the cover of all elements would evaluate that first, in a
+            kernel of its own); the values are the same.
 
         Returns
         -------
@@ -129,8 +137,11 @@ class DayMoss:
             Cover [-].
         """
         site = self.site
-        return dr.minimum(mi.Float64(counts) * (site.grid_cell() ** 2)
-                          / dr.maximum(site.d_areas, 1e-30), 1.0)
+        m, area = mi.Float64(counts), site.d_areas
+        if elems is not None:
+            m = mi.Float64(dr.gather(mi.UInt32, counts, elems))
+            area = dr.gather(mi.Float64, site.d_areas, elems)
+        return dr.minimum(m * (site.grid_cell() ** 2) / dr.maximum(area, 1e-30), 1.0)
 
     # ---- one day ----------------------------------------------------------------------------
     def _rng(self, day: int, n: int, stream: int, offset: int = 0) -> mi.PCG32:
@@ -167,18 +178,29 @@ class DayMoss:
         grid.sync(pop.state)  # deaths, expiry, germination (and the moss-neighbour counts)
         # only moss on the surface of a clump release gemmae: the grid keeps every moss's count
         # of moss neighbours, so the test is one read per moss
-        gemma = cand & (grid.nb < int(cfg["clump_neighbours"]))
-        cnt = dr.zeros(mi.UInt32, 1)
-        dr.scatter_add(cnt, mi.UInt32(1), mi.UInt32(0), gemma, mode=dr.ReduceMode.Local)
-        dr.eval(gemma, cnt)
-        n_g = int(np.asarray(cnt)[0])
-        n_s = ev.spore_parents
+        clump = int(cfg["clump_neighbours"])
+        gemma = cand & (grid.nb < clump)
+        n_cand, n_s = ev.gemma_parents, ev.spore_parents
+        first = None
+        if n_cand + n_s == 0:
+            n_g = 0
+        elif self._all_at_once(pop, n_cand + n_s):
+            # the day's parents in order from one compress; their number gives the gemmae's
+            # (no count of its own: two launches fewer)
+            first = parents_in_order(lambda i: dr.gather(mi.Bool, cand, i)
+                                     & (dr.gather(mi.UInt32, grid.nb, i) < clump), spores)
+            n_g = dr.width(first) - n_s
+        else:
+            cnt = dr.zeros(mi.UInt32, 1)
+            dr.scatter_add(cnt, mi.UInt32(1), mi.UInt32(0), gemma, mode=dr.ReduceMode.Local)
+            dr.eval(gemma, cnt)
+            n_g = int(np.asarray(cnt)[0])
         ev.gemma_parents = n_g
         n = n_g + n_s
         placed = traced = crowded = 0
         if n:
             # the day's propagules in one order: gemmae, then spores (each by parent slot)
-            placed, traced, crowded = self._release(st, day, gemma, spores, n_g, n_s)
+            placed, traced, crowded = self._release(st, day, gemma, spores, n_g, n_s, first)
         interval = int(cfg["external_spore_interval"])
         if interval and day % interval == interval - 1:
             self.place_random(st, 1, day, state=PROPAGULE, kind=SPORE, growth=0.0, stream=2)
@@ -189,10 +211,21 @@ class DayMoss:
         events["propagules_crowded_out"] = crowded
         return events
 
+    def _exclusive(self, pop) -> bool:
+        """Whether no newcomer can evict anyone today (equal species priorities and no
+        occupant with a negative G_moss: an incumbent then always keeps its spot)."""
+        pri = self._priorities
+        return bool(np.all(pri == pri[0])) and pop.negative_growth == 0
+
+    def _all_at_once(self, pop, n: int) -> bool:
+        """Whether ``n`` propagules (or fewer) are traced in one batch (:meth:`_release`)."""
+        return not self._exclusive(pop) or pop.free_slots >= n
+
     def _release(self, st: MossState, day: int, gemma, spores, n_g: int,
-                 n_s: int) -> tuple[int, int, int]:
+                 n_s: int, first=None) -> tuple[int, int, int]:
         """Release, land and settle the day's propagules (``gemma``, ``spores``: masks of their
-        parent slots, ``n_g`` and ``n_s`` of them; gemmae first). Returns (placed, traced,
+        parent slots, ``n_g`` and ``n_s`` of them; gemmae first; ``first``: their parents in
+        order when already listed, :func:`parents_in_order`). Returns (placed, traced,
         crowded out).
 
         Newcomers are placed in their order while free slots last; the propagules released
@@ -206,14 +239,14 @@ class DayMoss:
         numbers placed and crowded out."""
         pop = st.pop
         n = n_g + n_s
-        pri = self._priorities
-        exclusive = bool(np.all(pri == pri[0])) and pop.negative_growth == 0
+        exclusive = self._exclusive(pop)
         free = pop.free_slots if exclusive else n
         batch = n if not exclusive or free >= n else min(n, max(self.release_batch, 2 * free))
         if batch >= n:
             # all at once: the parents in order from one compress of both masks
             q_g = q_s = None
-            first = parents_in_order(gemma, spores)
+            if first is None:
+                first = parents_in_order(gemma, spores)
         else:
             q_g, q_s = SlotQueue(gemma, n_g), SlotQueue(spores, n_s)
         start = placed = 0

@@ -92,6 +92,10 @@ class DayState:
         One row per tree and year-end growth step (generation, tips, deaths, size).
     floor_log : list of dict
         One row per year: the floor's DLI, R:FR, gap fraction and moss cover.
+    counts : mi.UInt32 or None
+        Live moss per terrain element at the end of the last day (None: not known; the next
+        day counts them). Only :meth:`DayPipeline.run_day` changes the moss between days; a
+        change of the population from outside must set it to None.
     """
 
     day: int
@@ -103,6 +107,7 @@ class DayState:
     year: YearLight | None = None
     growth_log: list = field(default_factory=list)
     floor_log: list = field(default_factory=list)
+    counts: object = None
 
 
 class DayPipeline:
@@ -168,10 +173,11 @@ class DayPipeline:
         if self.leaves is not None:
             tables = self.leaves.start(st.leaves, date, self.scene_params)
             leaf_area = self.site.canopy.displayed_area()
-        counts = self.moss.counts(st.moss)
-        cover = self.moss.cover(counts)
+        # the last day's count (evaluated then) or, after a resume or a rebuild, a new one
+        counts = st.counts if st.counts is not None else self.moss.counts(st.moss)
         t1 = time.perf_counter()
-        light = self.light(vals, cover, tables, leaf_area, self.site.canopy)
+        light = self.light(vals, lambda e: self.moss.cover(counts, e), tables, leaf_area,
+                           self.site.canopy)
         dr.sync_thread()
         t2 = time.perf_counter()
         soil = day_soil(self.site, vals, st.O, light.S, counts)
@@ -201,6 +207,7 @@ class DayPipeline:
                           st.leaves, light.sensors, secs)
         rec["seconds"]["record"] = time.perf_counter() - t5
         st.O = soil.O
+        st.counts = counts_after
         st.history.append(rec)
         st.day += 1
         fields = {"S": light.S, "Ts": Ts, "rhs": rhs, "theta": soil.theta,
@@ -288,6 +295,7 @@ class Simulation:
     def initialise(self) -> None:
         """Place the initial moss (``moss.initial``) at random on the living surfaces."""
         self.pipeline.moss.initialise(self.state.moss)
+        self.state.counts = None
 
     # ---- views of the site and the state (maps, snapshots, tests) -------------------------
     @property

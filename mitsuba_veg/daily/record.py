@@ -49,16 +49,18 @@ class DayRecord:
         self.regions = list(site.regions)
         self.d_regions = [mi.Bool(site.regions[r]) for r in self.regions]
         gsl = site.ground_slice
-        self.ground_sl = gsl
-        self.d_ground_area = mi.Float64(site.index.areas[gsl])
-        self.d_ground_elems = mi.UInt32(np.arange(gsl.start, gsl.stop, dtype=np.uint32))
         # the ground under each crown, and in the open, as (ground element, group) pairs: one
         # segmented sum per field for all groups (crowns of a stand overlap)
         groups = list(site.crowns) + [site.open_ground]
         pe = [np.flatnonzero(m) for m in groups]
         self.n_groups = len(groups)
-        self.d_pair_elem = mi.UInt32(np.concatenate(pe).astype(np.uint32) if pe else
-                                     np.zeros(0, np.uint32))
+        pair = np.concatenate(pe).astype(np.uint32) if pe else np.zeros(0, np.uint32)
+        self.d_pair_elem = mi.UInt32(pair)
+        # the pairs' global (terrain) elements and areas: every ground column is gathered at
+        # the pairs' width straight from an evaluated array (a gather from an expression would
+        # evaluate that expression first, a kernel per column)
+        self.d_pair_terrain = mi.UInt32(pair + np.uint32(gsl.start))
+        self.d_pair_area = mi.Float64(site.index.areas[gsl][pair])
         self.d_pair_group = mi.UInt32(np.repeat(np.arange(len(pe)), [len(x) for x in pe])
                                       .astype(np.uint32))
         c = site.canopy
@@ -74,7 +76,7 @@ class DayRecord:
             self.d_a_par = mi.Float64(np.array(a))
         self.u_red = umol_per_joule(*band_range("red"))
         self.u_fr = umol_per_joule(*band_range("far_red"))
-        dr.eval(self.d_area_living, self.d_ground_area, self.d_ground_elems)
+        dr.eval(self.d_area_living, self.d_pair_elem, self.d_pair_terrain, self.d_pair_area)
 
     def __call__(self, vals, date, light, soil, counts, pop, events: dict, phen=None,
                  sensors=None, seconds: dict | None = None) -> dict:
@@ -168,22 +170,22 @@ class DayRecord:
         a_par = dr.gather(mi.Float64, self.d_a_par, c._bin)
         t.add("absorbed_par", light.leaf["par"] * light.leaf_area * a_par, segments=seg,
               n_segments=self.n_trees)
-        # the ground under each crown and in the open: area-weighted sums
-        e = self.d_ground_elems
-        w = self.d_ground_area
+        # the ground under each crown and in the open: area-weighted sums over the (ground
+        # element, group) pairs
+        pe, pt, w = self.d_pair_elem, self.d_pair_terrain, self.d_pair_area
         g, gs = light.ground, light.ground_sky
-        cover = dr.minimum(dr.gather(mi.Float64, mi.Float64(counts), e) * site.grid_cell() ** 2
+        cover = dr.minimum(mi.Float64(dr.gather(mi.UInt32, counts, pt)) * site.grid_cell() ** 2
                            / dr.maximum(w, 1e-30), 1.0)
-        vals = {"par": g["par"], "red": g["red"], "far_red": g["far_red"],
-                "red_sky": gs["red"], "far_red_sky": gs["far_red"], "cover": cover,
-                "S": dr.gather(mi.Float64, light.S, e),
-                "Ts": dr.gather(mi.Float64, soil.surface.Ts, e),
-                "rhs": dr.gather(mi.Float64, soil.surface.rhs, e)}
-        pe, pg, ng = self.d_pair_elem, self.d_pair_group, self.n_groups
-        t.add("g:area", dr.gather(mi.Float64, w, pe), segments=pg, n_segments=ng)
+        at_pair = {"par": (g["par"], pe), "red": (g["red"], pe),
+                   "far_red": (g["far_red"], pe), "red_sky": (gs["red"], pe),
+                   "far_red_sky": (gs["far_red"], pe), "S": (light.S, pt),
+                   "Ts": (soil.surface.Ts, pt), "rhs": (soil.surface.rhs, pt)}
+        vals = {f: dr.gather(mi.Float64, x, i) for f, (x, i) in at_pair.items()}
+        vals["cover"] = cover
+        pg, ng = self.d_pair_group, self.n_groups
+        t.add("g:area", w, segments=pg, n_segments=ng)
         for f in _GROUND_FIELDS:
-            t.add(f"g:{f}", dr.gather(mi.Float64, vals[f] * w, pe), segments=pg, n_segments=ng,
-                  signed=f == "rhs")
+            t.add(f"g:{f}", vals[f] * w, segments=pg, n_segments=ng, signed=f == "rhs")
 
     def _ground_stats(self, s: dict, k: int) -> dict:
         area = float(s["g:area"][k])

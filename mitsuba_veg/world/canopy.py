@@ -263,7 +263,7 @@ class Canopy:
         s = stage_from_tau(np.clip(tau, 0.0, 1.0))
         return np.minimum(((s - 1.0) / 6.0 * self.bins).astype(np.int64), self.bins - 1)
 
-    def update(self, params, tau, scale, on_tree) -> int:
+    def update(self, params, tau, scale, on_tree, also=()) -> int:
         """Set the day's stage bin and shown/hidden state of every leaf (exact, tables only)
         and, during leaf-out, grow the blades in the mesh (see :attr:`min_change`).
 
@@ -281,6 +281,8 @@ class Canopy:
             Blade size of each leaf (0..1, leaf-out).
         on_tree : mi.Bool
             Leaves out and not fallen.
+        also : sequence of Dr.Jit arrays
+            Arrays of the same width evaluated in the same kernel (the phenology's state).
 
         Returns
         -------
@@ -288,6 +290,8 @@ class Canopy:
             1 when the leaf mesh's vertices were updated (its BVH rebuilt) today, else 0.
         """
         if self.n_leaves == 0:
+            if also:
+                dr.eval(*also)
             return 0
         self._bin = self.leaf_bins(tau)
         live = on_tree & (scale > 1e-3)
@@ -299,7 +303,7 @@ class Canopy:
         counts = dr.zeros(mi.UInt32, 3)
         for k, m in enumerate((changed, live, stale_m)):
             dr.scatter_add(counts, mi.UInt32(1), mi.UInt32(k), m, mode=dr.ReduceMode.Local)
-        dr.eval(self._bin, live, size, counts)
+        dr.eval(self._bin, live, size, counts, *also)
         n_changed, n_live, stale = (int(v) for v in np.asarray(counts))
         moved = 0
         self._since += 1

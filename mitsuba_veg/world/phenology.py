@@ -125,7 +125,7 @@ class Phenology:
                 self.fallen, self.grown)
 
     # ---- one day ------------------------------------------------------------------------
-    def start_of_day(self, date: _dt.date) -> None:
+    def start_of_day(self, date: _dt.date, evaluate: bool = True) -> None:
         """Leaf-out (blade size) for ``date``.
 
         Blades grow as a smoothstep of (doy − (leaf_out_doy + shift)) / leaf_out_days; on day
@@ -136,6 +136,9 @@ class Phenology:
         ----------
         date : datetime.date
             The simulated day.
+        evaluate : bool
+            Evaluate the state now (one kernel); False when the caller evaluates
+            :meth:`arrays` in a kernel of its own that day.
         """
         p = self.params
         doy = date.timetuple().tm_yday
@@ -153,7 +156,8 @@ class Phenology:
         self.grown = dr.select(self.fallen, 0.0, dr.maximum(self.grown, x * x * (3 - 2 * x)))
         # evaluated now (one kernel): a state left lazy grows its expression day by day, and
         # every later day would compile a longer kernel
-        self.evaluate()
+        if evaluate:
+            self.evaluate()
 
     def end_of_day(self, date: _dt.date, insolation_mj) -> None:
         """Add the day's insolation of each leaf (after the autumn onset), update τ and leaf fall.
@@ -183,9 +187,19 @@ class Phenology:
         self.grown = dr.select(self.fallen, 0.0, self.grown)
         self.evaluate()                          # (see start_of_day)
 
+    def arrays(self) -> list:
+        """The state's Dr.Jit arrays (to evaluate with others in one kernel).
+
+        Returns
+        -------
+        list
+            H, t, τ_raw, fallen, grown.
+        """
+        return [self.H, self.t, self.tau_raw, self.fallen, self.grown]
+
     def evaluate(self) -> None:
         """Evaluate the state (one kernel for the day's updates)."""
-        dr.eval(self.H, self.t, self.tau_raw, self.fallen, self.grown)
+        dr.eval(*self.arrays())
 
     # ---- views --------------------------------------------------------------------------
     @property
