@@ -215,6 +215,9 @@ class DayLight:
             if leaf_tables is not None and self.leaf_elems is not None:
                 shown = dr.gather(mi.UInt32, leaf_tables[0], self.d_leaf_first) == SURFACE
             return self._light(res, vals, leaf_area, canopy, pass_area, shown)
+        # the pass held for the days between goes before the new one is made (its tallies:
+        # 3.4 GB on a hectare; freed first, their memory serves the new pass)
+        self.held = None
         dirs, w, _ = self.inputs.sun.day(day)
         site.sun.set_day(dirs, w, size=max(self.SUN_STEPS, len(w)))
         t = self.tables
