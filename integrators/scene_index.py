@@ -371,7 +371,10 @@ class SceneIndex:
                         raise SceneError(f"mesh '{sid}': the reference geometry's faces are "
                                          "not the mesh's")
                 else:
-                    v, f = _mesh_arrays(sh)
+                    # float32 as stored (triangle_geometry converts block by block: the same
+                    # values, without a float64 copy of every vertex)
+                    v = np.asarray(sh.vertex_positions_buffer()).reshape(-1, 3)
+                    f = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
                 a, nrm, c = triangle_geometry(v, f)
                 counts.append(len(f))
                 areas.append(a)
@@ -402,9 +405,13 @@ class SceneIndex:
             if not (sh.is_emitter() or sh.is_sensor()):
                 if reference and sid in reference:
                     # the reference geometry's box (collapsed blades grow out later)
-                    rv = np.asarray(reference[sid][0], np.float32)
-                    bbox.expand(mi.ScalarBoundingBox3f(mi.ScalarPoint3f(*rv.min(0)),
-                                                       mi.ScalarPoint3f(*rv.max(0))))
+                    rv = np.asarray(reference[sid][0], np.float32).reshape(-1, 3)
+                    # column by column: a reduction over axis 0 of an (n, 3) array runs
+                    # three-wide inner loops (2.9 s for a hectare's 40 M corners, 0.2 s so)
+                    lo = [float(rv[:, k].min()) for k in range(3)]
+                    hi = [float(rv[:, k].max()) for k in range(3)]
+                    bbox.expand(mi.ScalarBoundingBox3f(mi.ScalarPoint3f(*lo),
+                                                       mi.ScalarPoint3f(*hi)))
                 else:
                     bbox.expand(sh.bbox())
         if not bbox.valid():

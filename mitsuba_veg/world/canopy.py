@@ -81,9 +81,13 @@ class Canopy:
             m = len(wt.leaf_vertices)
             if m:
                 k = wt.leaf_vertices.shape[1]
-                if k == 4:   # quad -> two triangles
+                if k == 4:   # quad -> two triangles, (0, 1, 2) and (0, 2, 3)
                     q = wt.leaf_vertices
-                    tr = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3, 3)
+                    tr = np.empty((m, 2, 3, 3))
+                    tr[:, 0] = q[:, :3]
+                    tr[:, 1, 0] = q[:, 0]
+                    tr[:, 1, 1:] = q[:, 2:]
+                    tr = tr.reshape(-1, 3, 3)
                     own = np.repeat(np.arange(m), 2) + n
                 else:
                     tr = wt.leaf_vertices
@@ -100,16 +104,21 @@ class Canopy:
         self.tree_of = np.concatenate(tree_of) if tree_of else np.zeros(0, np.int64)
         # the leaves of a tree are consecutive: tree t owns leaves [start[t], start[t + 1])
         self._tree_start = np.r_[0, np.cumsum([len(x) for x in tree_of])].astype(np.int64)
-        self.centre = np.zeros((n, 3))
-        if n:
-            np.add.at(self.centre, self.face_leaf, self.tri.mean(1))
-            self.centre /= np.bincount(self.face_leaf, minlength=n)[:, None]
         # first triangle of each leaf (triangles of a leaf are consecutive) and their count
         self._first = np.flatnonzero(np.r_[True, np.diff(self.face_leaf) != 0]) if n else \
             np.zeros(0, np.int64)
         ntri = np.diff(np.r_[self._first, len(self.face_leaf)]) if n else np.zeros(0, np.int64)
         if n and ntri.max() > 2:
             raise ValueError("a leaf element has more than 2 triangles (quads at most)")
+        # each leaf's centre: the mean of its triangles' centroids, summed from 0 in face
+        # order and divided by their number (the values of np.add.at, without its slowness)
+        self.centre = np.zeros((n, 3))
+        if n:
+            mid = self.tri.mean(1)
+            two = ntri == 2
+            c = 0.0 + mid[self._first]
+            c[two] += mid[self._first[two] + 1]
+            self.centre = c / ntri[:, None]
         # device copies: the daily state and tables never leave the device
         self.d_face_leaf = mi.UInt32(self.face_leaf.astype(np.uint32))
         self.d_first = mi.UInt32(self._first.astype(np.uint32))
@@ -224,7 +233,8 @@ class Canopy:
         """(3F, 3) corners of the leaf mesh: the full blades, or (``bare``) every blade
         collapsed to its float32 centre, the vertices :meth:`_set_blades` gives at size 0."""
         if bare:
-            return np.repeat(self.centre.astype(np.float32)[self.face_leaf], 3, axis=0)
+            c = self.centre.astype(np.float32)[self.face_leaf]
+            return np.broadcast_to(c[:, None, :], (len(c), 3, 3)).reshape(-1, 3)
         return self.tri.reshape(-1, 3)
 
     def reference_geometry(self) -> dict:

@@ -301,8 +301,14 @@ def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
         # positions and sizes): meshing a hectare's 300 trees again cost 10 s a year
         base = tree.start[0].copy() if len(tree) else np.zeros(3)
         tree = scaled_tree(tree, f)
-        bv = (np.asarray(bv, float) - base) * f + base
-        quads = (quads - base) * f + base
+        # (x - base) f + base with one new array each (in place after the subtraction: the
+        # same values; three temporaries of a hectare's meshes cost seconds in page faults)
+        bv = np.asarray(bv, float) - base
+        bv *= f
+        bv += base
+        quads = quads - base
+        quads *= f
+        quads += base
         area = area * (f * f)
     info = dict(wt.info)
     info["age"] = a + years
