@@ -243,7 +243,14 @@ def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
     c, ph = sim.canopy, sim.phen
     P = sim.pipeline
     under, open_ = sim.site.crowns[0], sim.site.open_ground
-    cover = P.moss.cover(P.moss.counts(sim.state.moss))
+    counts = P.moss.counts(sim.state.moss)
+    cover = P.moss.cover(counts)
+    # the day's count kept for the next day is the population's count; the cover computed at
+    # chosen elements (inside the albedo kernel) is the cover of all elements, gathered
+    assert np.array_equal(np.asarray(sim.state.counts), np.asarray(counts))
+    some = mi.UInt32(np.arange(0, sim.site.n_terrain, 7, dtype=np.uint32))
+    assert np.array_equal(np.asarray(P.moss.cover(counts, some)),
+                          np.asarray(cover)[np.asarray(some)])
     vals = sim.inputs.on_device(0)
 
     def day(tau, on_tree):
