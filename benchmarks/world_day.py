@@ -11,7 +11,8 @@ same photon split, so that load from other processes hits both. Printed:
   per-day ratios; the issue's target on the CPU is <= 1.2);
 - kernel launches per day (Dr.Jit's kernel history, every kind: JIT kernels, reductions,
   compress, memset/memcpy, host tasks) and how many kernels were compiled (cache misses; 0 in
-  a steady day), and the same for the bare pass;
+  a steady day), and the same for the bare pass; the launches per stage of the day (the
+  record's ``launches``, counted by the day itself while the history is on);
 - the device and backend.
 """
 from __future__ import annotations
@@ -76,12 +77,13 @@ def main(argv=None) -> int:
     k_day, k_bare, c_day, c_bare, kinds = [], [], [], [], []
 
     def _kind(t):
-        if t == dr.KernelType.JIT:
+        t = str(t).split(".")[-1]
+        if t == "JIT":
             return "kernels"
-        if t in (dr.KernelType.BlockReduce, dr.KernelType.BlockPrefixReduce,
-                 dr.KernelType.Compress, dr.KernelType.MkPerm):
+        if t in ("BlockReduce", "BlockPrefixReduce", "Compress", "MkPerm"):
             return "reductions"
         return "memory/host"     # memset, memcpy, aggregate, host tasks (copies of inputs)
+    per_stage = collections.defaultdict(list)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     for _ in range(a.days):
         dr.sync_thread()
@@ -90,10 +92,20 @@ def main(argv=None) -> int:
         rec = sim.step()
         dr.sync_thread()
         dt = time.perf_counter() - t
+        # the day counts its stages' launches itself (the record's "launches", read from the
+        # kernel history while it is on); anything after the day is added
         h = dr.kernel_history()
-        k_day.append(len(h))
-        c_day.append(sum(1 for x in h if x["type"] == dr.KernelType.JIT and not x["cache_hit"]))
-        kinds.append(collections.Counter(_kind(x["type"]) for x in h))
+        lc = rec["launches"]
+        k_day.append(sum(lc["stages"].values()) + len(h))
+        c_day.append(lc["compiled"] + sum(1 for x in h if x["type"] == dr.KernelType.JIT
+                                          and not x["cache_hit"]))
+        kc = collections.Counter()
+        for k, v in lc["kinds"].items():
+            kc[_kind(k)] += v
+        kc.update(_kind(x["type"]) for x in h)
+        kinds.append(kc)
+        for k, v in lc["stages"].items():
+            per_stage[k].append(v)
         tb = bare(sim.day - 1)
         h = dr.kernel_history()
         k_bare.append(len(h))
@@ -124,6 +136,8 @@ def main(argv=None) -> int:
           f" target <= 40): " + ", ".join(f"{k} {v:.0f}" for k, v in med.items())
           + f"; compiled {max(c_day)} (max of a day); bare pass: {np.median(k_bare):.0f} "
           f"launches, compiled {max(c_bare)}")
+    print("launches per stage (min-max over the days): " + ", ".join(
+        f"{k} {min(v)}-{max(v)}" for k, v in per_stage.items() if max(v) > 0))
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

@@ -166,6 +166,8 @@ class DayPipeline:
             ``f_sun``, ``f_sky`` per terrain element; ``light``: the DayLightResult).
         """
         day = st.day
+        launches = _Launches()
+        launches("before")
         date = self.inputs.date(day)
         vals = self.inputs.on_device(day)
         t0 = time.perf_counter()
@@ -173,12 +175,15 @@ class DayPipeline:
         if self.leaves is not None:
             tables = self.leaves.start(st.leaves, date, self.scene_params)
             leaf_area = self.site.canopy.displayed_area()
+        launches("leaves")
         # the last day's count (evaluated then) or, after a resume or a rebuild, a new one
         counts = st.counts if st.counts is not None else self.moss.counts(st.moss)
+        launches("moss")
         t1 = time.perf_counter()
         light = self.light(vals, lambda e: self.moss.cover(counts, e), tables, leaf_area,
                            self.site.canopy)
         dr.sync_thread()
+        launches("light")
         t2 = time.perf_counter()
         soil = day_soil(self.site, vals, st.O, light.S, counts)
         Ts, rhs = soil.surface.Ts, soil.surface.rhs
@@ -191,12 +196,15 @@ class DayPipeline:
         if self.growth is not None:
             out += self.growth.accumulate(st.year, light, vals)
         dr.eval(out, *light.ground.values(), *light.ground_sky.values())
+        launches("soil")
         t3 = time.perf_counter()
         if self.leaves is not None:
             self.leaves.end(st.leaves, date, light.S_leaf)
+        launches("leaves")
         t4 = time.perf_counter()
         events = self.moss.step(st.moss, day, S32, Ts32, rhs32)
         counts_after = self.moss.counts(st.moss)
+        launches("moss")
         t5 = time.perf_counter()
         if light.sensors is not None:
             st.sensor_days.append(light.sensors)
@@ -206,6 +214,10 @@ class DayPipeline:
         rec = self.record(vals, date, light, soil, counts_after, st.moss.pop, events,
                           st.leaves, light.sensors, secs)
         rec["seconds"]["record"] = time.perf_counter() - t5
+        launches("record")
+        if launches.on:
+            rec["launches"] = {"stages": launches.n, "kinds": launches.kinds,
+                               "compiled": launches.compiled}
         st.O = soil.O
         st.counts = counts_after
         st.history.append(rec)
@@ -214,6 +226,29 @@ class DayPipeline:
                   "f_sun": light.f_sun, "f_sky": light.f_sky, "light": light,
                   "counts": counts_after}
         return rec, fields
+
+
+class _Launches:
+    """Kernel launches of a day's stages, from Dr.Jit's kernel history when it is on
+    (``dr.JitFlag.KernelHistory``: benchmarks/world_day.py); otherwise nothing is counted.
+    Calling it with a stage's name adds the launches since the last call (the history is read
+    and cleared) to that stage; ``kinds`` counts them by Dr.Jit's kernel type (JIT, reductions,
+    memset/memcpy, host tasks), ``compiled`` the JIT kernels that missed the cache."""
+
+    def __init__(self):
+        self.on = bool(dr.flag(dr.JitFlag.KernelHistory))
+        self.n: dict = {}
+        self.kinds: dict = {}
+        self.compiled = 0
+
+    def __call__(self, stage: str) -> None:
+        if self.on:
+            h = dr.kernel_history()
+            self.n[stage] = self.n.get(stage, 0) + len(h)
+            for x in h:
+                k = str(x["type"]).split(".")[-1]
+                self.kinds[k] = self.kinds.get(k, 0) + 1
+                self.compiled += int(x["type"] == dr.KernelType.JIT and not x["cache_hit"])
 
 
 class HostFields(dict):
