@@ -83,7 +83,7 @@ class Canopy:
                 k = wt.leaf_vertices.shape[1]
                 if k == 4:   # quad -> two triangles, (0, 1, 2) and (0, 2, 3)
                     q = wt.leaf_vertices
-                    tr = np.empty((m, 2, 3, 3))
+                    tr = np.empty((m, 2, 3, 3), dtype=q.dtype)
                     tr[:, 0] = q[:, :3]
                     tr[:, 1, 0] = q[:, 0]
                     tr[:, 1, 1:] = q[:, 2:]
