@@ -70,7 +70,9 @@ class WorldTree:
     def leaf_centre(self) -> np.ndarray:
         """(m, 3) centre of each leaf element's blade [m] (mean of its corners)."""
         if "centre" not in self._measures:
-            self._measures["centre"] = self.leaf_vertices.mean(axis=1)
+            c = self.leaf_vertices.mean(axis=1)
+            c.flags.writeable = False    # cached: a caller's in-place change would stick
+            self._measures["centre"] = c
         return self._measures["centre"]
 
     def crown_centre(self) -> np.ndarray:
