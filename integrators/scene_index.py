@@ -28,9 +28,11 @@ def scene_index(scene: mi.Scene, reference: dict | None = None) -> "SceneIndex":
     scene : mi.Scene
         The scene.
     reference : dict, optional
-        ``{mesh id: (vertices (n, 3), faces (m, 3))}``: the geometry whose areas, normals and
-        centroids the index gives those meshes instead of their vertices now (a canopy built
-        with its blades collapsed: its elements keep their full blades' areas and normals).
+        ``{mesh id: (vertices (n, 3), faces (m, 3) or None)}``: the geometry whose areas,
+        normals and centroids the index gives those meshes instead of their vertices now (a
+        canopy built with its blades taken out: its elements keep their full blades' areas and
+        normals); faces None: a triangle soup (triangle i is vertices 3i..3i+2), which the
+        mesh's faces must then be.
         Given, the index is built anew.
 
     Returns
@@ -176,6 +178,21 @@ class MeshGeometry(Mapping):
         return len(self._shapes)
 
 
+def _check_reference_faces(sid: str, sh, v, f) -> None:
+    """Refuse a reference geometry whose triangles are not the mesh's: ``f`` (its faces) equal
+    to the mesh's, or None (a triangle soup: triangle i is vertices 3i..3i+2), checked on the
+    device without a host copy of the mesh's faces."""
+    fb = sh.faces_buffer()
+    if f is None:
+        ok = dr.width(fb) == len(v) and (len(v) == 0 or bool(
+            dr.all(fb == dr.arange(mi.UInt32, dr.width(fb)), axis=None)))
+    else:
+        f_mesh = np.asarray(fb, dtype=np.int64).reshape(-1, 3)
+        ok = np.shape(f) == f_mesh.shape and np.array_equal(f, f_mesh)
+    if not ok:
+        raise SceneError(f"mesh '{sid}': the reference geometry's faces are not the mesh's")
+
+
 @dataclass
 class SceneIndex:
     """Maps Mitsuba shapes to a flat range of *elements* (one per triangle, one per non-mesh).
@@ -259,8 +276,9 @@ class SceneIndex:
         scene : mi.Scene
             The scene (load with ``optimize=False`` to keep every shape and its id).
         reference : dict, optional
-            ``{top-level mesh id: (vertices, faces)}`` whose areas, normals and centroids the
-            index gives those meshes instead of their vertices now (:func:`scene_index`).
+            ``{top-level mesh id: (vertices, faces or None)}`` whose areas, normals and
+            centroids the index gives those meshes instead of their vertices now
+            (:func:`scene_index`).
 
         Returns
         -------
@@ -276,7 +294,9 @@ class SceneIndex:
         for gname, g in groups.items():
             inner = [(n, s) for n, s in _children(g).items() if isinstance(s, mi.Shape)]
             group_shapes[gname] = inner
-        counts, areas, normals, cents, ids, geometry = [], [], [], [], [], {}
+        # per shape: its (areas, normals, centroids), or (vertices, faces or None, checked)
+        # of a plain mesh, computed after the loop into the tables' own slices
+        counts, geo, deferred, ids, geometry = [], [], [], [], {}
         single, instances, sub_local, analytic = {}, {}, {}, []
         reg_offset: dict[int, int] = {}   # registry id -> offset (global or within a group)
         bsdf_of: dict[int, int] = {}
@@ -311,7 +331,7 @@ class SceneIndex:
             if not (sh.is_mesh() and sh.has_vertex_normals()):
                 return None
             vn = np.asarray(sh.vertex_normals_buffer(), dtype=np.float64).reshape(-1, 3)
-            return vn[f]
+            return vn.reshape(-1, 3, 3) if f is None else vn[f]
 
         def layout(gname):
             if gname in group_layout:
@@ -352,9 +372,8 @@ class SceneIndex:
                     a, nrm, c = triangle_geometry(v @ T[:3, :3].T + T[:3, 3], f)
                     a_l.append(a), n_l.append(nrm), c_l.append(c)
                 counts.append(k)
-                areas.append(np.concatenate(a_l))
-                normals.append(np.concatenate(n_l))
-                cents.append(np.concatenate(c_l))
+                geo.append((np.concatenate(a_l), np.concatenate(n_l), np.concatenate(c_l)))
+                deferred.append(False)
                 instances[sid] = gname
                 for n, (o, c) in local.items():
                     sub_local[f"{sid}/{n}"] = (offset + o, c)
@@ -363,23 +382,18 @@ class SceneIndex:
                 inst_matrix[_reg_id(sh)] = T
             elif sh.is_mesh() and sh.face_count() > 0:
                 if reference and sid in reference:
-                    # the reference's vertices, not the mesh's (not read: 6.7 M collapsed
-                    # blades are 1 GB of float64)
-                    v, f_ref = reference[sid]
-                    f = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
-                    if np.shape(f_ref) != f.shape or not np.array_equal(f_ref, f):
-                        raise SceneError(f"mesh '{sid}': the reference geometry's faces are "
-                                         "not the mesh's")
+                    # the reference's vertices, not the mesh's (not read: a bare hectare's
+                    # 13 M blades taken out are NaN)
+                    v, f = reference[sid]
+                    _check_reference_faces(sid, sh, v, f)
                 else:
                     # float32 as stored (triangle_geometry converts block by block: the same
                     # values, without a float64 copy of every vertex)
                     v = np.asarray(sh.vertex_positions_buffer()).reshape(-1, 3)
                     f = np.asarray(sh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
-                a, nrm, c = triangle_geometry(v, f)
-                counts.append(len(f))
-                areas.append(a)
-                normals.append(nrm)
-                cents.append(c)
+                counts.append(sh.face_count())
+                geo.append((v, f, not (reference and sid in reference)))
+                deferred.append(True)
                 geometry[sid] = sh
                 reg_offset[_reg_id(sh)] = offset
                 tn = tri_normals(sh, f)
@@ -390,10 +404,10 @@ class SceneIndex:
                 smooth = smooth or sh.has_vertex_normals()
             else:
                 counts.append(1)
-                areas.append(np.array([float(dr.ravel(sh.surface_area())[0])]))
-                normals.append(np.zeros((1, 3)))
                 b = sh.bbox()
-                cents.append(np.array([[(b.min[i] + b.max[i]) / 2 for i in range(3)]]))
+                geo.append((np.array([float(dr.ravel(sh.surface_area())[0])]), np.zeros((1, 3)),
+                            np.array([[(b.min[i] + b.max[i]) / 2 for i in range(3)]])))
+                deferred.append(False)
                 single[sid] = sh.class_name()
                 reg_offset[_reg_id(sh)] = offset
                 analytic.append((_reg_id(sh), sh))
@@ -422,6 +436,25 @@ class SceneIndex:
         needs_full = needs_full or (smooth and not instances)
         counts = np.asarray(counts, dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        # the element tables filled in place, mesh by mesh (no per-mesh arrays concatenated:
+        # a hectare's 21.6 M triangles made 1.2 GB of them, and as much again to join)
+        n_el = int(counts.sum())
+        areas, normals, cents = np.empty(n_el), np.empty((n_el, 3)), np.empty((n_el, 3))
+        for k, (o, c) in enumerate(zip(offsets, counts)):
+            part = (areas[o:o + c], normals[o:o + c], cents[o:o + c])
+            if deferred[k]:
+                v, f, own = geo[k]
+                triangle_geometry(v, f, out=part)
+                if own and np.isnan(part[0]).any():
+                    raise SceneError(
+                        f"mesh '{ids[k]}' has triangles with NaN corners (blades taken out of "
+                        "a world's leaf mesh): their areas and normals are unknown. Fix: index "
+                        "the scene with the mesh's full geometry as the reference "
+                        "(scene_index(scene, reference))")
+            else:
+                for dst, src in zip(part, geo[k]):
+                    dst[...] = src
+        geo = None
         n_reg = max(list(reg_offset) + list(bsdf_of) + [0]) + 1
         lookup = np.zeros(n_reg, dtype=np.uint32)
         for r, o in reg_offset.items():
@@ -477,8 +510,8 @@ class SceneIndex:
             fl = np.zeros(n_reg, dtype=np.uint32)
             fl[sorted(full_shapes)] = 1
             full_lookup = mi.UInt32(fl)
-        return SceneIndex(ids, offsets, counts, np.concatenate(areas), np.concatenate(normals),
-                          np.concatenate(cents), mi.UInt32(lookup), bbox, int(counts.sum()),
+        return SceneIndex(ids, offsets, counts, areas, normals, cents, mi.UInt32(lookup), bbox,
+                          n_el,
                           MeshGeometry(geometry), single, instances,
                           {k: slice(o, o + c) for k, (o, c) in sub_local.items()},
                           mi.UInt32(blook), analytic, needs_full, mi.UInt32(gbase),

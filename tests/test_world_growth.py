@@ -180,10 +180,11 @@ def test_tree_by_the_house_grows_away_from_it_from_the_days_light(tmp_path, monk
 
 
 def test_a_scene_rebuilt_bare_keeps_the_full_blades_in_its_index(tmp_path):
-    """The year's end builds its new scene with every blade collapsed (its leaves start bare:
+    """The year's end builds its new scene with every blade taken out (its leaves start bare:
     no vertex update and no second BVH build on the first day). Its index keeps the full
-    blades' areas, normals and centroids (what a scene built with them and collapsed later
-    has), and its leaf mesh holds exactly the vertices that collapsing the full mesh gives."""
+    blades' areas, normals and centroids (what a scene built with them and emptied later
+    has), and its leaf mesh holds exactly the vertices that taking the full mesh's blades out
+    gives: NaN corners, which the ray tracer leaves out of its BVH."""
     import drjit as dr
     import mitsuba as mi
     from mitsuba_veg.daily.config import MossConfig
@@ -208,12 +209,40 @@ def test_a_scene_rebuilt_bare_keeps_the_full_blades_in_its_index(tmp_path):
     def leaf_vertices(site):
         sh = [s for s in site.scene.shapes() if s.id() == LEAF_MESH][0]
         return np.asarray(sh.vertex_positions_buffer())
-    # the full scene's blades collapsed as the first day of a bare year does
+    def leaf_hits(site):
+        """Rays straight down through the crowns' box that stop on the leaf mesh."""
+        lo, hi = site.index.aim_bbox.min, site.index.aim_bbox.max
+        g = np.linspace(0.05, 0.95, 80)
+        x, z = np.meshgrid(lo[0] + g * (hi[0] - lo[0]), lo[2] + g * (hi[2] - lo[2]))
+        ray = mi.Ray3f(mi.Point3f(mi.Float(x.ravel()), float(hi[1]) + 1.0, mi.Float(z.ravel())),
+                       mi.Vector3f(0, -1, 0))
+        si = site.scene.ray_intersect(ray)
+        leaf = [s for s in site.scene.shapes() if s.id() == LEAF_MESH][0]
+        return int(dr.count(si.is_valid() & (si.shape == mi.ShapePtr(leaf)))[0])
+    # the full scene's blades taken out as the first day of a bare year does
     before = leaf_vertices(full)
+    assert np.all(np.isfinite(before)) and leaf_hits(full) > 20  # (37)
     full.canopy._set_blades(mi.traverse(full.scene), dr.zeros(mi.Float64, full.canopy.n_leaves))
     after = leaf_vertices(full)
-    assert not np.array_equal(before, after)
-    assert np.array_equal(leaf_vertices(bare), after)
+    assert after.shape == before.shape and np.all(np.isnan(after))
+    assert np.array_equal(leaf_vertices(bare), after, equal_nan=True)
+    # the ray tracer sees no leaf of either (NaN corners are out of its BVH)
+    assert leaf_hits(full) == 0 and leaf_hits(bare) == 0
+    # an index of a scene with blades taken out needs their reference, a triangle soup of
+    # the mesh's own layout
+    from mitsuba_veg.errors import SceneError
+    from mitsuba_veg.integrators.scene_index import SceneIndex
+    ref = bare.canopy.reference_geometry()[LEAF_MESH]
+    with pytest.raises(SceneError, match="NaN corners"):
+        SceneIndex.build(bare.scene)
+    with pytest.raises(SceneError, match="faces are not the mesh's"):
+        SceneIndex.build(bare.scene, {LEAF_MESH: (ref[0][:-3], None)})
+    with pytest.raises(SceneError, match="faces are not the mesh's"):
+        SceneIndex.build(bare.scene, {LEAF_MESH: (ref[0], np.arange(len(ref[0]))[::-1]
+                                                  .reshape(-1, 3))})
+    again = SceneIndex.build(bare.scene, {LEAF_MESH: (ref[0], np.arange(len(ref[0]))
+                                                      .reshape(-1, 3))})
+    assert np.array_equal(again.areas, bare.index.areas)
 
 
 @pytest.mark.slow

@@ -174,7 +174,7 @@ class Site:
         self.sun, self.sky = ems["sun"], ems["sky"]
         # the pass's own cache: its tables and pilot find this index instead of a second one
         # a canopy built bare: its elements' areas and normals are those of the full blades
-        # (as in a scene built with them, whose blades collapse later)
+        # (as in a scene built with them, whose blades are taken out later)
         ref = self.canopy.reference_geometry() if bare and self.canopy is not None else None
         self.index = scene_index(self.scene, ref)
         self.integrator = PhotonIrradianceIntegrator()
@@ -328,7 +328,7 @@ def build_site(config: MossConfig, with_trees: bool = True, trees=None,
         The trees as they are now (a world whose trees grew), instead of building the
         scenario's ``[[trees]]``.
     bare : bool
-        The leaf mesh with every blade collapsed (:meth:`Canopy.shapes`): the scene rebuilt at
+        The leaf mesh with every blade taken out (:meth:`Canopy.shapes`): the scene rebuilt at
         the year's end, whose leaves start bare.
 
     Returns

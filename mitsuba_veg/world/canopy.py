@@ -22,7 +22,13 @@ triangles), so stage, fall and leaf-out are exact day by day in the light. Verti
 - when 25 % of the leaves are hidden with their blades still in the mesh
   (:attr:`Canopy.max_hidden_blades`): a photon crossing a hidden blade costs one more ray cast,
   so in autumn, every few days of leaf fall, and for the bare winter the hidden blades are
-  collapsed to points.
+  taken out of the mesh.
+
+A blade taken out (size 0) has NaN corners: Embree and OptiX leave triangles with a NaN vertex
+out of their acceleration structures, where blades collapsed to a point were kept as
+degenerate triangles that no ray can hit (the same hits, but the build costs for them: a bare
+hectare's 13 M collapsed triangles were most of the BVH build at every year's end; 0.04 s
+against 4.4 s for 4 M of them). Mitsuba's mesh and scene boxes leave NaN corners out too.
 
 Outside leaf-out and leaf fall no vertex moves.
 
@@ -68,7 +74,7 @@ class Canopy:
     min_change = 0.02
     max_lag_days = 7
     #: a hidden leaf costs the photons that cross it one more ray cast each: the hidden blades
-    #: still in the mesh are collapsed to points once they are this share of the leaves, or
+    #: still in the mesh are taken out (NaN corners) once they are this share of the leaves, or
     #: (more than 1 %) once none has been added for ``max_lag_days`` (the leaf fall is over)
     max_hidden_blades = 0.25
 
@@ -182,10 +188,11 @@ class Canopy:
             Show every leaf in the daily tables from the start (default False: all hidden until the
             first :meth:`update`).
         bare : bool
-            Every blade collapsed to its centre from the start, as :meth:`update` leaves hidden
+            Every blade taken out (NaN corners) from the start, as :meth:`update` leaves hidden
             leaves (the same vertices, so a run and its resumed copy agree): a scene rebuilt at
             the year's end, when the leaves start bare, then needs no vertex update (and no
-            second BVH build: 22 s for a hectare's 6.7 M leaves on 2 cores) on its first day.
+            second BVH build) on its first day, and its BVH holds the wood and the terrain
+            only.
 
         Returns
         -------
@@ -206,8 +213,9 @@ class Canopy:
                             for b in range(self.bins)]
         F = len(self.tri)
         if F:
+            # a triangle soup (3 corners of its own per triangle), made on the device
             out[LEAF_MESH] = _mesh(LEAF_MESH, self._leaf_vertices(bare),
-                                   np.arange(3 * F).reshape(-1, 3), self.stage_bsdfs[0])
+                                   dr.arange(mi.UInt32, 3 * F), self.stage_bsdfs[0])
         self._scale = dr.full(mi.Float64, 0.0 if bare else 1.0, self.n_leaves)
         self._bin = dr.zeros(mi.UInt32, self.n_leaves)
         self._shown = dr.full(mi.Bool, bool(full_leaf), self.n_leaves)
@@ -229,13 +237,12 @@ class Canopy:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         return np.concatenate(bv), np.concatenate(bf)
 
-    def _leaf_vertices(self, bare: bool) -> np.ndarray:
-        """(3F, 3) corners of the leaf mesh: the full blades, or (``bare``) every blade
-        collapsed to its float32 centre, the vertices :meth:`_set_blades` gives at size 0."""
+    def _leaf_vertices(self, bare: bool) -> mi.Float:
+        """(9F,) corners of the leaf mesh on the device: the full blades, or (``bare``) every
+        blade taken out, the NaN corners :meth:`_set_blades` gives at size 0."""
         if bare:
-            c = self.centre.astype(np.float32)[self.face_leaf]
-            return np.broadcast_to(c[:, None, :], (len(c), 3, 3)).reshape(-1, 3)
-        return self.tri.reshape(-1, 3)
+            return dr.full(mi.Float, dr.nan, 9 * len(self.tri))
+        return mi.Float(self.d_tri)
 
     def reference_geometry(self) -> dict:
         """The leaf mesh with every blade at full size, as the scene's index reads it
@@ -244,14 +251,13 @@ class Canopy:
         Returns
         -------
         dict
-            ``{LEAF_MESH: (vertices (3F, 3) float32 as in the mesh [m], faces (F, 3))}``;
-            empty without leaves.
+            ``{LEAF_MESH: (vertices (3F, 3) float32 as in the mesh [m], None)}``: the device
+            copy of the blades seen from the host (no copy), a triangle soup (triangle i is
+            vertices 3i..3i+2); empty without leaves.
         """
-        F = len(self.tri)
-        if not F:
+        if not len(self.tri):
             return {}
-        v = self.tri.reshape(-1, 3).astype(np.float32)
-        return {LEAF_MESH: (v, np.arange(3 * F, dtype=np.int64).reshape(-1, 3))}
+        return {LEAF_MESH: (np.asarray(self.d_tri).reshape(-1, 3), None)}
 
     # ---- daily update -------------------------------------------------------------------
     def leaf_bins(self, tau: np.ndarray) -> np.ndarray:
@@ -325,7 +331,7 @@ class Canopy:
         grow = n_changed >= self.min_change * max(n_live, 1) or \
             (n_changed > 0 and self._lag >= self.max_lag_days)
         if (collapse or grow) and self._since >= self.min_update_days:
-            # hidden leaves collapse to their centre: a leaf that comes out later shows no
+            # hidden leaves leave the mesh (NaN corners): a leaf that comes out later shows no
             # blade until the next update gives it its size
             self._set_blades(params, dr.select(live, size, 0.0))
             self._lag = 0
@@ -338,7 +344,8 @@ class Canopy:
         return moved
 
     def _set_blades(self, params, scale) -> None:
-        """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene."""
+        """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene; a
+        blade at 0 is taken out of the mesh (NaN corners: no triangle for the ray tracer)."""
         scale = scale if dr.is_array_v(scale) else mi.Float64(np.asarray(scale, float))
         dr.eval(scale)
         F = len(self.face_leaf)
@@ -348,7 +355,7 @@ class Canopy:
         leaf = dr.gather(mi.UInt32, self.d_face_leaf, tri)
         s = mi.Float(dr.gather(mi.Float64, scale, leaf))
         c = dr.gather(mi.Float, self.d_centre, leaf * 3 + axis)
-        v = c + s * (dr.gather(mi.Float, self.d_tri, k) - c)
+        v = dr.select(s > 0, c + s * (dr.gather(mi.Float, self.d_tri, k) - c), dr.nan)
         params[f"{LEAF_MESH}.vertex_positions"] = v
         params.update()
         self._scale = scale

@@ -13,8 +13,8 @@ vectorised step a day):
   time τ_raw = ξ_i [(1 − β) H_i / H_full + β t / D_full] (t: days since the onset), τ = clip(τ_raw,
   0, 1) and the Ishikura stage = 1 + 6 τ.
 - **leaf fall**: a leaf falls when τ_raw reaches its threshold φ_i (log-normal around
-  ``fall_tau``); a fallen leaf no longer blocks light (its blade is collapsed in the light
-  scene) until it grows again next spring.
+  ``fall_tau``); a fallen leaf no longer blocks light (hidden in the pass's tables, its blade
+  later taken out of the light scene) until it grows again next spring.
 
 Before the first leaf-out of a run that starts in winter or early spring the trees are bare.
 """
