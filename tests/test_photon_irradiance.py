@@ -315,6 +315,17 @@ def test_reflectance_override_changes_light_without_rebuilding():
     nan = photon_irradiance(scene, photons=1_000_000, seed=4,
                             reflectance={"ground": np.full(n_ground, np.nan)})
     assert nan.flux_of("roof", component="indirect").sum() == pytest.approx(roof_base, rel=0.03)
+    # the table's rows end at the last shape with an override: the shapes after it keep their
+    # BSDF exactly as with NaN rows of their own
+    ids = [sh.id() for sh in scene.shapes() if sh.is_mesh()]
+    last = ids[-1]
+    assert ids.index("ground") < len(ids) - 1
+    n_last = [sh for sh in scene.shapes() if sh.id() == last][0].face_count()
+    spanned = photon_irradiance(scene, photons=1_000_000, seed=4,
+                                reflectance={"ground": np.zeros(n_ground),
+                                             last: np.full(n_last, np.nan)})
+    for sid in ids:
+        assert np.array_equal(spanned.flux_of(sid), black.flux_of(sid)), sid
 
 
 def test_seeded_runs_are_reproducible():

@@ -131,10 +131,6 @@ class DayGrowth:
         #: Weber-Penn trees that paper 002's death rule adapts every year (``adapt_yearly``)
         self.adapting = [i for i, wt in enumerate(site.trees) if adapts(wt)]
         self.n = c.n_leaves
-        # each leaf's geometric normal (its first triangle's: the pass's "front" side)
-        t = c.tri[c._first]
-        g = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        self.normals = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
         self.widths = {b: band_range(b)[1] - band_range(b)[0] for b in ("red", "far_red")}
 
     def new_state(self) -> YearLight:
@@ -227,11 +223,20 @@ class DayGrowth:
             sphere = np.asarray(wt.tree.leaves.attrs["sphere"], np.int64)
             if len(sphere) != leaves.stop - leaves.start or m == 0:
                 continue
-            lt = sphere_light({f: x[leaves] for f, x in v.items()}, self.normals[leaves],
+            lt = sphere_light({f: x[leaves] for f, x in v.items()}, self._normals(leaves),
                               sphere, m)
             if lt is not None:
                 out[i] = lt
         return out
+
+    def _normals(self, leaves: slice) -> np.ndarray:
+        """(k, 3) geometric unit normal of these leaves (each its first triangle's: the pass's
+        "front" side); computed when a growth tree asks, once a year (a stand of Weber-Penn
+        trees never does: 6.7 M leaves of a hectare would be 0.5 GB of temporaries)."""
+        c = self.site.canopy
+        t = c.tri[c._first[leaves]]
+        g = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
 
     def leaf_lights(self, yl: YearLight) -> dict:
         """The year's light of every leaf of the trees that adapt (paper 002), relative to the

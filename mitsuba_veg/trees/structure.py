@@ -392,21 +392,23 @@ def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
     Tree
         The scaled copy.
     """
-    t = tree.copy()
-    base = t.start[0].copy() if len(t) else np.zeros(3)
+    # a copy (Tree.copy's) whose scaled arrays are made once, not copied and then replaced
+    base = tree.start[0].copy() if len(tree) else np.zeros(3)
     o = np.asarray(offset, float)
-    t.start = (t.start - base) * factor + base + o
-    t.end = (t.end - base) * factor + base + o
-    t.radius_start = t.radius_start * factor
-    t.radius_end = t.radius_end * factor
-    lv = t.leaves
-    lv.position = (lv.position - base) * factor + base + o
-    lv.size = lv.size * factor
-    if "width" in lv.attrs:
-        lv.attrs["width"] = np.asarray(lv.attrs["width"]) * factor
+    lv = tree.leaves
+    lattrs = {k: (np.asarray(v) * factor if k == "width" else np.array(v, copy=True))
+              for k, v in lv.attrs.items()}
+    leaves = Leaves((lv.position - base) * factor + base + o, lv.normal.copy(),
+                    lv.size * factor, lv.segment.copy(),
+                    None if lv.up is None else lv.up.copy(), lattrs)
+    attrs = {k: (v if k == "leaf_sphere_center" else _copy.deepcopy(v))
+             for k, v in tree.attrs.items()}
     for k in ("leaf_sphere_center",):
-        if k in t.attrs:
-            t.attrs[k] = (np.asarray(t.attrs[k]) - base) * factor + base + o
+        if k in attrs:
+            attrs[k] = (np.asarray(attrs[k]) - base) * factor + base + o
+    t = Tree((tree.start - base) * factor + base + o, (tree.end - base) * factor + base + o,
+             tree.radius_start * factor, tree.radius_end * factor, tree.parent.copy(),
+             tree.level.copy(), tree.alive.copy(), tree.kind.copy(), leaves, attrs, tree.name)
     if getattr(tree, "weber_penn", None) is not None:
         t.weber_penn = tree.weber_penn
     return t
