@@ -24,8 +24,8 @@ triangles), so stage, fall and leaf-out are exact day by day in the light. Verti
   so in autumn, every few days of leaf fall, and for the bare winter the hidden blades are
   taken out of the mesh.
 
-A blade taken out (size 0) has NaN corners: Embree and OptiX leave triangles with a NaN vertex
-out of their acceleration structures, where blades collapsed to a point were kept as
+A blade taken out (size 0) has NaN corners: Embree (and, by its documentation, OptiX) leaves
+triangles with a NaN vertex out of its acceleration structure, where blades collapsed to a point were kept as
 degenerate triangles that no ray can hit (the same hits, but the build paid for them: 4.4 s
 for 4 M collapsed blades, 0.04 s for 4 M taken out; a bare hectare's scene 12-13 s instead of
 17-20 s at every year's end, of which its wood and ground take 10 s). Mitsuba's mesh and scene
