@@ -488,7 +488,8 @@ class Simulation:
         # tallies take it again, of the same sizes. Handed back to the system, it comes back
         # page by page at a cost where the machine reclaims freed pages (a VM with free page
         # reporting: 3-4 s per GB; the first pass after a hectare's rebuild took 8-12 s for
-        # its 3.4 GB tallies instead of 1.1 s). The price: the hectare's peak 17.1 GB, not 15.7
+        # its 3.4 GB tallies instead of 1.1 s). The price: the hectare's year peaked at
+        # 16.3 GB, not 15.9 (docs/forest.md)
         t0 = time.perf_counter()
         self._floor_year()
         self._year_out_s = time.perf_counter() - t0
