@@ -251,6 +251,11 @@ def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
     some = mi.UInt32(np.arange(0, sim.site.n_terrain, 7, dtype=np.uint32))
     assert np.array_equal(np.asarray(P.moss.cover(counts, some)),
                           np.asarray(cover)[np.asarray(some)])
+    # the covered area of chosen elements (the floor's year: the ground only) is that of all
+    full = sim.covered_area()
+    assert full[:sim.site.n_terrain].sum() > 0 and len(full) > sim.site.n_terrain
+    for sl in (sim.site.ground_slice, slice(sim.site.n_terrain - 5, sim.site.n_terrain + 5)):
+        assert np.array_equal(sim.covered_area(elements=sl), full[sl])
     vals = sim.inputs.on_device(0)
 
     def day(tau, on_tree):

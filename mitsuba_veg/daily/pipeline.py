@@ -425,21 +425,32 @@ class Simulation:
                                              dtype=np.float64)
         return c
 
-    def covered_area(self, counts=None) -> np.ndarray:
+    def covered_area(self, counts=None, elements: slice | None = None) -> np.ndarray:
         """Area covered by moss per element.
 
         Parameters
         ----------
         counts : numpy.ndarray, optional
-            Live moss per element (default: :meth:`counts`).
+            Live moss per element of the scene (default: the population's, read back).
+        elements : slice, optional
+            Only these elements (e.g. the ground's; without ``counts`` only the terrain's
+            counts are read back: a hectare's scene has 21.6 M elements).
 
         Returns
         -------
         numpy.ndarray
             (elements,) covered area [m2]: min(moss x size², triangle area).
         """
-        counts = self.counts() if counts is None else counts
-        return np.minimum(counts * self.grid_cell() ** 2, self.index.areas)
+        sl = slice(0, self.index.n_elements) if elements is None else elements
+        if counts is None:
+            m = np.zeros(sl.stop - sl.start)
+            hi = min(sl.stop, self.site.n_terrain)
+            if hi > sl.start:
+                t = np.asarray(self.pipeline.moss.counts(self.state.moss), dtype=np.float64)
+                m[:hi - sl.start] = t[sl.start:hi]
+        else:
+            m = np.asarray(counts)[sl]
+        return np.minimum(m * self.grid_cell() ** 2, self.index.areas[sl])
 
     # ---- the days -------------------------------------------------------------------------
     def step(self) -> dict:
@@ -562,11 +573,7 @@ class Simulation:
         st, site = self.state, self.site
         year = self.date(self.day - 1).year
         gsl = site.ground_slice
-        # the ground's part of covered_area() (the terrain's elements come first; the whole
-        # scene's arrays are 21.6 M elements on a hectare)
-        m = np.asarray(self.pipeline.moss.counts(st.moss), dtype=np.float64)[gsl]
-        a = site.index.areas[gsl]
-        cov = np.minimum(m * self.grid_cell() ** 2, a) / np.maximum(a, 1e-30)
+        cov = self.covered_area(elements=gsl) / np.maximum(site.index.areas[gsl], 1e-30)
         fl = floor_year(st.year, site.index.areas[gsl], cov)
         row = {"year": year, "day": self.day, **{k: v for k, v in fl.items() if k != "maps"}}
         st.floor_log.append(row)
