@@ -10,7 +10,7 @@ import pytest
 
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.trees import weber_penn as wp
-from mitsuba_veg.trees.structure import NORMAL, Tree
+from mitsuba_veg.trees.structure import NORMAL, Tree, placed_tree, scaled_tree
 
 S8 = math.sin(math.pi / 4)
 
@@ -269,3 +269,16 @@ def test_tree_mesh_export_formats(tmp_path):
     # the shared structure's own mesh works on Weber-Penn trees too
     m = t.to_mesh(sides=6)
     assert len(m.faces) > 0
+
+
+def test_copies_of_a_weber_penn_tree_keep_its_record(aspen):
+    """A copy, a translated, scaled or placed copy of a Weber-Penn tree is still one: its
+    generation record (parameters, seed) comes along, so its wood is meshed and it ages as
+    its preset; a plain tree gets none."""
+    assert aspen.weber_penn is not None
+    for c in (aspen.copy(), aspen.translated((1.0, 0.0, 2.0)), scaled_tree(aspen, 1.3),
+              placed_tree(aspen, 0.8, 30.0, (4.0, 0.0, 1.0))):
+        assert c.weber_penn is aspen.weber_penn
+        assert c is not aspen and len(c) == len(aspen)
+    plain = Tree(np.zeros((1, 3)), np.ones((1, 3)), np.ones(1), np.ones(1), [-1], [0])
+    assert getattr(plain.copy(), "weber_penn", None) is None

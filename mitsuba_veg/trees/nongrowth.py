@@ -378,11 +378,7 @@ def death_by_leaf_light(trees, leaf_light, threshold: float = 0.5,
         if np.shape(x) != (len(t.leaves),):
             raise ParameterError(f"leaf_light[{i}]", f"shape {np.shape(x)}",
                                  f"({len(t.leaves)},): one value per leaf of the tree")
-    copies = [t.copy() for t in trees]
-    for c, t in zip(copies, trees):       # a Weber-Penn tree stays one (its wood mesh)
-        if getattr(t, "weber_penn", None) is not None:
-            c.weber_penn = t.weber_penn
-    trees = copies
+    trees = [t.copy() for t in trees]     # (a Weber-Penn tree stays one: Tree.copy)
     stand = _Stand(trees)
     n = len(stand.parent)
     x = np.concatenate([np.asarray(v, float) for v in lights]) if n else np.zeros(0)

@@ -238,10 +238,19 @@ class Tree:
         leaves = Leaves(lv.position.copy(), lv.normal.copy(), lv.size.copy(), lv.segment.copy(),
                         None if lv.up is None else lv.up.copy(),
                         {k: np.array(v, copy=True) for k, v in lv.attrs.items()})
-        return Tree(self.start.copy(), self.end.copy(), self.radius_start.copy(),
-                    self.radius_end.copy(), self.parent.copy(), self.level.copy(),
-                    self.alive.copy(), self.kind.copy(), leaves, _copy.deepcopy(self.attrs),
-                    self.name)
+        t = Tree(self.start.copy(), self.end.copy(), self.radius_start.copy(),
+                 self.radius_end.copy(), self.parent.copy(), self.level.copy(),
+                 self.alive.copy(), self.kind.copy(), leaves, _copy.deepcopy(self.attrs),
+                 self.name)
+        return self._keep_record(t)
+
+    def _keep_record(self, t: "Tree") -> "Tree":
+        """``t`` with this tree's Weber-Penn generation record (``weber_penn``), if it has one:
+        a copy of a Weber-Penn tree stays one (its wood is meshed as such, it ages by its
+        preset). The record is shared (parameters and counts, not geometry)."""
+        if getattr(self, "weber_penn", None) is not None:
+            t.weber_penn = self.weber_penn
+        return t
 
     def translated(self, offset) -> "Tree":
         """A copy of the tree moved by ``offset``.
@@ -266,9 +275,10 @@ class Tree:
         for k in POINT_ATTRS:
             if k in attrs:
                 attrs[k] = np.asarray(attrs[k], float) + o
-        return Tree(self.start + o, self.end + o, self.radius_start, self.radius_end, self.parent,
-                    self.level, self.alive.copy(), self.kind.copy(), leaves, attrs,
-                    self.name)
+        return self._keep_record(Tree(self.start + o, self.end + o, self.radius_start,
+                                      self.radius_end, self.parent, self.level,
+                                      self.alive.copy(), self.kind.copy(), leaves, attrs,
+                                      self.name))
 
     # ---- metrics -----------------------------------------------------------------------------
     def metrics(self) -> dict:
@@ -409,9 +419,7 @@ def scaled_tree(tree, factor: float, offset=(0.0, 0.0, 0.0)):
     t = Tree((tree.start - base) * factor + base + o, (tree.end - base) * factor + base + o,
              tree.radius_start * factor, tree.radius_end * factor, tree.parent.copy(),
              tree.level.copy(), tree.alive.copy(), tree.kind.copy(), leaves, attrs, tree.name)
-    if getattr(tree, "weber_penn", None) is not None:
-        t.weber_penn = tree.weber_penn
-    return t
+    return tree._keep_record(t)
 
 
 #: attrs holding unit directions that turn with the tree
@@ -465,8 +473,6 @@ def placed_tree(tree, factor: float = 1.0, yaw: float = 0.0, position=None):
     for k in DIRECTION_ATTRS:
         if k in t.attrs and np.ndim(t.attrs[k]) == 2:
             t.attrs[k] = np.asarray(t.attrs[k], float) @ R.T
-    if getattr(tree, "weber_penn", None) is not None:
-        t.weber_penn = tree.weber_penn
     offset = np.zeros(3) if position is None else np.asarray(position, float) - base
     return scaled_tree(t, factor, offset)
 

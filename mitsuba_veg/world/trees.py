@@ -389,8 +389,6 @@ def with_alive(wt: WorldTree, alive) -> WorldTree:
     if alive.shape != (len(wt.tree),):
         raise ValueError(f"alive: {alive.shape} != ({len(wt.tree)},)")
     t = wt.tree.copy()
-    if getattr(wt.tree, "weber_penn", None) is not None:
-        t.weber_penn = wt.tree.weber_penn
     t.alive = t.alive & alive
     t.drop_dead_leaves()
     return _tree_to_world(wt.name, wt.model, t, wt.position, wt.info)
