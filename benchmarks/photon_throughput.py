@@ -11,6 +11,11 @@ per-repetition ratios, so that load from other processes on a shared machine hit
 Dr.Jit kernels are compiled before timing.
 
     python benchmarks/photon_throughput.py [--scene garden|moss_garden|plants1000|world] [--reps 5]
+        [--split]
+
+``--split``: the pass also runs with its random walk in two parts and in one loop
+(``PhotonKernel.split_walk``: the first casts, then the photons that go on in dense lanes),
+interleaved; printed: their times and ratio (the tallies are compared and must be equal).
 
 ``world``: the light scene of ``benchmarks/world_year.py``'s courtyard world on 1 July (trees
 in full leaf, > 100,000 leaves: one leaf mesh with its daily mode and stage tables, bark,
@@ -138,6 +143,9 @@ def main():
                                                              "world"])
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--photons", type=int, nargs="*", default=[1_000_000, 4_000_000])
+    ap.add_argument("--split", action="store_true",
+                    help="also time the pass with the walk in two parts and in one loop "
+                         "(PhotonKernel.split_walk), interleaved; their tallies are compared")
     a = ap.parse_args()
     scene = load(a.scene)
     integ = PhotonIrradianceIntegrator()
@@ -148,8 +156,31 @@ def main():
           f"{len(scene.emitters())} emitters, variant {mi.variant()}, {os.cpu_count()} CPU "
           f"threads")
     full = a.scene != "plants1000"
+    plugin = getattr(integ, "integ", integ)      # (the world's pass wraps the plugin)
     for n in a.photons:
         res = integ.trace(scene, photons=n, seed=0)  # compile
+        if a.split:
+            t_walk = {False: [], True: []}
+            for r in range(a.reps + 1):
+                flux = {}
+                for split in (False, True):
+                    plugin.split_walk = split
+                    dr.sync_thread()
+                    t = time.perf_counter()
+                    res = integ.trace(scene, photons=n, seed=r + 1)
+                    flux[split] = (res.flux, res.rays_traced)
+                    dr.sync_thread()
+                    if r:                            # the first repetition compiles
+                        t_walk[split].append(time.perf_counter() - t)
+                if not (np.array_equal(flux[False][0], flux[True][0])
+                        and flux[False][1] == flux[True][1]):
+                    raise SystemExit("the walk in two parts gave other tallies than one loop")
+            del plugin.split_walk                    # the class's default again
+            ratios = [b / o for o, b in zip(t_walk[False], t_walk[True])]
+            print(f"{n:>9,d} photons: walk in one loop {np.median(t_walk[False]):.3f} s, in two "
+                  f"parts {np.median(t_walk[True]):.3f} s: two parts / one loop "
+                  f"{np.median(ratios):.2f} (per rep: {', '.join(f'{x:.2f}' for x in ratios)}; "
+                  f"same tallies; the default: {'two parts' if type(plugin).split_walk else 'one loop'})")
         O, D = raw_rays(integ, scene, res.rays_traced, seed=99)
         time_raw(scene, O, D, "prelim", 0)
         if full:

@@ -65,6 +65,7 @@ from __future__ import annotations
 import gc
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import drjit as dr
 import mitsuba as mi
@@ -226,6 +227,17 @@ class PhotonKernel(mi.SamplingIntegrator):
     Its methods read the plugin's ``batch`` and keep two caches on it: ``_frozen`` (the frozen
     launch) and ``_lobes`` (the emission cones of point-like emitters, :meth:`_lobe`).
     """
+
+    #: The random walk in two parts (True), in one loop (False, the default), or "auto": two
+    #: parts on CUDA. In one loop a group of lanes (a CPU packet, a GPU warp) runs until its
+    #: last photon ends, mostly idle after the first hit (a fifth of the world's photons go on
+    #: after their first cast, with 30 % of the pass's casts); the second part gathers the
+    #: photons that go on into dense lanes. The numbers are the same either way (every lane
+    #: carries its state, the tallies are integer sums). On the 2-core CPU the split walk was
+    #: slower (world 857 against 805 ms of kernel time, garden 1.27x): Dr.Jit's CPU packets
+    #: lose little to lanes that have ended. On a GPU it is not measured yet
+    #: (``benchmarks/photon_throughput.py --split``), so one loop stays the default there too.
+    split_walk = False
 
     def pass_tables(self, scene: mi.Scene, n_bands: int, reflectance: dict | None = None,
                     modes: dict | None = None, bsdf_override: dict | None = None,
@@ -762,8 +774,11 @@ class PhotonKernel(mi.SamplingIntegrator):
         inp = self.launch_inputs(n, counts, start, stream, slot_ranges, cap, max_depth)
         # (the emission cones are plain numbers: a changed one records the launch again)
         lobes = tuple(self._lobe(e) for e in emitters)
+        split = self.split_walk if self.split_walk != "auto" else dr.backend_v(mi.Float) \
+            == dr.JitBackend.CUDA
         args = (scene, list(emitters), index, tables, refl, inp, int(n), len(counts),
-                int(max_depth), bool(indirect), mode, int(slots), float(cap), lobes)
+                int(max_depth), bool(indirect), mode, int(slots), float(cap), lobes,
+                bool(split))
         if frozen:
             if self._frozen is None:
                 self._frozen = dr.freeze(PhotonKernel._launch, warn_after=50)
@@ -780,8 +795,9 @@ class PhotonKernel(mi.SamplingIntegrator):
         return self._launch(*args)
 
     def _launch(self, scene, emitters, index, tables, refl, inp, n, E, max_depth, indirect,
-                mode, slots, cap, lobes=None):
-        """The kernels of one launch (see :meth:`_pass`): a function of its arguments only."""
+                mode, slots, cap, lobes=None, split=False):
+        """The kernels of one launch (see :meth:`_pass`): a function of its arguments only.
+        ``split``: the walk in two parts (:attr:`split_walk`)."""
         sampler, ray, throughput, _, e_lane = self._photons(scene, emitters, index, n, inp,
                                                             lobes=lobes)
         big = min(2.0 ** 40, cap / 16.0)
@@ -814,18 +830,57 @@ class PhotonKernel(mi.SamplingIntegrator):
         esc = dr.zeros(mi.Spectrum, n)
         absd = dr.zeros(mi.Spectrum, n)
         active = dr.any(throughput > 0)
-        thr_left, rays_lane, esc, absd = self._loop(
-            scene, sampler, ray, throughput, active, mi.UInt32(0), max_d, acc, esc, absd,
-            index, index.kernel_normals, refl, not indirect, scale, capf, tables.modes,
-            tables.bsdf_table, tables.bsdfs, tables.row_arr, weights=mode == "weights",
-            slots=slots, e_lane=e_lane, n_rec=tables.n_rec, slot_of=tables.slot_of)
-        for j, x in enumerate((esc, absd, thr_left)):
-            for k in range(_SLOTS):
-                q = _UInt64(dr.round(dr.minimum(x[k] * scale, capf)))
-                dr.scatter_add(book, q, e_or0 * (4 * _SLOTS) + (j + 1) * _SLOTS + k,
-                               mode=dr.ReduceMode.Local)
-        dr.scatter_add(rays, _UInt64(rays_lane), e_or0, mode=dr.ReduceMode.Local)
-        # one kernel: the loop and every tally it feeds
+        walk = partial(self._loop, scene, max_d=max_d, acc=acc, index=index,
+                       normals=index.kernel_normals, refl_arr=refl, one_hit=not indirect,
+                       cap=capf, modes=tables.modes, bsdf_table=tables.bsdf_table,
+                       bsdfs=tables.bsdfs, rows=tables.row_arr, weights=mode == "weights",
+                       slots=slots, n_rec=tables.n_rec, slot_of=tables.slot_of)
+
+        def book_lanes(thr_left, rays_lane, esc, absd, e, sc, done=True):
+            # what each photon took out of the walk (escaped, absorbed, left at the depth
+            # limit) and its casts, per emitter; ``done``: the lanes whose walk ended here
+            for j, x in enumerate((esc, absd, thr_left)):
+                for k in range(_SLOTS):
+                    q = _UInt64(dr.round(dr.minimum(x[k] * sc, capf)))
+                    dr.scatter_add(book, q, e * (4 * _SLOTS) + (j + 1) * _SLOTS + k, done,
+                                   mode=dr.ReduceMode.Local)
+            dr.scatter_add(rays, _UInt64(rays_lane), e, done, mode=dr.ReduceMode.Local)
+
+        if not split:
+            thr_left, rays_lane, esc, absd = walk(
+                sampler=sampler, ray=ray, throughput=throughput, active=active,
+                depth=mi.UInt32(0), esc=esc, absd=absd, scale=scale, e_lane=e_lane)
+            book_lanes(thr_left, rays_lane, esc, absd, e_or0, scale)
+            # one kernel: the loop and every tally it feeds
+            dr.eval(acc, book, rays, unit)
+            return acc, unit, book, rays
+        # In two parts (split_walk): every photon's first cast, then the photons that go on,
+        # gathered into dense lanes. Each lane carries its whole state (ray, power, generator,
+        # depth, sums) into the second part, and the tallies are integer sums: the same
+        # numbers as one loop.
+        thr_left, rays_lane, esc, absd, ray, depth, prev, going = walk(
+            sampler=sampler, ray=ray, throughput=throughput, active=active,
+            depth=mi.UInt32(0), esc=esc, absd=absd, scale=scale, e_lane=e_lane, n_iter=1)
+        book_lanes(thr_left, rays_lane, esc, absd, e_or0, scale, ~going)
+        dr.eval(thr_left, rays_lane, esc, absd, ray, depth, prev, going, sampler, acc, book,
+                rays)
+        # (lane 0 always: never an empty part, which a recorded launch could not replay; a
+        # stopped lane 0 walks no further and is booked once, above)
+        on = dr.compress(going | (dr.arange(mi.UInt32, n) == 0))
+        s_on = LaneSampler()
+        s_on.rng = dr.gather(mi.PCG32, sampler.rng, on)
+        go_on = dr.gather(mi.Bool, going, on)
+        e_on = e_or0 if e_lane is None else dr.gather(mi.UInt32, e_lane, on)
+        sc_on = scale if e_lane is None else dr.gather(mi.Float, scale, on)
+        out = walk(sampler=s_on, ray=dr.gather(mi.Ray3f, ray, on),
+                   throughput=dr.gather(mi.Spectrum, thr_left, on), active=go_on,
+                   depth=dr.gather(mi.UInt32, depth, on), esc=dr.gather(mi.Spectrum, esc, on),
+                   absd=dr.gather(mi.Spectrum, absd, on), scale=sc_on,
+                   e_lane=None if e_lane is None else e_on,
+                   prev=dr.gather(mi.UInt32, prev, on),
+                   nrays=dr.gather(mi.UInt32, rays_lane, on))
+        book_lanes(*out, e_on, sc_on, go_on)
+        # one kernel: the walk's second part and every tally it feeds
         dr.eval(acc, book, rays, unit)
         return acc, unit, book, rays
 
@@ -838,7 +893,8 @@ class PhotonKernel(mi.SamplingIntegrator):
     def _loop(self, scene, sampler, ray, throughput, active, depth, max_d, acc, esc, absd,
               index, normals, refl_arr, one_hit, scale, cap, modes=None, bsdf_table=None,
               bsdfs=(), rows=None, weights=False, paths=None, lane=None, n_lanes=None,
-              slots=_SLOTS, e_lane=None, n_rec=0, slot_of=None):
+              slots=_SLOTS, e_lane=None, n_rec=0, slot_of=None, prev=None, nrays=None,
+              n_iter=None):
         """The random walk: one symbolic loop (a single kernel), in one of two modes.
 
         ``weights=False`` ("roulette", paper 000 §3.4): at a hit the BSDF is sampled and the
@@ -876,8 +932,12 @@ class PhotonKernel(mi.SamplingIntegrator):
         element, unrecorded, without a bounce. Hits on meshes with vertex normals (scenes
         without instances) use Mitsuba's full surface interaction for the BSDF's shading
         frame; every other hit a minimal one built from the element's geometric normal.
+
+        A walk can be cut into parts (:meth:`_launch`): ``n_iter`` stops every lane after that
+        many casts and returns, after the four values, the rest of its state (ray, depth, the
+        element last left, whether it goes on); ``prev`` and ``nrays`` continue such a state.
         """
-        nrays = mi.UInt32(0)
+        nrays = mi.UInt32(0) if nrays is None else mi.UInt32(nrays)
         bsdf_ctx = mi.BSDFContext(mi.TransportMode.Importance)
         lookup, blookup = index.lookup, index.bsdf_lookup
         has_instances = len(index.instances) > 0
@@ -888,7 +948,10 @@ class PhotonKernel(mi.SamplingIntegrator):
         full = index.needs_full_interaction and full_lookup is None
         some_full = full_lookup is not None
         has_e = e_lane is not None
-        prev = dr.full(mi.UInt32, _NO_ROW, dr.width(throughput))
+        prev = dr.full(mi.UInt32, _NO_ROW, dr.width(throughput)) if prev is None \
+            else mi.UInt32(prev)
+        # the casts this part may make (no limit: the whole walk)
+        it, lim = mi.UInt32(0), mi.UInt32(0xFFFFFFFF if n_iter is None else n_iter)
         # read-only objects stay out of the loop state: traversing a scene with 1,000
         # instances for it cost ~0.1 s per pass
         has_modes = modes is not None
@@ -900,7 +963,7 @@ class PhotonKernel(mi.SamplingIntegrator):
         use_switch = len(bsdfs) >= _SWITCH_BSDFS
         slot_of, samplers, evals = self._switch_targets(bsdfs, bsdf_ctx, slot_of) if use_switch \
             else (None, None, None)
-        while dr.hint(active, label="veg_photon_irradiance",
+        while dr.hint(active & (it < lim), label="veg_photon_irradiance",
                       exclude=[scene, index, bsdfs, lookup, blookup, normals, modes,
                                bsdf_table, rows, slot_of, samplers, evals, full_lookup,
                                e_lane]):
@@ -1104,7 +1167,9 @@ class PhotonKernel(mi.SamplingIntegrator):
                 depth = dr.select(passing, depth - 1, depth)
                 active = active | passing
                 prev = dr.select(hit, elem, prev)
-        return throughput, nrays, esc, absd
+            it += 1
+        out = (throughput, nrays, esc, absd)
+        return out if n_iter is None else out + (ray, depth, prev, active)
 
     @classmethod
     def _switch_targets(cls, bsdfs, ctx, slot_of=None):
