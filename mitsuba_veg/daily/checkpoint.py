@@ -20,7 +20,7 @@ from ..errors import ParameterError
 from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
-from ..world.trees import age_tree, tree_from_state, tree_state, with_alive
+from ..world.trees import age_tree, map_trees, tree_from_state, tree_state, with_alive
 
 
 def fingerprint(sim) -> str:
@@ -114,13 +114,24 @@ def load(sim) -> bool:
         try:
             for i in sim.pipeline.growth.trees:
                 trees[i] = tree_from_state(d, f"growth_trees/{i}")
-            for i in sim.pipeline.growth.adapting:    # without the subtrees that died
-                trees[i] = with_alive(trees[i], d[f"adapted_trees/{i}"])
-            for i in sim.pipeline.growth.ageing:      # as many years older as it aged
-                years = sum(1 for r in growth_log if r.get("tree") == trees[i].name
-                            and r.get("model") == "weber_penn" and "age" in r)
-                if years:
-                    trees[i] = age_tree(trees[i], years)
+            adapting, ageing = set(sim.pipeline.growth.adapting), set(sim.pipeline.growth.ageing)
+            # (read before the threads: a missing entry raises here)
+            alive = {i: d[f"adapted_trees/{i}"] for i in sorted(adapting)}
+
+            def wp_tree(i):      # one Weber-Penn tree as it is now (on the machine's cores)
+                t = trees[i]
+                if i in adapting:                   # without the subtrees that died
+                    t = with_alive(t, alive[i])
+                if i in ageing:                     # as many years older as it aged
+                    years = sum(1 for r in growth_log if r.get("tree") == t.name
+                                and r.get("model") == "weber_penn" and "age" in r)
+                    if years:
+                        t = age_tree(t, years)
+                return t
+
+            wp_idx = sorted(adapting | ageing)
+            for i, t in zip(wp_idx, map_trees(wp_tree, wp_idx)):
+                trees[i] = t
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
                                  f"use --fresh ({e})") from None

@@ -54,8 +54,8 @@ from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
 from ..outputs import atomic_write
-from ..world.trees import (adapt_tree, adapts, age_tree, ages, obstacles, regrow,
-                           tree_state)
+from ..world.trees import (adapt_tree, adapts, age_tree, ages, map_trees, obstacles,
+                           regrow, tree_state)
 from .config import MossConfig
 from .growth import DayGrowth, YearLight, floor_figure, floor_year, floor_years_figure
 from .inputs import DayInputs
@@ -524,18 +524,24 @@ class Simulation:
         env = self._env if lights else None
         # Weber-Penn trees: paper 002's death rule from their leaves' year light, then a
         # year older (one row each)
-        for i in sorted(set(g.ageing) | set(leaf_lights)):
-            row = {"year": year, "day": self.day, "tree": trees[i].name, "model": "weber_penn"}
+        ageing = set(g.ageing)
+
+        def wp_year(i):          # one tree's year (the trees on the machine's cores)
+            t = trees[i]
+            row = {"year": year, "day": self.day, "tree": t.name, "model": "weber_penn"}
             if i in leaf_lights:
-                trees[i], st_ = adapt_tree(trees[i], leaf_lights[i])
+                t, st_ = adapt_tree(t, leaf_lights[i])
                 row.update(st_)
-                row["live_segments"] = int(trees[i].tree.alive.sum())
-            if i in g.ageing:
-                trees[i] = age_tree(trees[i], 1)
-                row.update({"age": trees[i].info["age"],
-                            "height_m": float(trees[i].info["height_m"])})
-            row.update({"leaves": int(len(trees[i].leaf_area)),
-                        "crown_radius_m": float(trees[i].crown_radius())})
+                row["live_segments"] = int(t.tree.alive.sum())
+            if i in ageing:
+                t = age_tree(t, 1)
+                row.update({"age": t.info["age"], "height_m": float(t.info["height_m"])})
+            row.update({"leaves": int(len(t.leaf_area)), "crown_radius_m": float(t.crown_radius())})
+            return t, row
+
+        wp_idx = sorted(ageing | set(leaf_lights))
+        for i, (t, row) in zip(wp_idx, map_trees(wp_year, wp_idx)):
+            trees[i] = t
             rows.append(row)
         for i, light in lights.items():
             old = trees[i]
