@@ -3,6 +3,9 @@
 VENV := .venv
 BIN := $(VENV)/bin
 PYTEST_ARGS ?=
+# the suite runs in this many processes (pytest-xdist; a test module stays in one process, so
+# its module fixtures are made once): much of a test is single-threaded Python
+TEST_WORKERS ?= 2
 
 .PHONY: setup demo test test-gpu test-all bench clean
 
@@ -13,7 +16,8 @@ demo: setup
 	$(BIN)/mitsuba-veg demo --out out/demo
 
 test: setup
-	$(BIN)/python -m pytest -m "not slow" -q --nbmake tests notebooks $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -m "not slow" -q --nbmake -n $(TEST_WORKERS) --dist loadscope \
+		tests notebooks $(PYTEST_ARGS)
 
 # the light, world, sensor and render tests on cuda_ad_spectral (a machine with a CUDA GPU)
 test-gpu: setup
