@@ -782,6 +782,13 @@ class PhotonKernel(mi.SamplingIntegrator):
         if frozen:
             if self._frozen is None:
                 self._frozen = dr.freeze(PhotonKernel._launch, warn_after=50)
+                # a recording's key holds every Mitsuba object of the pointer registry
+                # (shapes, emitters: Dr.Jit traverses them all for the scene's virtual calls),
+                # garbage ones too: a collection after the first recording (an earlier scene's
+                # objects in reference cycles) would make the next call record again. So the
+                # garbage goes before the first recording (once: a collection every day would
+                # cost a GPU pass's time)
+                gc.collect()
             # no cyclic garbage collection while a launch is recorded or replayed: a collection
             # that frees other Dr.Jit objects (an earlier scene's) in the middle of a recording
             # aborted the process once in the test suite (Mitsuba 3.9.1, Dr.Jit 1.5.0)
