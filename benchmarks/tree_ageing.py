@@ -1,4 +1,4 @@
-"""A stand's year of ageing on one thread and on all the machine's cores (``map_trees``).
+"""A stand's year of ageing on one thread and on all the machine's cores (``map_on_cores``).
 
     python benchmarks/tree_ageing.py [--trees 300] [--reps 3]
 
@@ -6,7 +6,7 @@ The year's end of a world ages every Weber-Penn tree that has an ``age`` by one 
 (:func:`mitsuba_veg.world.trees.age_tree`: the meshes scaled about the base, then the crown's
 radius). ``--trees`` quaking aspens (three variants, 12 m, aged 20, wood as tubes like a
 ``[stand]``'s, the hectare's trees) are aged one year on one thread and with
-:func:`~mitsuba_veg.world.trees.map_trees` (a thread per core), interleaved per repetition;
+:func:`~mitsuba_veg.parallel.map_on_cores` (a thread per core), interleaved per repetition;
 printed: the median times and their ratio, the cores, and whether the results are identical
 (wood, blades, leaf areas, crown radii; they must be).
 """
@@ -33,7 +33,8 @@ def main(argv=None) -> int:
     import mitsuba as mi
 
     import mitsuba_veg  # noqa: F401  (sets the variant)
-    from mitsuba_veg.world.trees import age_tree, build_trees, map_trees
+    from mitsuba_veg.parallel import map_on_cores
+    from mitsuba_veg.world.trees import age_tree, build_trees
 
     scene = mi.load_dict({"type": "scene"})
     ents = [{"name": f"v{i}", "model": "weber_penn", "preset": "quaking_aspen", "seed": i,
@@ -53,20 +54,20 @@ def main(argv=None) -> int:
         r1 = [one(w) for w in trees]
         seq.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        r2 = map_trees(one, trees)
+        r2 = map_on_cores(one, trees)
         par.append(time.perf_counter() - t0)
         same = all(np.array_equal(x[0].bark[0], y[0].bark[0])
                    and np.array_equal(x[0].leaf_vertices, y[0].leaf_vertices)
                    and np.array_equal(x[0].leaf_area, y[0].leaf_area) and x[1] == y[1]
                    for x, y in zip(r1, r2))
         if not same:
-            print("map_trees gave other results than one thread")
+            print("map_on_cores gave other results than one thread")
             return 1
         del r1, r2
     leaves = sum(len(t.leaf_area) for t in trees)
     s, p = statistics.median(seq), statistics.median(par)
     print(f"{a.trees} aspens ({leaves:,d} leaves) aged one year, {os.cpu_count()} cores: one "
-          f"thread {s:.2f} s, map_trees {p:.2f} s (median of {a.reps}): ratio {s / p:.2f}; "
+          f"thread {s:.2f} s, map_on_cores {p:.2f} s (median of {a.reps}): ratio {s / p:.2f}; "
           "the results identical")
     return 0
 

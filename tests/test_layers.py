@@ -26,8 +26,8 @@ SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "inte
 # The layers, lowest first; a module belongs to the layer of its longest matching prefix (the
 # names are relative to ``mitsuba_veg``). Keep this table and docs/architecture.md the same.
 LAYERS: list[tuple[str, list[str]]] = [
-    ("base", ["backend", "errors", "defaults", "atomic", "arrays", "meshes", "outputs", "plots",
-              "units"]),
+    ("base", ["backend", "errors", "defaults", "atomic", "arrays", "meshes", "outputs", "parallel",
+              "plots", "units"]),
     ("light", ["light", "integrators"]),   # integrators/: every Mitsuba plugin of the package
     ("ground", ["soil", "climate", "terrain", "forest_floor", "scenario", "inputs"]),
     ("models", ["moss", "trees", "foliage", "world", "export_gltf"]),

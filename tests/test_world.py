@@ -542,28 +542,28 @@ def test_weber_penn_tree_ages_along_its_height_curve(tmp_path):
     assert len(s["world"]["floor_years"]) == 1 and s["world"]["floor_years"][0]["year"] == 2026
 
 
-def test_map_trees_gives_each_trees_result_in_order():
-    """The year's end works on the trees on all cores (``map_trees``): the results are those of
+def test_map_on_cores_gives_each_items_result_in_order():
+    """The year's end works on the trees on all cores (``parallel.map_on_cores``): the results are those of
     one thread, in the items' order, also when later items finish first; an error in one
     reaches the caller."""
     import time
-    from mitsuba_veg.world.trees import map_trees
+    from mitsuba_veg.parallel import map_on_cores
 
     def work(i):
         time.sleep(0.002 * (7 - i % 7))        # the first items take longest
         return i * i, np.full(3, float(i))
     items = list(range(23))
-    got = map_trees(work, items)
+    got = map_on_cores(work, items)
     assert [g[0] for g in got] == [i * i for i in items]
     assert all(np.array_equal(g[1], np.full(3, float(i))) for g, i in zip(got, items))
-    assert map_trees(work, []) == []
+    assert map_on_cores(work, []) == []
 
     def fails(i):
         if i == 5:
             raise ValueError("tree 5")
         return i
     with pytest.raises(ValueError, match="tree 5"):
-        map_trees(fails, items)
+        map_on_cores(fails, items)
 
 
 @pytest.mark.slow

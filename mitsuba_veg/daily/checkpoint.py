@@ -20,7 +20,8 @@ from ..errors import ParameterError
 from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
 from ..outputs import atomic_write
-from ..world.trees import age_tree, map_trees, tree_from_state, tree_state, with_alive
+from ..parallel import map_on_cores
+from ..world.trees import age_tree, tree_from_state, tree_state, with_alive
 
 
 def fingerprint(sim) -> str:
@@ -130,7 +131,7 @@ def load(sim) -> bool:
                 return t
 
             wp_idx = sorted(adapting | ageing)
-            for i, t in zip(wp_idx, map_trees(wp_tree, wp_idx)):
+            for i, t in zip(wp_idx, map_on_cores(wp_tree, wp_idx)):
                 trees[i] = t
         except (KeyError, ValueError) as e:
             raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",

@@ -54,8 +54,9 @@ from ..scenario import Scenario
 from ..world.phenology import Phenology
 from . import checkpoint as ckpt
 from ..outputs import atomic_write
-from ..world.trees import (adapt_tree, adapts, age_tree, ages, map_trees, obstacles,
-                           regrow, tree_state)
+from ..parallel import map_on_cores
+from ..world.trees import (adapt_tree, adapts, age_tree, ages, obstacles, regrow,
+                           tree_state)
 from .config import MossConfig
 from .growth import DayGrowth, YearLight, floor_figure, floor_year, floor_years_figure
 from .inputs import DayInputs
@@ -540,7 +541,7 @@ class Simulation:
             return t, row
 
         wp_idx = sorted(ageing | set(leaf_lights))
-        for i, (t, row) in zip(wp_idx, map_trees(wp_year, wp_idx)):
+        for i, (t, row) in zip(wp_idx, map_on_cores(wp_year, wp_idx)):
             trees[i] = t
             rows.append(row)
         for i, light in lights.items():

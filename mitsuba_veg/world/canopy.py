@@ -46,6 +46,7 @@ from ..foliage import leaf_bsdf_dict, leaf_spectra
 from ..foliage.pigments import stage_from_tau
 from ..integrators.photon_irradiance import HIDDEN, SURFACE, registry_id
 from ..meshes import make_mesh
+from ..parallel import map_on_cores
 
 #: bark reflectance: 0.07 at 360 nm rising to 0.30 at 830 nm (7 values 78 nm apart; grey-brown)
 _BARK = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
@@ -82,57 +83,65 @@ class Canopy:
     def __init__(self, trees, bins: int = 4):
         self.trees = list(trees)
         self.bins = int(bins)
-        tris, owner, area, tree_of = [], [], [], []
-        n = 0
-        for t_i, wt in enumerate(self.trees):
-            m = len(wt.leaf_vertices)
-            if m:
-                k = wt.leaf_vertices.shape[1]
-                if k == 4:   # quad -> two triangles, (0, 1, 2) and (0, 2, 3)
-                    q = wt.leaf_vertices
-                    tr = np.empty((m, 2, 3, 3), dtype=q.dtype)
-                    tr[:, 0] = q[:, :3]
-                    tr[:, 1, 0] = q[:, 0]
-                    tr[:, 1, 1:] = q[:, 2:]
-                    tr = tr.reshape(-1, 3, 3)
-                    own = np.repeat(np.arange(m), 2) + n
-                else:
-                    tr = wt.leaf_vertices
-                    own = np.arange(m) + n
-                tris.append(tr)
-                owner.append(own)
-            area.append(wt.leaf_area)
-            tree_of.append(np.full(m, t_i))
-            n += m
-        self.n_leaves = n
-        self.tri = np.concatenate(tris) if tris else np.zeros((0, 3, 3))     # (F, 3, 3)
-        self.face_leaf = np.concatenate(owner) if owner else np.zeros(0, np.int64)
-        self.area = np.concatenate(area) if area else np.zeros(0)
-        self.tree_of = np.concatenate(tree_of) if tree_of else np.zeros(0, np.int64)
-        # the leaves of a tree are consecutive: tree t owns leaves [start[t], start[t + 1])
-        self._tree_start = np.r_[0, np.cumsum([len(x) for x in tree_of])].astype(np.int64)
-        # first triangle of each leaf (triangles of a leaf are consecutive) and their count
-        self._first = np.flatnonzero(np.r_[True, np.diff(self.face_leaf) != 0]) if n else \
-            np.zeros(0, np.int64)
-        ntri = np.diff(np.r_[self._first, len(self.face_leaf)]) if n else np.zeros(0, np.int64)
-        if n and ntri.max() > 2:
+        # each tree's leaves fill their own slices of the whole tables, the trees on the
+        # machine's cores (NumPy lets go of the GIL: a hectare's 13.4 M blade triangles took
+        # 4 s on one thread); a quad is two triangles, (0, 1, 2) and (0, 2, 3)
+        counts = [len(wt.leaf_vertices) for wt in self.trees]
+        corners = [wt.leaf_vertices.shape[1] if m else 3 for wt, m in zip(self.trees, counts)]
+        if any(k not in (3, 4) for k in corners):
             raise ValueError("a leaf element has more than 2 triangles (quads at most)")
-        # each leaf's centre: the mean of its triangles' centroids, summed from 0 in face
-        # order and divided by their number (the values of np.add.at, without its slowness)
+        per_leaf = [2 if k == 4 else 1 for k in corners]
+        leaf0 = np.r_[0, np.cumsum(counts)].astype(np.int64)
+        tri0 = np.r_[0, np.cumsum([m * t for m, t in zip(counts, per_leaf)])].astype(np.int64)
+        n, F = int(leaf0[-1]), int(tri0[-1])
+        dtype = np.result_type(np.float64, *[wt.leaf_vertices.dtype for wt in self.trees])
+        self.n_leaves = n
+        self.tri = np.empty((F, 3, 3), dtype)
+        self.face_leaf = np.empty(F, np.int64)
+        self.area = np.concatenate([np.asarray(wt.leaf_area) for wt in self.trees]) \
+            if self.trees else np.zeros(0)
+        self.tree_of = np.repeat(np.arange(len(self.trees)), counts).astype(np.int64)
+        # the leaves of a tree are consecutive: tree t owns leaves [start[t], start[t + 1])
+        self._tree_start = leaf0
+        # first triangle of each leaf (triangles of a leaf are consecutive) and their count
+        ntri = np.repeat(np.asarray(per_leaf, np.int64), counts)
+        self._first = np.empty(n, np.int64)
         self.centre = np.zeros((n, 3))
-        if n:
-            mid = self.tri.mean(1)
-            two = ntri == 2
-            c = 0.0 + mid[self._first]
-            c[two] += mid[self._first[two] + 1]
-            self.centre = c / ntri[:, None]
+        tri32 = np.empty(F * 9, np.float32)
+
+        def fill(t):
+            q, m = self.trees[t].leaf_vertices, counts[t]
+            if not m:
+                return
+            a, b, j = tri0[t], tri0[t + 1], leaf0[t]
+            tr = self.tri[a:b]
+            if per_leaf[t] == 2:
+                tq = tr.reshape(m, 2, 3, 3)
+                tq[:, 0] = q[:, :3]
+                tq[:, 1, 0] = q[:, 0]
+                tq[:, 1, 1:] = q[:, 2:]
+                self.face_leaf[a:b] = np.repeat(np.arange(m), 2) + j
+                self._first[j:j + m] = np.arange(a, b, 2)
+            else:
+                tr[:] = q
+                self.face_leaf[a:b] = np.arange(m) + j
+                self._first[j:j + m] = np.arange(a, b)
+            # each leaf's centre: the mean of its triangles' centroids, summed from 0 in face
+            # order and divided by their number (the values of np.add.at, without its slowness)
+            mid = tr.mean(1)
+            c = 0.0 + mid[self._first[j:j + m] - a]
+            if per_leaf[t] == 2:
+                c += mid[self._first[j:j + m] - a + 1]
+            self.centre[j:j + m] = c / ntri[j:j + m, None]
+            tri32[9 * a:9 * b] = tr.reshape(-1)
+        map_on_cores(fill, range(len(self.trees)))
         # device copies: the daily state and tables never leave the device
         self.d_face_leaf = mi.UInt32(self.face_leaf.astype(np.uint32))
         self.d_first = mi.UInt32(self._first.astype(np.uint32))
         self.d_two = mi.Bool(ntri == 2)
         self.d_area = mi.Float64(self.area)
         self.d_tree_of = mi.UInt32(self.tree_of.astype(np.uint32))
-        self.d_tri = mi.Float(self.tri.reshape(-1).astype(np.float32))
+        self.d_tri = mi.Float(tri32)
         self.d_centre = mi.Float(self.centre.reshape(-1).astype(np.float32))
         self._bin = dr.zeros(mi.UInt32, n)        # stage bin of each leaf
         self._shown = dr.zeros(mi.Bool, n)        # on the tree with a blade in the mesh

@@ -18,8 +18,6 @@ Trees are built in the order of the entries; every tree is an obstacle for the o
 from __future__ import annotations
 
 import json
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -319,32 +317,6 @@ def age_tree(wt: WorldTree, years: int = 1) -> WorldTree:
     info["height_m"] = float(tree.metrics()["height"]) if tree.alive.any() else 0.0
     return WorldTree(wt.name, wt.model, np.asarray(wt.position, float), (bv, bf), quads, area,
                      tree, info)
-
-
-def map_trees(fn, items) -> list:
-    """``[fn(x) for x in items]`` on the machine's cores, one thread per core: a tree's
-    ageing, death rule and crown measures are NumPy work on its own arrays, most of it outside
-    the GIL (a hectare's 300 trees took 7-9 s a year on one core). The same results in the
-    same order.
-
-    Parameters
-    ----------
-    fn : callable
-        Work on one item (it must touch nothing another item's work touches).
-    items : iterable
-        The items (e.g. tree indices).
-
-    Returns
-    -------
-    list
-        ``fn`` of each item, in order.
-    """
-    items = list(items)
-    workers = min(len(items), os.cpu_count() or 1)
-    if workers <= 1:
-        return [fn(x) for x in items]
-    with ThreadPoolExecutor(workers) as ex:
-        return list(ex.map(fn, items))
 
 
 def adapts(wt: WorldTree) -> bool:
