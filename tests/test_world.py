@@ -440,6 +440,37 @@ def test_leaves_still_on_the_tree_stay_across_the_new_year():
     assert np.asarray(ph.grown)[1] == 1.0 and np.asarray(ph.on_tree).tolist() == [False, True]
 
 
+def test_canopy_tables_of_quad_triangle_and_bare_trees():
+    """The canopy's leaf tables, filled tree by tree on all cores: quads split into (0, 1, 2)
+    and (0, 2, 3), triangles kept, a tree without leaves taking no place; each leaf's first
+    triangle, owner, tree and centre (the mean of its triangles' centroids) as computed here
+    leaf by leaf, and the device copy of the corners in float32."""
+    from mitsuba_veg.world import Canopy
+    from mitsuba_veg.world.trees import WorldTree
+
+    rng = np.random.default_rng(4)
+    none = (np.zeros((0, 3)), np.zeros((0, 3), int))
+    quads, tris = rng.random((7, 4, 3)), rng.random((5, 3, 3))
+    trees = [WorldTree("q", "mesh", np.zeros(3), none, quads, np.full(7, 0.1)),
+             WorldTree("e", "mesh", np.zeros(3), none, np.zeros((0, 3, 3)), np.zeros(0)),
+             WorldTree("t", "mesh", np.zeros(3), none, tris, np.full(5, 0.2))]
+    c = Canopy(trees, bins=4)
+    assert c.n_leaves == 12 and len(c.tri) == 19
+    assert c.face_leaf.tolist() == [0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 8, 9, 10, 11]
+    assert c.tree_of.tolist() == [0] * 7 + [2] * 5 and c.leaves_of(1) == slice(7, 7)
+    assert c._first.tolist() == list(range(0, 14, 2)) + list(range(14, 19))
+    for i, q in enumerate(quads):
+        assert np.array_equal(c.tri[2 * i], q[[0, 1, 2]])
+        assert np.array_equal(c.tri[2 * i + 1], q[[0, 2, 3]])
+        mid = (q[[0, 1, 2]].mean(0) + q[[0, 2, 3]].mean(0)) / 2
+        assert np.allclose(c.centre[i], mid, rtol=0, atol=1e-15)
+    assert np.array_equal(c.tri[14:], tris)
+    assert np.allclose(c.centre[7:], tris.mean(1), rtol=0, atol=1e-15)
+    assert np.array_equal(np.array(c.d_tri), c.tri.reshape(-1).astype(np.float32))
+    assert np.array_equal(np.array(c.d_two), [True] * 7 + [False] * 5)
+    assert np.array_equal(c.area, [0.1] * 7 + [0.2] * 5)
+
+
 def test_canopy_vertex_updates_are_bounded_and_tables_exact():
     """A year of phenology for 3,000 leaves (no light: a fixed daily insolation): the leaf mesh
     is updated (a vertex update, an acceleration-structure rebuild) on few days, at least
