@@ -469,6 +469,9 @@ def test_canopy_tables_of_quad_triangle_and_bare_trees():
     assert np.array_equal(np.array(c.d_tri), c.tri.reshape(-1).astype(np.float32))
     assert np.array_equal(np.array(c.d_two), [True] * 7 + [False] * 5)
     assert np.array_equal(c.area, [0.1] * 7 + [0.2] * 5)
+    five = WorldTree("p", "mesh", np.zeros(3), none, rng.random((2, 5, 3)), np.full(2, 0.1))
+    with pytest.raises(ValueError, match="tree p: a leaf element has 5 corners"):
+        Canopy([trees[0], five])
 
 
 def test_canopy_vertex_updates_are_bounded_and_tables_exact():

@@ -88,8 +88,10 @@ class Canopy:
         # 4 s on one thread); a quad is two triangles, (0, 1, 2) and (0, 2, 3)
         counts = [len(wt.leaf_vertices) for wt in self.trees]
         corners = [wt.leaf_vertices.shape[1] if m else 3 for wt, m in zip(self.trees, counts)]
-        if any(k not in (3, 4) for k in corners):
-            raise ValueError("a leaf element has more than 2 triangles (quads at most)")
+        for wt, k in zip(self.trees, corners):
+            if k not in (3, 4):
+                raise ValueError(f"tree {wt.name}: a leaf element has {k} corners; 3 (a "
+                                 "triangle) or 4 (a quad, two triangles) are drawn")
         per_leaf = [2 if k == 4 else 1 for k in corners]
         leaf0 = np.r_[0, np.cumsum(counts)].astype(np.int64)
         tri0 = np.r_[0, np.cumsum([m * t for m, t in zip(counts, per_leaf)])].astype(np.int64)
