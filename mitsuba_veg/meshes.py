@@ -2,12 +2,11 @@
 from NumPy arrays (one helper each for the light scenes, the terrain, the trees and the render)."""
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
-
 import drjit as dr
 import mitsuba as mi
 import numpy as np
+
+from .parallel import map_on_cores
 
 
 def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
@@ -76,8 +75,9 @@ def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
 
 #: triangles per block of :func:`triangle_geometry`
 _BLOCK = 1 << 16
-#: threads of :func:`triangle_geometry` on meshes of several blocks
-_THREADS = max(1, min(4, os.cpu_count() or 1))
+#: at most this many threads of :func:`triangle_geometry` on meshes of several blocks (never
+#: more than the machine's cores)
+_THREADS = 4
 
 
 def triangle_geometry(vertices, faces, out=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -154,15 +154,7 @@ def triangle_geometry(vertices, faces, out=None) -> tuple[np.ndarray, np.ndarray
         cb[:, 2] = (az + bz + qz) / 3.0
         areas[s0:s1] = 0.5 * norm
 
-    starts = range(0, m, _BLOCK)
-    workers = min(_THREADS, len(starts))
-    if workers > 1:
-        # the blocks are independent and NumPy lets go of the GIL inside each operation:
-        # large meshes use the machine's cores (the same values in any order)
-        with ThreadPoolExecutor(workers) as pool:
-            for _ in pool.map(block, starts):
-                pass
-    else:
-        for s0 in starts:
-            block(s0)
+    # the blocks are independent and NumPy lets go of the GIL inside each operation: large
+    # meshes use the machine's cores (the same values in any order)
+    map_on_cores(block, range(0, m, _BLOCK), max_workers=_THREADS)
     return areas, normals, centroids

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+from collections import Counter
 
 import mitsuba as mi
 import numpy as np
@@ -118,16 +119,16 @@ def load(sim) -> bool:
             adapting, ageing = set(sim.pipeline.growth.adapting), set(sim.pipeline.growth.ageing)
             # (read before the threads: a missing entry raises here)
             alive = {i: d[f"adapted_trees/{i}"] for i in sorted(adapting)}
+            # the years each Weber-Penn tree aged: its rows of the log, counted once
+            aged = Counter(r.get("tree") for r in growth_log
+                           if r.get("model") == "weber_penn" and "age" in r)
 
             def wp_tree(i):      # one Weber-Penn tree as it is now (on the machine's cores)
                 t = trees[i]
                 if i in adapting:                   # without the subtrees that died
                     t = with_alive(t, alive[i])
-                if i in ageing:                     # as many years older as it aged
-                    years = sum(1 for r in growth_log if r.get("tree") == t.name
-                                and r.get("model") == "weber_penn" and "age" in r)
-                    if years:
-                        t = age_tree(t, years)
+                if i in ageing and aged[t.name]:    # as many years older as it aged
+                    t = age_tree(t, aged[t.name])
                 return t
 
             wp_idx = sorted(adapting | ageing)
