@@ -309,3 +309,39 @@ def test_spot_grid_against_brute_force():
 
 NB = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
       if (dx, dy, dz) != (0, 0, 0)]
+
+
+def test_reserved_blocks_take_every_landing_point():
+    """``SpotGrid.reserve`` allocates every block that a landing point on the triangles can
+    fall in (lifted 1e-4 m along the normal, as ``land`` lifts it): 20,000 random points on a
+    tilted square and a wall find their cells without a block being added; a budget too small
+    for the surfaces reserves nothing (the blocks then come as newcomers reach them)."""
+    rng = np.random.default_rng(1)
+    th = np.radians(17.0)
+    rot = np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
+    square = np.array([[0, 0, 0], [0.5, 0, 0], [0.5, 0, 0.5], [0, 0, 0.5]]) @ rot.T \
+        + [0.013, 0.2, 0.007]
+    wall = np.array([[0.6, 0, 0], [0.6, 0.3, 0], [0.6, 0.3, 0.4], [0.6, 0, 0.4]])
+    tris = [(q[0], q[1], q[2]) for q in (square, wall)] + [(q[0], q[2], q[3])
+                                                          for q in (square, wall)]
+    p0, p1, p2 = (np.array([t[k] for t in tris], float) for k in range(3))
+    n = np.cross(p1 - p0, p2 - p0)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    grid = SpotGrid((0, 0, 0), (1, 1, 1), 0.01, capacity=5000)
+    k = grid.reserve(p0, p1, p2, n)
+    # 0.37 m2 of surface in blocks of 4 cm: at least area / block face, at most 4x that
+    assert k == grid.n_blocks and 0.37 / 0.04 ** 2 < k < 4 * 0.37 / 0.04 ** 2
+    m = 20_000
+    t = rng.integers(0, len(p0), m)
+    u = rng.random((m, 2))
+    flip = u.sum(1) > 1
+    u[flip] = 1 - u[flip]
+    P = (p0[t] + u[:, :1] * (p1[t] - p0[t]) + u[:, 1:] * (p2[t] - p0[t]) + 1e-4 * n[t])
+    P = P.astype(np.float32)
+    cells = grid.cells(mi.Point3f(*[mi.Float(np.ascontiguousarray(P[:, c])) for c in range(3)]))
+    assert grid.n_blocks == k and dr.width(cells) == m
+    # reserving again adds nothing
+    assert grid.reserve(p0, p1, p2, n) == 0 and grid.n_blocks == k
+    small = SpotGrid((0, 0, 0), (1, 1, 1), 0.01, capacity=5000)
+    small.reserve_bytes = k * small.block_bytes // 8
+    assert small.reserve(p0, p1, p2, n) == 0 and small.n_blocks == 0

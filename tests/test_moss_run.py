@@ -145,6 +145,31 @@ def test_full_population_traces_only_what_can_settle(tmp_path, monkeypatch):
     assert kept.max() >= 2 and np.count_nonzero(kept >= 2) >= 10
 
 
+def test_reserved_blocks_change_no_number(tmp_path, monkeypatch):
+    """The spot grid's blocks reserved over the living surfaces at set-up (``SpotGrid.reserve``)
+    or allocated as newcomers reach them: the same days, the same population."""
+    from mitsuba_veg.daily import Simulation
+    from mitsuba_veg.moss.spatial import SpotGrid
+
+    def grow(tmp):
+        sim = Simulation(load_scenario(SCEN, SMALL), tmp, days=8, progress=False)
+        sim.setup()
+        sim.initialise()
+        for _ in range(8):
+            sim.step()
+        return sim
+    a = grow(tmp_path / "a")
+    monkeypatch.setattr(SpotGrid, "reserve_bytes", 0)
+    b = grow(tmp_path / "b")
+    assert a.grid.n_blocks > 2 * b.grid.n_blocks  # the whole garden against the moss's reach
+    strip = lambda recs: [{k: v for k, v in r.items() if k != "seconds"} for r in recs]  # noqa
+    assert strip(a.history) == strip(b.history)
+    assert sum(r["events"]["propagules_settled"] for r in a.history) > 0
+    pa, pb = a.pop.to_numpy(), b.pop.to_numpy()
+    for k in ("state", "species", "kind", "elem", "growth", "age", "gemmae", "pos"):
+        assert np.array_equal(pa[k], pb[k]), k
+
+
 def test_docs_list_every_scenario_field():
     """docs/scenario.md holds the schema's table as generated (one source for the fields)."""
     from mitsuba_veg.scenario import schema_markdown

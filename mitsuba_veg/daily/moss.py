@@ -16,7 +16,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import opaque
+from ..arrays import Pack
 from ..moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
                                SpeciesTable, concat_u32)
 from ..moss.propagules import land, settle, spore_direction, uniform_sphere
@@ -39,7 +39,7 @@ def parents_in_order(gemma, spores) -> mi.UInt32:
     Returns
     -------
     mi.UInt32
-        Parent slots, gemmae first.
+        Parent slots, gemmae first (a lazy expression of the compressed lanes).
     """
     cap = dr.width(spores)
     lane = dr.arange(mi.UInt32, 2 * cap)
@@ -47,9 +47,10 @@ def parents_in_order(gemma, spores) -> mi.UInt32:
     slot = dr.select(second, lane - cap, lane)
     g = gemma(slot) if callable(gemma) else dr.gather(mi.Bool, gemma, slot)
     m = dr.select(second, dr.gather(mi.Bool, spores, slot), g)
-    par = dr.gather(mi.UInt32, slot, dr.compress(m))
-    dr.eval(par)
-    return par
+    lanes = dr.compress(m)
+    # arithmetic on the lanes, not a gather from ``slot`` (that would evaluate ``slot`` in a
+    # kernel of its own): left lazy, it is computed inside the kernels that read it
+    return dr.select(lanes >= cap, lanes - cap, lanes)
 
 
 class MossState:
@@ -100,7 +101,29 @@ class DayMoss:
             Capacity ``moss.capacity`` slots, all free.
         """
         pop = MossPopulation(int(self.cfg["capacity"]), self.table)
-        return MossState(pop, self.site.new_grid())
+        grid = self.site.new_grid()
+        # the blocks of the living surfaces from the start: no hash-table rounds on the days
+        # newcomers reach new ground (the same numbers either way)
+        grid.reserve(*self._living_triangles())
+        return MossState(pop, grid)
+
+    def _living_triangles(self):
+        """Corners (three (n, 3) arrays) and normals of the living terrain triangles [m]."""
+        idx, site = self.site.index, self.site
+        out = [[], [], [], []]
+        for sid in site.terrain_shapes:           # a few shapes, not per moss
+            if sid not in idx.geometry:
+                continue
+            v, f = idx.geometry[sid]
+            sl = idx.shape_slice(sid)
+            live = np.flatnonzero(site.living[sl])
+            fc = np.asarray(f)[live]
+            for k in range(3):
+                out[k].append(np.asarray(v)[fc[:, k]])
+            out[3].append(idx.normals[sl][live])
+        if not out[0]:
+            return [np.zeros((0, 3))] * 4
+        return [np.concatenate(x) for x in out]
 
     # ---- per element ------------------------------------------------------------------------
     def counts(self, st: MossState) -> mi.UInt32:
@@ -144,13 +167,17 @@ class DayMoss:
         return dr.minimum(m * (site.grid_cell() ** 2) / dr.maximum(area, 1e-30), 1.0)
 
     # ---- one day ----------------------------------------------------------------------------
-    def _rng(self, day: int, n: int, stream: int, offset: int = 0) -> mi.PCG32:
+    def _rng(self, day: int, n: int, stream: int, offset: int = 0, extra=()):
         """Lanes offset .. offset + n - 1 of the day's generator for ``stream`` (a batch of a
-        larger draw gets the numbers the whole draw would give it)."""
+        larger draw gets the numbers the whole draw would give it), and ``extra`` numbers as
+        kernel inputs (UInt64 expressions) from the same host copy."""
         init = (self.seed * 1_000_003 + day * 7919 + stream * 104_729) & 0xFFFFFFFFFFFF
-        # opaque: a literal seed would be baked into the kernel and recompiled every day
-        return mi.PCG32(size=max(n, 1), initstate=opaque(mi.UInt64, init + offset),
-                        initseq=opaque(mi.UInt64, (_PCG_STREAM + offset) % (1 << 64)))
+        # one host copy for the generator's seeds and the caller's numbers (each copy is a
+        # task of its own when it is freed); never literals: a literal seed would be baked
+        # into the kernel and recompiled every day
+        pk = Pack(mi.UInt64, [init + offset, (_PCG_STREAM + offset) % (1 << 64), *extra])
+        rng = mi.PCG32(size=max(n, 1), initstate=pk[0], initseq=pk[1])
+        return rng, [pk[2 + j] for j in range(len(extra))]
 
     def step(self, st: MossState, day: int, S, Ts, rhs) -> dict:
         """The day's moss life cycle (eqs 3.17-3.24): germination, growth, death, release,
@@ -291,9 +318,9 @@ class DayMoss:
         pop, cfg = st.pop, self.cfg
         m = dr.width(par)
         # lane i of the day's generator (the same numbers whatever the batches)
-        rng = self._rng(day, m, 1, offset=start)
-        order = dr.arange(mi.UInt32, m) + opaque(mi.UInt32, start)
-        is_spore = order >= opaque(mi.UInt32, n_g)
+        rng, (first, n_gemmae) = self._rng(day, m, 1, offset=start, extra=(start, n_g))
+        order = dr.arange(mi.UInt32, m) + mi.UInt32(first)
+        is_spore = order >= mi.UInt32(n_gemmae)
         u = mi.Point2f(rng.next_float32(), rng.next_float32())
         side = rng.next_float32()
         M = dr.gather(mi.Point3f, pop.pos, par)
@@ -320,7 +347,8 @@ class DayMoss:
             first_k = dr.arange(mi.UInt32, k)
             pos = dr.gather(mi.Point3f, pos, first_k)
             cells = None if cells is None else dr.gather(mi.UInt32, cells, first_k)
-        st.grid.insert(pos, slots, st.pop.state, cells)
+        st.grid.insert(pos, slots, st.pop.state, cells,
+                       newcomers_moss=not (isinstance(state, int) and state == PROPAGULE))
         return k
 
     def place_random(self, st: MossState, n: int, day: int, state, kind, growth, stream: int):

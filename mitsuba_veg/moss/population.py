@@ -373,14 +373,13 @@ class MossPopulation:
         vals["gemmae"] = mi.UInt32(dr.floor(dr.maximum(vals["growth"], 0.0) / GEMMA_STEP))
         p = mi.Point3f(*[col(pos[c], mi.Float) for c in range(3)])
         q = mi.Vector3f(*[col(nrm[c], mi.Float) for c in range(3)])
-        dr.eval(slots, *vals.values(), p, q)
-        # in place: k writes instead of rewriting every array (Dr.Jit copies an array first
-        # if anything else still refers to it: the spot grid's copy of the state does)
+        # in place, in one kernel with the gathers: k writes instead of rewriting every array
+        # (Dr.Jit copies an array first if anything else still refers to it)
         for name, v in vals.items():
             dr.scatter(getattr(self, name), v, slots)
         dr.scatter(self.pos, p, slots)
         dr.scatter(self.nrm, q, slots)
-        dr.eval(self.state, self.species, self.kind, self.elem, self.growth, self.age,
+        dr.eval(slots, self.state, self.species, self.kind, self.elem, self.growth, self.age,
                 self.gemmae, self.pos, self.nrm)
         return slots
 

@@ -175,6 +175,91 @@ class SpotGrid:
                                      ~(dr.full(mi.Bool, True, n) & active)), cond, body)
         return found
 
+    #: most memory [B] that :meth:`reserve` may give the blocks of the surfaces at once
+    reserve_bytes = 256 << 20
+    #: memory per block [B]: its 64 cells (occupant, claim), key and 27 neighbour links, and two
+    #: hash-table entries at the table's load of one half
+    block_bytes = _B3 * (4 + 8) + 8 + 27 * 4 + 2 * (8 + 4 + 4)
+
+    def reserve(self, p0, p1, p2, normals, lift: float = 1e-4) -> int:
+        """Allocate, ahead of time, every block that the triangles ``p0 p1 p2`` reach.
+
+        The blocks of a landing cell are otherwise allocated on the day a newcomer first
+        reaches them: hash-table rounds of a dozen launches and reads on most days of a
+        spreading population. Reserved here, a newcomer on these triangles always finds its
+        block: the triangles are cut until no edge is longer than half a block, and every
+        block that the box of a piece overlaps (lifted by up to ``lift`` along the normal, as
+        landing points are, and widened by a twentieth of a cell against rounding) is
+        allocated.
+        Nothing that the grid answers depends on which blocks exist or on their order, so runs
+        give the same numbers with and without it; a point off these triangles still gets its
+        block on the day it is reached.
+
+        Parameters
+        ----------
+        p0, p1, p2 : numpy.ndarray
+            (n, 3) corners of the triangles [m] (the living surfaces).
+        normals : numpy.ndarray
+            (n, 3) unit normals [-].
+        lift : float
+            Offset of landing points along the normal [m] (``propagules.land``: 1e-4 m).
+
+        Returns
+        -------
+        int
+            Blocks allocated (0 when their estimated memory exceeds :attr:`reserve_bytes`:
+            the blocks are then allocated as newcomers reach them).
+        """
+        a, b, c = (np.asarray(x, np.float64).reshape(-1, 3) for x in (p0, p1, p2))
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        if len(a) == 0:
+            return 0
+        edge = _B * self.cell
+        area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+        # a surface crossing blocks at an angle (or along a block boundary) meets up to about
+        # four times its area in block faces
+        if 4.0 * area / edge ** 2 * self.block_bytes > self.reserve_bytes:
+            return 0
+        piece = edge / 2
+        boxes = []
+        while len(a):
+            longest = np.maximum(np.maximum(np.linalg.norm(b - a, axis=1),
+                                            np.linalg.norm(c - b, axis=1)),
+                                 np.linalg.norm(a - c, axis=1))
+            d = np.flatnonzero(longest <= piece)
+            if len(d):
+                corners = np.stack([a[d], b[d], c[d]])
+                corners = np.concatenate([corners, corners + lift * nrm[d]])
+                boxes.append((corners.min(0), corners.max(0)))
+            r = np.flatnonzero(longest > piece)
+            a, b, c, nrm = a[r], b[r], c[r], nrm[r]
+            ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+            # four triangles from the edge midpoints
+            a, b, c = (np.concatenate(x) for x in ((a, ab, ca, ab), (ab, b, bc, bc),
+                                                     (ca, bc, c, ca)))
+            nrm = np.concatenate([nrm] * 4)
+        lo = np.concatenate([x[0] for x in boxes])
+        hi = np.concatenate([x[1] for x in boxes])
+
+        def block(x, widen):
+            # the block coordinate of :meth:`coords` (cell index + 2^20, clamped, // 4)
+            i = np.floor((x - self.lo) / self.cell + widen)
+            return (np.clip(i, -_OFFSET, _OFFSET - 1).astype(np.int64) + _OFFSET) >> 2
+        b_lo, b_hi = block(lo, -0.05), block(hi, 0.05)
+        # a piece is at most half a block long: with the lift and the widening its box is
+        # shorter than a block (two blocks per axis at most) unless the lift is long
+        per_axis = 2 if piece + lift + 0.1 * self.cell < edge else 3
+        keys = []
+        for d in np.ndindex(per_axis, per_axis, per_axis):
+            bk = np.minimum(b_lo + np.array(d), b_hi).astype(np.uint64)
+            keys.append(bk[:, 0] | (bk[:, 1] << np.uint64(_BITS))
+                        | (bk[:, 2] << np.uint64(2 * _BITS)) | np.uint64(_USED))
+        keys = np.unique(np.concatenate(keys))
+        before = self.n_blocks
+        have = np.asarray(self._find_block(mi.UInt64(keys), True)) > 0
+        self._ensure_blocks(mi.UInt64(keys[~have]))
+        return self.n_blocks - before
+
     def _ensure_blocks(self, bkeys: mi.UInt64) -> None:
         """Allocate the blocks of ``bkeys`` that do not exist yet (ids in order of claiming)."""
         n = dr.width(bkeys)
@@ -356,7 +441,7 @@ class SpotGrid:
 
     # ---- following the population -----------------------------------------------------------
     def insert(self, p: mi.Point3f, slots: mi.UInt32, state: mi.UInt32,
-               cells: mi.UInt32 | None = None) -> None:
+               cells: mi.UInt32 | None = None, newcomers_moss: bool = True) -> None:
         """Newcomers in ``slots`` occupy the cells of points ``p``.
 
         One per cell: the caller has resolved conflicts, see ``propagules.settle``. Call
@@ -369,26 +454,33 @@ class SpotGrid:
         slots : mi.UInt32
             Their population slots (may be empty).
         state : mi.UInt32
-            The population's state after adding them, per slot (kept until the next call: not a view
-            of a NumPy array that changes).
+            The population's state after adding them, per slot (read at ``slots``; every other
+            slot as at the last :meth:`sync`).
         cells : mi.UInt32, optional
             Their pool cells when already known (:meth:`cells`, e.g. from settling).
+        newcomers_moss : bool
+            False when the caller knows every newcomer is a propagule (no moss-neighbour
+            counts to update; the check costs two launches and a read-back).
         """
         if dr.width(slots):
             cell = self.cells(p) if cells is None else cells
-            moss = dr.gather(mi.UInt32, state, slots) == _MOSS
+            now = dr.gather(mi.UInt32, state, slots)
+            moss = now == _MOSS
             v = (slots + 1) | dr.select(moss, mi.UInt32(_MOSS_BIT | _NEW_BIT), mi.UInt32(0))
-            dr.eval(cell, v, moss)
-            mcount = dr.zeros(mi.UInt32, 1)
-            dr.scatter_add(mcount, mi.UInt32(1), mi.UInt32(0), moss, mode=dr.ReduceMode.Local)
+            # the grid's copy of the state follows by k writes (a reference to the population's
+            # array would make its next write in place copy the whole array first)
+            dr.scatter(self._code, now, slots)
             dr.scatter(self.pool, v, cell)
             dr.scatter(self.slot_cell, cell, slots)
-            dr.eval(self.pool, self.slot_cell, mcount)
-            if int(np.asarray(mcount)[0]):    # (newcomers are propagules but at the start)
-                self._moss_changed(mi.UInt32(), dr.gather(mi.UInt32, slots, dr.compress(moss)))
-        # a new array object: the population writes its state in place (Dr.Jit then copies)
-        self._code = mi.UInt32(state)
-        dr.eval(self.pool, self.slot_cell)
+            if newcomers_moss:      # (newcomers are propagules but at the start)
+                mcount = dr.zeros(mi.UInt32, 1)
+                dr.scatter_add(mcount, mi.UInt32(1), mi.UInt32(0), moss,
+                               mode=dr.ReduceMode.Local)
+                dr.eval(self.pool, self.slot_cell, self._code, mcount)
+                if int(np.asarray(mcount)[0]):
+                    self._moss_changed(mi.UInt32(), dr.gather(mi.UInt32, slots,
+                                                              dr.compress(moss)))
+        dr.eval(self.pool, self.slot_cell, self._code)
 
     def sync(self, state: mi.UInt32) -> None:
         """Follow the population's changes since the last call.
@@ -401,24 +493,25 @@ class SpotGrid:
         state : mi.UInt32
             The population's current state per slot (0 free, 1 propagule, 2 moss).
         """
-        prev = self._code
         # one pass over the slots finds the few that changed; the rest works on those
-        changed = dr.compress(prev != state)
+        changed = dr.compress(self._code != state)
         if dr.width(changed):
-            was = dr.gather(mi.UInt32, prev, changed)
+            was = dr.gather(mi.UInt32, self._code, changed)
             now = dr.gather(mi.UInt32, state, changed)
             cell = dr.gather(mi.UInt32, self.slot_cell, changed)
             freed = (was != 0) & (now == 0)
             germ = (was == _PROPAGULE) & (now == _MOSS)
             gone = (was == _MOSS) & (now == 0)
-            dr.eval(cell, freed, germ, gone)
+            dr.eval(cell, freed, germ, gone, now)
+            del was     # no lazy read of the grid's copy stays behind to make its write copy it
             dr.scatter(self.pool, mi.UInt32(0), cell, freed)
             dr.scatter(self.pool, (changed + 1) | (_MOSS_BIT | _NEW_BIT), cell, germ)
-            dr.eval(self.pool)
+            # the grid's own copy of the state, written where it changed (a reference to the
+            # population's array would make its next write in place copy the whole array)
+            dr.scatter(self._code, now, changed)
+            dr.eval(self.pool, self._code)
             self._moss_changed(dr.gather(mi.UInt32, changed, dr.compress(gone)),
                                dr.gather(mi.UInt32, changed, dr.compress(germ)))
-        # a new array object: the population writes its state in place (Dr.Jit then copies)
-        self._code = mi.UInt32(state)
         dr.eval(self.pool)
 
     def rebuild(self, pos: mi.Point3f, state: mi.UInt32) -> None:
