@@ -187,15 +187,24 @@ class LaneSampler:
 
 @dataclass
 class LaunchInputs:
-    """The per-call numbers of one kernel launch as device arrays (kernel inputs): ``pu``
-    UInt32 (wavelength shifts, first lane, emitter offsets and strata, max depth, stream), ``pf``
-    Float (band ranges and widths, strata and photon-count reciprocals, fixed-point cap) and
-    ``zero`` (an evaluated 0: the index base of their gathers). Made by
-    :meth:`PhotonIrradianceIntegrator.launch_inputs`."""
+    """The per-call numbers of one kernel launch as one device array (kernel inputs, one host
+    copy): ``p`` UInt32, the ``n_u`` integers (wavelength shifts, first lane, emitter offsets
+    and strata, max depth, stream) and then the bits of the floats (band ranges and widths,
+    strata and photon-count reciprocals, fixed-point cap); ``zero`` (an evaluated 0: the index
+    base of their gathers). Made by :meth:`PhotonIrradianceIntegrator.launch_inputs`."""
 
-    pu: object
-    pf: object
+    p: object
+    n_u: int
     zero: object
+
+    def u(self, j: int):
+        """Integer ``j`` (a gather inside the kernel that reads it)."""
+        return dr.gather(mi.UInt32, self.p, self.zero + j)
+
+    def f(self, j: int):
+        """Float ``j`` (a gather inside the kernel that reads it)."""
+        return dr.reinterpret_array(mi.Float, dr.gather(mi.UInt32, self.p,
+                                                        self.zero + (self.n_u + j)))
 
 
 @dataclass
@@ -676,7 +685,11 @@ class PhotonKernel(mi.SamplingIntegrator):
             [int(max_depth), int(stream) & 0xFFFFFFFF]
         pf = [lo for lo, _ in slot_ranges] + [hi - lo for lo, hi in slot_ranges] + \
             [1.0 / m for m in m_e] + [1.0 / c for c in counts] + [float(cap)]
-        return LaunchInputs(host_array(mi.UInt32, pu), host_array(mi.Float, pf), zero_index())
+        # one host copy (each is a task of its own when it is freed)
+        bits = np.asarray(pf, np.float32).view(np.uint32)
+        return LaunchInputs(host_array(mi.UInt32, np.concatenate([np.asarray(pu, np.uint64)
+                                                                  .astype(np.uint32), bits])),
+                            len(pu), zero_index())
 
     def _photons(self, scene, emitters, index, n, inp: "LaunchInputs", slot_ranges_n=_SLOTS,
                  lobes=None):
@@ -692,14 +705,9 @@ class PhotonKernel(mi.SamplingIntegrator):
         if isinstance(emitters, mi.Emitter):
             emitters = [emitters]
         E = len(emitters)
-        zero = inp.zero
         lobes = lobes if lobes is not None else [None] * E
 
-        def pu(j):
-            return dr.gather(mi.UInt32, inp.pu, zero + j)
-
-        def pf(j):
-            return dr.gather(mi.Float, inp.pf, zero + j)
+        pu, pf = inp.u, inp.f
         o_m, o_im, o_in = 5 + (E - 1), 2 * _SLOTS, 2 * _SLOTS + E
         sampler = LaneSampler(pu(o_m + E + 1), n)
         idx = dr.arange(mi.UInt32, n)
@@ -821,15 +829,17 @@ class PhotonKernel(mi.SamplingIntegrator):
         # the scale the kernel uses (float32) and its exact inverse: the unit [W]
         scale_e = mi.Float(dr.select(good, big / pm, 1.0))
         unit = 1.0 / mi.Float64(scale_e)
+        # both in one kernel (the gather below would evaluate the scale in a kernel of its
+        # own, and the unit would be one more at the end)
+        dr.eval(scale_e, unit)
         scale = dr.gather(mi.Float, scale_e, e_or0)
         acc = dr.zeros(_UInt64, E * tables.n_rec * 2 * 2 * _SLOTS)
         book = dr.zeros(_UInt64, E * 4 * _SLOTS)
         rays = dr.zeros(_UInt64, E)
         # in memory before the loop (a zero literal would be allocated twice by it)
         dr.make_opaque(acc, book, rays)
-        zero = inp.zero
-        capf = dr.gather(mi.Float, inp.pf, zero + (2 * _SLOTS + 2 * E))
-        max_d = dr.gather(mi.UInt32, inp.pu, zero + (5 + (E - 1) + E))
+        capf = inp.f(2 * _SLOTS + 2 * E)
+        max_d = inp.u(5 + (E - 1) + E)
         # emitted power, fixed point per (emitter, slot), in the launch that traces
         for k in range(_SLOTS):
             q = _UInt64(dr.round(dr.minimum(throughput[k] * scale, capf)))

@@ -478,8 +478,8 @@ class SpotGrid:
                                mode=dr.ReduceMode.Local)
                 dr.eval(self.pool, self.slot_cell, self._code, mcount)
                 if int(np.asarray(mcount)[0]):
-                    self._moss_changed(mi.UInt32(), dr.gather(mi.UInt32, slots,
-                                                              dr.compress(moss)))
+                    new = dr.gather(mi.UInt32, slots, dr.compress(moss))
+                    self._moss_changed(new, dr.full(mi.Bool, True, dr.width(new)))
         dr.eval(self.pool, self.slot_cell, self._code)
 
     def sync(self, state: mi.UInt32) -> None:
@@ -502,16 +502,22 @@ class SpotGrid:
             freed = (was != 0) & (now == 0)
             germ = (was == _PROPAGULE) & (now == _MOSS)
             gone = (was == _MOSS) & (now == 0)
-            dr.eval(cell, freed, germ, gone, now)
-            del was     # no lazy read of the grid's copy stays behind to make its write copy it
+            moss_changed = gone | germ
+            dr.eval(cell, freed, germ, now, moss_changed)
+            # no lazy read of the grid's copy stays behind to make its write copy it
+            del was, gone
             dr.scatter(self.pool, mi.UInt32(0), cell, freed)
             dr.scatter(self.pool, (changed + 1) | (_MOSS_BIT | _NEW_BIT), cell, germ)
             # the grid's own copy of the state, written where it changed (a reference to the
             # population's array would make its next write in place copy the whole array)
             dr.scatter(self._code, now, changed)
             dr.eval(self.pool, self._code)
-            self._moss_changed(dr.gather(mi.UInt32, changed, dr.compress(gone)),
-                               dr.gather(mi.UInt32, changed, dr.compress(germ)))
+            # the cells that stop or start holding a moss, from one compress (in slot order:
+            # the counts do not depend on it)
+            at = dr.compress(moss_changed)
+            if dr.width(at):
+                self._moss_changed(dr.gather(mi.UInt32, changed, at),
+                                   dr.gather(mi.Bool, germ, at))
         dr.eval(self.pool)
 
     def rebuild(self, pos: mi.Point3f, state: mi.UInt32) -> None:
@@ -540,28 +546,19 @@ class SpotGrid:
         return [(mi.UInt32((bk >> (k * _BITS)) & m) << 2) | ((local >> (2 * k)) & 3)
                 for k in range(3)], cell // _B3 + 1
 
-    def _moss_changed(self, gone: mi.UInt32, new: mi.UInt32) -> None:
-        """Update the moss-neighbour counts after the pool has changed: ``gone``, slots whose
-        cell stopped holding a moss; ``new``, slots that became moss (their cells carry the
-        "new" bit until this returns). Moss that were moss before gain or lose one per changed
-        neighbour; a new moss counts its moss neighbours afresh (new ones included)."""
-        n_gone, n_new = dr.width(gone), dr.width(new)
-        if n_gone + n_new == 0:
+    def _moss_changed(self, ev: mi.UInt32, grow: mi.Bool) -> None:
+        """Update the moss-neighbour counts after the pool has changed: slots ``ev`` whose cell
+        stopped holding a moss (``grow`` False) or that became moss (``grow`` True; their cells
+        carry the "new" bit until this returns). Moss that were moss before gain or lose one per
+        changed neighbour; a new moss counts its moss neighbours afresh (new ones included).
+        The counts do not depend on the order of ``ev``."""
+        if dr.width(ev) == 0:
             return
-        ev = dr.zeros(mi.UInt32, n_gone + n_new)
-        split = opaque(mi.UInt32, n_gone)  # opaque: one kernel whatever the day's numbers
-        if n_gone:
-            dr.scatter(ev, gone, dr.arange(mi.UInt32, n_gone))
-        if n_new:
-            dr.scatter(ev, new, dr.arange(mi.UInt32, n_new) + split)
-        grow = dr.arange(mi.UInt32, n_gone + n_new) >= split
-        dr.eval(ev, grow)
         own = self._pass_changes(ev, grow)
-        if n_new:
-            dr.scatter(self.nb, own, ev, grow)
-            # the new moss are moss like the others from now on
-            cell = dr.gather(mi.UInt32, self.slot_cell, new)
-            dr.scatter(self.pool, (new + 1) | _MOSS_BIT, cell)
+        dr.scatter(self.nb, own, ev, grow)
+        # the new moss are moss like the others from now on
+        cell = dr.gather(mi.UInt32, self.slot_cell, ev, grow)
+        dr.scatter(self.pool, (ev + 1) | _MOSS_BIT, cell, grow)
         dr.eval(self.nb, self.pool)
 
     def _pass_changes(self, ev: mi.UInt32, grow: mi.Bool) -> mi.UInt32:
