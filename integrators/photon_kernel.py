@@ -198,11 +198,33 @@ class LaunchInputs:
     zero: object
 
     def u(self, j: int):
-        """Integer ``j`` (a gather inside the kernel that reads it)."""
+        """Integer ``j`` of the launch.
+
+        Parameters
+        ----------
+        j : int
+            Its position among the integers.
+
+        Returns
+        -------
+        mi.UInt32
+            A gather that runs inside the kernel that reads it.
+        """
         return dr.gather(mi.UInt32, self.p, self.zero + j)
 
     def f(self, j: int):
-        """Float ``j`` (a gather inside the kernel that reads it)."""
+        """Float ``j`` of the launch.
+
+        Parameters
+        ----------
+        j : int
+            Its position among the floats.
+
+        Returns
+        -------
+        mi.Float
+            A gather (of its bits) that runs inside the kernel that reads it.
+        """
         return dr.reinterpret_array(mi.Float, dr.gather(mi.UInt32, self.p,
                                                         self.zero + (self.n_u + j)))
 

@@ -497,32 +497,36 @@ _FIX_TOTAL = float(2 ** 62)   # the largest sum a fixed-point column may reach
 
 
 class Tally:
-    """Sums of many quantities over segments, exact and repeatable on every backend, in two
-    kernels per array width plus one read-back for all of them.
+    """Sums of many quantities over segments, exact and repeatable on every backend, in one
+    kernel per array width (two for a column without a bound) plus one read-back for all.
 
     Each quantity ``x`` (width n) is summed per segment ``s`` (a UInt32 per lane, or one
-    segment for all). Float sums are 64-bit fixed-point integer atomics: a first kernel finds
-    each column's largest magnitude (an integer ``max`` of the float bits, which order like
-    the values for x >= 0), a second adds ``round(|x| * scale)`` with ``scale = 2^62 / (n max)``:
+    segment for all). Float sums are 64-bit fixed-point integer atomics: each lane adds
+    ``round(|x| * scale)`` with ``scale = 2^62 / (n b)``, ``b`` a bound on the column's values:
     no sum can exceed 2^62, integer addition is associative, so the result does not depend on
     the order of the atomics (a float ``scatter_add`` does, and Dr.Jit's CUDA float prefix sums
-    do too). The relative resolution of a sum is n max / 2^62 / sum (below 1e-10 for a million
-    values whose sum is not 1e-8 of n max). Signed quantities (``signed=True``) are summed as
-    their positive and negative parts; counts (:meth:`count`) are exact integers.
+    do too). ``b`` is the ``bound`` given with the column (a host number: the scale is known
+    before the kernel, which sums and checks in one pass) or else the column's largest value,
+    found by a first kernel (an integer ``max`` of the float bits, which order like the values
+    for x >= 0). A lane above its bound is not added; the column is then summed again with its
+    largest value (two kernels more), so a bound only needs to hold in practice. The relative
+    resolution of a sum is n b / 2^62 / sum (below 1e-10 for a million values whose sum is not
+    1e-8 of n b). Signed quantities (``signed=True``) are summed as their positive and
+    negative parts; counts (:meth:`count`) are exact integers.
 
     A column holding NaN or infinity sums to NaN; a negative value in an unsigned column too.
 
     Usage::
 
         t = Tally()
-        t.add("S", S * area, mask=living)                 # one segment
+        t.add("S", S * area, mask=living, bound=1e5)      # one segment, |S area| <= 1e5
         t.add("par", par * area, segments=tree_of, n_segments=5)
         t.count("alive", pop.state == 2, segments=pop.species, n_segments=3)
         sums = t.evaluate()                               # {name: numpy (n_segments,)}
     """
 
     def __init__(self):
-        # (name, kind, values, segments, n_segments, mask); kind "sum", "neg" or "count"
+        # (name, kind, values, segments, n_segments, mask, bound); kind "sum" or "count"
         self._cols: list[tuple] = []
         self._names: list[tuple[str, bool]] = []
 
@@ -531,7 +535,7 @@ class Tally:
             raise ValueError(f"Tally: '{name}' added twice")
 
     def add(self, name: str, x, segments=None, n_segments: int = 1, mask=None,
-            signed: bool = False) -> None:
+            signed: bool = False, bound: float | None = None) -> None:
         """Queue the sum of ``x`` per segment.
 
         Parameters
@@ -549,18 +553,25 @@ class Tally:
             Lanes that count (default: all).
         signed : bool
             ``x`` may be negative (summed as two non-negative parts).
+        bound : float, optional
+            A bound on ``|x|`` (> 0, finite): the column is summed in one kernel with the
+            scale it gives (a lane above it makes the column be summed again, exactly, with
+            its largest value). Without it a first kernel finds the largest value.
         """
         self._check(name)
+        if bound is not None and not (math.isfinite(bound) and bound > 0):
+            raise ValueError(f"Tally: bound of '{name}' is {bound!r}; it must be a positive "
+                             "finite number (or None: the largest value is found first)")
+        b = None if bound is None else float(bound)
         self._names.append((name, signed))
         if signed:
-            self._cols.append((name, "sum", dr.maximum(x, 0.0), segments, int(n_segments), mask))
-            self._cols.append((name + "\0neg", "sum", dr.maximum(-x, 0.0), segments,
-                               int(n_segments), mask))
             # NaN in x: both parts lose it in max(); keep it in the positive part
-            self._cols[-2] = (name, "sum", dr.select(dr.isnan(x), x, dr.maximum(x, 0.0)),
-                              segments, int(n_segments), mask)
+            self._cols.append((name, "sum", dr.select(dr.isnan(x), x, dr.maximum(x, 0.0)),
+                               segments, int(n_segments), mask, b))
+            self._cols.append((name + "\0neg", "sum", dr.maximum(-x, 0.0), segments,
+                               int(n_segments), mask, b))
         else:
-            self._cols.append((name, "sum", x, segments, int(n_segments), mask))
+            self._cols.append((name, "sum", x, segments, int(n_segments), mask, b))
 
     def count(self, name: str, x, segments=None, n_segments: int = 1, mask=None) -> None:
         """Queue an exact integer sum per segment.
@@ -580,10 +591,11 @@ class Tally:
         """
         self._check(name)
         self._names.append((name, False))
-        self._cols.append((name, "count", x, segments, int(n_segments), mask))
+        self._cols.append((name, "count", x, segments, int(n_segments), mask, None))
 
     def evaluate(self) -> dict:
-        """Compute every queued sum (two kernels per width, one read-back).
+        """Compute every queued sum (a kernel per width, two where a column has no bound; one
+        read-back).
 
         Returns
         -------
@@ -594,60 +606,127 @@ class Tally:
         """
         if not self._cols:
             return {}
-        k_all = len(self._cols)
-        # 1. per float column: the largest value (bits of non-negative floats order like the
-        #    values), and whether any value is negative, NaN or infinite
-        # (one array for both: one memset)
-        top_bad = dr.zeros(mi.UInt32, 2 * k_all)
-        for i, (_, kind, x, seg, n_seg, mask) in enumerate(self._cols):
-            if kind != "sum":
-                continue
-            xf = mi.Float(x)
-            xf = dr.select(xf == 0.0, 0.0, xf)  # -0.0 has the largest bit pattern
-            m = self._lanes(x, seg, n_seg, mask)
-            ok = (xf >= 0.0) & dr.isfinite(xf)  # False for NaN
-            dr.scatter_reduce(dr.ReduceOp.Max, top_bad, dr.reinterpret_array(mi.UInt32, xf),
-                              mi.UInt32(i), m & ok, mode=dr.ReduceMode.Local)
-            dr.scatter_reduce(dr.ReduceOp.Max, top_bad, mi.UInt32(1), mi.UInt32(k_all + i),
-                              m & ~ok, mode=dr.ReduceMode.Local)
-        dr.eval(top_bad)
-        # 2. fixed-point sums; the scale of column i: 2^62 / (width x max), on the device
+        cols, self._cols = self._cols, []
+        raw = self._sums(cols)
+        # columns with a lane above their bound: summed again with their largest value
+        again = [i for i, c in enumerate(cols) if c[6] is not None and raw[i] is None]
+        if again:
+            redo = self._sums([cols[i][:6] + (None,) for i in again])
+            for j, i in enumerate(again):
+                raw[i] = redo[j]
+        by_name = {c[0]: raw[i] for i, c in enumerate(cols)}
+        out = {}
+        for name, signed in self._names:
+            out[name] = by_name[name] - by_name[name + "\0neg"] if signed else by_name[name]
+        self._names = []
+        return out
+
+    def _sums(self, cols: list) -> list:
+        """The sums of ``cols`` (one numpy array each; None for a bounded column with a lane
+        above its bound)."""
+        k_all = len(cols)
+        unbounded = [i for i, c in enumerate(cols) if c[1] == "sum" and c[6] is None]
+        top_bad = None
+        if unbounded:
+            # 1. per unbounded column: the largest value (bits of non-negative floats order
+            #    like the values), and whether any value is negative, NaN or infinite
+            #    (one array for both: one memset)
+            top_bad = dr.zeros(mi.UInt32, 2 * k_all)
+            for i in unbounded:
+                _, _, x, seg, n_seg, mask, _ = cols[i]
+                xf = mi.Float(x)
+                xf = dr.select(xf == 0.0, 0.0, xf)  # -0.0 has the largest bit pattern
+                m = self._lanes(x, seg, n_seg, mask)
+                ok = (xf >= 0.0) & dr.isfinite(xf)  # False for NaN
+                dr.scatter_reduce(dr.ReduceOp.Max, top_bad, dr.reinterpret_array(mi.UInt32, xf),
+                                  mi.UInt32(i), m & ok, mode=dr.ReduceMode.Local)
+                dr.scatter_reduce(dr.ReduceOp.Max, top_bad, mi.UInt32(1), mi.UInt32(k_all + i),
+                                  m & ~ok, mode=dr.ReduceMode.Local)
+            dr.eval(top_bad)
+        # 2. fixed-point sums, and per bounded column two flag rows (a lane that is negative,
+        #    NaN or infinite; a lane above the bound), in one array: one memset
         offsets, n_rows = [], 0
-        for c in self._cols:
+        for c in cols:
             offsets.append(n_rows)
             n_rows += c[4]
-        acc = dr.zeros(mi.UInt64, n_rows)
-        for i, (_, kind, x, seg, n_seg, mask) in enumerate(self._cols):
+        flag_of, n_flags = {}, 0
+        for i, c in enumerate(cols):
+            if c[1] == "sum" and c[6] is not None:
+                flag_of[i] = n_rows + n_flags
+                n_flags += 2
+        acc = dr.zeros(mi.UInt64, n_rows + n_flags)
+        # the bounded columns' bounds and scales as kernel inputs, not literals (the same
+        # kernels for every run and width; the array is kept while the numbers repeat)
+        consts, at = [], {}
+        for i, c in enumerate(cols):
+            if i in flag_of:
+                at[i] = len(consts)
+                consts += [c[6], _FIX_TOTAL / (c[6] * dr.width(c[2]))]
+        if consts:
+            d_consts = self._constants(consts)
+        for i, (_, kind, x, seg, n_seg, mask, bound) in enumerate(cols):
             n = dr.width(x)
             m = self._lanes(x, seg, n_seg, mask)
             s = dr.zeros(mi.UInt32, n) if seg is None else mi.UInt32(seg)
             if kind == "count":
                 q = mi.UInt64(mi.UInt32(x)) if dr.is_mask_v(x) or not dr.is_float_v(x) \
                     else mi.UInt64(x)
-            else:
+            elif bound is None:
                 # (an opaque index: a literal one would make Dr.Jit copy the value at once)
                 xmax = mi.Float64(dr.reinterpret_array(
                     mi.Float, dr.gather(mi.UInt32, top_bad, zero_index() + i)))
                 scale = dr.select(xmax > 0, _FIX_TOTAL / (xmax * n), 0.0)
                 q = mi.UInt64(dr.round(dr.maximum(mi.Float64(x), 0.0) * scale))
+            else:
+                xf = mi.Float64(x)
+                ok = (xf >= 0.0) & dr.isfinite(xf)  # False for NaN
+                b = dr.gather(mi.Float64, d_consts, zero_index() + at[i])
+                over = ok & (xf > b)
+                one = mi.UInt64(1)
+                dr.scatter_add(acc, one, mi.UInt32(flag_of[i]), m & ~ok,
+                               mode=dr.ReduceMode.Local)
+                dr.scatter_add(acc, one, mi.UInt32(flag_of[i] + 1), m & over,
+                               mode=dr.ReduceMode.Local)
+                m = m & ok & ~over
+                scale = dr.gather(mi.Float64, d_consts, zero_index() + (at[i] + 1))
+                q = mi.UInt64(dr.round(dr.maximum(xf, 0.0) * scale))
             dr.scatter_add(acc, q, s + offsets[i], m, mode=dr.ReduceMode.Local)
         dr.eval(acc)
-        a = np.asarray(acc).astype(np.float64)
-        tb = np.asarray(top_bad)
-        tops = tb[:k_all].view(np.float32).astype(np.float64)
-        b = tb[k_all:]
-        raw = {}
-        for i, (name, kind, x, _, n_seg, _) in enumerate(self._cols):
-            # the unit of column i: the inverse of the kernel's scale
-            unit = 1.0 if kind == "count" else \
-                (tops[i] * dr.width(x) / _FIX_TOTAL if tops[i] > 0 else 0.0)
-            v = a[offsets[i]:offsets[i] + n_seg] * unit
-            raw[name] = np.full(n_seg, np.nan) if b[i] else v
-        out = {}
-        for name, signed in self._names:
-            out[name] = raw[name] - raw[name + "\0neg"] if signed else raw[name]
-        self._cols, self._names = [], []
+        a_u = np.asarray(acc)
+        a = a_u[:n_rows].astype(np.float64)
+        if top_bad is not None:
+            tb = np.asarray(top_bad)
+            tops = tb[:k_all].view(np.float32).astype(np.float64)
+        out = []
+        for i, (_, kind, x, _, n_seg, _, bound) in enumerate(cols):
+            v = a[offsets[i]:offsets[i] + n_seg]
+            if kind == "count":
+                out.append(v)
+            elif bound is None:
+                # the unit of column i: the inverse of the kernel's scale
+                unit = tops[i] * dr.width(x) / _FIX_TOTAL if tops[i] > 0 else 0.0
+                out.append(np.full(n_seg, np.nan) if tb[k_all + i] else v * unit)
+            elif a_u[flag_of[i]]:
+                out.append(np.full(n_seg, np.nan))
+            elif a_u[flag_of[i] + 1]:
+                out.append(None)
+            else:
+                out.append(v * (bound * dr.width(x) / _FIX_TOTAL))
         return out
+
+    _CONSTANTS: dict = {}
+
+    @classmethod
+    def _constants(cls, values: list):
+        """An evaluated Float64 array of ``values``, kept for the next calls with the same
+        values (a day's record repeats its bounds: no host copy a day)."""
+        key = (mi.variant(), tuple(values))
+        arr = cls._CONSTANTS.get(key)
+        if arr is None:
+            if len(cls._CONSTANTS) >= 16:
+                cls._CONSTANTS.pop(next(iter(cls._CONSTANTS)))
+            arr = cls._CONSTANTS[key] = host_array(mi.Float64, values)
+        return arr
 
     @staticmethod
     def _lanes(x, seg, n_seg, mask):

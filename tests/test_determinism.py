@@ -139,6 +139,57 @@ def test_tally_is_exact_and_order_free():
     assert np.isnan(t.evaluate()["bad"][0])          # a negative value in an unsigned sum
 
 
+def test_tally_with_bounds_sums_in_one_kernel_and_falls_back_when_a_bound_fails():
+    """A column with a bound is summed in one kernel per width (no pass for its largest
+    value): the same sums as without a bound to 1e-12, shuffled input gives the same bits; a
+    lane above its bound makes that column be summed again exactly (equal bits to the sum
+    without a bound); NaN gives NaN; a bound that is not a positive number is refused."""
+    rng = np.random.default_rng(1)
+    x = rng.random(40_000) * 3.0
+    seg = rng.integers(0, 5, 40_000).astype(np.uint32)
+    perm = rng.permutation(40_000)
+
+    def sums(order, bound, launches=None):
+        t = Tally()
+        t.add("x", mi.Float64(x[order]), segments=mi.UInt32(seg[order]), n_segments=5,
+              bound=bound)
+        t.add("s", mi.Float64(x[order] - 1.5), signed=True, bound=bound)
+        t.count("c", mi.Bool(x[order] > 1.5))
+        if launches is None:
+            return t.evaluate()
+        dr.kernel_history()
+        out = t.evaluate()
+        launches.append(sum(e["type"] == dr.KernelType.JIT for e in dr.kernel_history()))
+        return out
+    free = sums(np.arange(40_000), None)
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        n_free, n_bound = [], []
+        sums(np.arange(40_000), None, n_free)
+        bounded = sums(np.arange(40_000), 10.0, n_bound)
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)
+    assert n_free == [2] and n_bound == [1]       # one width: two kernels, or one
+    shuffled = sums(perm, 10.0)
+    for k in free:
+        assert np.allclose(bounded[k], free[k], rtol=1e-12, atol=1e-9), k
+        assert np.array_equal(bounded[k], shuffled[k]), k
+    assert bounded["c"].tolist() == free["c"].tolist()
+    # a bound that does not hold (x reaches 3): the column is summed again with its largest
+    # value, the same bits as without a bound; the column within it keeps its one pass
+    low = sums(np.arange(40_000), 2.0)
+    assert np.array_equal(low["x"], free["x"])
+    assert np.allclose(low["s"], free["s"], rtol=1e-12)
+    t = Tally()
+    t.add("nan", mi.Float64(np.array([1.0, np.nan])), bound=5.0)
+    t.add("neg", mi.Float64(np.array([1.0, -2.0])), bound=5.0)
+    r = t.evaluate()
+    assert np.isnan(r["nan"][0]) and np.isnan(r["neg"][0])
+    with pytest.raises(ValueError, match="bound"):
+        Tally().add("z", mi.Float64(np.ones(3)), bound=0.0)
+
+
 def test_sampling_table_is_summed_on_the_host():
     """veg_sun_path's and veg_sky's tables: the cumulative sums are NumPy's (float64, rounded
     once), the last entry with weight exactly 1, and draws follow the weights."""

@@ -16,7 +16,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import Pack
+from ..arrays import Pack, zero_index
 from ..moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
                                SpeciesTable, concat_u32)
 from ..moss.propagules import land, settle, spore_direction, uniform_sphere
@@ -179,7 +179,28 @@ class DayMoss:
         rng = mi.PCG32(size=max(n, 1), initstate=pk[0], initseq=pk[1])
         return rng, [pk[2 + j] for j in range(len(extra))]
 
-    def step(self, st: MossState, day: int, S, Ts, rhs) -> dict:
+    def fitness_columns(self, S, Ts, rhs) -> list:
+        """The day's fitness per terrain element, one array per species (G of eq 3.17), as
+        lazy expressions for the kernel of the elements' width that evaluates the soil: a
+        kernel fewer than computing the table in the life cycle's. Pass them, evaluated, to
+        :meth:`step` as ``table``.
+
+        Parameters
+        ----------
+        S, Ts, rhs : mi.Float
+            Insolation [W m-2], surface temperature [K] and relative humidity [-] per terrain
+            element (the same values that :meth:`step` gets).
+
+        Returns
+        -------
+        list of mi.Float
+            G [-] per element, one array per species.
+        """
+        # (an opaque species index: a literal one would be gathered at once, a launch each)
+        return [self.table.fitness(zero_index() + k, Ts, rhs, S)
+                for k in range(len(self.table.species))]
+
+    def step(self, st: MossState, day: int, S, Ts, rhs, table=None) -> dict:
         """The day's moss life cycle (eqs 3.17-3.24): germination, growth, death, release,
         landing and settling of gemmae and spores, and a spore from outside every
         ``external_spore_interval`` days.
@@ -193,6 +214,9 @@ class DayMoss:
         S, Ts, rhs : mi.Float
             Insolation [W m-2], surface temperature [K] and relative humidity [-] per terrain
             element.
+        table : list of mi.Float, optional
+            The day's fitness per element and species from :meth:`fitness_columns`, evaluated
+            (else computed here).
 
         Returns
         -------
@@ -201,8 +225,11 @@ class DayMoss:
             crowded out).
         """
         pop, grid, cfg = st.pop, st.grid, self.cfg
-        cand, spores, ev = pop.live_day(S, Ts, rhs)
-        grid.sync(pop.state)  # deaths, expiry, germination (and the moss-neighbour counts)
+        # (the slots the grid must follow are found in the life cycle's kernel)
+        cand, spores, ev = pop.live_day(S, Ts, rhs, table=table,
+                                        changed_since=grid.state_copy)
+        # deaths, expiry, germination (and the moss-neighbour counts)
+        grid.sync(pop.state, changed=pop.changed)
         # only moss on the surface of a clump release gemmae: the grid keeps every moss's count
         # of moss neighbours, so the test is one read per moss
         clump = int(cfg["clump_neighbours"])

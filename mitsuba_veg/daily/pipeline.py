@@ -195,14 +195,16 @@ class DayPipeline:
             out += [light.S_leaf, *light.leaf.values()]
         if self.growth is not None:
             out += self.growth.accumulate(st.year, light, vals)
-        dr.eval(out, *light.ground.values(), *light.ground_sky.values())
+        # the moss's fitness per element and species in the same kernel
+        g_table = self.moss.fitness_columns(S32, Ts32, rhs32)
+        dr.eval(out, g_table, *light.ground.values(), *light.ground_sky.values())
         launches("soil")
         t3 = time.perf_counter()
         if self.leaves is not None:
             self.leaves.end(st.leaves, date, light.S_leaf)
         launches("leaves")
         t4 = time.perf_counter()
-        events = self.moss.step(st.moss, day, S32, Ts32, rhs32)
+        events = self.moss.step(st.moss, day, S32, Ts32, rhs32, table=g_table)
         counts_after = self.moss.counts(st.moss)
         launches("moss")
         t5 = time.perf_counter()

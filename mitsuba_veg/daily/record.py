@@ -29,6 +29,14 @@ from ..units import umol_per_joule
 
 _GROUND_FIELDS = ("par", "red", "far_red", "red_sky", "far_red_sky", "cover", "S", "Ts", "rhs")
 
+# Bounds of the summed quantities (arrays.Tally: a column with a bound is summed in one kernel
+# with a scale known before it; a value above its bound only costs that column a second,
+# exact sum). Generous, so that they hold: the resolution of a sum stays below 1e-10 of it.
+#: irradiance, insolation [W m-2] (the solar constant is 1361 W m-2)
+_W_MAX = 1e5
+#: surface temperature [K], relative humidity and volumetric water content [-], leaf stage [-]
+_PER_UNIT_MAX = {"Ts": 1e4, "rhs": 1e3, "theta": 1e3, "stage": 1e3}
+
 
 class DayRecord:
     """The day's record (module docstring).
@@ -76,6 +84,12 @@ class DayRecord:
             self.d_a_par = mi.Float64(np.array(a))
         self.u_red = umol_per_joule(*band_range("red"))
         self.u_fr = umol_per_joule(*band_range("far_red"))
+        # the largest areas [m2] (the bounds of the area-weighted columns)
+        living_areas = np.asarray(site.areas)[np.asarray(site.living, bool)]
+        self.a_max = max(float(living_areas.max()) if living_areas.size else 0.0, 1e-30)
+        self.area_max = max(float(np.max(site.areas)) if len(site.areas) else 0.0, 1e-30)
+        self.w_max = max(float(np.max(site.index.areas[gsl][pair])) if len(pair) else 0.0,
+                         1e-30)
         dr.eval(self.d_area_living, self.d_pair_elem, self.d_pair_terrain, self.d_pair_area)
 
     def __call__(self, vals, date, light, soil, counts, pop, events: dict, phen=None,
@@ -118,16 +132,17 @@ class DayRecord:
         st = soil.surface
         cell2 = site.grid_cell() ** 2
         covered = dr.minimum(mi.Float64(counts) * cell2, site.d_areas)
-        t.add("area", a, mask=live)
-        t.add("S", light.S * a, mask=live)
-        t.add("Ts", st.Ts * a, mask=live)
-        t.add("rhs", st.rhs * a, mask=live, signed=True)
-        t.add("theta", soil.theta * a, mask=live)
+        am, pm = self.a_max, _PER_UNIT_MAX
+        t.add("area", a, mask=live, bound=am)
+        t.add("S", light.S * a, mask=live, bound=am * _W_MAX)
+        t.add("Ts", st.Ts * a, mask=live, bound=am * pm["Ts"])
+        t.add("rhs", st.rhs * a, mask=live, signed=True, bound=am * pm["rhs"])
+        t.add("theta", soil.theta * a, mask=live, bound=am * pm["theta"])
         off = dr.abs(linearisation_error(vals.weather["T"], st.Ts)) > 0.1
-        t.add("off", dr.select(off, a, 0.0), mask=live)
-        t.add("covered", covered)
+        t.add("off", dr.select(off, a, 0.0), mask=live, bound=am)
+        t.add("covered", covered, bound=self.area_max)
         for r, m in zip(self.regions, self.d_regions):
-            t.add("region:" + r, covered, mask=m)
+            t.add("region:" + r, covered, mask=m, bound=self.area_max)
         t.count("alive", pop.state == MOSS, segments=pop.species, n_segments=self.n_sp)
         t.count("propagules", pop.state == PROPAGULE)
         if self.world:
@@ -166,10 +181,14 @@ class DayRecord:
         on = phen.on_tree
         seg = c.d_tree_of
         t.count("leaves_on", on, segments=seg, n_segments=self.n_trees)
-        t.add("stage_on", phen.stage, segments=seg, n_segments=self.n_trees, mask=on)
+        t.add("stage_on", phen.stage, segments=seg, n_segments=self.n_trees, mask=on,
+              bound=_PER_UNIT_MAX["stage"])
         a_par = dr.gather(mi.Float64, self.d_a_par, c._bin)
+        # (a shown blade is at most its full area: the canopy's, found once per canopy)
+        if getattr(self, "_leaf_bound", (None,))[0] is not c:
+            self._leaf_bound = (c, max(float(np.max(c.area)) if len(c.area) else 0.0, 1e-30))
         t.add("absorbed_par", light.leaf["par"] * light.leaf_area * a_par, segments=seg,
-              n_segments=self.n_trees)
+              n_segments=self.n_trees, bound=self._leaf_bound[1] * _W_MAX)
         # the ground under each crown and in the open: area-weighted sums over the (ground
         # element, group) pairs
         pe, pt, w = self.d_pair_elem, self.d_pair_terrain, self.d_pair_area
@@ -182,10 +201,12 @@ class DayRecord:
                    "Ts": (soil.surface.Ts, pt), "rhs": (soil.surface.rhs, pt)}
         vals = {f: dr.gather(mi.Float64, x, i) for f, (x, i) in at_pair.items()}
         vals["cover"] = cover
-        pg, ng = self.d_pair_group, self.n_groups
-        t.add("g:area", w, segments=pg, n_segments=ng)
+        pg, ng, wm = self.d_pair_group, self.n_groups, self.w_max
+        per_unit = {"cover": 1.0, "Ts": _PER_UNIT_MAX["Ts"], "rhs": _PER_UNIT_MAX["rhs"]}
+        t.add("g:area", w, segments=pg, n_segments=ng, bound=wm)
         for f in _GROUND_FIELDS:
-            t.add(f"g:{f}", vals[f] * w, segments=pg, n_segments=ng, signed=f == "rhs")
+            t.add(f"g:{f}", vals[f] * w, segments=pg, n_segments=ng, signed=f == "rhs",
+                  bound=wm * per_unit.get(f, _W_MAX))
 
     def _ground_stats(self, s: dict, k: int) -> dict:
         area = float(s["g:area"][k])

@@ -226,6 +226,7 @@ class MossPopulation:
         self.table = species
         c = self.capacity
         self.state = dr.zeros(mi.UInt32, c)
+        self._free = None       # (state variable, its evaluated FREE mask) from live_day
         self.species = dr.zeros(mi.UInt32, c)
         self.kind = dr.zeros(mi.UInt32, c)
         self.elem = dr.zeros(mi.UInt32, c)
@@ -320,6 +321,7 @@ class MossPopulation:
         self.nrm = mi.Vector3f(*[mi.Float(np.ascontiguousarray(d["nrm"][:, k])) for k in range(3)])
         self.overflow = int(d["overflow"])
         self.negative_growth = -1
+        self._free = None
 
     # ---- adding individuals -----------------------------------------------------------------
     def add(self, state, species, kind, elem, pos, nrm, growth) -> mi.UInt32:
@@ -354,7 +356,12 @@ class MossPopulation:
         n = dr.width(elem)
         if n == 0:
             return mi.UInt32()
-        free = dr.compress(self.state == FREE)
+        # the free slots: from the mask the day's life cycle evaluated while the state is
+        # still the one it wrote (any write gives the state array a new variable), else anew
+        mask = self._free[1] if self._free is not None and \
+            self._free[0] == self.state.index else self.state == FREE
+        self._free = None
+        free = dr.compress(mask)
         k = min(n, dr.width(free))
         self.overflow += n - k
         self.free_after_add = dr.width(free) - k
@@ -392,11 +399,13 @@ class MossPopulation:
             The slots to free (may be empty).
         """
         if dr.width(slots):
+            self._free = None
             dr.scatter(self.state, mi.UInt32(FREE), slots)
             dr.eval(self.state)
 
     # ---- the daily life cycle ---------------------------------------------------------------
-    def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None):
+    def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None, table=None,
+                 changed_since=None):
         """Steps 1-2 of the day (germination, growth and death) and the parents of step 3-4.
 
         Propagules age by one day and germinate by eq 3.24 (or are freed past their window); moss
@@ -414,6 +423,14 @@ class MossPopulation:
         interior : mi.Bool or None, optional
             Per-slot mask of moss inside a dense clump (no gemmae), or None (default) to return the
             gemma *candidates* (the caller then drops those inside a clump, testing only them).
+        table : list of mi.Float, optional
+            G per element for these S, Ts, rhs, one evaluated array per species (the values
+            of :meth:`SpeciesTable.fitness_table`, e.g. from the kernel that computed the
+            soil): otherwise the table is computed here, in a kernel of its own.
+        changed_since : mi.UInt32, optional
+            A state per slot to compare with: the mask of the slots whose state differs from
+            it at the end of the day's steps is evaluated in the same kernel and kept in
+            :attr:`changed` (None without it).
 
         Returns
         -------
@@ -427,8 +444,15 @@ class MossPopulation:
         t = self.table
         alive = self.state != FREE
         n_sp = len(t.species)
-        G = dr.gather(mi.Float, t.fitness_table(Ts, rhs, S), self.elem * n_sp + self.species,
-                      alive)
+        if table is None:
+            G = dr.gather(mi.Float, t.fitness_table(Ts, rhs, S), self.elem * n_sp + self.species,
+                          alive)
+        else:
+            # one masked gather per species: each slot reads its own species' column
+            G = dr.zeros(mi.Float, dr.width(self.state))
+            for k, col in enumerate(table):
+                mine = alive & (self.species == k)
+                G = dr.select(mine, dr.gather(mi.Float, col, self.elem, mine), G)
         # 1. germination (eq 3.24): G g(L, L0, L1, 1) > tau_b
         prop = self.state == PROPAGULE
         self.age = dr.select(prop, self.age + 1.0, self.age)
@@ -466,10 +490,16 @@ class MossPopulation:
         counts = dr.zeros(mi.UInt32, 7)
         for k, m in enumerate((germ, died, expired, gemma, spores, negative, free)):
             dr.scatter_add(counts, mi.UInt32(1), mi.UInt32(k), m, mode=dr.ReduceMode.Local)
-        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores, counts)
+        changed = None if changed_since is None else self.state != changed_since
+        dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores, counts, free,
+                *([] if changed is None else [changed]))
+        # (the free mask serves the day's first :meth:`add` while the state is unchanged)
+        self._free = (self.state.index, free)
         c = [int(v) for v in np.asarray(counts)]
         ev = DayEvents(germinated=c[0], died=c[1], expired=c[2], gemma_parents=c[3],
                        spore_parents=c[4])
+        #: the slots whose state differs from ``changed_since`` (or None)
+        self.changed = changed
         self.negative_growth = c[5]
         #: free slots at the end of the day's steps 1-2
         self.free_slots = c[6]

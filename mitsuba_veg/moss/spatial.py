@@ -394,12 +394,14 @@ class SpotGrid:
         miss = active & (found == 0)
         cnt = dr.zeros(mi.UInt32, 1)
         dr.scatter_add(cnt, mi.UInt32(1), mi.UInt32(0), miss, mode=dr.ReduceMode.Local)
-        dr.eval(bk, found, cnt)
+        local = self._local(ix, iy, iz)
+        cell = (found - 1) * _B3 + local
+        # the cells in the lookup's kernel: right unless a block was missing
+        dr.eval(bk, found, cnt, cell, local)
         if int(np.asarray(cnt)[0]):
             self._ensure_blocks(dr.gather(mi.UInt64, bk, dr.compress(miss)))
-            found = self._find_block(bk, active)
-        cell = (found - 1) * _B3 + self._local(ix, iy, iz)
-        dr.eval(cell)
+            cell = (self._find_block(bk, active) - 1) * _B3 + local
+            dr.eval(cell)
         return cell
 
     def first_per_pool_cell(self, cell: mi.UInt32, rank: mi.UInt64, active=True) -> mi.Bool:
@@ -482,7 +484,7 @@ class SpotGrid:
                     self._moss_changed(new, dr.full(mi.Bool, True, dr.width(new)))
         dr.eval(self.pool, self.slot_cell, self._code)
 
-    def sync(self, state: mi.UInt32) -> None:
+    def sync(self, state: mi.UInt32, changed: mi.Bool | None = None) -> None:
         """Follow the population's changes since the last call.
 
         Freed slots empty their cell, propagules that germinated are marked as moss, and the moss
@@ -492,9 +494,12 @@ class SpotGrid:
         ----------
         state : mi.UInt32
             The population's current state per slot (0 free, 1 propagule, 2 moss).
+        changed : mi.Bool, optional
+            ``state != `` the grid's copy, already evaluated (the population's day computes it
+            in its own kernel: ``live_day(changed_since=grid.state_copy)``).
         """
         # one pass over the slots finds the few that changed; the rest works on those
-        changed = dr.compress(self._code != state)
+        changed = dr.compress(self._code != state if changed is None else changed)
         if dr.width(changed):
             was = dr.gather(mi.UInt32, self._code, changed)
             now = dr.gather(mi.UInt32, state, changed)
@@ -506,8 +511,10 @@ class SpotGrid:
             dr.eval(cell, freed, germ, now, moss_changed)
             # no lazy read of the grid's copy stays behind to make its write copy it
             del was, gone
-            dr.scatter(self.pool, mi.UInt32(0), cell, freed)
-            dr.scatter(self.pool, (changed + 1) | (_MOSS_BIT | _NEW_BIT), cell, germ)
+            # one write per changed cell (a second write into the pool would be a kernel of
+            # its own)
+            dr.scatter(self.pool, dr.select(germ, (changed + 1) | (_MOSS_BIT | _NEW_BIT),
+                                            mi.UInt32(0)), cell, freed | germ)
             # the grid's own copy of the state, written where it changed (a reference to the
             # population's array would make its next write in place copy the whole array)
             dr.scatter(self._code, now, changed)
@@ -519,6 +526,12 @@ class SpotGrid:
                 self._moss_changed(dr.gather(mi.UInt32, changed, at),
                                    dr.gather(mi.Bool, germ, at))
         dr.eval(self.pool)
+
+    @property
+    def state_copy(self) -> mi.UInt32:
+        """The population's state per slot as the grid last saw it (:meth:`sync`,
+        :meth:`insert`); read-only."""
+        return self._code
 
     def rebuild(self, pos: mi.Point3f, state: mi.UInt32) -> None:
         """Empty every cell and insert all occupied slots (after loading a checkpoint).
