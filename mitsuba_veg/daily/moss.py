@@ -420,8 +420,11 @@ class DayMoss:
         species = rng.integers(0, len(self.table.species), n)
         P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
         N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
+        # (when no newcomer can evict anyone, the evicted are not looked for: a launch and a
+        # read-back fewer)
         keep, evicted, cells = settle(st.pop, st.grid, P, mi.UInt32(species.astype(np.uint32)),
-                                      dr.arange(mi.UInt32, n), dr.full(mi.Bool, True, n))
+                                      dr.arange(mi.UInt32, n), dr.full(mi.Bool, True, n),
+                                      may_evict=not self._exclusive(st.pop))
         st.pop.remove(evicted)
         k = dr.compress(keep)
         if dr.width(k):
