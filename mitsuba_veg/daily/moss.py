@@ -107,23 +107,31 @@ class DayMoss:
         grid.reserve(*self._living_triangles())
         return MossState(pop, grid)
 
-    def _living_triangles(self):
-        """Corners (three (n, 3) arrays) and normals of the living terrain triangles [m]."""
-        idx, site = self.site.index, self.site
-        out = [[], [], [], []]
-        for sid in site.terrain_shapes:           # a few shapes, not per moss
+    def _triangles(self, tri: np.ndarray):
+        """The corners of terrain triangles ``tri`` (global element indices), shape by shape:
+        yields (which of ``tri``, p0, p1, p2) per terrain shape holding some of them, in that
+        shape's vertex precision [m]."""
+        idx = self.site.index
+        for sid in self.site.terrain_shapes:      # a few shapes, not per moss
             if sid not in idx.geometry:
                 continue
             v, f = idx.geometry[sid]
             sl = idx.shape_slice(sid)
-            live = np.flatnonzero(site.living[sl])
-            fc = np.asarray(f)[live]
-            for k in range(3):
-                out[k].append(np.asarray(v)[fc[:, k]])
-            out[3].append(idx.normals[sl][live])
-        if not out[0]:
+            sel = (tri >= sl.start) & (tri < sl.stop)
+            if sel.any():
+                fc = f[tri[sel] - sl.start]
+                yield sel, v[fc[:, 0]], v[fc[:, 1]], v[fc[:, 2]]
+
+    def _living_triangles(self):
+        """Corners (three (n, 3) arrays) and normals of the living terrain triangles [m]."""
+        tri = np.flatnonzero(self.site.living)
+        parts = list(self._triangles(tri))
+        if not parts:
             return [np.zeros((0, 3))] * 4
-        return [np.concatenate(x) for x in out]
+        corners = [np.concatenate([np.asarray(p[k], np.float64) for p in parts])
+                   for k in (1, 2, 3)]
+        order = np.concatenate([tri[p[0]] for p in parts])
+        return corners + [self.site.index.normals[order]]
 
     # ---- per element ------------------------------------------------------------------------
     def counts(self, st: MossState) -> mi.UInt32:
@@ -405,16 +413,8 @@ class DayMoss:
         flip = u.sum(1) > 1
         u[flip] = 1 - u[flip]
         pts = np.zeros((n, 3))
-        for sid in self.site.terrain_shapes:      # a few shapes, not per moss
-            if sid not in idx.geometry:
-                continue
-            v, f = idx.geometry[sid]
-            sl = idx.shape_slice(sid)
-            sel = (tri >= sl.start) & (tri < sl.stop)
-            if sel.any():
-                fc = f[tri[sel] - sl.start]
-                p0, p1, p2 = v[fc[:, 0]], v[fc[:, 1]], v[fc[:, 2]]
-                pts[sel] = p0 + u[sel, :1] * (p1 - p0) + u[sel, 1:] * (p2 - p0)
+        for sel, p0, p1, p2 in self._triangles(tri):
+            pts[sel] = p0 + u[sel, :1] * (p1 - p0) + u[sel, 1:] * (p2 - p0)
         nrm = idx.normals[tri]
         pts = pts + nrm * 1e-4
         species = rng.integers(0, len(self.table.species), n)

@@ -90,6 +90,7 @@ class DayRecord:
         self.area_max = max(float(np.max(site.areas)) if len(site.areas) else 0.0, 1e-30)
         self.w_max = max(float(np.max(site.index.areas[gsl][pair])) if len(pair) else 0.0,
                          1e-30)
+        self._leaf_bound = (None, 0.0)   # (canopy, its largest full blade area [m2])
         dr.eval(self.d_area_living, self.d_pair_elem, self.d_pair_terrain, self.d_pair_area)
 
     def __call__(self, vals, date, light, soil, counts, pop, events: dict, phen=None,
@@ -185,7 +186,7 @@ class DayRecord:
               bound=_PER_UNIT_MAX["stage"])
         a_par = dr.gather(mi.Float64, self.d_a_par, c._bin)
         # (a shown blade is at most its full area: the canopy's, found once per canopy)
-        if getattr(self, "_leaf_bound", (None,))[0] is not c:
+        if self._leaf_bound[0] is not c:
             self._leaf_bound = (c, max(float(np.max(c.area)) if len(c.area) else 0.0, 1e-30))
         t.add("absorbed_par", light.leaf["par"] * light.leaf_area * a_par, segments=seg,
               n_segments=self.n_trees, bound=self._leaf_bound[1] * _W_MAX)
