@@ -362,6 +362,49 @@ def zero_index():
     return _ZERO[key]
 
 
+class Counters:
+    """``k`` UInt32 counters for a kernel's integer atomics, zero at every use without a launch
+    of their own: two sets used in turn, the kernel that adds into one set also zeroes the other
+    (queued writes at the kernel's width) for the next use. A ``dr.zeros`` array would be a
+    memset launch each time.
+
+    Parameters
+    ----------
+    k : int
+        Number of counters.
+    """
+
+    def __init__(self, k: int):
+        self.k = int(k)
+        self._sets = [dr.zeros(mi.UInt32, self.k) for _ in range(2)]
+        dr.eval(self._sets)
+        self._turn = 0
+
+    def next(self, width: int) -> mi.UInt32:
+        """The zeroed set for a kernel of ``width`` lanes (the call queues the zeroing of the
+        other set: evaluate the kernel before the next call).
+
+        Parameters
+        ----------
+        width : int
+            The width of the kernel that adds into the counters.
+
+        Returns
+        -------
+        mi.UInt32
+            ``k`` zeros, written in place by the caller's ``scatter_add``.
+        """
+        self._turn ^= 1
+        now = self._sets[self._turn]
+        if width >= self.k:
+            lane = dr.arange(mi.UInt32, width)
+            dr.scatter(self._sets[1 - self._turn], mi.UInt32(0), lane, lane < self.k)
+        else:                       # (a narrow kernel: a launch of its own)
+            self._sets[1 - self._turn] = dr.zeros(mi.UInt32, self.k)
+            dr.eval(self._sets[1 - self._turn])
+        return now
+
+
 class Pack:
     """Several per-call numbers as kernel inputs from one host copy: ``pack[j]`` is value j,
     read inside the kernels that use it (a gather with a non-literal index).

@@ -62,6 +62,47 @@ def test_growth_and_death_by_hand():
     assert state(pop)[0] == FREE and ev.died == 1
 
 
+def test_moss_per_element_kept_by_every_change():
+    """A population that knows its elements keeps m per element (eq 3.5) by its changes: added
+    moss (+1), added propagules (0), germination (+1), death (-1), removal of a moss (-1) or a
+    propagule (0); it always equals a fresh count, and a checkpoint load counts afresh. The
+    day's event counters (two sets, the day's kernel zeroing the other) count each day anew."""
+    pop = MossPopulation(8, SpeciesTable([BRYUM]), n_elements=3)
+    fresh = lambda: np.asarray(per_element_count(pop.elem, pop.moss, 3)).tolist()  # noqa: E731
+    kept = lambda: np.asarray(pop.per_element).tolist()  # noqa: E731
+    add(pop, MOSS, 0.15, elem=0)      # dies on the first bad day (test above)
+    add(pop, MOSS, 0.9, elem=2)
+    add(pop, PROPAGULE, 0.0, elem=1, kind=GEMMA)
+    add(pop, PROPAGULE, 0.0, elem=2, kind=GEMMA)
+    assert kept() == fresh() == [1, 0, 1]
+    good, bad = env(30.0, 286.65, 1.0), env(1e4, 288.15, 1.0)
+    no = mi.Bool(np.zeros(8, bool))
+    _, _, ev = pop.live_day(*good, no)          # both gemmae germinate
+    assert ev.germinated == 2 and kept() == fresh() == [1, 1, 2]
+    # bad days: the new moss die at once, the others decline below tau_d; each day's count
+    # of deaths is that day's (the counters start from zero every day)
+    died = []
+    while kept()[0]:
+        before = state(pop) == MOSS
+        _, _, ev = pop.live_day(*bad, no)
+        assert ev.died == int((before & (state(pop) == FREE)).sum()) and ev.germinated == 0
+        assert kept() == fresh()
+        died.append(ev.died)
+    assert sorted(died)[-2:] == [1, 2] and sum(died) == 3 and len(died) > 4  # [0, .., 2, .., 1]
+    add(pop, MOSS, 5.0, elem=2)
+    slot = int(np.flatnonzero(state(pop) == MOSS)[-1])
+    assert kept() == fresh() and kept()[2] >= 1
+    pop.remove(mi.UInt32([slot]))               # a moss on element 2
+    assert kept() == fresh()
+    add(pop, PROPAGULE, 0.0, elem=0)
+    pop.remove(mi.UInt32(np.flatnonzero(state(pop) == PROPAGULE).astype(np.uint32)))
+    assert kept() == fresh() and sum(kept()) == int((state(pop) == MOSS).sum())
+    d = pop.to_numpy()
+    other = MossPopulation(8, SpeciesTable([BRYUM]), n_elements=3)
+    other.load_numpy(d)
+    assert np.asarray(other.per_element).tolist() == kept()
+
+
 def test_good_day_grows_by_eq_3_20():
     pop = pop_with()
     add(pop, MOSS, 0.3)

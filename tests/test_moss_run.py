@@ -137,6 +137,13 @@ def test_full_population_traces_only_what_can_settle(tmp_path, monkeypatch):
     kept = np.asarray(a.grid.moss_neighbours(moss))
     fresh = np.asarray(a.grid.neighbour_count(dr.gather(mi.Point3f, a.pop.pos, moss)))
     assert kept.tolist() == fresh.tolist()
+    # the moss per element that the population keeps by its changes equal a fresh count
+    from mitsuba_veg.moss.spatial import per_element_count
+    n = a.site.n_terrain
+    assert a.pop.per_element is a.pipeline.moss.counts(a.state.moss)
+    assert np.array_equal(np.asarray(a.pop.per_element),
+                          np.asarray(per_element_count(a.pop.elem, a.pop.moss, n)))
+    assert int(np.asarray(a.pop.per_element).sum()) == int(np.count_nonzero(pa["state"] == 2))
     # ... also at moss in clumps (counts kept through several updates). Which moss clump
     # depends on the light's Monte Carlo sample: with the daily pipeline's photon pass (both
     # emitters in one launch, its own random streams) 19 of 448 moss have 2 moss neighbours;

@@ -245,9 +245,13 @@ def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
     under, open_ = sim.site.crowns[0], sim.site.open_ground
     counts = P.moss.counts(sim.state.moss)
     cover = P.moss.cover(counts)
-    # the day's count kept for the next day is the population's count; the cover computed at
+    # the count the population keeps up to date is a count of its moss; the cover computed at
     # chosen elements (inside the albedo kernel) is the cover of all elements, gathered
-    assert np.array_equal(np.asarray(sim.state.counts), np.asarray(counts))
+    from mitsuba_veg.moss.spatial import per_element_count
+    pop = sim.state.moss.pop
+    assert counts is pop.per_element
+    assert np.array_equal(np.asarray(per_element_count(pop.elem, pop.moss, sim.site.n_terrain)),
+                          np.asarray(counts))
     some = mi.UInt32(np.arange(0, sim.site.n_terrain, 7, dtype=np.uint32))
     assert np.array_equal(np.asarray(P.moss.cover(counts, some)),
                           np.asarray(cover)[np.asarray(some)])

@@ -162,7 +162,6 @@ def load(sim) -> bool:
         raise ParameterError("checkpoint", str(p), "a checkpoint of the same world",
                              f"use --fresh ({e})") from None
     st.moss.grid.rebuild(st.moss.pop.pos, st.moss.pop.state)
-    st.counts = None                     # the population changed: counted again
     st.day = day
     st.O = mi.Float64(O)
     st.history = json.loads(str(d["history"]))

@@ -100,7 +100,7 @@ class DayMoss:
         MossState
             Capacity ``moss.capacity`` slots, all free.
         """
-        pop = MossPopulation(int(self.cfg["capacity"]), self.table)
+        pop = MossPopulation(int(self.cfg["capacity"]), self.table, n_elements=self.n)
         grid = self.site.new_grid()
         # the blocks of the living surfaces from the start: no hash-table rounds on the days
         # newcomers reach new ground (the same numbers either way)
@@ -145,8 +145,12 @@ class DayMoss:
         Returns
         -------
         mi.UInt32
-            (terrain elements,) moss count [-].
+            (terrain elements,) moss count [-]: the population's own count
+            (:attr:`MossPopulation.per_element`), which its next changes update in place;
+            read it (or copy it) before the next moss stage.
         """
+        if st.pop.per_element is not None and st.pop.n_elements == self.n:
+            return st.pop.per_element
         return per_element_count(st.pop.elem, st.pop.moss, self.n)
 
     def cover(self, counts, elems=None) -> mi.Float64:
@@ -237,7 +241,7 @@ class DayMoss:
         cand, spores, ev = pop.live_day(S, Ts, rhs, table=table,
                                         changed_since=grid.state_copy)
         # deaths, expiry, germination (and the moss-neighbour counts)
-        grid.sync(pop.state, changed=pop.changed)
+        grid.sync(pop.state, changed=pop.changed, was=pop.changed_from)
         # only moss on the surface of a clump release gemmae: the grid keeps every moss's count
         # of moss neighbours, so the test is one read per moss
         clump = int(cfg["clump_neighbours"])

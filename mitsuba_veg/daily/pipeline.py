@@ -92,10 +92,6 @@ class DayState:
         One row per tree and year-end growth step (generation, tips, deaths, size).
     floor_log : list of dict
         One row per year: the floor's DLI, R:FR, gap fraction and moss cover.
-    counts : mi.UInt32 or None
-        Live moss per terrain element at the end of the last day (None: not known; the next
-        day counts them). Only :meth:`DayPipeline.run_day` changes the moss between days; a
-        change of the population from outside must set it to None.
     """
 
     day: int
@@ -107,7 +103,6 @@ class DayState:
     year: YearLight | None = None
     growth_log: list = field(default_factory=list)
     floor_log: list = field(default_factory=list)
-    counts: object = None
 
 
 class DayPipeline:
@@ -176,8 +171,8 @@ class DayPipeline:
             tables = self.leaves.start(st.leaves, date, self.scene_params)
             leaf_area = self.site.canopy.displayed_area()
         launches("leaves")
-        # the last day's count (evaluated then) or, after a resume or a rebuild, a new one
-        counts = st.counts if st.counts is not None else self.moss.counts(st.moss)
+        # the population's own count, kept up to date by its changes (no count each day)
+        counts = self.moss.counts(st.moss)
         launches("moss")
         t1 = time.perf_counter()
         light = self.light(vals, lambda e: self.moss.cover(counts, e), tables, leaf_area,
@@ -189,8 +184,10 @@ class DayPipeline:
         Ts, rhs = soil.surface.Ts, soil.surface.rhs
         S32, Ts32, rhs32 = mi.Float(light.S), mi.Float(Ts), mi.Float(rhs)
         # the day's per-element fields in one kernel per width
-        out = [soil.O, Ts, rhs, soil.theta, light.S, light.f_sun, light.f_sky, S32, Ts32,
-               rhs32]
+        # (lE and beta too: left lazy they would hold the moss count, and the moss stage's
+        # writes into it would copy it first)
+        out = [soil.O, Ts, rhs, soil.theta, soil.surface.lE, soil.surface.beta, light.S,
+               light.f_sun, light.f_sky, S32, Ts32, rhs32]
         if light.leaf is not None:
             out += [light.S_leaf, *light.leaf.values()]
         if self.growth is not None:
@@ -198,6 +195,9 @@ class DayPipeline:
         # the moss's fitness per element and species in the same kernel
         g_table = self.moss.fitness_columns(S32, Ts32, rhs32)
         dr.eval(out, g_table, *light.ground.values(), *light.ground_sky.values())
+        # the moss stage writes the count in place: no other reference may be left to it
+        # (Dr.Jit would copy the array first)
+        del counts
         launches("soil")
         t3 = time.perf_counter()
         if self.leaves is not None:
@@ -221,7 +221,6 @@ class DayPipeline:
             rec["launches"] = {"stages": launches.n, "kinds": launches.kinds,
                                "compiled": launches.compiled}
         st.O = soil.O
-        st.counts = counts_after
         st.history.append(rec)
         st.day += 1
         fields = {"S": light.S, "Ts": Ts, "rhs": rhs, "theta": soil.theta,
@@ -332,7 +331,6 @@ class Simulation:
     def initialise(self) -> None:
         """Place the initial moss (``moss.initial``) at random on the living surfaces."""
         self.pipeline.moss.initialise(self.state.moss)
-        self.state.counts = None
 
     # ---- views of the site and the state (maps, snapshots, tests) -------------------------
     @property

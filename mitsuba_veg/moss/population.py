@@ -24,18 +24,23 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import opaque
+from ..arrays import Counters, opaque
 from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, daily_fitness, fitness
+from .spatial import per_element_count
 from .species import Species
 
 FREE, PROPAGULE, MOSS = 0, 1, 2
 GEMMA, SPORE = 0, 1
 #: G_moss step that releases one gemma (paper 000 §3.6: "every +0.5")
 GEMMA_STEP = 0.5
+_MINUS_ONE = 0xFFFFFFFF   # -1 in a UInt32 sum (mod 2^32)
 #: G_moss from which a growing moss releases spores (paper 000 §3.6)
 SPORE_THRESHOLD = 2.0
 
 _FIELDS = ("state", "species", "kind", "elem", "growth", "age", "gemmae")
+#: counts of a day's life cycle (germinated, died, expired, gemma and spore parents, negative
+#: G_moss, free slots)
+_N_COUNTS = 7
 
 
 @dataclass
@@ -219,12 +224,34 @@ class SpeciesTable:
 
 
 class MossPopulation:
-    """Structure of arrays of ``capacity`` slots (see module docstring)."""
+    """Structure of arrays of ``capacity`` slots (see module docstring).
 
-    def __init__(self, capacity: int, species: SpeciesTable):
+    Parameters
+    ----------
+    capacity : int
+        Number of slots.
+    species : SpeciesTable
+        The species.
+    n_elements : int, optional
+        Number of elements the individuals live on (``elem`` below it): the moss per element
+        is then kept up to date by every change of the population (:attr:`per_element`).
+    """
+
+    def __init__(self, capacity: int, species: SpeciesTable, n_elements: int | None = None):
         self.capacity = int(capacity)
         self.table = species
         c = self.capacity
+        #: number of elements counted in :attr:`per_element` (None: not kept)
+        self.n_elements = None if n_elements is None else int(n_elements)
+        #: live moss per element (m of eq 3.5), kept by the writes that change it: +1 where
+        #: a propagule germinates or a moss is added, -1 where a moss dies or is removed (no
+        #: count of the whole population each day); None without ``n_elements``
+        self.per_element = None
+        if self.n_elements is not None:
+            self.per_element = dr.zeros(mi.UInt32, self.n_elements)
+            dr.eval(self.per_element)
+        # the day's event counters (zero every day without a launch of their own)
+        self._counters = Counters(_N_COUNTS)
         self.state = dr.zeros(mi.UInt32, c)
         self._free = None       # (state variable, its evaluated FREE mask) from live_day
         self.species = dr.zeros(mi.UInt32, c)
@@ -322,6 +349,9 @@ class MossPopulation:
         self.overflow = int(d["overflow"])
         self.negative_growth = -1
         self._free = None
+        if self.n_elements is not None:
+            self.per_element = per_element_count(self.elem, self.state == MOSS, self.n_elements)
+            dr.eval(self.per_element)
 
     # ---- adding individuals -----------------------------------------------------------------
     def add(self, state, species, kind, elem, pos, nrm, growth) -> mi.UInt32:
@@ -386,9 +416,18 @@ class MossPopulation:
             dr.scatter(getattr(self, name), v, slots)
         dr.scatter(self.pos, p, slots)
         dr.scatter(self.nrm, q, slots)
+        self._count_moss(vals["elem"], vals["state"] == MOSS, mi.UInt32(1))
         dr.eval(slots, self.state, self.species, self.kind, self.elem, self.growth, self.age,
-                self.gemmae, self.pos, self.nrm)
+                self.gemmae, self.pos, self.nrm, self.per_element)
         return slots
+
+    def _count_moss(self, elem, active, step) -> None:
+        """Add ``step`` (1, or 2^32 - 1 for -1) to :attr:`per_element` at ``elem`` where
+        ``active`` (queued: it runs in the kernel that evaluates the change)."""
+        if self.per_element is not None:
+            # Direct (atomics): few writes into a large array; integer sums in any order
+            dr.scatter_add(self.per_element, step, elem, active & (elem < self.n_elements),
+                           mode=dr.ReduceMode.Direct)
 
     def remove(self, slots: mi.UInt32) -> None:
         """Free ``slots`` (written in place).
@@ -400,8 +439,15 @@ class MossPopulation:
         """
         if dr.width(slots):
             self._free = None
+            if self.per_element is not None:
+                # the removed moss leave their elements (read before the write: a lazy read
+                # of the state would make its write in place copy it)
+                was = dr.gather(mi.UInt32, self.state, slots) == MOSS
+                elem = dr.gather(mi.UInt32, self.elem, slots)
+                dr.eval(was, elem)
+                self._count_moss(elem, was, mi.UInt32(_MINUS_ONE))
             dr.scatter(self.state, mi.UInt32(FREE), slots)
-            dr.eval(self.state)
+            dr.eval(self.state, self.per_element)
 
     # ---- the daily life cycle ---------------------------------------------------------------
     def live_day(self, S, Ts, rhs, interior: mi.Bool | None = None, table=None,
@@ -430,7 +476,7 @@ class MossPopulation:
         changed_since : mi.UInt32, optional
             A state per slot to compare with: the mask of the slots whose state differs from
             it at the end of the day's steps is evaluated in the same kernel and kept in
-            :attr:`changed` (None without it).
+            :attr:`changed`, and its values there in :attr:`changed_from` (None without it).
 
         Returns
         -------
@@ -487,12 +533,21 @@ class MossPopulation:
         free = self.state == FREE
         # the day's counts in the same kernel as the state (integer atomics, packet-reduced):
         # one launch and one read-back instead of a reduction per count
-        counts = dr.zeros(mi.UInt32, 7)
+        counts = self._counters.next(self.capacity)
         for k, m in enumerate((germ, died, expired, gemma, spores, negative, free)):
             dr.scatter_add(counts, mi.UInt32(1), mi.UInt32(k), m, mode=dr.ReduceMode.Local)
-        changed = None if changed_since is None else self.state != changed_since
+        # germinated: +1 moss on their element, died: -1
+        self._count_moss(self.elem, germ | died,
+                         dr.select(germ, mi.UInt32(1), mi.UInt32(_MINUS_ONE)))
+        changed = was = None
+        if changed_since is not None:
+            changed = self.state != changed_since
+            # the compared state where it changed, an array of its own: the grid's writes into
+            # its copy can then share the kernel that reads the old values
+            was = dr.select(changed, changed_since, mi.UInt32(0))
         dr.eval(self.state, self.growth, self.gemmae, self.age, gemma, spores, counts, free,
-                *([] if changed is None else [changed]))
+                *([] if changed is None else [changed, was]),
+                *([] if self.per_element is None else [self.per_element]))
         # (the free mask serves the day's first :meth:`add` while the state is unchanged)
         self._free = (self.state.index, free)
         c = [int(v) for v in np.asarray(counts)]
@@ -500,6 +555,8 @@ class MossPopulation:
                        spore_parents=c[4])
         #: the slots whose state differs from ``changed_since`` (or None)
         self.changed = changed
+        #: ``changed_since`` at those slots, 0 elsewhere (or None)
+        self.changed_from = was
         self.negative_growth = c[5]
         #: free slots at the end of the day's steps 1-2
         self.free_slots = c[6]

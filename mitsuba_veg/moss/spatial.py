@@ -37,7 +37,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import opaque
+from ..arrays import Counters, opaque
 
 NEIGHBOURS = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
               if (dx, dy, dz) != (0, 0, 0)]
@@ -97,6 +97,7 @@ class SpotGrid:
         self._code = dr.zeros(mi.UInt32, self.capacity)  # state per slot at the last sync
         self.nb = dr.zeros(mi.UInt32, self.capacity)  # moss among the 26 neighbours (moss slots)
         self.rehashes = 0
+        self._misses = Counters(1)  # lookups that found no block (cells())
         dr.make_opaque(self._cell_claim)
         dr.eval(self.tab_keys, self.tab_block, self._claim, self.pool, self.block_key,
                 self.block_nbr, self.slot_cell, self._code, self.nb)
@@ -392,7 +393,7 @@ class SpotGrid:
         bk = self._block_key(ix, iy, iz)
         found = self._find_block(bk, active)
         miss = active & (found == 0)
-        cnt = dr.zeros(mi.UInt32, 1)
+        cnt = self._misses.next(n)
         dr.scatter_add(cnt, mi.UInt32(1), mi.UInt32(0), miss, mode=dr.ReduceMode.Local)
         local = self._local(ix, iy, iz)
         cell = (found - 1) * _B3 + local
@@ -481,10 +482,18 @@ class SpotGrid:
                 dr.eval(self.pool, self.slot_cell, self._code, mcount)
                 if int(np.asarray(mcount)[0]):
                     new = dr.gather(mi.UInt32, slots, dr.compress(moss))
-                    self._moss_changed(new, dr.full(mi.Bool, True, dr.width(new)))
+                    nb_before = dr.gather(mi.UInt32, self.nb, new)
+                    dr.eval(nb_before)
+                    # the new moss's cells carry the "new" bit until they are counted
+                    self._moss_counts_follow(new, True, True, nb_before,
+                                             lambda s, v, m: (v & _NEW_BIT) != 0)
+                    dr.scatter(self.pool, (new + 1) | _MOSS_BIT,
+                               dr.gather(mi.UInt32, self.slot_cell, new))
+                    dr.eval(self.pool)
         dr.eval(self.pool, self.slot_cell, self._code)
 
-    def sync(self, state: mi.UInt32, changed: mi.Bool | None = None) -> None:
+    def sync(self, state: mi.UInt32, changed: mi.Bool | None = None,
+             was: mi.UInt32 | None = None) -> None:
         """Follow the population's changes since the last call.
 
         Freed slots empty their cell, propagules that germinated are marked as moss, and the moss
@@ -497,35 +506,68 @@ class SpotGrid:
         changed : mi.Bool, optional
             ``state != `` the grid's copy, already evaluated (the population's day computes it
             in its own kernel: ``live_day(changed_since=grid.state_copy)``).
+        was : mi.UInt32, optional
+            With ``changed``: the grid's copy of the state at the changed slots (any value
+            elsewhere), an evaluated array of its own (``live_day`` writes it beside
+            ``changed``). The grid's writes then share the kernel that reads the changes.
         """
+        if changed is None:
+            changed = self._code != state
+            dr.eval(changed)  # (an array: the neighbour counts read it at neighbour slots)
+            was = None
         # one pass over the slots finds the few that changed; the rest works on those
-        changed = dr.compress(self._code != state if changed is None else changed)
-        if dr.width(changed):
-            was = dr.gather(mi.UInt32, self._code, changed)
-            now = dr.gather(mi.UInt32, state, changed)
-            cell = dr.gather(mi.UInt32, self.slot_cell, changed)
-            freed = (was != 0) & (now == 0)
-            germ = (was == _PROPAGULE) & (now == _MOSS)
-            gone = (was == _MOSS) & (now == 0)
-            moss_changed = gone | germ
-            dr.eval(cell, freed, germ, now, moss_changed)
-            # no lazy read of the grid's copy stays behind to make its write copy it
-            del was, gone
+        sl = dr.compress(changed)
+        if dr.width(sl):
+            old = dr.gather(mi.UInt32, self._code if was is None else was, sl)
+            now = dr.gather(mi.UInt32, state, sl)
+            cell = dr.gather(mi.UInt32, self.slot_cell, sl)
+            freed = (old != 0) & (now == 0)
+            germ = (old == _PROPAGULE) & (now == _MOSS)
+            moss_changed = ((old == _MOSS) & (now == 0)) | germ
+            # a new moss's count before it is counted afresh (read before the counts change)
+            nb_before = dr.gather(mi.UInt32, self.nb, sl, germ)
+            if was is None:
+                # no lazy read of the grid's copy stays behind to make its write copy it
+                dr.eval(cell, freed, germ, now, moss_changed, nb_before)
+            del old
             # one write per changed cell (a second write into the pool would be a kernel of
-            # its own)
-            dr.scatter(self.pool, dr.select(germ, (changed + 1) | (_MOSS_BIT | _NEW_BIT),
-                                            mi.UInt32(0)), cell, freed | germ)
+            # its own); a germinated propagule's cell holds a moss from now on
+            dr.scatter(self.pool, dr.select(germ, (sl + 1) | _MOSS_BIT, mi.UInt32(0)), cell,
+                       freed | germ)
             # the grid's own copy of the state, written where it changed (a reference to the
             # population's array would make its next write in place copy the whole array)
-            dr.scatter(self._code, now, changed)
-            dr.eval(self.pool, self._code)
-            # the cells that stop or start holding a moss, from one compress (in slot order:
-            # the counts do not depend on it)
-            at = dr.compress(moss_changed)
-            if dr.width(at):
-                self._moss_changed(dr.gather(mi.UInt32, changed, at),
-                                   dr.gather(mi.Bool, germ, at))
+            dr.scatter(self._code, now, sl)
+            dr.eval(self.pool, self._code, cell, germ, moss_changed, nb_before)
+            # the moss neighbour counts, in the changed slots' width (a lane where the moss
+            # did not change does nothing): no compress of those that did
+            self._moss_counts_follow(
+                sl, germ, moss_changed, nb_before,
+                lambda s, v, m: dr.gather(mi.Bool, changed, s, m)
+                & (dr.gather(mi.UInt32, state, s, m) == _MOSS))
         dr.eval(self.pool)
+
+    def _moss_counts_follow(self, ev, grow, active, nb_before, is_new) -> None:
+        """Update the moss-neighbour counts for slots ``ev`` (where ``active``) whose cell
+        stopped holding a moss (``grow`` False) or started to (``grow`` True), in one kernel:
+        moss that were moss before gain or lose one per changed neighbour; a new moss counts
+        its moss neighbours afresh (new ones included). ``is_new(slots, cell values, mask)``:
+        whether the moss of those slots (holding those cells; read only where ``mask``) are
+        new; ``nb_before``: the new moss's counts before (their counts are summed to theirs
+        minus it, so that both updates are additions into one array in one kernel). The
+        counts do not depend on the order of ``ev``."""
+        (ix, iy, iz), block = self._slot_coords(ev)
+        step = dr.select(grow, mi.UInt32(1), mi.UInt32(_NONE32))  # +1 or -1 (mod 2^32)
+        own = dr.zeros(mi.UInt32, dr.width(ev))
+        for v, ok in self._neighbour_values(ix, iy, iz, active, block):
+            moss = ok & ((v & _MOSS_BIT) != 0)
+            slot = (v & _SLOT_MASK) - 1
+            old = moss & ~is_new(slot, v, moss)
+            # Direct (atomics): few writes into a large array; the default would expand the
+            # array per thread and reduce it afterwards
+            dr.scatter_add(self.nb, step, slot, old, mode=dr.ReduceMode.Direct)
+            own += dr.select(moss & grow, mi.UInt32(1), mi.UInt32(0))
+        dr.scatter_add(self.nb, own - nb_before, ev, active & grow, mode=dr.ReduceMode.Direct)
+        dr.eval(self.nb)
 
     @property
     def state_copy(self) -> mi.UInt32:
@@ -558,40 +600,6 @@ class SpotGrid:
         m = (1 << _BITS) - 1
         return [(mi.UInt32((bk >> (k * _BITS)) & m) << 2) | ((local >> (2 * k)) & 3)
                 for k in range(3)], cell // _B3 + 1
-
-    def _moss_changed(self, ev: mi.UInt32, grow: mi.Bool) -> None:
-        """Update the moss-neighbour counts after the pool has changed: slots ``ev`` whose cell
-        stopped holding a moss (``grow`` False) or that became moss (``grow`` True; their cells
-        carry the "new" bit until this returns). Moss that were moss before gain or lose one per
-        changed neighbour; a new moss counts its moss neighbours afresh (new ones included).
-        The counts do not depend on the order of ``ev``."""
-        if dr.width(ev) == 0:
-            return
-        own = self._pass_changes(ev, grow)
-        dr.scatter(self.nb, own, ev, grow)
-        # the new moss are moss like the others from now on
-        cell = dr.gather(mi.UInt32, self.slot_cell, ev, grow)
-        dr.scatter(self.pool, (ev + 1) | _MOSS_BIT, cell, grow)
-        dr.eval(self.nb, self.pool)
-
-    def _pass_changes(self, ev: mi.UInt32, grow: mi.Bool) -> mi.UInt32:
-        """+1 (``grow``) or -1 to the moss neighbours of the cells of slots ``ev`` that were
-        moss before; returns the moss neighbours of each (for the new moss). A function of its
-        own: its lazy reads of the pool end with it, so a later write to the pool is in place."""
-        (ix, iy, iz), block = self._slot_coords(ev)
-        dr.eval(ix, iy, iz, block)
-        step = dr.select(grow, mi.UInt32(1), mi.UInt32(_NONE32))  # +1 or -1 (mod 2^32)
-        own = dr.zeros(mi.UInt32, dr.width(ev))
-        for v, ok in self._neighbour_values(ix, iy, iz, True, block):
-            moss = ok & ((v & _MOSS_BIT) != 0)
-            # the cell says whether its moss is new: no lookup of the neighbour's slot
-            old = moss & ((v & _NEW_BIT) == 0)
-            # Direct (atomics): few writes into a large array; the default would expand the
-            # array per thread and reduce it afterwards
-            dr.scatter_add(self.nb, step, (v & _SLOT_MASK) - 1, old, mode=dr.ReduceMode.Direct)
-            own += dr.select(moss & grow, mi.UInt32(1), mi.UInt32(0))
-        dr.eval(self.nb, own)
-        return own
 
     # ---- reading ----------------------------------------------------------------------------
     def occupant(self, p: mi.Point3f, active=True) -> mi.UInt32:
