@@ -54,7 +54,7 @@ class DayLeaves:
         return Phenology(self.canopy.n_leaves, self.params, seed=self.seed,
                          leaf_out_shift=self.shift)
 
-    def start(self, ph: Phenology, date, scene_params) -> tuple:
+    def start(self, ph: Phenology, date, scene_params):
         """Leaf-out for ``date``, the canopy's state and the pass's leaf tables.
 
         Parameters
@@ -68,13 +68,16 @@ class DayLeaves:
 
         Returns
         -------
-        tuple
-            (modes, BSDF registry ids) of the leaf triangles, on the device.
+        callable or None
+            :meth:`Canopy.trace_tables`: (modes, BSDF registry ids) of leaf triangles, on the
+            device (None when the canopy has no stage optics).
         """
         # the phenology's state and the canopy's tables in one kernel
         ph.start_of_day(date, evaluate=False)
         self.canopy.update(scene_params, ph.tau, ph.grown, ph.on_tree, also=ph.arrays())
-        return self.canopy.trace_tables()
+        # a function of the triangles: the light stage computes the tables in the kernel that
+        # writes them into the pass's tables
+        return self.canopy.trace_tables if self.canopy.stage_bsdfs else None
 
     def end(self, ph: Phenology, date, S_leaf) -> None:
         """The day's insolation advances the autumn clock (paper 003 §3.3) and leaf fall.

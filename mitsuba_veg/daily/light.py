@@ -195,8 +195,10 @@ class DayLight:
         cover : mi.Float64 or callable
             Moss cover per terrain element [-] (0..1): the albedo follows it; or a function
             of terrain element indices (mi.UInt32) that gives their cover.
-        leaf_tables : tuple, optional
-            (modes, BSDF registry ids) of the leaf triangles (:meth:`Canopy.trace_tables`).
+        leaf_tables : tuple or callable, optional
+            (modes, BSDF registry ids) of the leaf triangles (:meth:`Canopy.trace_tables`), or
+            that method itself (a function of triangle indices): the tables are then computed
+            inside the kernel that writes the pass's tables.
         leaf_area : mi.Float64, optional
             Blade area of each leaf in the pass [m2] (:meth:`Canopy.displayed_area`).
         canopy : Canopy, optional
@@ -213,7 +215,9 @@ class DayLight:
             _, res, pass_area = self.held
             shown = None
             if leaf_tables is not None and self.leaf_elems is not None:
-                shown = dr.gather(mi.UInt32, leaf_tables[0], self.d_leaf_first) == SURFACE
+                first_modes = leaf_tables(self.d_leaf_first)[0] if callable(leaf_tables) \
+                    else dr.gather(mi.UInt32, leaf_tables[0], self.d_leaf_first)
+                shown = first_modes == SURFACE
             return self._light(res, vals, leaf_area, canopy, pass_area, shown)
         # the pass held for the days between goes before the new one is made (its tallies:
         # 3.4 GB on a hectare; freed first, their memory serves the new pass)
@@ -223,13 +227,27 @@ class DayLight:
         t = self.tables
         # moss cover as albedo of the terrain (the pass's reflectance table, written in place)
         n4 = site.n_terrain * 4
-        j = dr.arange(mi.UInt32, n4)
-        c = mi.Float(cover(j // 4) if callable(cover) else dr.gather(mi.Float64, cover, j // 4))
-        alb = (1.0 - c) * dr.gather(mi.Float, self.d_base_albedo, j) + \
-            c * dr.gather(mi.Float, self.d_moss_albedo, j % 4)
-        dr.scatter(t.refl[0], alb, j)
-        if leaf_tables is not None and self.leaf_elems is not None:
-            modes, regs = leaf_tables
+        leaves = leaf_tables is not None and self.leaf_elems is not None
+        n_l = self.leaf_elems[1] - self.leaf_elems[0] if leaves else 0
+        # with the leaf tables as a function of triangles, both tables are written by one
+        # kernel of the larger width (lanes past a table's end write nothing)
+        fused = leaves and callable(leaf_tables) and n4 > 0 and n_l > 0
+        wide = max(n4, n_l) if fused else n4
+        j = dr.arange(mi.UInt32, wide)
+        on = True if wide == n4 else j < n4
+        j4 = dr.minimum(j, n4 - 1) if wide > n4 else j
+        c = mi.Float(cover(j4 // 4) if callable(cover) else dr.gather(mi.Float64, cover, j4 // 4))
+        alb = (1.0 - c) * dr.gather(mi.Float, self.d_base_albedo, j4) + \
+            c * dr.gather(mi.Float, self.d_moss_albedo, j4 % 4)
+        dr.scatter(t.refl[0], alb, j4, on)
+        if fused:
+            jl = dr.minimum(j, n_l - 1) if wide > n_l else j
+            modes, regs = leaf_tables(jl, j < n_l)
+            k = jl + self.leaf_elems[0]
+            dr.scatter(t.modes, modes, k, j < n_l)
+            dr.scatter(t.bsdf_table, regs, k, j < n_l)
+        elif leaves:
+            modes, regs = leaf_tables(None) if callable(leaf_tables) else leaf_tables
             k = dr.arange(mi.UInt32, dr.width(modes)) + self.leaf_elems[0]
             dr.scatter(t.modes, modes, k)
             dr.scatter(t.bsdf_table, regs, k)

@@ -421,11 +421,19 @@ class Canopy:
         (self._lag, self._since, self._stale_prev, self._stale_days,
          self.mesh_updates) = (int(x) for x in np.asarray(d[prefix + "clocks"]))
 
-    def trace_tables(self) -> tuple:
+    def trace_tables(self, tri=None, active=True) -> tuple:
         """The day's per-triangle leaf tables for the photon pass, on the device.
 
         Per leaf triangle: HIDDEN unless the leaf is shown, else SURFACE; the registry id of
         its stage bin's BSDF (what ``PassTables.bsdf_table`` holds).
+
+        Parameters
+        ----------
+        tri : mi.UInt32, optional
+            The leaf triangles wanted (default: all, in order): the tables at them, lazy, for
+            the kernel that reads them.
+        active : mi.Bool or bool
+            With ``tri``: which of them are read.
 
         Returns
         -------
@@ -436,10 +444,12 @@ class Canopy:
         """
         if self.n_leaves == 0 or not self.stage_bsdfs:
             return None, None
-        leaf = self.d_face_leaf
-        mode = dr.select(dr.gather(mi.Bool, self._shown, leaf), mi.UInt32(SURFACE),
+        leaf = self.d_face_leaf if tri is None else \
+            dr.gather(mi.UInt32, self.d_face_leaf, tri, active)
+        mode = dr.select(dr.gather(mi.Bool, self._shown, leaf, active), mi.UInt32(SURFACE),
                          mi.UInt32(HIDDEN))
-        reg = dr.gather(mi.UInt32, self.d_bin_reg, dr.gather(mi.UInt32, self._bin, leaf))
+        reg = dr.gather(mi.UInt32, self.d_bin_reg, dr.gather(mi.UInt32, self._bin, leaf, active),
+                        active)
         return mode, reg
 
     def trace_tables_numpy(self) -> tuple[dict, dict]:
