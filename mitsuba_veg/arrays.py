@@ -363,8 +363,8 @@ def zero_index():
 
 
 class Counters:
-    """``k`` UInt32 counters for a kernel's integer atomics, zero at every use without a launch
-    of their own: two sets used in turn, the kernel that adds into one set also zeroes the other
+    """``k`` integer counters for a kernel's atomics, zero at every use without a launch of
+    their own: two sets used in turn, the kernel that adds into one set also zeroes the other
     (queued writes at the kernel's width) for the next use. A ``dr.zeros`` array would be a
     memset launch each time.
 
@@ -372,11 +372,13 @@ class Counters:
     ----------
     k : int
         Number of counters.
+    t : type
+        Their Dr.Jit array type (``mi.UInt32`` or ``mi.UInt64``).
     """
 
-    def __init__(self, k: int):
-        self.k = int(k)
-        self._sets = [dr.zeros(mi.UInt32, self.k) for _ in range(2)]
+    def __init__(self, k: int, t=mi.UInt32):
+        self.k, self.t = int(k), t
+        self._sets = [dr.zeros(t, self.k) for _ in range(2)]
         dr.eval(self._sets)
         self._turn = 0
 
@@ -391,16 +393,16 @@ class Counters:
 
         Returns
         -------
-        mi.UInt32
+        mi.UInt32 or mi.UInt64
             ``k`` zeros, written in place by the caller's ``scatter_add``.
         """
         self._turn ^= 1
         now = self._sets[self._turn]
         if width >= self.k:
             lane = dr.arange(mi.UInt32, width)
-            dr.scatter(self._sets[1 - self._turn], mi.UInt32(0), lane, lane < self.k)
+            dr.scatter(self._sets[1 - self._turn], self.t(0), lane, lane < self.k)
         else:                       # (a narrow kernel: a launch of its own)
-            self._sets[1 - self._turn] = dr.zeros(mi.UInt32, self.k)
+            self._sets[1 - self._turn] = dr.zeros(self.t, self.k)
             dr.eval(self._sets[1 - self._turn])
         return now
 
@@ -566,12 +568,22 @@ class Tally:
         t.add("par", par * area, segments=tree_of, n_segments=5)
         t.count("alive", pop.state == 2, segments=pop.species, n_segments=3)
         sums = t.evaluate()                               # {name: numpy (n_segments,)}
+
+    Parameters
+    ----------
+    reuse : dict, optional
+        A store of accumulators by size that the caller keeps from call to call (the same
+        columns every day): the sums then start from an accumulator zeroed by the last
+        evaluation's kernel (:class:`Counters`), not from a memset.
     """
 
-    def __init__(self):
+    def __init__(self, reuse: dict | None = None):
         # (name, kind, values, segments, n_segments, mask, bound); kind "sum" or "count"
         self._cols: list[tuple] = []
         self._names: list[tuple[str, bool]] = []
+        # the caller's store of accumulators by size (a daily record sums the same columns
+        # every day: its accumulator is zeroed by the last evaluation's kernel, no memset)
+        self._reuse = reuse
 
     def _check(self, name):
         if name in {n for n, _ in self._names}:
@@ -697,7 +709,15 @@ class Tally:
             if c[1] == "sum" and c[6] is not None:
                 flag_of[i] = n_rows + n_flags
                 n_flags += 2
-        acc = dr.zeros(mi.UInt64, n_rows + n_flags)
+        if self._reuse is None:
+            acc = dr.zeros(mi.UInt64, n_rows + n_flags)
+        else:
+            pool = self._reuse.get(n_rows + n_flags)
+            if pool is None:
+                if len(self._reuse) >= 8:
+                    self._reuse.pop(next(iter(self._reuse)))
+                pool = self._reuse[n_rows + n_flags] = Counters(n_rows + n_flags, mi.UInt64)
+            acc = pool.next(max(dr.width(c[2]) for c in cols))
         # the bounded columns' bounds and scales as kernel inputs, not literals (the same
         # kernels for every run and width; the array is kept while the numbers repeat)
         consts, at = [], {}

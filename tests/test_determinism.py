@@ -190,6 +190,37 @@ def test_tally_with_bounds_sums_in_one_kernel_and_falls_back_when_a_bound_fails(
         Tally().add("z", mi.Float64(np.ones(3)), bound=0.0)
 
 
+def test_tally_reusing_its_accumulator_needs_no_memset_and_sums_the_same():
+    """A tally given a store of accumulators (a daily record: the same columns every day)
+    starts from the accumulator the last evaluation's kernel zeroed: the same sums, day after
+    day, with the bound's fallback too, and no memset launch after the first days."""
+    rng = np.random.default_rng(4)
+    store = {}
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        for day in range(5):
+            x = rng.random(3_000) * (4.0 if day == 3 else 1.0)   # day 3: above the bound
+            seg = rng.integers(0, 3, 3_000).astype(np.uint32)
+
+            def tally(reuse):
+                t = Tally(reuse=reuse)
+                t.add("x", mi.Float64(x), segments=mi.UInt32(seg), n_segments=3, bound=2.0)
+                t.count("c", mi.Bool(x > 0.5))
+                return t
+            ref = tally(None).evaluate()
+            dr.kernel_history()
+            got = tally(store).evaluate()
+            kinds = [str(e["type"]).split(".")[-1] for e in dr.kernel_history()]
+            for k in ref:
+                assert np.array_equal(got[k], ref[k]), (day, k)
+            assert got["c"].sum() == np.count_nonzero(x > 0.5)
+            if day >= 2 and day != 3:
+                assert "Memset" not in kinds and kinds.count("JIT") == 1, (day, kinds)
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)
+
+
 def test_sampling_table_is_summed_on_the_host():
     """veg_sun_path's and veg_sky's tables: the cumulative sums are NumPy's (float64, rounded
     once), the last entry with weight exactly 1, and draws follow the weights."""

@@ -52,6 +52,7 @@ class DayRecord:
         n_sp = len(site.config.species)
         self.names = [s.name for s in site.config.species]
         self.n_sp = n_sp
+        self._accumulators: dict = {}   # the day's sums' accumulators (arrays.Tally(reuse=))
         self.d_living = site.d_living
         self.d_area_living = dr.select(site.d_living, site.d_areas, 0.0)
         self.regions = list(site.regions)
@@ -127,7 +128,8 @@ class DayRecord:
         """
         site = self.site
         day = vals.day
-        t = Tally()
+        # (the same columns every day: the accumulator is zeroed by the last day's kernel)
+        t = Tally(reuse=self._accumulators)
         a = self.d_area_living
         live = self.d_living
         st = soil.surface
