@@ -382,7 +382,7 @@ class Counters:
         dr.eval(self._sets)
         self._turn = 0
 
-    def next(self, width: int) -> mi.UInt32:
+    def next(self, width: int):
         """The zeroed set for a kernel of ``width`` lanes (the call queues the zeroing of the
         other set: evaluate the kernel before the next call).
 

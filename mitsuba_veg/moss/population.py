@@ -33,9 +33,9 @@ FREE, PROPAGULE, MOSS = 0, 1, 2
 GEMMA, SPORE = 0, 1
 #: G_moss step that releases one gemma (paper 000 §3.6: "every +0.5")
 GEMMA_STEP = 0.5
-_MINUS_ONE = 0xFFFFFFFF   # -1 in a UInt32 sum (mod 2^32)
 #: G_moss from which a growing moss releases spores (paper 000 §3.6)
 SPORE_THRESHOLD = 2.0
+_MINUS_ONE = 0xFFFFFFFF   # -1 in a UInt32 sum (mod 2^32)
 
 _FIELDS = ("state", "species", "kind", "elem", "growth", "age", "gemmae")
 #: counts of a day's life cycle (germinated, died, expired, gemma and spore parents, negative
