@@ -311,11 +311,34 @@ def host_array(t, values):
         An evaluated array of the values.
     """
     v = np.ascontiguousarray(np.asarray(values, dtype=_NP_TYPES[dr.type_v(t)]).reshape(-1))
-    buf = np.empty(v.nbytes + 64, np.uint8)
-    off = (-buf.ctypes.data) % 64
-    a = buf[off:off + v.nbytes].view(v.dtype)
+    a = aligned_empty(len(v), v.dtype)
     a[...] = v
     return t(a)
+
+
+def aligned_empty(n: int, dtype) -> np.ndarray:
+    """An uninitialised NumPy array of ``n`` values whose buffer starts on a 64-byte boundary.
+
+    Filled by the caller and then handed to a Dr.Jit constructor, it is mapped (LLVM) without a
+    copy and gives the kernels that read it the same code whatever the allocation
+    (:func:`host_array`); the caller must not write to it afterwards.
+
+    Parameters
+    ----------
+    n : int
+        Number of values.
+    dtype : numpy.dtype
+        Their type.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) array.
+    """
+    dt = np.dtype(dtype)
+    buf = np.empty(int(n) * dt.itemsize + 64, np.uint8)
+    off = (-buf.ctypes.data) % 64
+    return buf[off:off + int(n) * dt.itemsize].view(dt)
 
 
 def opaque(t, value):

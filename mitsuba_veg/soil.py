@@ -203,7 +203,10 @@ class ElementGeology:
         if t is None:
             return tuple(_GEO_COLS[f][self.codes] for f in ("F1", "F2", "theta_sat"))
         if t not in self._cache:
-            vals = tuple(t(_GEO_COLS[f][self.codes]) for f in ("F1", "F2", "theta_sat"))
+            # aligned copies (arrays.host_array: the kernels' code then does not depend on
+            # where NumPy put the values)
+            vals = tuple(arrays.host_array(t, _GEO_COLS[f][self.codes])
+                         for f in ("F1", "F2", "theta_sat"))
             dr.eval(vals)
             self._cache[t] = vals
         return self._cache[t]

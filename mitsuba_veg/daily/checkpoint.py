@@ -17,6 +17,7 @@ from collections import Counter
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import host_array
 from ..errors import ParameterError
 from ..inputs import check_resume, input_hashes
 from ..light import sensors as sensors_mod
@@ -163,7 +164,7 @@ def load(sim) -> bool:
                              f"use --fresh ({e})") from None
     st.moss.grid.rebuild(st.moss.pop.pos, st.moss.pop.state)
     st.day = day
-    st.O = mi.Float64(O)
+    st.O = host_array(mi.Float64, O)
     st.history = json.loads(str(d["history"]))
     sim.timings.update(json.loads(str(d["timings"])))
     return True

@@ -32,6 +32,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import host_array
 from ..light.photon import band_range
 from ..plots import _mpl, plan_map, save_figure
 from ..trees.growth import TipLight
@@ -107,7 +108,7 @@ class YearLight:
             n = self.n if f in self.FIELDS else self.n_ground
             if v.shape != (n,):
                 raise ValueError(f"year_light/{f}: {v.shape} != ({n},)")
-            setattr(self, f, mi.Float64(v))
+            setattr(self, f, host_array(mi.Float64, v))
         self.days = int(d["year_light/days"])
 
 

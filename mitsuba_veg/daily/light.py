@@ -41,6 +41,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import host_array
 from ..integrators.photon_irradiance import (SURFACE, PassTables, PhotonIrradianceResult,
                                              aim_area, split_photons)
 from ..light import sensors as sensors_mod
@@ -139,9 +140,9 @@ class DayLight:
             raise RuntimeError("the terrain's elements must be the first of the index")
         self.d_terrain_rows = dr.arange(mi.UInt32, n_t)
         gsl = site.ground_slice
-        self.d_ground_rows = mi.UInt32(rows[gsl].astype(np.uint32))
-        self.d_ground_area = mi.Float64(np.maximum(idx.areas[gsl], 1e-30))
-        self.d_terrain_area = mi.Float64(np.maximum(site.areas, 1e-30))
+        self.d_ground_rows = host_array(mi.UInt32, rows[gsl])
+        self.d_ground_area = host_array(mi.Float64, np.maximum(idx.areas[gsl], 1e-30))
+        self.d_terrain_area = host_array(mi.Float64, np.maximum(site.areas, 1e-30))
         if c is not None and c.n_leaves:
             lsl = idx.shape_slice(LEAF_MESH)
             self.leaf_elems = (lsl.start, lsl.stop)
@@ -149,18 +150,17 @@ class DayLight:
             lrows = rows[lsl]
             first = c._first
             two = np.r_[np.diff(first), len(lrows) - first[-1]] == 2
-            self.d_leaf_row_a = mi.UInt32(lrows[first].astype(np.uint32))
-            self.d_leaf_row_b = mi.UInt32(lrows[np.where(two, first + 1, first)]
-                                          .astype(np.uint32))
-            self.d_leaf_two = mi.Bool(two)
+            self.d_leaf_row_a = host_array(mi.UInt32, lrows[first])
+            self.d_leaf_row_b = host_array(mi.UInt32, lrows[np.where(two, first + 1, first)])
+            self.d_leaf_two = host_array(mi.Bool, two)
             # each leaf's first triangle in the leaf mesh (its mode: on the tree or hidden)
-            self.d_leaf_first = mi.UInt32(np.asarray(first, np.uint32))
+            self.d_leaf_first = host_array(mi.UInt32, first)
         else:
             self.leaf_elems = None
         if site.sensors is not None:
             ssl = idx.shape_slice(sensors_mod.SENSOR_SHAPE)
-            self.d_sensor_rows = mi.UInt32(rows[ssl].astype(np.uint32))
-        self.d_moss_albedo = mi.Float(np.asarray(cfg.moss_cfg["albedo"], np.float32))
+            self.d_sensor_rows = host_array(mi.UInt32, rows[ssl])
+        self.d_moss_albedo = host_array(mi.Float, cfg.moss_cfg["albedo"])
         self.d_base_albedo = site.d_base_albedo
         self.counts = self._photon_split()
         self.band_index = {b: i for i, b in enumerate(BANDS)}

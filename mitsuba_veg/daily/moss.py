@@ -16,7 +16,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import Pack, zero_index
+from ..arrays import Pack, host_array, zero_index
 from ..moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulation, SlotQueue,
                                SpeciesTable, concat_u32)
 from ..moss.propagules import land, settle, spore_direction, uniform_sphere
@@ -421,20 +421,22 @@ class DayMoss:
             pts[sel] = p0 + u[sel, :1] * (p1 - p0) + u[sel, 1:] * (p2 - p0)
         nrm = idx.normals[tri]
         pts = pts + nrm * 1e-4
-        species = rng.integers(0, len(self.table.species), n)
-        P = mi.Point3f(*[mi.Float(pts[:, k].astype(np.float32)) for k in range(3)])
-        N = mi.Vector3f(*[mi.Float(nrm[:, k].astype(np.float32)) for k in range(3)])
+        species = host_array(mi.UInt32, rng.integers(0, len(self.table.species), n))
+        # aligned host buffers: on the LLVM backend Dr.Jit maps them, and an odd address of a
+        # one-spore array compiled its kernels again with another alignment (arrays.host_array)
+        P = mi.Point3f(*[host_array(mi.Float, pts[:, k]) for k in range(3)])
+        N = mi.Vector3f(*[host_array(mi.Float, nrm[:, k]) for k in range(3)])
         # (when no newcomer can evict anyone, the evicted are not looked for: a launch and a
         # read-back fewer)
-        keep, evicted, cells = settle(st.pop, st.grid, P, mi.UInt32(species.astype(np.uint32)),
+        keep, evicted, cells = settle(st.pop, st.grid, P, species,
                                       dr.arange(mi.UInt32, n), dr.full(mi.Bool, True, n),
                                       may_evict=not self._exclusive(st.pop))
         st.pop.remove(evicted)
         k = dr.compress(keep)
         if dr.width(k):
             g = lambda t, a: dr.gather(t, a, k)  # noqa: E731
-            self._add(st, state, g(mi.UInt32, mi.UInt32(species.astype(np.uint32))), kind,
-                      g(mi.UInt32, mi.UInt32(tri.astype(np.uint32))), g(mi.Point3f, P),
+            self._add(st, state, g(mi.UInt32, species), kind,
+                      g(mi.UInt32, host_array(mi.UInt32, tri)), g(mi.Point3f, P),
                       g(mi.Vector3f, N), growth, sync=dr.width(evicted) > 0,
                       cells=g(mi.UInt32, cells))
 

@@ -45,6 +45,7 @@ import mitsuba as mi
 import numpy as np
 from tqdm.auto import tqdm
 
+from ..arrays import host_array
 from ..backend import versions
 from ..errors import MitsubaVegError
 from ..integrators.scene_index import forget_scene_index
@@ -138,7 +139,7 @@ class DayPipeline:
         DayState
             Day 0.
         """
-        O = mi.Float64(self.site.O0)
+        O = host_array(mi.Float64, self.site.O0)
         dr.eval(O)
         return DayState(0, O, self.moss.new_state(),
                         self.leaves.new_state() if self.leaves is not None else None,

@@ -19,7 +19,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import Tally
+from ..arrays import Tally, host_array
 from ..foliage import leaf_spectra
 from ..light import sensors as sensors_mod
 from ..light.photon import band_range
@@ -56,7 +56,7 @@ class DayRecord:
         self.d_living = site.d_living
         self.d_area_living = dr.select(site.d_living, site.d_areas, 0.0)
         self.regions = list(site.regions)
-        self.d_regions = [mi.Bool(site.regions[r]) for r in self.regions]
+        self.d_regions = [host_array(mi.Bool, site.regions[r]) for r in self.regions]
         gsl = site.ground_slice
         # the ground under each crown, and in the open, as (ground element, group) pairs: one
         # segmented sum per field for all groups (crowns of a stand overlap)
@@ -64,14 +64,14 @@ class DayRecord:
         pe = [np.flatnonzero(m) for m in groups]
         self.n_groups = len(groups)
         pair = np.concatenate(pe).astype(np.uint32) if pe else np.zeros(0, np.uint32)
-        self.d_pair_elem = mi.UInt32(pair)
+        self.d_pair_elem = host_array(mi.UInt32, pair)
         # the pairs' global (terrain) elements and areas: every ground column is gathered at
         # the pairs' width straight from an evaluated array (a gather from an expression would
         # evaluate that expression first, a kernel per column)
-        self.d_pair_terrain = mi.UInt32(pair + np.uint32(gsl.start))
-        self.d_pair_area = mi.Float64(site.index.areas[gsl][pair])
-        self.d_pair_group = mi.UInt32(np.repeat(np.arange(len(pe)), [len(x) for x in pe])
-                                      .astype(np.uint32))
+        self.d_pair_terrain = host_array(mi.UInt32, pair + np.uint32(gsl.start))
+        self.d_pair_area = host_array(mi.Float64, site.index.areas[gsl][pair])
+        self.d_pair_group = host_array(mi.UInt32, np.repeat(np.arange(len(pe)),
+                                                            [len(x) for x in pe]))
         c = site.canopy
         self.world = c is not None and c.n_leaves > 0
         if self.world:
@@ -82,7 +82,7 @@ class DayRecord:
             for b in range(c.bins):
                 R, T = leaf_spectra(stage=c.bin_stage(b)).band_mean(400, 700)
                 a.append(1.0 - float(R) - float(T))
-            self.d_a_par = mi.Float64(np.array(a))
+            self.d_a_par = host_array(mi.Float64, a)
         self.u_red = umol_per_joule(*band_range("red"))
         self.u_fr = umol_per_joule(*band_range("far_red"))
         # the largest areas [m2] (the bounds of the area-weighted columns)

@@ -22,6 +22,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import host_array
 from .. import soil as soil_model
 from ..errors import ParameterError, check_range
 from ..integrators.photon_irradiance import BANDS as BAND_RANGES
@@ -304,11 +305,13 @@ class Site:
         """Device copies of the per-element arrays the day's kernels read."""
         n = self.n_terrain
         self.geology_table = soil_model.ElementGeology(self.geology)
-        self.d_living = mi.Bool(self.living)
-        self.d_M = mi.Float64(self.M)
-        self.d_h = mi.Float64(self.h)
-        self.d_areas = mi.Float64(self.areas)
-        self.d_base_albedo = mi.Float(np.ascontiguousarray(self.base_albedo, np.float32).ravel())
+        # (aligned copies: an array mapped from NumPy memory would also follow later writes to
+        # it, and its address's alignment is part of the kernels' code: arrays.host_array)
+        self.d_living = host_array(mi.Bool, self.living)
+        self.d_M = host_array(mi.Float64, self.M)
+        self.d_h = host_array(mi.Float64, self.h)
+        self.d_areas = host_array(mi.Float64, self.areas)
+        self.d_base_albedo = host_array(mi.Float, self.base_albedo)
         self.d_terrain = dr.arange(mi.UInt32, n)
         dr.eval(self.d_living, self.d_M, self.d_h, self.d_areas, self.d_base_albedo)
 

@@ -24,7 +24,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import Counters, opaque
+from ..arrays import Counters, host_array, opaque
 from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, daily_fitness, fitness
 from .spatial import per_element_count
 from .species import Species
@@ -343,9 +343,9 @@ class MossPopulation:
                              f"{self.capacity}")
         for k in _FIELDS:
             t = mi.Float if k in ("growth", "age") else mi.UInt32
-            setattr(self, k, t(np.asarray(d[k])))
-        self.pos = mi.Point3f(*[mi.Float(np.ascontiguousarray(d["pos"][:, k])) for k in range(3)])
-        self.nrm = mi.Vector3f(*[mi.Float(np.ascontiguousarray(d["nrm"][:, k])) for k in range(3)])
+            setattr(self, k, host_array(t, d[k]))
+        self.pos = mi.Point3f(*[host_array(mi.Float, d["pos"][:, k]) for k in range(3)])
+        self.nrm = mi.Vector3f(*[host_array(mi.Float, d["nrm"][:, k]) for k in range(3)])
         self.overflow = int(d["overflow"])
         self.negative_growth = -1
         self._free = None

@@ -42,6 +42,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..arrays import aligned_empty, host_array
 from ..foliage import leaf_bsdf_dict, leaf_spectra
 from ..foliage.pigments import stage_from_tau
 from ..integrators.photon_irradiance import HIDDEN, SURFACE, registry_id
@@ -109,7 +110,8 @@ class Canopy:
         ntri = np.repeat(np.asarray(per_leaf, np.int64), counts)
         self._first = np.empty(n, np.int64)
         self.centre = np.zeros((n, 3))
-        tri32 = np.empty(F * 9, np.float32)
+        # (aligned: the device table maps it without a copy, arrays.aligned_empty)
+        tri32 = aligned_empty(F * 9, np.float32)
 
         def fill(t):
             q, m = self.trees[t].leaf_vertices, counts[t]
@@ -138,13 +140,14 @@ class Canopy:
             tri32[9 * a:9 * b] = tr.reshape(-1)
         map_on_cores(fill, range(len(self.trees)))
         # device copies: the daily state and tables never leave the device
-        self.d_face_leaf = mi.UInt32(self.face_leaf.astype(np.uint32))
-        self.d_first = mi.UInt32(self._first.astype(np.uint32))
-        self.d_two = mi.Bool(ntri == 2)
-        self.d_area = mi.Float64(self.area)
-        self.d_tree_of = mi.UInt32(self.tree_of.astype(np.uint32))
+        # (aligned copies, not NumPy memory mapped: arrays.host_array)
+        self.d_face_leaf = host_array(mi.UInt32, self.face_leaf)
+        self.d_first = host_array(mi.UInt32, self._first)
+        self.d_two = host_array(mi.Bool, ntri == 2)
+        self.d_area = host_array(mi.Float64, self.area)
+        self.d_tree_of = host_array(mi.UInt32, self.tree_of)
         self.d_tri = mi.Float(tri32)
-        self.d_centre = mi.Float(self.centre.reshape(-1).astype(np.float32))
+        self.d_centre = host_array(mi.Float, self.centre)
         self._bin = dr.zeros(mi.UInt32, n)        # stage bin of each leaf
         self._shown = dr.zeros(mi.Bool, n)        # on the tree with a blade in the mesh
         self._scale = dr.full(mi.Float64, 1.0, n)  # blade size in the mesh (0..1, steps of 0.1)
@@ -232,8 +235,7 @@ class Canopy:
         self._bin = dr.zeros(mi.UInt32, self.n_leaves)
         self._shown = dr.full(mi.Bool, bool(full_leaf), self.n_leaves)
         # registry id of each bin's BSDF (the photon pass's per-triangle BSDF table holds them)
-        self.d_bin_reg = mi.UInt32(np.array([registry_id(b) for b in self.stage_bsdfs],
-                                            np.uint32))
+        self.d_bin_reg = host_array(mi.UInt32, [registry_id(b) for b in self.stage_bsdfs])
         return out
 
     def _bark(self) -> tuple:

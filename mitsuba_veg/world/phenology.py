@@ -27,7 +27,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import opaque
+from ..arrays import host_array, opaque
 from ..errors import check_range
 from ..foliage.autumn import AutumnParams, leaf_factors, tau_raw
 from ..foliage.pigments import stage_from_tau
@@ -112,10 +112,10 @@ class Phenology:
         self.n = int(n)
         self.autumn_params = params.autumn()
         rate, thr = leaf_factors(self.n, self.autumn_params, seed)
-        self.rate, self.fall_threshold = mi.Float64(rate), mi.Float64(thr)
+        self.rate, self.fall_threshold = host_array(mi.Float64, rate), host_array(mi.Float64, thr)
         # sunnier leaves unfold a few days earlier (leaf_out_shift [days], <= 0)
-        self.shift = mi.Float64(np.zeros(self.n) if leaf_out_shift is None else
-                                np.asarray(leaf_out_shift, float))
+        self.shift = host_array(mi.Float64, np.zeros(self.n) if leaf_out_shift is None else
+                                leaf_out_shift)
         self.H = dr.zeros(mi.Float64, self.n)          # insolation since the onset [MJ m-2]
         self.t = dr.zeros(mi.Float64, self.n)          # days since the onset
         self.tau_raw = dr.zeros(mi.Float64, self.n)
@@ -255,5 +255,4 @@ class Phenology:
             v = np.asarray(d[prefix + k])
             if v.shape != (self.n,):
                 raise ValueError(f"{prefix + k}: {v.shape} != ({self.n},)")
-            setattr(self, k, mi.Bool(v.astype(bool)) if k == "fallen" else
-                    mi.Float64(v.astype(np.float64)))
+            setattr(self, k, host_array(mi.Bool if k == "fallen" else mi.Float64, v))
