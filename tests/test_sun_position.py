@@ -286,3 +286,24 @@ def test_day_sun_path_in_polar_night_is_empty():
     assert dirs.shape == (0, 3) and w.shape == (0,) and el.shape == (0,)
     dirs, w, el = day_sun_path(80.0, 0.0, dt.date(2026, 6, 21), step_minutes=30.0)
     assert len(w) == 48 and np.all(w > 0)     # midnight sun: every step of the day
+
+
+def test_day_sun_paths_of_a_long_run_come_in_blocks_with_the_values_of_one_call(monkeypatch):
+    """Runs longer than sun_path's 3,660 days (simulation.days allows 100,000): day_sun_paths
+    computes them in blocks; with blocks of 7 days, 20 days (at 78 N the polar night begins
+    on 25 October: days without rows) equal one call's arrays, day by day."""
+    from mitsuba_veg.light import sunpath
+    one = sunpath.day_sun_paths(78.0, 0.0, dt.date(2026, 10, 20), 20)
+    monkeypatch.setattr(sunpath, "SUN_PATH_BLOCK_DAYS", 7)
+    blocks = sunpath.day_sun_paths(78.0, 0.0, dt.date(2026, 10, 20), 20)
+    assert np.array_equal(one.offsets, blocks.offsets) and len(one.offsets) == 21
+    assert np.diff(one.offsets)[-1] == 0 < np.diff(one.offsets)[0]   # the sun sets for good
+    for f in ("directions", "weights", "elevations"):
+        assert np.array_equal(getattr(one, f), getattr(blocks, f)), f
+    for k in (0, 6, 7, 13, 14):            # each block's first and last day as day_sun_path
+        d, w, _ = blocks.day(k)
+        d1, w1, _ = sunpath.day_sun_path(78.0, 0.0, dt.date(2026, 10, 20) + dt.timedelta(k))
+        np.testing.assert_allclose(w, w1, rtol=1e-12)
+        np.testing.assert_allclose(d, d1, rtol=1e-12, atol=1e-15)
+    with pytest.raises(ParameterError, match="days"):
+        sunpath.day_sun_paths(78.0, 0.0, dt.date(2026, 10, 20), 100_001)
