@@ -11,7 +11,9 @@ same photon split, so that load from other processes hits both. Printed:
   per-day ratios; the issue's target on the CPU is <= 1.2);
 - kernel launches per day (Dr.Jit's kernel history, every kind: JIT kernels, reductions,
   compress, memset/memcpy, host tasks) and how many kernels were compiled (cache misses; 0 in
-  a steady day), and the same for the bare pass; the launches per stage of the day (the
+  a steady day) or loaded from Dr.Jit's disk cache (new to the process: a machine with an
+  empty cache compiles these too; run with HOME set to an empty folder to see that case on the
+  CPU), and the same for the bare pass; the launches per stage of the day (the
   record's ``launches``, counted by the day itself while the history is on);
 - the device and backend.
 """
@@ -74,7 +76,7 @@ def main(argv=None) -> int:
 
     bare(sim.day)                             # this path's own kernels compile once
     days, passes, ratios, stages = [], [], [], collections.defaultdict(list)
-    k_day, k_bare, c_day, c_bare, kinds = [], [], [], [], []
+    k_day, k_bare, c_day, c_bare, kinds, n_day = [], [], [], [], [], []
 
     def _kind(t):
         t = str(t).split(".")[-1]
@@ -99,6 +101,8 @@ def main(argv=None) -> int:
         k_day.append(sum(lc["stages"].values()) + len(h))
         c_day.append(lc["compiled"] + sum(1 for x in h if x["type"] == dr.KernelType.JIT
                                           and not x["cache_hit"]))
+        n_day.append(lc.get("loaded", 0) + sum(
+            1 for x in h if x["type"] == dr.KernelType.JIT and x["cache_hit"] and x["cache_disk"]))
         kc = collections.Counter()
         for k, v in lc["kinds"].items():
             kc[_kind(k)] += v
@@ -134,7 +138,9 @@ def main(argv=None) -> int:
            for k in ("kernels", "reductions", "memory/host")}
     print(f"kernel launches per day: {np.median(k_day):.0f} (min {min(k_day)}, max {max(k_day)};"
           f" target <= 40): " + ", ".join(f"{k} {v:.0f}" for k, v in med.items())
-          + f"; compiled {max(c_day)} (max of a day); bare pass: {np.median(k_bare):.0f} "
+          + f"; compiled {max(c_day)} (max of a day), on {sum(c > 0 for c in c_day)} of "
+          f"{a.days} days; loaded from the disk cache {max(n_day)} (max of a day), on "
+          f"{sum(n > 0 for n in n_day)} days; bare pass: {np.median(k_bare):.0f} "
           f"launches, compiled {max(c_bare)}")
     print("launches per stage (min-max over the days): " + ", ".join(
         f"{k} {min(v)}-{max(v)}" for k, v in per_stage.items() if max(v) > 0))

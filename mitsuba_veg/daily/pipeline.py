@@ -12,9 +12,11 @@ parameters) on Dr.Jit arrays of the variant's backend::
     moss     germination, growth, death, gemmae, spores                 (daily/moss.py)
     record   a few dozen sums on the device, read back once             (daily/record.py)
 
-After 31 December the trees of ``model = "growth"`` grow one generation from their year's
-light (:meth:`Simulation.regrow`): the light scene is rebuilt with them; the soil water and the
-moss carry over (the terrain's elements come first and do not change), the leaves start bare.
+After 31 December (:meth:`Simulation.regrow`) the trees of ``model = "growth"`` grow one
+generation from their year's light, Weber-Penn trees with ``adapt_yearly`` lose the subtrees
+paper 002's death rule condemns and those with an ``age`` grow along their age curve: the light
+scene is rebuilt with them; the soil water and the moss carry over (the terrain's elements come
+first and do not change), the leaves start bare.
 
 With ``simulation.light_every = N`` the light stage traces its pass every N-th day and the
 days between scale the last pass by their own weather (:mod:`mitsuba_veg.daily.light`);
@@ -220,7 +222,7 @@ class DayPipeline:
         launches("record")
         if launches.on:
             rec["launches"] = {"stages": launches.n, "kinds": launches.kinds,
-                               "compiled": launches.compiled}
+                               "compiled": launches.compiled, "loaded": launches.loaded}
         st.O = soil.O
         st.history.append(rec)
         st.day += 1
@@ -235,13 +237,16 @@ class _Launches:
     (``dr.JitFlag.KernelHistory``: benchmarks/world_day.py); otherwise nothing is counted.
     Calling it with a stage's name adds the launches since the last call (the history is read
     and cleared) to that stage; ``kinds`` counts them by Dr.Jit's kernel type (JIT, reductions,
-    memset/memcpy, host tasks), ``compiled`` the JIT kernels that missed the cache."""
+    memset/memcpy, host tasks), ``compiled`` the JIT kernels that missed the cache and ``loaded``
+    those found in Dr.Jit's disk cache only (new to the process: a machine with an empty cache,
+    e.g. a fresh GPU machine, compiles these too)."""
 
     def __init__(self):
         self.on = bool(dr.flag(dr.JitFlag.KernelHistory))
         self.n: dict = {}
         self.kinds: dict = {}
         self.compiled = 0
+        self.loaded = 0
 
     def __call__(self, stage: str) -> None:
         if self.on:
@@ -250,7 +255,9 @@ class _Launches:
             for x in h:
                 k = str(x["type"]).split(".")[-1]
                 self.kinds[k] = self.kinds.get(k, 0) + 1
-                self.compiled += int(x["type"] == dr.KernelType.JIT and not x["cache_hit"])
+                jit = x["type"] == dr.KernelType.JIT
+                self.compiled += int(jit and not x["cache_hit"])
+                self.loaded += int(jit and bool(x["cache_hit"]) and bool(x["cache_disk"]))
 
 
 class HostFields(dict):
