@@ -145,6 +145,9 @@ CASES = [
     (T + ["--light-every", "0", "--out", "{tmp}/o6"], "--light-every"),
     (T + ["--set", "light.photonz=1", "--out", "{tmp}/o6"], "light.photonz"),
     (T + ["--out", "{tmp}/run"], "--out"),
+    # export-gltf
+    (["export-gltf", "{tmp}/missing_run"], "RUN_DIR"),
+    (["export-gltf", "{tmp}/run", "--day", "0"], "--day"),
     # the command itself
     (["grwo", "x.toml"], "grwo"),
 ]
@@ -157,7 +160,8 @@ def _argv(case, tmp):
 def test_table_has_40_cases_over_every_command():
     assert len(CASES) >= 40
     cmds = {c[0][0] for c in CASES}
-    assert {"run", "irradiance", "light-study", "render", "animate", "grow", "tune"} <= cmds
+    assert {"run", "irradiance", "light-study", "render", "animate", "grow", "tune", "sweep",
+            "demo", "export-gltf"} <= cmds
 
 
 @pytest.mark.parametrize("argv, field", CASES, ids=[f"{i:02d}-{c[0][0]}-{c[1]}"

@@ -92,7 +92,11 @@ def test_plate_transmissivity_and_its_derivative():
 # ------------------------------------------------------------------------------------------
 # PROSPECT-D: Dr.Jit against NumPy
 # ------------------------------------------------------------------------------------------
-def test_prospect_dr_matches_numpy():
+def test_numpy_face_broadcasts_leaves_and_wavelengths_as_the_model():
+    """``foliage.prospect.prospect_d`` is the NumPy face of the one Dr.Jit model: its
+    broadcasting over leaves, the extremes of every range and a wavelength subset give the
+    model's spectra. (The model itself is checked against prosail's implementation in
+    tests/test_leaf_spectra.py.)"""
     rng = np.random.default_rng(8)
     p = random_parameters(rng, 64)
     wl, R, T = prospect.prospect_d(**p)
