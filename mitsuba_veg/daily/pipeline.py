@@ -133,8 +133,14 @@ class DayPipeline:
         self.record = DayRecord(site)
         self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
 
-    def new_state(self) -> DayState:
+    def new_state(self, moss=None) -> DayState:
         """The state before the first day: buckets at field capacity, no moss, bare trees.
+
+        Parameters
+        ----------
+        moss : MossState, optional
+            A moss state to carry instead of a new, empty one (the year's end keeps its
+            population and grid: a new grid would reserve its blocks for nothing).
 
         Returns
         -------
@@ -143,7 +149,7 @@ class DayPipeline:
         """
         O = host_array(mi.Float64, self.site.O0)
         dr.eval(O)
-        return DayState(0, O, self.moss.new_state(),
+        return DayState(0, O, self.moss.new_state() if moss is None else moss,
                         self.leaves.new_state() if self.leaves is not None else None,
                         year=self.growth.new_state() if self.growth is not None else None)
 
@@ -644,13 +650,12 @@ class Simulation:
         if self.albedo:
             self.site.set_albedo(self.albedo)
         self.pipeline = DayPipeline(self.site, self.inputs, self.light_strength)
-        st = self.pipeline.new_state()
+        # the moss keep their slots and cells (the grid's origin is the terrain's, which
+        # the trees do not move)
+        st = self.pipeline.new_state(moss=old.moss)
         st.day, st.O, st.history = old.day, old.O, old.history
         st.sensor_days, st.growth_log = old.sensor_days, old.growth_log
         st.floor_log = old.floor_log
-        # the moss keep their slots and cells (the grid's origin is the terrain's, which
-        # the trees do not move)
-        st.moss = old.moss
         self.state = st
 
     def run(self, resume: bool = True, on_day=None) -> dict:

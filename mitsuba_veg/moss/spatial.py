@@ -252,7 +252,10 @@ class SpotGrid:
         per_axis = 2 if piece + lift + 0.1 * self.cell < edge else 3
         keys = []
         for d in np.ndindex(per_axis, per_axis, per_axis):
-            bk = np.minimum(b_lo + np.array(d), b_hi).astype(np.uint64)
+            # only the pieces whose box reaches that far (most lie in one block per axis);
+            # a clamped offset would repeat a key of a smaller one
+            bk = b_lo + np.array(d)
+            bk = bk[np.all(bk <= b_hi, axis=1)].astype(np.uint64)
             keys.append(bk[:, 0] | (bk[:, 1] << np.uint64(_BITS))
                         | (bk[:, 2] << np.uint64(2 * _BITS)) | np.uint64(_USED))
         keys = np.unique(np.concatenate(keys))
