@@ -22,8 +22,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..arrays import host_array
 from .. import soil as soil_model
+from ..arrays import host_array
 from ..errors import ParameterError, check_range
 from ..integrators.photon_irradiance import BANDS as BAND_RANGES
 from ..integrators.photon_irradiance import PhotonIrradianceIntegrator, scene_index
