@@ -360,7 +360,8 @@ class Canopy:
     def _set_blades(self, params, scale) -> None:
         """Blades at ``scale`` (per leaf, 0..1) around their centres in the light scene; a
         blade at 0 is taken out of the mesh (NaN corners: no triangle for the ray tracer)."""
-        scale = scale if dr.is_array_v(scale) else mi.Float64(np.asarray(scale, float))
+        # (a copy: a NumPy array, e.g. a checkpoint's, would otherwise be mapped, arrays.host_array)
+        scale = scale if dr.is_array_v(scale) else host_array(mi.Float64, scale)
         dr.eval(scale)
         F = len(self.face_leaf)
         k = dr.arange(mi.UInt32, 9 * F)          # triangle, corner, axis
