@@ -123,9 +123,14 @@ class VegSky(mi.Emitter):
         spec = props[key]
         if isinstance(spec, (int, float)):
             spec = mi.load_dict({"type": "uniform", "value": float(spec)})
+        elif not isinstance(spec, mi.Texture) and type(spec).__name__ == "Spectrum":
+            # a scene file's <spectrum name="radiance" value="..."/>: Mitsuba makes the texture
+            # (uniform for one value, irregular for wavelength:value pairs)
+            spec = props.get_unbounded_texture(key)
         if not isinstance(spec, mi.Texture):
             raise ParameterError(f"veg_sky {key}", spec, "a spectrum (e.g. {'type': 'regular', "
-                                 "...}) or a number")
+                                 "...}, or <spectrum value=\"...\"/> in a scene file) or a "
+                                 "number")
         self.m_radiance = spec
         #: the property the spectrum came from, and its name in ``mi.traverse``
         self.spectrum_key = key

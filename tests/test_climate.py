@@ -81,5 +81,11 @@ def test_one_declination_for_every_daily_formula():
     from mitsuba_veg.render.seasons import daily_extraterrestrial_mj
     assert float(solar_declination(246)) == pytest.approx(0.120, abs=5e-4)
     assert float(sunset_hour_angle(-20.0, 246)) == pytest.approx(1.527, abs=1e-3)
-    assert float(daily_extraterrestrial_mj(-20.0, 246)) == pytest.approx(
-        float(extraterrestrial_irradiation(-20.0, 246)) / 1e6, rel=1e-12)
+    # FAO-56 example 8: Ra = 32.2 MJ m-2 d-1 with Gsc = 1367 W m-2 (the package's is 1361)
+    assert float(daily_extraterrestrial_mj(-20.0, 246)) == pytest.approx(32.2 * 1361 / 1367,
+                                                                          abs=0.05)
+    assert float(extraterrestrial_irradiation(-20.0, 246)) / 1e6 == pytest.approx(
+        32.2 * 1361 / 1367, abs=0.05)
+    # the world's noon sun at 20 S on 3 September: 90 - |-20 - 6.876| deg
+    from mitsuba_veg.daily.inputs import noon_elevation
+    assert float(noon_elevation(-20.0, 246)) == pytest.approx(90 - (20 + 6.876), abs=0.03)

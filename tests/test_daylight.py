@@ -146,6 +146,11 @@ def test_daylight_from_place_and_time():
     ref = daylight_from_angles(float(az), float(el), day_of_year=173, sky_resolution=32)
     assert np.allclose(d["sun"]["direction"], ref["sun"]["direction"])
     assert d["sun"]["irradiance"] == ref["sun"]["irradiance"]
+    # the sun where pvlib's NREL SPA puts it (azimuth 171.479 deg, apparent elevation 65.110
+    # deg): the emitter's direction is the light's, away from the sun (+x east, +y up, +z south)
+    a_, e_ = np.radians(171.479339), np.radians(65.110335)
+    towards = np.array([np.sin(a_) * np.cos(e_), np.sin(e_), -np.cos(a_) * np.cos(e_)])
+    np.testing.assert_allclose(d["sun"]["direction"], -towards, atol=1e-3)   # ~0.06 deg
     night = dt.datetime(2024, 6, 21, 23, 0, tzinfo=dt.timezone.utc)
     assert daylight(48.14, 11.58, night) == {}
     with pytest.raises(ParameterError):

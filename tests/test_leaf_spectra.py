@@ -12,10 +12,21 @@ def test_prospect_d_matches_the_prosail_reference_implementation():
     prosail = pytest.importorskip("prosail")
     cases = [(1.5, 40, 5, 0, 0, 0.012, 0.005), (2.1, 60, 10, 5, 0.1, 0.013, 0.016),
              (1.3, 3, 2.2, 22, 0, 0.012, 0.005), (1.0, 0, 0, 0, 0, 0.0, 0.001)]
+    # and 16 random leaves over the parameters' ranges, and the upper end of every range
+    rng = np.random.default_rng(21)
+    lo, hi = np.array([1.0, 0, 0, 0, 0, 0.0005, 0.0005]), np.array([3.5, 150, 40, 60, 1, 0.05,
+                                                                    0.03])
+    cases += [tuple(x) for x in rng.uniform(lo, hi, (16, 7))]
+    cases.append((4.0, 200, 60, 100, 5, 0.2, 0.1))
     for N, cab, car, ant, cb, cw, cm in cases:
         wl, R, T = fo.prospect_d(N, cab, car, ant, cb, cw, cm)
         _, R2, T2 = prosail.run_prospect(N, cab, car, cb, cw, cm, ant=ant)
         assert np.max(np.abs(R - R2)) < 1e-10 and np.max(np.abs(T - T2)) < 1e-10
+    # all the leaves at once (one spectrum per leaf) give each leaf's spectra
+    P = np.array(cases[4:]).T
+    _, Rb, Tb = fo.prospect_d(*P)
+    _, R1, T1 = fo.prospect_d(*cases[-1])
+    assert Rb.shape == (17, 2101) and np.max(np.abs(Rb[-1] - R1)) < 1e-12
 
 
 def test_spectra_cover_400_2500_nm_and_conserve_energy():

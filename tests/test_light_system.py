@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import mitsuba_veg as mv
+import drjit as dr
 import mitsuba as mi
 
 from mitsuba_veg.errors import ParameterError, VariantError
@@ -110,11 +111,25 @@ def test_variant_is_spectral_and_rgb_is_refused():
 
 
 def test_plugins_load_from_xml_after_import():
-    integ = mi.load_dict({"type": "veg_photon_irradiance", "photons": 1000})
-    assert "PhotonIrradianceIntegrator" in str(integ)
-    sky = mi.load_dict({"type": "veg_sky", "distribution": "uniform",
-                        "radiance": {"type": "uniform", "value": 1.0}})
-    assert sky is not None
+    """The integrator and the sky from a scene file: properties as XML tags, the sky's spectrum
+    as a scene file writes it (one value, or wavelength:value pairs), read as given."""
+    scene = mi.load_string("""<scene version="3.0.0">
+        <integrator type="veg_photon_irradiance"><integer name="photons" value="1000"/>
+        </integrator>
+        <emitter type="veg_sky"><string name="distribution" value="uniform"/>
+            <spectrum name="radiance" value="400:1, 700:2"/></emitter>
+        <shape type="rectangle"/></scene>""")
+    integ = scene.integrator()
+    assert "PhotonIrradianceIntegrator" in str(integ) and integ.photons == 1000
+    sky = scene.emitters()[0]
+    si = dr.zeros(mi.SurfaceInteraction3f)
+    si.wavelengths = mi.Spectrum(400.0, 550.0, 650.0, 700.0)
+    np.testing.assert_allclose(np.asarray(sky.m_radiance.eval(si)).ravel(),
+                               [1.0, 1.5, 1.0 + 250.0 / 300.0, 2.0], rtol=1e-6)
+    one = mi.load_string('<emitter version="3.0.0" type="veg_sky"><spectrum name="irradiance" '
+                         'value="2.0"/></emitter>')
+    assert one.spectrum_key == "irradiance"
+    np.testing.assert_allclose(np.asarray(one.m_radiance.eval(si)).ravel(), 2.0)
 
 
 def test_veg_sky_traverse_names_its_spectrum():

@@ -219,6 +219,9 @@ def test_propagules_land_fall_or_vanish():
     assert landed[2] and rsl.start <= e[2] < rsl.stop and y[2] == pytest.approx(0.55, abs=1e-3)
     # 3: falls onto the back of the one-sided sheet: removed
     assert not landed[3]
+    # 4: released at 0.3 m, moves 5 cm along +z, falls onto the ground below that point
+    assert landed[4] and gsl.start <= e[4] < gsl.stop and abs(y[4]) < 1e-3
+    assert np.asarray(p.z)[4] == pytest.approx(0.05, abs=1e-4)
     # 5: leaves the ground's edge (z > 1) and falls into nothing: removed
     assert not landed[5]
 

@@ -50,8 +50,20 @@ def test_spectrum_and_regular_dict():
 
 
 def test_leaf_bsdf_dict():
+    """A leaf's render BSDF carries the PROSPECT-D spectra of its autumn time (tau clipped to
+    0..1): green leaves absorb red, red ones reflect it."""
+    from mitsuba_veg.foliage import leaf_bsdf_dict, leaf_spectra
     d = materials.leaf_bsdf(0.0)
     assert d["type"] == "veg_leaf" and "transmittance" in d
+    assert d == leaf_bsdf_dict(leaf_spectra(tau=0.0))
+    assert materials.leaf_bsdf(1.7) == materials.leaf_bsdf(1.0) != d
+    assert materials.leaf_bsdf(-0.5) == d
+
+    def red(bsdf_d):     # reflectance at 660 nm of the regular spectrum (1 nm from its start)
+        r = bsdf_d["reflectance"]
+        v = np.array([float(x) for x in r["values"].split(",")])
+        return v[int(round(660 - r["wavelength_min"]))]
+    assert red(materials.leaf_bsdf(1.0)) > 3 * red(d)
 
 
 # ---- tufts -------------------------------------------------------------------------------------

@@ -1,7 +1,8 @@
 """PROSPECT-D in Dr.Jit, differentiable leaf colour, and fits of pigments to a leaf colour.
 
-References: the NumPy PROSPECT-D (``foliage.prospect``, itself tested against ``prosail``),
-SciPy's exponential integral, ``spectra.spectrum_to_srgb`` and colour-science's CIELAB, central
+References: ``prosail`` (through tests/test_leaf_spectra.py; ``foliage.prospect`` is the NumPy
+face of the one Dr.Jit model), SciPy's exponential integral, colour-science's XYZ, sRGB and
+CIELAB, the NumPy colour pipeline (``spectra.spectrum_to_srgb``) against the Dr.Jit one, central
 finite differences, and synthetic inverse problems with known pigments (Ishikura stages of
 ``foliage.pigments``). Numbers: docs/tuning.md, "Leaf colour (PROSPECT-D)".
 """
@@ -153,9 +154,22 @@ def test_prospect_dr_gradients_match_finite_differences():
 # ------------------------------------------------------------------------------------------
 def test_colour_matches_spectrum_to_srgb_and_colour_science():
     import colour
-    # the weights are those of spectrum_to_srgb
-    assert np.array_equal(cdr.colour_weights(prospect.WAVELENGTHS),
-                          spectra._cmfs(prospect.WAVELENGTHS))
+    # XYZ and sRGB of leaf spectra against colour-science's own integration (CIE 1931 2 deg,
+    # D65, 360-830 nm with the 400 nm value held below 400 nm as in the scenes) and its sRGB
+    wl_v = np.arange(360, 831)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    W_v = cdr.colour_weights(wl_v)
+    for st in (1, 4, 7):
+        _, wl, R, T = stage_leaf(st)
+        r = np.concatenate([np.full(40, R[0]), R[:431]])
+        sd = colour.SpectralDistribution(dict(zip(wl_v, r)))
+        xyz_ref = colour.sd_to_XYZ(sd, cmfs, colour.SDS_ILLUMINANTS["D65"],
+                                   method="Integration") / 100
+        np.testing.assert_allclose(r @ W_v, xyz_ref, rtol=1e-4)
+        for exposure in (1.0, 4.0):
+            srgb_ref = np.clip(colour.XYZ_to_sRGB(xyz_ref * exposure), 0.0, 1.0)
+            np.testing.assert_allclose(spectra.spectrum_to_srgb(wl_v, r, exposure), srgb_ref,
+                                       atol=5e-4)
     spec = []
     for st in range(1, 8):
         _, wl, R, T = stage_leaf(st)

@@ -59,7 +59,7 @@ def test_presets_load_with_sources_and_1995_values():
                                "ca_black_oak", "sassafras"}
     for name in wp.PRESETS:
         p = wp.load_params(name)
-        assert p.name == name and "Weber" in p.source or "Arbaro" in p.source
+        assert p.name == name and ("Weber" in p.source or "Arbaro" in p.source)
         assert set(p.levels) == set(wp.LEVEL_DEFAULTS)
         assert all(len(v) == 4 for v in p.levels.values())
     a = wp.load_params("quaking_aspen")

@@ -199,9 +199,12 @@ def day_sun_paths(latitude, longitude, start, days: int, step_minutes: float = 1
     """The sun paths of ``days`` consecutive days in vectorised calls: day ``k`` is exactly
     :func:`day_sun_path` of ``start + k`` (the same steps of the same UTC days, the same
     SPCTRAL2 DNI and normalisation), computed for all days at a run's set-up instead of once a
-    day, in blocks of up to :data:`SUN_PATH_BLOCK_DAYS` days on the machine's cores (each day
+    day, in blocks of up to :data:`SUN_PATH_BLOCK_DAYS` days on the machine's cores. Each day
     is normalised on its own and every step is computed element by element, so the blocks give
-    the values of one call, bit for bit: tests/test_sun_position.py).
+    the values of one call (bit for bit for 20 days in blocks of 7 in
+    tests/test_sun_position.py, and for 730 and 3,653 days in blocks of 122; NumPy's
+    vectorised functions may round the last bit of a value otherwise for arrays of only a few
+    elements: SPCTRAL2 of one sun alone differs from the same sun among four by ~1e-15).
 
     Parameters
     ----------
