@@ -159,12 +159,12 @@ def test_colour_matches_spectrum_to_srgb_and_colour_science():
     wl_v = np.arange(360, 831)
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     W_v = cdr.colour_weights(wl_v)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(cmfs.shape)   # (no alignment warning)
     for st in (1, 4, 7):
         _, wl, R, T = stage_leaf(st)
         r = np.concatenate([np.full(40, R[0]), R[:431]])
         sd = colour.SpectralDistribution(dict(zip(wl_v, r)))
-        xyz_ref = colour.sd_to_XYZ(sd, cmfs, colour.SDS_ILLUMINANTS["D65"],
-                                   method="Integration") / 100
+        xyz_ref = colour.sd_to_XYZ(sd, cmfs, d65, method="Integration") / 100
         np.testing.assert_allclose(r @ W_v, xyz_ref, rtol=1e-4)
         for exposure in (1.0, 4.0):
             srgb_ref = np.clip(colour.XYZ_to_sRGB(xyz_ref * exposure), 0.0, 1.0)
