@@ -265,7 +265,7 @@ def test_leaf_tables_change_the_light_without_a_recompile(summer, tmp_path):
     def day(tau, on_tree):
         c.update(P.scene_params, mi.Float64(tau), ph.grown, mi.Bool(on_tree))
         with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-            light = P.light(vals, cover, c.trace_tables(), c.displayed_area(), c)
+            light = P.light(vals, cover, c.trace_tables, c.displayed_area(), c)
             dr.eval(light.ground["par"])
             hist = dr.kernel_history([dr.KernelType.JIT])
         res = light.result

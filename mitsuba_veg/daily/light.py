@@ -195,10 +195,10 @@ class DayLight:
         cover : mi.Float64 or callable
             Moss cover per terrain element [-] (0..1): the albedo follows it; or a function
             of terrain element indices (mi.UInt32) that gives their cover.
-        leaf_tables : tuple or callable, optional
-            (modes, BSDF registry ids) of the leaf triangles (:meth:`Canopy.trace_tables`), or
-            that method itself (a function of triangle indices): the tables are then computed
-            inside the kernel that writes the pass's tables.
+        leaf_tables : callable, optional
+            :meth:`Canopy.trace_tables`: (modes, BSDF registry ids) at leaf triangles, a
+            function of triangle indices, so that the tables are computed inside the kernel
+            that writes the pass's tables.
         leaf_area : mi.Float64, optional
             Blade area of each leaf in the pass [m2] (:meth:`Canopy.displayed_area`).
         canopy : Canopy, optional
@@ -215,9 +215,7 @@ class DayLight:
             _, res, pass_area = self.held
             shown = None
             if leaf_tables is not None and self.leaf_elems is not None:
-                first_modes = leaf_tables(self.d_leaf_first)[0] if callable(leaf_tables) \
-                    else dr.gather(mi.UInt32, leaf_tables[0], self.d_leaf_first)
-                shown = first_modes == SURFACE
+                shown = leaf_tables(self.d_leaf_first)[0] == SURFACE
             return self._light(res, vals, leaf_area, canopy, pass_area, shown)
         # the pass held for the days between goes before the new one is made (its tallies:
         # 3.4 GB on a hectare; freed first, their memory serves the new pass)
@@ -229,10 +227,9 @@ class DayLight:
         n4 = site.n_terrain * 4
         leaves = leaf_tables is not None and self.leaf_elems is not None
         n_l = self.leaf_elems[1] - self.leaf_elems[0] if leaves else 0
-        # with the leaf tables as a function of triangles, both tables are written by one
-        # kernel of the larger width (lanes past a table's end write nothing)
-        fused = leaves and callable(leaf_tables) and n4 > 0 and n_l > 0
-        wide = max(n4, n_l) if fused else n4
+        # the albedo and the leaf tables are written by one kernel of the larger width (lanes
+        # past a table's end write nothing; the terrain has elements, the canopy leaves)
+        wide = max(n4, n_l)
         j = dr.arange(mi.UInt32, wide)
         on = True if wide == n4 else j < n4
         j4 = dr.minimum(j, n4 - 1) if wide > n4 else j
@@ -240,17 +237,12 @@ class DayLight:
         alb = (1.0 - c) * dr.gather(mi.Float, self.d_base_albedo, j4) + \
             c * dr.gather(mi.Float, self.d_moss_albedo, j4 % 4)
         dr.scatter(t.refl[0], alb, j4, on)
-        if fused:
+        if leaves:
             jl = dr.minimum(j, n_l - 1) if wide > n_l else j
             modes, regs = leaf_tables(jl, j < n_l)
             k = jl + self.leaf_elems[0]
             dr.scatter(t.modes, modes, k, j < n_l)
             dr.scatter(t.bsdf_table, regs, k, j < n_l)
-        elif leaves:
-            modes, regs = leaf_tables(None) if callable(leaf_tables) else leaf_tables
-            k = dr.arange(mi.UInt32, dr.width(modes)) + self.leaf_elems[0]
-            dr.scatter(t.modes, modes, k)
-            dr.scatter(t.bsdf_table, regs, k)
         dr.eval(t.refl[0], t.modes, t.bsdf_table)
         seed = (self.seed * 10_007 + day) & 0x7FFFFFFF
         res = site.integrator.trace(site.scene, photons=self.photons, seed=seed,
