@@ -42,7 +42,8 @@ from ..scenario import site_offset_hours, site_time
 from . import materials as mat
 from .cameras import sensor_dict
 from .film import film_dict
-from .moss import MossSet, growth_scale, place_tufts
+from .carpet import BUMP_SCALE, carpet_patches, grid_origin, moss_texture
+from .moss import MossSet, place_tufts
 from .noise import pink_noise_image
 from .trees import leaf_bin_arrays, tree_shapes
 
@@ -70,10 +71,11 @@ class RenderOptions:
     hour: float = 10.0
     #: material of the ring around the ground (None: no ring)
     surround: str | None = "gravel"
-    moss_jitter: float = 0.35
+    moss_jitter: float = 0.12
+    #: draw each moss's carpet patch (its simulated cover); False: tufts only
+    moss_carpet: bool = True
     seed: int = 0
     leaf_bins: int = 12
-    cover_resolution: int = 1024
     sampler: str = "multijitter"
 
     @property
@@ -90,7 +92,7 @@ class RenderOptions:
         """Check the settings' ranges.
 
         width and height 8-16384 [px], spp 1-2^20, max_depth 1-100, hour 0-24 [h],
-        moss_jitter 0-2 [-], leaf_bins 1-64, cover_resolution 16-8192 [px], surround a material of
+        moss_jitter 0-2 [-], leaf_bins 1-64, surround a material of
         :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
 
         Returns
@@ -110,7 +112,6 @@ class RenderOptions:
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
-        check_range("cover_resolution", self.cover_resolution, 16, 8192)
         if self.surround is not None and self.surround not in mat.SPECTRA:
             raise ParameterError("surround", self.surround, "a material name or None",
                                  "one of " + ", ".join(sorted(mat.SPECTRA)))
@@ -136,8 +137,8 @@ class RenderScene:
         """Replace the moss (and, when given, the trees' leaves) of the scene.
 
         The scene must have been built with ``species`` (and with trees when ``trees`` is given).
-        The moss meshes, the ground's moss-cover texture and the leaf-bin meshes get new buffers;
-        the Mitsuba objects stay the same.
+        The moss meshes (tufts and carpet) and the leaf-bin meshes get new buffers; the Mitsuba
+        objects stay the same.
 
         Parameters
         ----------
@@ -160,24 +161,20 @@ class RenderScene:
         params = mi.traverse(self.scene)
         keys = set(params.keys())
         info = {}
-        parts = _moss_parts(moss, self.moss_size, self.options, self.species)
-        for sid, (v, f, tone, count) in parts.items():
+        parts = _moss_parts(moss, self.moss_size, self.options, self.species, self.terrain)
+        for sid, part in parts.items():
             if f"{sid}.faces" not in keys:
                 raise SceneError(f"update(): the scene has no mesh '{sid}': build it with "
                                  f"species={self.species!r}")
-            params[f"{sid}.vertex_positions"] = mi.Float(np.ascontiguousarray(v).ravel())
-            params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
-            params[f"{sid}.vertex_tone"] = mi.Float(np.ascontiguousarray(tone).ravel())
-        info["tufts"] = int(sum(c for *_, c in parts.values()))
-        g = self.terrain.ground if self.terrain is not None else None
-        ck = f"{g}.bsdf.brdf_0.weight.data"
-        if g is not None and ck in keys:
-            cover = self.terrain.moss_cover(moss, self.moss_size, self.options.cover_resolution) \
-                if moss is not None and len(moss) else None
-            shape = tuple(params[ck].shape)
-            if cover is None or cover.shape != shape[:2]:
-                cover = np.zeros(shape[:2], np.float32) if cover is None else cover
-            params[ck] = mi.TensorXf(np.ascontiguousarray(cover.reshape(shape)))
+            flat = lambda a: np.ascontiguousarray(a).ravel()  # noqa: E731
+            params[f"{sid}.vertex_positions"] = mi.Float(flat(part["v"]))
+            params[f"{sid}.faces"] = mi.UInt32(flat(part["f"]))
+            params[f"{sid}.vertex_tone"] = mi.Float(flat(part["tone"]))
+            if "normals" in part:
+                params[f"{sid}.vertex_normals"] = mi.Float(flat(part["normals"]))
+                params[f"{sid}.vertex_texcoords"] = mi.Float(flat(part["uv"]))
+        info["tufts"] = int(sum(p["count"] for sid, p in parts.items()
+                                if not sid.startswith(CARPET_PREFIX)))
         if trees is not None:
             for sid, (v, f) in leaf_bin_arrays(trees, self.options, self.tree_cache).items():
                 if f"{sid}.faces" in keys:
@@ -348,19 +345,12 @@ class Terrain:
         return Terrain(meshes, ground, masks, noise, base, uv_scale, mats)
 
     # ground material --------------------------------------------------------------------------
-    def ground_bsdf(self, cover: np.ndarray | None) -> dict:
-        """The ground's BSDF dict: geology classes, 1/f variation and moss cover.
+    def ground_bsdf(self) -> dict:
+        """The ground's BSDF dict: geology classes and 1/f variation.
 
         Humus everywhere, sand and asphalt where their masks are 1 (nested ``blendbsdf``s); each
-        class varies between its dark and light spectrum by the noise image; the moss-carpet base
-        spectrum is blended in by ``cover``. Without geology masks the ground's
-        ``[render.materials]`` material (default humus) is used.
-
-        Parameters
-        ----------
-        cover : numpy.ndarray or None
-            Moss cover (H, W) in [0, 1] [-] over the ground's UV space (:meth:`moss_cover`), or
-            None.
+        class varies between its dark and light spectrum by the noise image. Without geology
+        masks the ground's ``[render.materials]`` material (default humus) is used.
 
         Returns
         -------
@@ -385,61 +375,29 @@ class Terrain:
                 b = mat.blend(b, varied("sand"), _bitmap(sand))
             if asph.any():
                 b = mat.blend(b, varied("asphalt"), _bitmap(asph))
-        if cover is not None:
-            b = mat.blend(b, mat.diffuse("moss_base"), _bitmap(cover))
         return b
 
-    def moss_cover(self, moss: MossSet, size: float, resolution: int = 1024) -> np.ndarray | None:
-        """Moss cover of the ground in its UV space (H, W) in [0, 1].
-
-        Each moss on the ground (found by a 6 mm ray from 2 mm above it, down its normal) is
-        splatted into a ``resolution`` x ``resolution`` image with weight ``growth_scale(G)^2`` and
-        blurred with a Gaussian of sigma 0.45 ``size`` (the tuft's footprint).
+    def grid_origin(self, size: float) -> np.ndarray:
+        """The origin of the run's spot grid of cell ``size`` [m] (its cells are the moss
+        carpet's patches): 1.5 cells below the terrain meshes' bounding box, as the daily loop
+        builds it (:func:`mitsuba_veg.render.carpet.grid_origin`).
 
         Parameters
         ----------
-        moss : MossSet
-            The living moss.
         size : float
-            Moss size of the run [m].
-        resolution : int, optional
-            Image size [px] (default 1024).
+            The run's moss size [m].
 
         Returns
         -------
-        numpy.ndarray or None
-            Cover (resolution, resolution) float32 in [0, 1] [-]; None when there is no ground with
-            UVs, no moss, or no moss on the ground.
+        numpy.ndarray
+            (3,) [m].
         """
-        if self.ground is None or self.meshes[self.ground][2] is None or len(moss) == 0:
-            return None
-        o = moss.pos + moss.nrm * 2e-3
-        ray = mi.Ray3f(mi.Point3f(*[mi.Float(o[:, k].astype(np.float32)) for k in range(3)]),
-                       mi.Vector3f(*[mi.Float((-moss.nrm[:, k]).astype(np.float32))
-                                     for k in range(3)]))
-        ray.maxt = mi.Float(6e-3)
-        si = self.base_scene.ray_intersect(ray)
-        valid = np.asarray(si.is_valid())
-        gid = np.array([s.id() == self.ground for s in self.base_scene.shapes()])
-        reg = np.asarray(dr.reinterpret_array(mi.UInt32, self.base_scene.shapes_dr()))
-        shp = np.asarray(dr.reinterpret_array(mi.UInt32, si.shape))
-        on = valid & np.isin(shp, reg[gid])
-        if not on.any():
-            return None
-        uv = np.stack([np.asarray(si.uv.x), np.asarray(si.uv.y)], 1)[on]
-        R = int(resolution)
-        img = np.zeros((R, R))
-        col = np.clip((uv[:, 0] * R).astype(np.int64), 0, R - 1)
-        row = np.clip((uv[:, 1] * R).astype(np.int64), 0, R - 1)
-        w = growth_scale(moss.growth[on]) ** 2
-        np.add.at(img, (row, col), w)
-        # a disc of the tuft's footprint: Gaussian blur with sigma ~ 0.45 size (FFT)
-        sigma = 0.45 * size / (self.uv_scale / R)
-        img = _gauss_blur(img, sigma) * (2 * math.pi * sigma ** 2) * 0.9
-        return np.clip(img, 0.0, 1.0).astype(np.float32)
+        v = np.concatenate([np.asarray(m[0], np.float64).reshape(-1, 3)
+                            for m in self.meshes.values()])
+        return grid_origin(v.min(0), size)
 
     # shapes -----------------------------------------------------------------------------------
-    def shapes(self, cover=None, surround: str | None = "gravel") -> dict:
+    def shapes(self, surround: str | None = "gravel") -> dict:
         """Mitsuba mesh dicts of the terrain, all two-sided.
 
         The ground gets :meth:`ground_bsdf`, other meshes their ``[render.materials]`` spectrum
@@ -448,8 +406,6 @@ class Terrain:
 
         Parameters
         ----------
-        cover : numpy.ndarray, optional
-            Moss cover of the ground (:meth:`moss_cover`), or None.
         surround : str or None, optional
             Material of the ring around the ground (default ``"gravel"``; None: no ring).
 
@@ -461,7 +417,7 @@ class Terrain:
         out = {}
         for sid, (v, f, uv, nrm) in self.meshes.items():
             if sid == self.ground:
-                bsdf = self.ground_bsdf(cover)
+                bsdf = self.ground_bsdf()
             else:
                 bsdf = mat.diffuse(self.materials.get(sid, "concrete"))
             out[sid] = make_mesh(sid, v, f, {"type": "twosided", "bsdf": bsdf}, uv=uv,
@@ -523,40 +479,75 @@ class Terrain:
         return v.min(0).astype(float), v.max(0).astype(float)
 
 
-def _gauss_blur(img, sigma):
-    if sigma < 0.3:
-        return img
-    h, w = img.shape
-    fy = np.fft.fftfreq(h)[:, None]
-    fx = np.fft.rfftfreq(w)[None, :]
-    g = np.exp(-2 * (math.pi * sigma) ** 2 * (fx ** 2 + fy ** 2))
-    return np.fft.irfft2(np.fft.rfft2(img) * g, s=img.shape)
-
-
 # ---- moss ----------------------------------------------------------------------------------------
-_EMPTY = (np.full((3, 3), -1e4, np.float32), np.array([[0, 1, 2]], np.uint32),
-          np.zeros(3, np.float32), 0)   # one degenerate triangle far away: an "empty" mesh
+#: mesh ids of the carpet: ``moss_carpet_<species>``; of the tufts: ``moss_<species>``
+CARPET_PREFIX = "moss_carpet_"
+
+
+def _empty_part(carpet: bool) -> dict:
+    """One degenerate triangle far away: an "empty" mesh that keeps the scene's structure."""
+    part = {"v": np.full((3, 3), -1e4, np.float32), "f": np.array([[0, 1, 2]], np.uint32),
+            "tone": np.zeros(3, np.float32), "count": 0}
+    if carpet:
+        part.update(normals=np.tile(np.float32([0, 1, 0]), (3, 1)),
+                    uv=np.zeros((3, 2), np.float32))
+    return part
 
 
 def _moss_parts(moss: MossSet | None, size: float, options: RenderOptions,
-                species: list | None = None) -> dict:
-    """{mesh id: (vertices, faces, tone, tuft count)}: one merged mesh per species present,
-    and an empty one for each key in ``species`` without moss."""
+                species: list | None = None, terrain: "Terrain | None" = None) -> dict:
+    """``{mesh id: {"v", "f", "tone", "count"[, "normals", "uv"]}}`` per species present: one
+    merged tuft mesh (``moss_<species>``) and, with ``options.moss_carpet`` and a terrain, one
+    carpet mesh (``moss_carpet_<species>``, with shading normals and texture coordinates); empty
+    ones for each key in ``species`` without moss."""
     out = {}
+    carpet = bool(options.moss_carpet and terrain is not None)
+    origin = terrain.grid_origin(size) if terrain is not None else None
     if moss is not None and len(moss):
-        for tm in place_tufts(moss, size=size, jitter=options.moss_jitter, seed=options.seed):
-            out[f"moss_{tm.species}"] = (tm.vertices, tm.faces, tm.tone, tm.count)
+        # tufts stand on the carpet's cushion (its edge ~0.05 size, its centre ~0.1 size high)
+        for tm in place_tufts(moss, size=size, jitter=options.moss_jitter, seed=options.seed,
+                              origin=origin, lift=0.08 * size if carpet else 0.0):
+            out[f"moss_{tm.species}"] = {"v": tm.vertices, "f": tm.faces, "tone": tm.tone,
+                                         "count": tm.count}
+        if carpet:
+            for cm in carpet_patches(moss, size, origin, scene=terrain.base_scene,
+                                     seed=options.seed):
+                out[f"{CARPET_PREFIX}{cm.species}"] = {
+                    "v": cm.vertices, "f": cm.faces, "tone": cm.tone, "normals": cm.normals,
+                    "uv": cm.uv, "count": cm.count}
     for sp in species or []:
-        out.setdefault(f"moss_{sp}", _EMPTY)
+        out.setdefault(f"moss_{sp}", _empty_part(False))
+        if carpet:
+            out.setdefault(f"{CARPET_PREFIX}{sp}", _empty_part(True))
     return dict(sorted(out.items()))
 
 
-def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
-                species: list | None = None) -> tuple[dict, dict]:
-    """Merged tuft meshes (one per species) and counts.
+def _moss_bsdf(species: str, carpet: bool) -> dict:
+    """The two-sided BSDF of a species' tufts or carpet.
 
-    Each mesh is two-sided and blends the species' dark and light spectra by its per-vertex
-    ``vertex_tone`` (species without spectra of their own use ``hypnum_plumaeforme``'s).
+    Tufts blend the species' dark and light spectra by their ``vertex_tone``. The carpet
+    shows shoot tips (:func:`~mitsuba_veg.render.carpet.moss_texture`, over its texture
+    coordinates in metres / :data:`~mitsuba_veg.render.carpet.TEXTURE_TILE`): between the tips the
+    dark spectrum, on them the blend by ``vertex_tone``; the same texture bumps its shading.
+    """
+    key = species if species in mat.MOSS_MATERIAL else "hypnum_plumaeforme"
+    dark = mat.diffuse(mat.MOSS_MATERIAL[key])
+    light = mat.diffuse(mat.MOSS_MATERIAL[key] + "_light")
+    toned = mat.blend(dark, light, {"type": "mesh_attribute", "name": "vertex_tone"})
+    if not carpet:
+        return {"type": "twosided", "bsdf": toned}
+    tex = _bitmap(moss_texture(), wrap="repeat")
+    return {"type": "twosided", "bsdf": {"type": "bumpmap", "arg": tex, "scale": BUMP_SCALE,
+                                         "bsdf": mat.blend(dark, toned, tex)}}
+
+
+def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
+                species: list | None = None, terrain: "Terrain | None" = None
+                ) -> tuple[dict, dict]:
+    """Merged moss meshes (tufts and carpet, one each per species) and counts.
+
+    Both are two-sided and blend the species' dark and light spectra (species without spectra
+    of their own use ``hypnum_plumaeforme``'s; :func:`_moss_bsdf`).
 
     Parameters
     ----------
@@ -565,28 +556,29 @@ def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
     size : float
         Moss size of the run [m].
     options : RenderOptions
-        Gives ``moss_jitter`` and ``seed``.
+        Gives ``moss_jitter``, ``moss_carpet`` and ``seed``.
     species : list of str, optional
-        Species keys that always get a mesh (an empty one without moss).
+        Species keys that always get meshes (empty ones without moss).
+    terrain : Terrain, optional
+        The terrain: its spot grid places the tufts and the carpet (:mod:`.carpet`); None: tufts
+        at the moss positions and no carpet.
 
     Returns
     -------
     shapes : dict
-        ``{"moss_<species>": mesh}``.
+        ``{"moss_<species>": mesh, "moss_carpet_<species>": mesh}``.
     info : dict
-        ``tufts`` and ``moss_triangles`` counts.
+        ``tufts``, ``carpet_patches`` and ``moss_triangles`` counts.
     """
-    out, info = {}, {"tufts": 0, "moss_triangles": 0}
-    for sid, (v, f, tone, count) in _moss_parts(moss, size, options, species).items():
-        sp = sid[len("moss_"):]
-        key = sp if sp in mat.MOSS_MATERIAL else "hypnum_plumaeforme"
-        dark = mat.diffuse(mat.MOSS_MATERIAL[key])
-        light = mat.diffuse(mat.MOSS_MATERIAL[key] + "_light")
-        bsdf = {"type": "twosided", "bsdf": mat.blend(dark, light, {
-            "type": "mesh_attribute", "name": "vertex_tone"})}
-        out[sid] = make_mesh(sid, v, f, bsdf, attributes={"vertex_tone": tone})
-        info["tufts"] += count
-        info["moss_triangles"] += len(f) if count else 0
+    out, info = {}, {"tufts": 0, "carpet_patches": 0, "moss_triangles": 0}
+    for sid, part in _moss_parts(moss, size, options, species, terrain).items():
+        carpet = sid.startswith(CARPET_PREFIX)
+        sp = sid[len(CARPET_PREFIX if carpet else "moss_"):]
+        out[sid] = make_mesh(sid, part["v"], part["f"], _moss_bsdf(sp, carpet),
+                             uv=part.get("uv"), normals=part.get("normals"),
+                             attributes={"vertex_tone": part["tone"]})
+        info["carpet_patches" if carpet else "tufts"] += part["count"]
+        info["moss_triangles"] += len(part["f"]) if part["count"] else 0
     return out, info
 
 
@@ -703,21 +695,17 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     t0 = time.perf_counter()
     terrain = terrain or Terrain.from_scenario(scn)
     t1 = time.perf_counter()
-    info = {"tufts": 0, "moss_triangles": 0, "trees": 0, "leaves": 0, "tree_triangles": 0}
+    info = {"tufts": 0, "carpet_patches": 0, "moss_triangles": 0, "trees": 0, "leaves": 0,
+            "tree_triangles": 0}
     d = {"type": "scene",
          "integrator": {"type": "path", "max_depth": int(options.max_depth),
                         "rr_depth": 4, "hide_emitters": False}}
-    cover = None
-    if moss is not None and len(moss):
-        cover = terrain.moss_cover(moss, moss_size, options.cover_resolution)
     if (moss is not None and len(moss)) or species:
-        ms, mi_info = moss_shapes(moss, moss_size, options, species)
+        ms, mi_info = moss_shapes(moss, moss_size, options, species, terrain)
         d.update(ms)
         info.update(mi_info)
-    if species and cover is None:
-        cover = np.zeros((8, 8), np.float32)
     t2 = time.perf_counter()
-    d.update(terrain.shapes(cover, options.surround))
+    d.update(terrain.shapes(options.surround))
     if trees:
         tree_cache = {} if tree_cache is None else tree_cache
         ts, t_info = tree_shapes(trees, options, cache=tree_cache)
