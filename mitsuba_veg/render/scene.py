@@ -69,8 +69,9 @@ class RenderOptions:
     #: ISO date-time of the light; None: the day being rendered at ``hour`` local time
     when: str | None = None
     hour: float = 10.0
-    #: material of the ring around the ground (None: no ring)
-    surround: str | None = "gravel"
+    #: material of the ground around the scene to the horizon: "ground" (the ground's own),
+    #: a material name, or None (none)
+    surround: str | None = "ground"
     moss_jitter: float = 0.12
     #: draw each moss's carpet patch (its simulated cover); False: tufts only
     moss_carpet: bool = True
@@ -92,7 +93,7 @@ class RenderOptions:
         """Check the settings' ranges.
 
         width and height 8-16384 [px], spp 1-2^20, max_depth 1-100, hour 0-24 [h],
-        moss_jitter 0-2 [-], leaf_bins 1-64, surround a material of
+        moss_jitter 0-2 [-], leaf_bins 1-64, surround ``"ground"``, a material of
         :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
 
         Returns
@@ -112,9 +113,10 @@ class RenderOptions:
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
-        if self.surround is not None and self.surround not in mat.SPECTRA:
-            raise ParameterError("surround", self.surround, "a material name or None",
-                                 "one of " + ", ".join(sorted(mat.SPECTRA)))
+        if self.surround is not None and self.surround != "ground" and \
+                self.surround not in mat.SPECTRA:
+            raise ParameterError("surround", self.surround, "'ground', a material name or None",
+                                 "one of ground, " + ", ".join(sorted(mat.SPECTRA)))
         return self
 
 
@@ -273,6 +275,144 @@ def _bitmap(img, raw=True, filter_type="bilinear", wrap="clamp") -> dict:
             "wrap_mode": wrap}
 
 
+#: distance of the surround's far edge from the ground's centre [m]: from 20 m up its edge lies
+#: 0.01 degrees below the horizon (under a pixel of a 1920-px, 50-degree view)
+SURROUND_RADIUS = 1.0e5
+#: materials chosen from a mesh's name when neither the scenario nor the scene file gives one
+#: (shell-style patterns, first match wins)
+NAME_MATERIALS = (("log*", "bark"), ("trunk*", "bark"), ("stump*", "wood"), ("branch*", "bark"),
+                  ("rock*", "stone"), ("stone*", "stone"), ("boulder*", "stone"),
+                  ("house*", "concrete"), ("wall*", "concrete"), ("building*", "concrete"),
+                  ("roof*", "concrete"), ("path*", "asphalt"), ("road*", "asphalt"),
+                  ("pavement*", "asphalt"), ("sand*", "sand"), ("gravel*", "gravel"))
+
+
+def _plan_uv(v, metres_per_uv: float) -> np.ndarray:
+    """Texture coordinates from the plan: (x, z) / ``metres_per_uv``."""
+    v = np.asarray(v, np.float64)
+    return (v[:, [0, 2]] / float(metres_per_uv)).astype(np.float32)
+
+
+def _outer_boundary(v, f):
+    """The vertex indices of a mesh's longest boundary loop, in order (None if it has none)."""
+    f = np.asarray(f, np.int64)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    bnd = e[cnt[inv.ravel()] == 1]
+    if len(bnd) < 3:
+        return None
+    nxt = dict(zip(bnd[:, 0].tolist(), bnd[:, 1].tolist()))
+    loops, seen = [], set()
+    for s0 in nxt:
+        if s0 in seen:
+            continue
+        loop, p = [], s0
+        while p not in seen and p in nxt:
+            seen.add(p)
+            loop.append(p)
+            p = nxt[p]
+        if p == s0 and len(loop) >= 3:
+            loops.append(loop)
+    if not loops:
+        return None
+    v = np.asarray(v, np.float64)
+    # the outer loop encloses the largest area in plan
+    def plan_area(lp):
+        x, z = v[lp, 0], v[lp, 2]
+        return abs(np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1)))
+    return np.array(max(loops, key=plan_area))
+
+
+def scene_bsdf_ids(path) -> set:
+    """The ids of the shapes that a Mitsuba XML scene file gives a BSDF of their own (a nested
+    ``<bsdf>`` or a ``<ref>`` to one).
+
+    Parameters
+    ----------
+    path : path-like
+        The XML file.
+
+    Returns
+    -------
+    set of str
+        Shape ids.
+    """
+    import xml.etree.ElementTree as ET
+    try:
+        root = ET.parse(str(path)).getroot()
+    except (ET.ParseError, OSError):
+        return set()
+    bsdf_ids = {el.get("id") for el in root.iter("bsdf") if el.get("id")}
+    out = set()
+    for sh in root.iter("shape"):
+        sid = sh.get("id")
+        if not sid:
+            continue
+        if sh.find("bsdf") is not None or any(r.get("id") in bsdf_ids for r in sh.findall("ref")):
+            out.add(sid)
+    return out
+
+
+def resolve_materials(scn, meshes: dict, ground: str | None, base) -> dict:
+    """The render material of every terrain mesh, in this order:
+
+    1. the scenario's ``[render.materials]``: a shape id or a shell-style pattern (``"log_*"``)
+       mapped to a material of :data:`~mitsuba_veg.render.materials.SPECTRA` (the first key that
+       matches, in the file's order; a key that matches no mesh is refused);
+    2. the scene file's own BSDF of that shape (the loaded object, as the file defines it);
+    3. a material from the mesh's name (:data:`NAME_MATERIALS`: ``log_*`` bark, ``rock_*``
+       stone, ``house``/``wall`` concrete, ...);
+    4. its terrain role: the ``[terrain.geology]`` class of the moss model (humus, sand,
+       asphalt; humus by default).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario.
+    meshes : dict
+        The terrain meshes by id.
+    ground : str or None
+        The ground's id.
+    base : mitsuba.Scene
+        The loaded scene (its shapes' BSDF objects).
+
+    Returns
+    -------
+    dict
+        ``{id: material name or mitsuba.BSDF}``.
+
+    Raises
+    ------
+    ParameterError
+        If ``[render.materials]`` names an unknown material or a key matches no mesh.
+    """
+    import fnmatch
+    given = dict(scn.get("render.materials", {}) or {})
+    for k, v in given.items():
+        if v not in mat.SPECTRA:
+            raise ParameterError(f"render.materials.{k}", v, "one of " +
+                                 ", ".join(sorted(mat.SPECTRA)), None, str(scn.path))
+        if not any(fnmatch.fnmatchcase(sid, k) for sid in meshes):
+            raise ParameterError("render.materials", k, "a mesh id or pattern of the scene: " +
+                                 ", ".join(meshes), "remove it or fix its name", str(scn.path))
+    own = scene_bsdf_ids(scn.file("scene.file")) if scn.get("scene.file") else set()
+    objs = {sh.id(): sh.bsdf() for sh in base.shapes() if sh.is_mesh()}
+    geology = dict(scn.get("terrain.geology", {}) or {})
+    out = {}
+    for sid in meshes:
+        hit = next((v for k, v in given.items() if fnmatch.fnmatchcase(sid, k)), None)
+        if hit is None and sid in own and sid in objs:
+            hit = objs[sid]
+        if hit is None:
+            hit = next((m for pat, m in NAME_MATERIALS if fnmatch.fnmatchcase(sid.lower(), pat)),
+                       None)
+        if hit is None:
+            hit = mat.GEOLOGY_MATERIAL.get(geology.get(sid, "humus"), "humus")
+        out[sid] = hit
+    return out
+
+
 # ---- terrain -----------------------------------------------------------------------------------
 @dataclass
 class Terrain:
@@ -285,7 +425,9 @@ class Terrain:
     noise: np.ndarray                 # (H, W) 1/f noise in [0, 1]
     base_scene: mi.Scene              # the scenario's geometry (for ray casts)
     uv_scale: float = 1.0             # metres per UV unit on the ground
-    materials: dict = field(default_factory=dict)   # id -> material name
+    #: id -> material name (:data:`~mitsuba_veg.render.materials.SPECTRA`) or the scene file's own
+    #: BSDF object (:func:`resolve_materials`)
+    materials: dict = field(default_factory=dict)
 
     @staticmethod
     def from_scenario(scn) -> "Terrain":
@@ -337,44 +479,51 @@ class Terrain:
                 masks = [(codes == k).astype(np.float32) for k in range(3)]
         noise = pink_noise_image((512, 512), scale_px=96.0, octaves=6, seed=7)
         noise = np.clip(0.5 + 1.1 * noise, 0.0, 1.0).astype(np.float32)
-        mats = dict(scn.get("render.materials", {}) or {})
-        for k, v in mats.items():
-            if v not in mat.SPECTRA:
-                raise ParameterError(f"render.materials.{k}", v, "one of " +
-                                     ", ".join(sorted(mat.SPECTRA)), None, str(scn.path))
-        return Terrain(meshes, ground, masks, noise, base, uv_scale, mats)
+        if ground is not None and meshes[ground][2] is None:
+            # a ground without texture coordinates: its plan (x, z) over its extent, so that
+            # the ground's 1/f texture varies over it
+            v, f, _, nrm = meshes[ground]
+            lo, hi = v.min(0), v.max(0)
+            span = float(max(hi[0] - lo[0], hi[2] - lo[2], 1e-6))
+            uv = np.c_[(v[:, 0] - lo[0]) / span, (v[:, 2] - lo[2]) / span].astype(np.float32)
+            meshes[ground] = (v, f, uv, nrm)
+            uv_scale = span
+        materials = resolve_materials(scn, meshes, ground, base)
+        return Terrain(meshes, ground, masks, noise, base, uv_scale, materials)
 
-    # ground material --------------------------------------------------------------------------
+    # materials -------------------------------------------------------------------------------
+    def _varied(self, name: str) -> dict:
+        """A material's diffuse BSDF, varied by the 1/f noise between it and its ``_light`` (or
+        ``_dark``) variant where one exists."""
+        noise = _bitmap(self.noise, wrap="repeat")
+        for other, first in ((name + "_light", True), (name + "_dark", False)):
+            if other in mat.SPECTRA:
+                a, b = (name, other) if first else (other, name)
+                return mat.blend(mat.diffuse(a), mat.diffuse(b), noise)
+        return mat.diffuse(name)
+
     def ground_bsdf(self) -> dict:
-        """The ground's BSDF dict: geology classes and 1/f variation.
+        """The ground's (one-sided) BSDF dict.
 
-        Humus everywhere, sand and asphalt where their masks are 1 (nested ``blendbsdf``s); each
-        class varies between its dark and light spectrum by the noise image. Without geology
-        masks the ground's ``[render.materials]`` material (default humus) is used.
+        With geology masks (``terrain.geology_texture``): humus everywhere, sand and asphalt where
+        their masks are 1 (nested ``blendbsdf``s); each class varies between its dark and light
+        spectrum by the 1/f noise image. Without them, the ground's material
+        (:func:`resolve_materials`), varied the same way when it is a named spectrum.
 
         Returns
         -------
-        dict
-            The (one-sided) BSDF dict.
+        dict or mitsuba.BSDF
+            The BSDF (the scene file's own object where that is the ground's material).
         """
-        noise = _bitmap(self.noise, wrap="repeat")
-
-        def varied(name):
-            light = name + "_light"
-            if light not in mat.SPECTRA:
-                return mat.diffuse(name)
-            return mat.blend(mat.diffuse(name), mat.diffuse(light), noise)
-
         if self.geology_masks is None:
-            b = varied(self.materials.get(self.ground, "humus"))
-        else:
-            hum, sand, asph = self.geology_masks
-            # humus everywhere, sand where its mask is 1, asphalt where its mask is 1
-            b = varied("humus")
-            if sand.any():
-                b = mat.blend(b, varied("sand"), _bitmap(sand))
-            if asph.any():
-                b = mat.blend(b, varied("asphalt"), _bitmap(asph))
+            m = self.materials.get(self.ground, "humus")
+            return self._varied(m) if isinstance(m, str) else m
+        hum, sand, asph = self.geology_masks
+        b = self._varied("humus")
+        if sand.any():
+            b = mat.blend(b, self._varied("sand"), _bitmap(sand))
+        if asph.any():
+            b = mat.blend(b, self._varied("asphalt"), _bitmap(asph))
         return b
 
     def grid_origin(self, size: float) -> np.ndarray:
@@ -397,17 +546,20 @@ class Terrain:
         return grid_origin(v.min(0), size)
 
     # shapes -----------------------------------------------------------------------------------
-    def shapes(self, surround: str | None = "gravel") -> dict:
+    def shapes(self, surround: str | None = "ground") -> dict:
         """Mitsuba mesh dicts of the terrain, all two-sided.
 
-        The ground gets :meth:`ground_bsdf`, other meshes their ``[render.materials]`` spectrum
-        (default concrete); ``surround`` adds a flat ring out to 2 km around the ground, 1 mm below
-        its rim.
+        The ground gets :meth:`ground_bsdf`, other meshes their material
+        (:func:`resolve_materials`: a named spectrum, varied by noise where it has a variant, or
+        the scene file's own BSDF); ``surround`` adds ground around the scene out to
+        :data:`SURROUND_RADIUS` (:meth:`surround`).
 
         Parameters
         ----------
         surround : str or None, optional
-            Material of the ring around the ground (default ``"gravel"``; None: no ring).
+            Material of the ground around the scene: ``"ground"`` (default: the ground's own
+            material, humus for a geology-textured ground), a material name, or None (no
+            surround).
 
         Returns
         -------
@@ -419,39 +571,76 @@ class Terrain:
             if sid == self.ground:
                 bsdf = self.ground_bsdf()
             else:
-                bsdf = mat.diffuse(self.materials.get(sid, "concrete"))
+                m = self.materials.get(sid, "concrete")
+                if isinstance(m, str):
+                    if uv is None:      # the plan as texture coordinates: the noise varies
+                        uv = _plan_uv(v, 2.0)
+                    bsdf = self._varied(m)
+                else:
+                    bsdf = m
             out[sid] = make_mesh(sid, v, f, {"type": "twosided", "bsdf": bsdf}, uv=uv,
                                  normals=nrm)
         if surround is not None:
-            ring = self._surround()
+            ring = self.surround()
             if ring is not None:
-                out["surround"] = make_mesh("surround", ring[0], ring[1],
-                                            {"type": "twosided", "bsdf": mat.diffuse(surround)})
+                m = surround
+                if surround == "ground":
+                    g = self.materials.get(self.ground, "humus")
+                    m = "humus" if self.geology_masks is not None or not isinstance(g, str) \
+                        else g
+                out["surround"] = make_mesh(
+                    "surround", ring[0], ring[1],
+                    {"type": "twosided", "bsdf": self._varied(m)},
+                    uv=_plan_uv(ring[0], self.uv_scale))
         return out
 
-    def _surround(self, radius: float = 2000.0):
+    def surround(self, radius: float | None = None):
+        """Ground around the scene to the horizon: a skirt from the ground's rim out to
+        ``radius``.
+
+        The ground mesh's outer boundary loop is joined to a copy of it scaled about the ground's
+        centre to twice its size at the rim's median height (so the skirt follows the ground's
+        relief at the rim and is flat beyond), and that to a loop at ``radius``: no gap at the
+        rim, and from a camera a few metres up the far edge lies within a hundredth of a degree of
+        the horizon (the sky is zero below it).
+
+        Parameters
+        ----------
+        radius : float, optional
+            Distance of the far edge from the ground's centre [m] (default
+            :data:`SURROUND_RADIUS`).
+
+        Returns
+        -------
+        tuple of numpy.ndarray or None
+            ``(vertices (v, 3) [m], faces (f, 3))``, faces up; None without a ground or when its
+            boundary is not one closed loop.
+        """
         if self.ground is None:
             return None
-        v = self.meshes[self.ground][0].astype(np.float64)
-        lo, hi = v.min(0), v.max(0)
-        # the ground's rim height: vertices on its bounding rectangle
-        rim = (np.isclose(v[:, 0], lo[0]) | np.isclose(v[:, 0], hi[0]) |
-               np.isclose(v[:, 2], lo[2]) | np.isclose(v[:, 2], hi[2]))
-        y = float(np.median(v[rim, 1])) - 1e-3 if rim.any() else float(lo[1])
-        x0, x1, z0, z1 = lo[0], hi[0], lo[2], hi[2]
-        R = radius
-        inner = [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
-        outer = [(-R, -R), (R, -R), (R, R), (-R, R)]
-        verts = np.array([[x, y, z] for x, z in inner + outer])
-        faces = []
-        for i in range(4):
-            j = (i + 1) % 4
-            faces += [[i, 4 + i, 4 + j], [i, 4 + j, j]]
-        faces = np.array(faces)
-        # orient upwards (+y normals)
+        R = float(SURROUND_RADIUS if radius is None else radius)
+        v, f = self.meshes[self.ground][0].astype(np.float64), self.meshes[self.ground][1]
+        loop = _outer_boundary(v, f)
+        if loop is None:
+            return None
+        b = v[loop]
+        c = 0.5 * (v.min(0) + v.max(0))
+        y = float(np.median(b[:, 1])) - 1e-3
+        d = b[:, [0, 2]] - c[[0, 2]]
+        r = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+        R = max(R, 4.0 * float(r.max()))
+        mid = np.c_[c[0] + 2.0 * d[:, 0], np.full(len(b), y), c[2] + 2.0 * d[:, 1]]
+        far = np.c_[c[0] + d[:, 0] / r * R, np.full(len(b), y), c[2] + d[:, 1] / r * R]
+        verts = np.concatenate([b, mid, far])
+        n = len(b)
+        i = np.arange(n)
+        j = (i + 1) % n
+        faces = np.concatenate([np.c_[i, n + i, n + j], np.c_[i, n + j, j],
+                                np.c_[n + i, 2 * n + i, 2 * n + j],
+                                np.c_[n + i, 2 * n + j, n + j]])
         p = verts[faces]
-        n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        faces[n[:, 1] < 0] = faces[n[:, 1] < 0][:, [0, 2, 1]]
+        up = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 1] < 0
+        faces[up] = faces[up][:, [0, 2, 1]]
         return verts, faces
 
     def bbox(self):
