@@ -39,6 +39,12 @@ def _hit_ids(scene, si_shape) -> np.ndarray:
     return np.where(reg[order][pos] == shp, order[pos], -1).astype(np.int64)
 
 
+def _areas(v, f) -> np.ndarray:
+    """Triangle areas [m²] of vertices (v, 3) and faces (f, 3)."""
+    p = np.asarray(v, np.float64)[np.asarray(f, np.int64)]
+    return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+
+
 def simulated_cover(terrain, moss, size: float, shape: str = "ground") -> np.ndarray:
     """The simulation's cover of each triangle of a terrain mesh: ``min(n size² / area, 1)``.
 
@@ -69,8 +75,7 @@ def simulated_cover(terrain, moss, size: float, shape: str = "ground") -> np.nda
     if shape not in terrain.meshes:
         raise ParameterError("shape", shape, "a terrain mesh: " + ", ".join(terrain.meshes))
     v, f = terrain.meshes[shape][0], terrain.meshes[shape][1]
-    p = v.astype(np.float64)[f.astype(np.int64)]
-    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    area = _areas(v, f)
     n = np.zeros(len(f))
     if len(moss):
         o = moss.pos + moss.nrm * 2e-3
@@ -207,8 +212,7 @@ def cover_comparison(rs, images: dict, moss, size: float, shape: str = "ground",
     tri, clear, on_moss = pixel_triangles(rs, shape)
     moss_px = moss_pixels(images)
     v, f = rs.terrain.meshes[shape][0], rs.terrain.meshes[shape][1]
-    p = v.astype(np.float64)[f.astype(np.int64)]
-    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    area = _areas(v, f)
     sel = (tri >= 0) & clear
     t = tri[sel]
     px = np.bincount(t, minlength=len(f)).astype(np.float64)

@@ -42,6 +42,7 @@ from ..scenario import site_offset_hours, site_time
 from . import materials as mat
 from .cameras import sensor_dict
 from .film import film_dict
+from .denoise import AUX_CAMERA, aux_sensor_dict
 from .carpet import BUMP_SCALE, carpet_patches, grid_origin, moss_texture
 from .moss import MossSet, place_tufts
 from .noise import pink_noise_image
@@ -78,6 +79,8 @@ class RenderOptions:
     seed: int = 0
     leaf_bins: int = 12
     sampler: str = "multijitter"
+    #: denoise the display image (Open Image Denoise, :mod:`.denoise`); the EXR stays as rendered
+    denoise: bool = True
 
     @property
     def samples(self) -> int:
@@ -134,6 +137,8 @@ class RenderScene:
     moss_size: float = 0.01
     species: list = field(default_factory=list)
     tree_cache: dict | None = None
+    #: the albedo/normal camera of the denoiser (None when the scene does not denoise)
+    aux_sensor: mi.Sensor | None = None
 
     def update(self, moss: MossSet | None = None, trees=None) -> dict:
         """Replace the moss (and, when given, the trees' leaves) of the scene.
@@ -322,6 +327,23 @@ def _outer_boundary(v, f):
         x, z = v[lp, 0], v[lp, 2]
         return abs(np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1)))
     return np.array(max(loops, key=plan_area))
+
+
+def _strips(rings):
+    """Triangles joining consecutive closed loops of equal length (faces up)."""
+    verts = np.concatenate(rings)
+    n = len(rings[0])
+    i = np.arange(n)
+    j = (i + 1) % n
+    faces = []
+    for k in range(len(rings) - 1):
+        a, b = k * n, (k + 1) * n
+        faces += [np.c_[a + i, b + i, b + j], np.c_[a + i, b + j, a + j]]
+    faces = np.concatenate(faces)
+    p = verts[faces]
+    down = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 1] < 0
+    faces[down] = faces[down][:, [0, 2, 1]]
+    return verts, faces
 
 
 def scene_bsdf_ids(path) -> set:
@@ -588,21 +610,27 @@ class Terrain:
                     g = self.materials.get(self.ground, "humus")
                     m = "humus" if self.geology_masks is not None or not isinstance(g, str) \
                         else g
-                out["surround"] = make_mesh(
-                    "surround", ring[0], ring[1],
-                    {"type": "twosided", "bsdf": self._varied(m)},
-                    uv=_plan_uv(ring[0], self.uv_scale))
+                (vn, fn), (vf, ff) = ring
+                out["surround"] = make_mesh("surround", vn, fn,
+                                            {"type": "twosided", "bsdf": self._varied(m)},
+                                            uv=_plan_uv(vn, self.uv_scale))
+                # the far ring without texture: a bitmap seen at grazing angles over kilometres
+                # would alias into stripes
+                far = mat.blend(mat.diffuse(m), mat.diffuse(m + "_light"), 0.5) \
+                    if m + "_light" in mat.SPECTRA else mat.diffuse(m)
+                out["surround_far"] = make_mesh("surround_far", vf, ff,
+                                                {"type": "twosided", "bsdf": far})
         return out
 
     def surround(self, radius: float | None = None):
         """Ground around the scene to the horizon: a skirt from the ground's rim out to
-        ``radius``.
+        ``radius``, in two parts.
 
-        The ground mesh's outer boundary loop is joined to a copy of it scaled about the ground's
-        centre to twice its size at the rim's median height (so the skirt follows the ground's
-        relief at the rim and is flat beyond), and that to a loop at ``radius``: no gap at the
-        rim, and from a camera a few metres up the far edge lies within a hundredth of a degree of
-        the horizon (the sky is zero below it).
+        The ground mesh's outer boundary loop is joined to copies of it scaled about the ground's
+        centre (1.15, 1.4, 1.8 and 2.5 times its size) whose heights ease (smoothstep) from the
+        rim's own to the rim's median height: no gap at the rim, no ramp edges, flat beyond. The
+        far part joins the last copy to a loop at ``radius``: from a camera a few metres up its
+        edge lies within a hundredth of a degree of the horizon (the sky is zero below it).
 
         Parameters
         ----------
@@ -612,9 +640,9 @@ class Terrain:
 
         Returns
         -------
-        tuple of numpy.ndarray or None
-            ``(vertices (v, 3) [m], faces (f, 3))``, faces up; None without a ground or when its
-            boundary is not one closed loop.
+        tuple or None
+            ``((vertices, faces) near, (vertices, faces) far)`` [m], faces up; None without a
+            ground or when its boundary is not a closed loop.
         """
         if self.ground is None:
             return None
@@ -629,19 +657,14 @@ class Terrain:
         d = b[:, [0, 2]] - c[[0, 2]]
         r = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
         R = max(R, 4.0 * float(r.max()))
-        mid = np.c_[c[0] + 2.0 * d[:, 0], np.full(len(b), y), c[2] + 2.0 * d[:, 1]]
+        rings = [b]
+        for k in (1.15, 1.4, 1.8, 2.5):
+            t = (k - 1.0) / 1.5
+            ease = t * t * (3.0 - 2.0 * t)
+            h = b[:, 1] + (y - b[:, 1]) * ease
+            rings.append(np.c_[c[0] + k * d[:, 0], h, c[2] + k * d[:, 1]])
         far = np.c_[c[0] + d[:, 0] / r * R, np.full(len(b), y), c[2] + d[:, 1] / r * R]
-        verts = np.concatenate([b, mid, far])
-        n = len(b)
-        i = np.arange(n)
-        j = (i + 1) % n
-        faces = np.concatenate([np.c_[i, n + i, n + j], np.c_[i, n + j, j],
-                                np.c_[n + i, 2 * n + i, 2 * n + j],
-                                np.c_[n + i, 2 * n + j, n + j]])
-        p = verts[faces]
-        up = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 1] < 0
-        faces[up] = faces[up][:, [0, 2, 1]]
-        return verts, faces
+        return _strips(rings), _strips([rings[-1], far])
 
     def bbox(self):
         """Bounding box of all meshes.
@@ -904,14 +927,17 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     when = render_time(scn, date, options)
     em = emitters if emitters is not None else sky_emitters(scn, when)
     d.update(em)
-    d["camera"] = sensor_dict(scn, terrain, options, film_dict(options))
+    d["camera"] = sensor_dict(scn, terrain, options, film_dict(options), moss, trees)
+    if options.denoise:
+        d[AUX_CAMERA] = aux_sensor_dict(d["camera"])
     scene = mi.load_dict(d, optimize=False)
     attach_scene(scene)
-    sensor = [s for s in scene.sensors() if s.id() == "camera"][0]
+    sensors = {s.id(): s for s in scene.sensors()}
+    sensor = sensors["camera"]
     t4 = time.perf_counter()
     info.update({"when": when, "camera": options.camera,
                  "triangles": int(sum(s.face_count() for s in scene.shapes() if s.is_mesh())),
                  "seconds": {"terrain": t1 - t0, "moss": t2 - t1, "trees": t3 - t2,
                              "load": t4 - t3, "total": t4 - t0}})
     return RenderScene(scene, sensor, options, info, terrain, float(moss_size),
-                       list(species or []), tree_cache)
+                       list(species or []), tree_cache, sensors.get(AUX_CAMERA))
