@@ -225,7 +225,10 @@ SCHEMA: dict[str, Field] = {
     "render": Field("table", fields={
         "when": Field("datetime", doc="daylight of the render (default: the day at 10:00; "
                       "no offset: the site's local time)"),
-        "materials": Field("map", item=Field("str"), doc="render material per shape id"),
+        "materials": Field("map", item=Field("str"), doc="render material per shape id or "
+                           "pattern (log_*)"),
+        "surround": Field("str", doc="ground around the scene to the horizon: 'ground' (the "
+                          "ground's material), a material name, or 'none'"),
         "cameras": Field("map", item=Field("table", fields={
             "origin": _VEC3, "target": _VEC3, "up": _VEC3,
             "fov": _num("float", 1.0, 170.0, "[deg]"),

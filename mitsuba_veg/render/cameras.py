@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import mitsuba as mi
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..errors import ParameterError
 
@@ -121,17 +122,24 @@ def moss_focus(moss, ground_lo, ground_hi):
 
 
 def _tree_points(trees):
-    """(trunk bases (t, 3), crown points (n, 3)) of the trees [m]."""
-    bases, crown = [], []
+    """(trunk bases (t, 3), crown points (n, 3), obstacle points (m, 3)) of the trees [m]: the
+    leaves (or branch ends) and points along every living branch every 0.2 m."""
+    bases, crown, obst = [], [], []
     for t in trees or []:
         if len(t.start) == 0:
             continue
         bases.append(t.start[0])
-        pts = t.leaves.position if len(t.leaves) else t.end[t.alive] if t.alive.any() else t.end
+        a = t.alive
+        pts = t.leaves.position if len(t.leaves) else t.end[a] if a.any() else t.end
         crown.append(np.asarray(pts, float).reshape(-1, 3))
+        s0, s1 = t.start[a], t.end[a]
+        n = np.clip((np.linalg.norm(s1 - s0, axis=1) / 0.2).astype(int), 1, 50)
+        u = np.concatenate([np.arange(k) / k for k in n])
+        obst.append(np.repeat(s0, n, 0) + u[:, None] * np.repeat(s1 - s0, n, 0))
+        obst.append(crown[-1][:: max(1, len(crown[-1]) // 5000)])
     if not bases:
-        return None, None
-    return np.array(bases), np.concatenate(crown)
+        return None, None, None
+    return np.array(bases), np.concatenate(crown), np.concatenate(obst)
 
 
 def _overview(c, W, top_y, yg):
@@ -148,28 +156,40 @@ def _overview(c, W, top_y, yg):
             "fov": OVERVIEW_FOV, "fov_axis": "x"}
 
 
-def _floor_view(terrain, focus, c, W, yg):
-    """Eye-height view across the moss at ``focus`` from a side with a clear line of sight."""
+def _floor_view(terrain, focus, c, W, yg, obstacles=None):
+    """Eye-height view across the moss at ``focus`` from a side with a clear line of sight.
+
+    Candidates at 16 azimuths and three distances around the focus; each scores for a clear line
+    of sight over the terrain, for standing inside the plot, for looking outwards (the plot's
+    edge or walls behind the moss, not in front of it), and against tree parts (``obstacles``:
+    points of branches and leaves) near the camera or the line of sight.
+    """
     eye = min(EYE_HEIGHT, 0.35 * W)
-    dist = max(2.2 * eye, 0.12 * W)
+    dist0 = max(1.5 * eye, 0.1 * W)
     lo, hi = terrain.ground_bbox()
+    tree = cKDTree(obstacles) if obstacles is not None and len(obstacles) else None
     best = None
-    for k in range(16):
-        a = 2 * np.pi * k / 16
-        d = np.array([np.cos(a), 0.0, np.sin(a)])
-        cam_xz = focus + dist * d
-        gy = _ground_y(terrain, cam_xz[0], cam_xz[2], yg)
-        origin = np.array([cam_xz[0], gy + eye, cam_xz[2]])
-        inside = lo[0] <= origin[0] <= hi[0] and lo[2] <= origin[2] <= hi[2]
-        seen = _clear(terrain.base_scene, focus + np.array([0, 0.05, 0]), origin)
-        # prefer a clear view from inside the plot, looking away from its centre (walls and
-        # the plot's edge behind the moss, not in front of it)
-        score = 2.0 * seen + 1.0 * inside - float(np.linalg.norm(cam_xz[[0, 2]] - c[[0, 2]])) / W
-        if best is None or score > best[0]:
-            best = (score, origin)
-    origin = best[1]
+    for dist in (dist0, 1.4 * dist0, 1.9 * dist0):
+        for k in range(16):
+            a = 2 * np.pi * k / 16
+            d = np.array([np.cos(a), 0.0, np.sin(a)])
+            cam_xz = focus + dist * d
+            gy = _ground_y(terrain, cam_xz[0], cam_xz[2], yg)
+            origin = np.array([cam_xz[0], gy + eye, cam_xz[2]])
+            inside = lo[0] <= origin[0] <= hi[0] and lo[2] <= origin[2] <= hi[2]
+            seen = _clear(terrain.base_scene, focus + np.array([0, 0.05, 0]), origin)
+            score = 2.0 * seen + 1.0 * inside - \
+                float(np.linalg.norm(cam_xz[[0, 2]] - c[[0, 2]])) / W - 0.1 * dist / dist0
+            if tree is not None:
+                near = len(tree.query_ball_point(origin, 0.8))
+                line = origin + np.linspace(0.1, 0.9, 9)[:, None] * (focus - origin)
+                blocked = sum(len(x) > 0 for x in tree.query_ball_point(line, 0.25))
+                score -= 0.02 * min(near, 100) + 0.3 * blocked
+            if best is None or score > best[0]:
+                best = (score, origin, dist)
+    _, origin, dist = best
     look = _unit(focus - origin)
-    target = focus + 0.6 * dist * _unit([look[0], 0.0, look[2]])
+    target = focus + 0.35 * dist * _unit([look[0], 0.0, look[2]])
     return {"origin": origin.tolist(), "target": target.tolist(), "up": [0, 1, 0],
             "fov": 60.0, "fov_axis": "x"}
 
@@ -231,7 +251,7 @@ def presets(scn, terrain, moss=None, trees=None) -> dict:
     ab_lo, ab_hi = terrain.bbox()
     yg = float(np.median(terrain.meshes[terrain.ground][0][:, 1])) if terrain.ground \
         else float(c[1])
-    bases, crown = _tree_points(trees)
+    bases, crown, obstacles = _tree_points(trees)
     top_y = float(ab_hi[1])
     if crown is not None:
         top_y = max(top_y, float(crown[:, 1].max()))
@@ -239,7 +259,8 @@ def presets(scn, terrain, moss=None, trees=None) -> dict:
     focus = moss_focus(moss, lo, hi)
     out = {
         "overview": overview,
-        "floor": _floor_view(terrain, focus, c, W, yg) if focus is not None else dict(overview),
+        "floor": _floor_view(terrain, focus, c, W, yg, obstacles) if focus is not None
+        else dict(overview),
         "canopy": _canopy_view(terrain, bases, crown, yg) if bases is not None
         else dict(overview),
         "shelter": {"origin": [c[0] + 0.1 * W, yg + 0.16 * W, c[2] + 0.12 * W],

@@ -11,7 +11,8 @@ render's far-red band must see the vegetation's red edge.
   ``litter``, each with a dark or light variant for texture. earthlib starts at 400 nm; below,
   the curves are extended linearly.
 - **Fitted** (no measured library curve at hand): ``stone`` (weathered granite-like rock, flat
-  and grey, rising a little into the red) and the moss species (chlorophyll: a little green,
+  and grey, rising a little into the red), ``grass`` (a meadow, for surroundings) and the moss
+  species (chlorophyll: a little green,
   absorption near 670 nm, the red edge at ~700-740 nm up to a near-infrared plateau). Their band
   means agree with the moss model's albedo per band (``[moss] albedo`` of the moss garden: red
   0.05, far-red 0.45) within a few hundredths; ``band_mean`` reports them.
@@ -69,6 +70,9 @@ def _spectra() -> dict:
     wl = WAVELENGTHS
     s = {
         **_measured(),
+        # a meadow (the courtyard's surroundings): chlorophyll, a little dry grass
+        "grass": _vegetation(0.035, 0.11, 0.045, 0.42, yellow=0.02, green_width=30.0),
+        "grass_light": _vegetation(0.05, 0.15, 0.08, 0.46, yellow=0.05, green_width=34.0),
         # rock: no measured curve at hand (earthlib has none); weathered granite-like grey
         "stone": 0.2 + 0.07 * _logistic(wl, 560.0, 90.0),
         "stone_light": 0.26 + 0.08 * _logistic(wl, 560.0, 90.0),

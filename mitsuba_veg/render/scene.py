@@ -70,9 +70,9 @@ class RenderOptions:
     #: ISO date-time of the light; None: the day being rendered at ``hour`` local time
     when: str | None = None
     hour: float = 10.0
-    #: material of the ground around the scene to the horizon: "ground" (the ground's own),
-    #: a material name, or None (none)
-    surround: str | None = "ground"
+    #: the ground around the scene to the horizon: "auto" (the scenario's ``render.surround``,
+    #: else "ground"), "ground" (the ground's own material), a material name, or None / "none"
+    surround: str | None = "auto"
     moss_jitter: float = 0.12
     #: draw each moss's carpet patch (its simulated cover); False: tufts only
     moss_carpet: bool = True
@@ -96,8 +96,8 @@ class RenderOptions:
         """Check the settings' ranges.
 
         width and height 8-16384 [px], spp 1-2^20, max_depth 1-100, hour 0-24 [h],
-        moss_jitter 0-2 [-], leaf_bins 1-64, surround ``"ground"``, a material of
-        :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
+        moss_jitter 0-2 [-], leaf_bins 1-64, surround ``"auto"``, ``"ground"``, ``"none"``, a
+        material of :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
 
         Returns
         -------
@@ -116,10 +116,10 @@ class RenderOptions:
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
-        if self.surround is not None and self.surround != "ground" and \
+        if self.surround not in (None, "auto", "ground", "none") and \
                 self.surround not in mat.SPECTRA:
-            raise ParameterError("surround", self.surround, "'ground', a material name or None",
-                                 "one of ground, " + ", ".join(sorted(mat.SPECTRA)))
+            raise ParameterError("surround", self.surround, "'auto', 'ground', 'none', a material "
+                                 "name or None", "one of " + ", ".join(sorted(mat.SPECTRA)))
         return self
 
 
@@ -917,7 +917,13 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
         d.update(ms)
         info.update(mi_info)
     t2 = time.perf_counter()
-    d.update(terrain.shapes(options.surround))
+    surround = options.surround
+    if surround == "auto":
+        surround = scn.get("render.surround") or "ground"
+        if surround != "ground" and surround != "none" and surround not in mat.SPECTRA:
+            raise ParameterError("render.surround", surround, "'ground', 'none' or a material",
+                                 "one of " + ", ".join(sorted(mat.SPECTRA)), str(scn.path))
+    d.update(terrain.shapes(None if surround == "none" else surround))
     if trees:
         tree_cache = {} if tree_cache is None else tree_cache
         ts, t_info = tree_shapes(trees, options, cache=tree_cache)
