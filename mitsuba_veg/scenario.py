@@ -844,7 +844,8 @@ def load_scenario(path, overrides=None) -> Scenario:
         raise ParameterError("scenario", str(path), "a TOML file (not a folder)",
                              "pass the scenario file, e.g. scenes/moss_garden/scenario.toml")
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        # utf-8-sig: a byte-order mark (some editors write one) is not part of the TOML
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ParameterError("scenario", str(path), "a valid TOML text file",
                              f"fix the syntax: {e}") from None

@@ -18,8 +18,10 @@ one column per swept field  its dotted name (``climate.temperature``, ``light.se
                             [W m-2], soil surface temperature [K], relative humidity at the
                             surface [-], soil water content [-])
 ``events.<name>``           the day's life-cycle events (germinations, deaths, propagules ...)
-``seconds.<part>``          wall time of the day's light, soil and moss steps [s] (not
-                            reproducible: leave them out when comparing runs)
+``seconds.<part>``          wall time of the day's light, soil, moss (and leaves) stages and
+                            of its record [s], their kernels included on the CPU (on a GPU the
+                            light's only: DayPipeline.run_day); not reproducible: leave them
+                            out when comparing runs
 """
 from __future__ import annotations
 
