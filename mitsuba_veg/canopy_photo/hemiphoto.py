@@ -9,10 +9,11 @@ Miller's integral, Lang & Xiang's clumping-corrected LAI, the site factors of th
 paths) beside the true LAI, WAI and PAI in the LAI-2000's view cone. With ``truth`` a photon
 pass of the day's scene (:func:`~mitsuba_veg.canopy_photo.light_truth.light_truth`) gives the
 direct and scattered shares of the open's sky and sun light at the points; beside them the
-photograph's diffuse site factor for the uniform sky of the pass, the mean of that factor
-over photographs spread over the pass's sensor (``site_factor_diffuse_footprint``: a 3 x 3
-grid over the square), and the direct site factor over the day's own sun path
-(``site_factor_direct_day``, the weights of the pass's ``veg_sun_path``). With ``colour`` a
+photograph's diffuse site factor for the uniform sky of the pass, the direct site factor over
+the day's own sun path (``site_factor_direct_day``, the weights of the pass's
+``veg_sun_path``), and the means of both over photographs spread over the pass's sensor
+(``site_factor_diffuse_footprint``, ``site_factor_direct_day_footprint``: a 3 x 3 grid over
+the square; a sunfleck's edge moves across a sensor of half a metre). With ``colour`` a
 spectral render through the same lens is drawn beside each binary photograph.
 
 Files in the output folder (default ``RUN_DIR/hemiphoto``): per photograph
@@ -58,7 +59,9 @@ COMPARISONS = [("lai_lai2000", "lai_true", "LAI-2000 effective LAI vs true LAI")
                ("site_factor_diffuse_footprint", "sky_direct_share",
                 "diffuse site factor over the sensor vs the pass's direct sky share"),
                ("site_factor_direct_day", "sun_direct_share",
-                "the day's direct site factor vs the pass's direct sun share")]
+                "the day's direct site factor vs the pass's direct sun share"),
+               ("site_factor_direct_day_footprint", "sun_direct_share",
+                "the day's direct site factor over the sensor vs the pass's direct sun share")]
 
 
 def parse_at(text: str) -> tuple[float, float]:
@@ -108,16 +111,19 @@ def _days(world: RunWorld, day, years: bool, on) -> list[int]:
     return out
 
 
-def _footprint_dsf(scene, position, size: float, lens: Lens) -> float:
-    """Mean diffuse site factor of photographs on a 3 x 3 grid over a square of side ``size``
-    around ``position`` (the pass's sensor)."""
-    vals = []
+def _footprint(scene, position, size: float, lens: Lens, sun) -> tuple[float, float]:
+    """Mean diffuse site factor and mean direct site factor of the day's sun path of
+    photographs on a 3 x 3 grid over a square of side ``size`` around ``position`` (the
+    pass's sensor)."""
+    dsf, dir_ = [], []
     for dx in (-size / 3, 0.0, size / 3):
         for dz in (-size / 3, 0.0, size / 3):
             img = gap_image(scene, np.asarray(position, float) + [dx, 0.0, dz], lens)
             m = img.pixel_map()
-            vals.append(diffuse_site_factor(img.gap, m["theta"], m["solid_angle"], "uniform"))
-    return float(np.mean(vals))
+            dsf.append(diffuse_site_factor(img.gap, m["theta"], m["solid_angle"], "uniform"))
+            if len(sun[2]):
+                dir_.append(direct_site_factor(img.gap, lens, *sun))
+    return float(np.mean(dsf)), float(np.mean(dir_)) if dir_ else math.nan
 
 
 def run_hemiphoto(run_dir, out=None, at=(), day: int | None = None, years: bool = False,
@@ -223,8 +229,10 @@ def run_hemiphoto(run_dir, out=None, at=(), day: int | None = None, years: bool 
                         "sky_direct_share", "sky_scattered_share", "sky_direct_share_se",
                         "sun_direct_share", "sun_scattered_share", "sun_direct_share_se",
                         "open_sky_share", "open_sun_share", "sensor_size_m")})
-                    ph.analysis.values["site_factor_diffuse_footprint"] = _footprint_dsf(
-                        scene, ph.point.position, sensor_size, Lens(512, projection))
+                    fd, fs = _footprint(scene, ph.point.position, sensor_size,
+                                        Lens(512, projection), (az, el, w))
+                    ph.analysis.values["site_factor_diffuse_footprint"] = fd
+                    ph.analysis.values["site_factor_direct_day_footprint"] = fs
             t4 = time.perf_counter()
             for ph in photos:
                 img = None
@@ -338,8 +346,7 @@ def comparison_figure(rows: list, path, title: str = "") -> str:
     """
     plt = _mpl()
     dates = sorted({r["date"] for r in rows})
-    x = np.array([_dt.date.fromisoformat(d).year + (_dt.date.fromisoformat(d).timetuple()
-                                                     .tm_yday - 1) / 365.25 for d in dates])
+    x = np.arange(len(dates))
 
     def series(key):
         v = [np.array([r.get(key, math.nan) for r in rows if r["date"] == d], float)
@@ -380,7 +387,9 @@ def comparison_figure(rows: list, path, title: str = "") -> str:
     ax[2].set_ylim(0, 1)
     ax[2].legend(fontsize=8)
     for a in ax:
-        a.set_xlabel("year")
+        a.set_xticks(x)
+        a.set_xticklabels(dates, fontsize=8)
+        a.set_xlabel("date of the photographs")
         a.grid(alpha=0.3)
     fig.suptitle(f"hemispherical photographs against the truth {title}".strip(), fontsize=10)
     return save_figure(fig, path, dpi=90)

@@ -41,7 +41,8 @@ from ..integrators.veg_fisheye import radius_of_zenith
 from ..plots import _mpl, save_figure
 from ..world.visible_canopy import LeafState, VisibleCanopy
 
-__all__ = ["DEFAULTS", "CONE_DEG", "PhotoPoint", "Photo", "ground_points", "points_at",
+__all__ = ["DEFAULTS", "CONE_DEG", "PhotoPoint", "Photo", "ground_points", "check_clear",
+           "points_at",
            "points_from_scenario", "parse_on", "take_photos", "photo_figure", "write_photo",
            "SERIES_COLUMNS", "write_series", "PhotoSeries", "FOLDER"]
 
@@ -116,6 +117,39 @@ def ground_points(ground, xz, height: float, field_name: str = "--at") -> np.nda
     return np.column_stack([p[:, 0], top - t + float(height), p[:, 1]])
 
 
+def check_clear(base_scene, positions, heights, field_name: str = "--at", source=None) -> None:
+    """Refuse a lens inside or on top of an object of the scene (a log, a rock, a wall): the
+    line from the ground up to the lens must be free.
+
+    Parameters
+    ----------
+    base_scene : mitsuba.Scene
+        The scenario's scene (every shape but the trees).
+    positions : array_like
+        (n, 3) lens centres [m].
+    heights : array_like
+        (n,) their heights above the ground [m].
+    field_name : str
+        Field named by the error.
+    source : str, optional
+        The scenario file, for the error.
+    """
+    p = np.asarray(positions, float).reshape(-1, 3)
+    h = np.broadcast_to(np.asarray(heights, float), (len(p),))
+    n = len(p)
+    start = p - np.column_stack([np.zeros(n), h - 1e-3, np.zeros(n)])
+    o = mi.Point3f(*[mi.Float(start[:, k].astype(np.float32)) for k in range(3)])
+    ray = mi.Ray3f(o, mi.Vector3f(0, 1, 0))
+    ray.maxt = mi.Float((h - 1e-3).astype(np.float32))
+    hit = np.asarray(base_scene.ray_intersect_preliminary(ray).is_valid(), bool)
+    if hit.any():
+        k = int(np.flatnonzero(hit)[0])
+        raise ParameterError(field_name, f"{p[k, 0]:g},{p[k, 2]:g}", "a lens with nothing "
+                             "between it and the ground below it (this one would be inside or "
+                             "on top of an object of the scene: a log, a rock, a wall)",
+                             "move the point a little", source)
+
+
 def _ground(base_scene, ground_id: str, source=None):
     shapes = {s.id(): s for s in base_scene.shapes()}
     if ground_id not in shapes:
@@ -147,6 +181,7 @@ def points_at(base_scene, ground_id: str, at, height: float = 1.0, names=None) -
     """
     at = np.asarray(at, float).reshape(-1, 2)
     pos = ground_points(_ground(base_scene, ground_id), at, height)
+    check_clear(base_scene, pos, height)
     names = names or [f"p{i + 1}" for i in range(len(at))]
     return [PhotoPoint(str(n), float(a[0]), float(a[1]), float(height), q)
             for n, a, q in zip(names, at, pos)]
@@ -211,6 +246,7 @@ def points_from_scenario(scn, base_scene) -> list:
         s = {**DEFAULTS, **e}
         try:
             pos = ground_points(ground, [e["at"]], float(s["height"]), f"{where}.at")[0]
+            check_clear(base_scene, [pos], float(s["height"]), f"{where}.at")
             s["on"] = [parse_on(t, f"{where}.on") for t in s["on"]]
         except ParameterError as err:
             raise ParameterError(err.field, err.value, err.allowed, err.fix, src) from None
@@ -427,6 +463,7 @@ SERIES_COLUMNS = ["date", "photo", "x_m", "z_m", "height_m"] + \
      "site_factor_diffuse", "site_factor_diffuse_soc", "site_factor_direct", "site_factor_total",
      "lai_true", "wai_true", "pai_true", "lai_mean_height", "height_qh_m",
      "site_factor_diffuse_footprint", "site_factor_direct_day",
+     "site_factor_direct_day_footprint",
      "sky_direct_share", "sky_direct_share_se", "sky_scattered_share", "sun_direct_share",
      "sun_direct_share_se", "sun_scattered_share", "open_sky_share", "open_sun_share",
      "snapshot_day", "saturated_rings", "saturated_sectors"]
