@@ -6,7 +6,9 @@ run) the run's world of that day (:class:`~mitsuba_veg.canopy_photo.run_day.RunW
 photographed at the points (:func:`mitsuba_veg.daily.hemiphotos.take_photos`: the binary
 ray-cast photograph, its gap fractions, openness, effective LAI by the LAI-2000 formula and
 Miller's integral, Lang & Xiang's clumping-corrected LAI, the site factors of the year's sun
-paths) beside the true LAI, WAI and PAI in the LAI-2000's view cone. With ``truth`` a photon
+paths) beside the true LAI, WAI and PAI in the LAI-2000's view cone and, for a ``[stand]``,
+the stand's LAI (``lai_plot``: the one-sided area of every shown leaf over the plot's map
+area). With ``truth`` a photon
 pass of the day's scene (:func:`~mitsuba_veg.canopy_photo.light_truth.light_truth`) gives the
 direct and scattered shares of the open's sky and sun light at the points; beside them the
 photograph's diffuse site factor for the uniform sky of the pass, the direct site factor over
@@ -47,13 +49,15 @@ from .colour import colour_photo
 from .light_truth import DEFAULT_PHOTONS, DEFAULT_SIZE, light_truth
 from .run_day import RunWorld
 
-__all__ = ["run_hemiphoto", "parse_at", "COMPARISONS", "comparison_rows", "comparison_figure"]
+__all__ = ["run_hemiphoto", "parse_at", "plot_area", "COMPARISONS", "comparison_rows", "comparison_figure"]
 
 #: (field method, its truth, label) of the comparison table
 COMPARISONS = [("lai_lai2000", "lai_true", "LAI-2000 effective LAI vs true LAI"),
                ("lai_miller", "lai_true", "Miller effective LAI vs true LAI"),
                ("lai_lang_xiang", "lai_true", "Lang & Xiang LAI vs true LAI"),
                ("lai_lai2000", "pai_true", "LAI-2000 effective LAI vs true PAI"),
+               ("lai_lai2000", "lai_plot", "LAI-2000 effective LAI vs the stand's LAI"),
+               ("lai_lang_xiang", "lai_plot", "Lang & Xiang LAI vs the stand's LAI"),
                ("site_factor_diffuse", "sky_direct_share",
                 "diffuse site factor vs the pass's direct sky share"),
                ("site_factor_diffuse_footprint", "sky_direct_share",
@@ -62,6 +66,30 @@ COMPARISONS = [("lai_lai2000", "lai_true", "LAI-2000 effective LAI vs true LAI")
                 "the day's direct site factor vs the pass's direct sun share"),
                ("site_factor_direct_day_footprint", "sun_direct_share",
                 "the day's direct site factor over the sensor vs the pass's direct sun share")]
+
+
+def plot_area(scenario) -> float:
+    """The map area of a scenario's ``[stand]`` plot [m2] (NaN without a stand).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    float
+        ``(x1 - x0)(z1 - z0)`` of ``[x0, z0, x1, z1]``, or the shoelace area of a polygon.
+    """
+    stand = scenario.get("stand") or {}
+    plot = stand.get("plot")
+    if plot is None:
+        return math.nan
+    a = np.asarray(plot, float)
+    if a.shape == (4,):
+        return float(abs((a[2] - a[0]) * (a[3] - a[1])))
+    x, z = a[:, 0], a[:, 1]
+    return float(abs(np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1))) / 2)
 
 
 def parse_at(text: str) -> tuple[float, float]:
@@ -215,8 +243,12 @@ def run_hemiphoto(run_dir, out=None, at=(), day: int | None = None, years: bool 
                                  world.longitude, lens, ring_width)
             dirs, w, el = day_sun_path(world.latitude, world.longitude, date)
             az = np.degrees(np.arctan2(dirs[:, 0], -dirs[:, 2])) if len(w) else np.zeros(0)
+            shown, scale, _ = canopy.blades(state)
+            lai_plot = float(np.sum(canopy.area * scale * scale * shown)) / plot_area(
+                world.scenario) if canopy.n_leaves else math.nan
             for ph in photos:
                 ph.truth["snapshot_day"] = float(snap)
+                ph.truth["lai_plot"] = lai_plot
                 ph.analysis.values["site_factor_direct_day"] = direct_site_factor(
                     ph.image.gap, lens, az, el, w) if len(w) else math.nan
             t3 = time.perf_counter()
@@ -357,6 +389,7 @@ def comparison_figure(rows: list, path, title: str = "") -> str:
 
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
     style = {"lai_true": ("k", "-", "true LAI (cone)"), "pai_true": ("0.5", "--", "true PAI"),
+             "lai_plot": ("tab:purple", ":", "stand LAI (plot)"),
              "lai_lai2000": ("tab:blue", "-", "LAI-2000 Le"),
              "lai_miller": ("tab:orange", "-", "Miller Le"),
              "lai_lang_xiang": ("tab:green", "-", "Lang & Xiang")}

@@ -280,7 +280,11 @@ def _photos(scn, base, base_shapes, cache: dict, out: Path, size: int) -> list:
                 continue                       # not over the ground (on a wall)
             points.append((PhotoPoint(str(sensors.names[i]), float(pos[0]), float(pos[2]),
                                       float(pos[1] - g), np.asarray(pos, float)), None))
-    points += points_from_scenario(scn, base) if scn.get("hemiphotos") else []
+    if scn.get("hemiphotos"):
+        # a [[hemiphotos]] entry named like a point sensor takes its place (its own height)
+        own = points_from_scenario(scn, base)
+        names = {pt.name for pt, _ in own}
+        points = [x for x in points if x[0].name not in names] + own
     if not points or not cache:
         return []
     dates = sorted(cache)

@@ -122,8 +122,9 @@ def _series_cmd(a) -> int:
     if len(per) > 8:
         print(f"  ... {len(per) - 8} more sensors (summary.json, dli.csv)")
     if s.get("world"):
-        print(f"  under the world's trees ({s['world']['source']}): "
-              f"{len(s['world']['segments'])} leaf states")
+        n = len(s["world"]["segments"])
+        print(f"  under the world's trees ({s['world']['source']}): {n} leaf "
+              f"state{'s' if n != 1 else ''} over the period")
     for r in s.get("hemiphotos", [])[:8]:
         print(f"  hemiphoto {r['photo']} {r['date']}: openness {r['openness']:.3f}, "
               f"LAI-2000 Le {r['lai_lai2000']:.2f}, true LAI {r['lai_true']:.2f}, DSF "

@@ -296,6 +296,7 @@ class Photo:
         out = self.analysis.rows()
         for k, v in self.truth.items():
             unit = "m2" if k.endswith("_m2") else "m" if k.endswith("_m") else \
+                "day" if k == "snapshot_day" else \
                 "count" if k in ("leaves", "photons") else "m2 m-2" if k[:3] in ("lai", "wai",
                                                                                "pai") else "-"
             out.append((k, math.nan, math.nan, float(v), unit))
@@ -461,7 +462,7 @@ SERIES_COLUMNS = ["date", "photo", "x_m", "z_m", "height_m"] + \
     [f"gap_{int(lo)}_{int(hi)}" for lo, hi in LAI2000_RINGS] + \
     ["openness", "lai_lai2000", "lai_miller", "lai_lang_xiang", "clumping_index",
      "site_factor_diffuse", "site_factor_diffuse_soc", "site_factor_direct", "site_factor_total",
-     "lai_true", "wai_true", "pai_true", "lai_mean_height", "height_qh_m",
+     "lai_true", "wai_true", "pai_true", "lai_mean_height", "height_qh_m", "lai_plot",
      "site_factor_diffuse_footprint", "site_factor_direct_day",
      "site_factor_direct_day_footprint",
      "sky_direct_share", "sky_direct_share_se", "sky_scattered_share", "sun_direct_share",
