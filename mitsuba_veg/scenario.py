@@ -15,6 +15,7 @@ Sections used so far (paths relative to the scenario file):
                             ``[terrain.soil_depth_mm]`` per-shape soil depth.
 ``[regions.NAME]``          shapes, min, max: boxes [m] naming parts of the terrain.
 ``[[sensors]]``             virtual light sensors: points and grids (docs/sensors.md).
+``[[hemiphotos]]``          hemispherical photographs at fixed floor points (docs/hemiphoto.md).
 """
 from __future__ import annotations
 
@@ -221,6 +222,18 @@ SCHEMA: dict[str, Field] = {
         "origin": Field("vec3", doc="plane_grid: a corner [m]"),
         "u": Field("vec3", doc="plane_grid: first edge [m]"),
         "v": Field("vec3", doc="plane_grid: second edge [m]"),
+    }),
+    "hemiphotos": Field("tables", doc="hemispherical photographs at fixed floor points, taken "
+                        "by a run on their days (docs/hemiphoto.md)", fields={
+        "name": Field("str", doc="name in file names and tables (default photoN)"),
+        "at": Field("floats", -1e5, 1e5, length=2, doc="[x, z] [m]: the floor position"),
+        "height": _num("float", 0.01, 100.0, "[m] lens above the ground (default 1)"),
+        "on": Field("strs", doc="days of the year \"MM-DD\" (default [\"07-15\"])"),
+        "size": _num("int", 16, 8192, "[px] image side (default 1024)"),
+        "projection": Field("choice", choices=("equidistant", "equisolid"),
+                            doc="fisheye projection (default equidistant)"),
+        "ring_width": _num("float", 0.5, 90.0, "[deg] zenith rings of the table besides the "
+                           "LAI-2000's (default 5)"),
     }),
     "render": Field("table", fields={
         "when": Field("datetime", doc="daylight of the render (default: the day at 10:00; "

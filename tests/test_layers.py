@@ -32,7 +32,7 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("ground", ["soil", "climate", "terrain", "forest_floor", "scenario", "inputs"]),
     ("models", ["moss", "trees", "foliage", "world", "export_gltf"]),
     ("daily loop", ["daily"]),
-    ("render/tune/sweeps", ["render", "tune", "sweeps"]),
+    ("render/tune/sweeps", ["render", "tune", "sweeps", "canopy_photo"]),
     ("cli", ["cli", "tune.__main__"]),
 ]
 # the package's own __init__ (the public facade, ``import mitsuba_veg as mv``) sits above all
