@@ -77,15 +77,16 @@ def _spectra() -> dict:
         "stone": 0.2 + 0.07 * _logistic(wl, 560.0, 90.0),
         "stone_light": 0.26 + 0.08 * _logistic(wl, 560.0, 90.0),
         # moss: established (dark) and young/tip (light) tones per species
-        "bryum_argenteum": _vegetation(0.045, 0.15, 0.065, 0.46, yellow=0.02, green_width=30.0),
-        "bryum_argenteum_light": _vegetation(0.09, 0.27, 0.12, 0.55, yellow=0.02,
-                                             green_width=30.0),
-        "hypnum_plumaeforme": _vegetation(0.025, 0.16, 0.035, 0.42, yellow=0.02,
+        # (silver moss: hyaline leaf tips make its young shoots silvery grey-green; Hypnum
+        # yellowish to golden green; Polytrichum dark green)
+        "bryum_argenteum": _vegetation(0.04, 0.11, 0.055, 0.44, yellow=0.01, green_width=30.0),
+        "bryum_argenteum_light": _vegetation(0.11, 0.19, 0.13, 0.52, green_width=45.0),
+        "hypnum_plumaeforme": _vegetation(0.025, 0.10, 0.035, 0.42, yellow=0.025,
                                           green_width=28.0),
-        "hypnum_plumaeforme_light": _vegetation(0.04, 0.24, 0.06, 0.48, yellow=0.04,
-                                                green_width=28.0),
-        "polytrichum": _vegetation(0.02, 0.09, 0.025, 0.38, green_width=26.0),
-        "polytrichum_light": _vegetation(0.03, 0.14, 0.035, 0.44, yellow=0.01, green_width=26.0),
+        "hypnum_plumaeforme_light": _vegetation(0.035, 0.16, 0.06, 0.48, yellow=0.05,
+                                                green_width=30.0),
+        "polytrichum": _vegetation(0.02, 0.065, 0.025, 0.38, green_width=26.0),
+        "polytrichum_light": _vegetation(0.03, 0.10, 0.035, 0.44, yellow=0.01, green_width=26.0),
     }
     return {k: np.clip(v, 0.0, 0.95) for k, v in s.items()}
 
