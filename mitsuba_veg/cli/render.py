@@ -51,6 +51,8 @@ def add_parsers(subparsers) -> None:
                        help=f"samples per pixel (default {spp})")
         p.add_argument("--hour", type=ranged(float, 0, 24, "h"),
                        help="local hour of the daylight [h] (default 10)")
+        p.add_argument("--no-denoise", dest="denoise", action="store_false",
+                       help="no denoiser on the PNG's image (the EXR is never denoised)")
         add_quiet(p)
 
     r = subparsers.add_parser("render", help="spectral render of a moss run (EXR, PNG, R:FR)")
@@ -116,7 +118,7 @@ def _cmd_render(a) -> int:
         res = run_render_years(a.run_dir, a.out, camera=a.camera, width=a.width,
                                height=a.height, spp=a.spp, day=a.day, when=a.when,
                                hour=a.hour, max_depth=a.max_depth, scenario=a.scenario,
-                               progress=not a.quiet)
+                               denoise=a.denoise, progress=not a.quiet)
         for year, y in res["years"].items():
             print(f"{year}: day {y['day']} ({y['date']})")
             for f in y["files"].values():
@@ -127,7 +129,7 @@ def _cmd_render(a) -> int:
         return 0
     s = run_render(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height, spp=a.spp,
                    day=a.day, when=a.when, hour=a.hour, max_depth=a.max_depth,
-                   scenario=a.scenario, progress=not a.quiet)
+                   scenario=a.scenario, denoise=a.denoise, progress=not a.quiet)
     print(f"rendered day {s['day']} ({s['date']}): {s['moss']:,d} moss, {s['trees']} trees, "
           f"{s['seconds']:.1f} s")
     print("wrote:")
@@ -141,7 +143,7 @@ def _cmd_render(a) -> int:
 def _cmd_animate(a) -> int:
     s = run_animate(a.run_dir, a.out, camera=a.camera, width=a.width, height=a.height,
                     spp=a.spp, frames=a.frames, every=a.every, fps=a.fps, light=a.light,
-                    hour=a.hour, scenario=a.scenario, progress=not a.quiet,
+                    hour=a.hour, scenario=a.scenario, denoise=a.denoise, progress=not a.quiet,
                     scheduler=a.scheduler, workers=a.workers)
     t = s["timings_s"]
     print(f"animated {len(s['frames'])} days in {t['total']:.1f} s (render {t['render']:.1f} s)"

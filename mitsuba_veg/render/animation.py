@@ -135,7 +135,7 @@ def default_light(light, when) -> str:
 
 def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height=None,
                       spp=None, frames=None, every=None, fps=None, when=None, hour=None,
-                      seed=0):
+                      seed=0, denoise=True):
     """What every animation needs first (here or on Dask).
 
     The run, its output folder (claimed; old frames removed), the frame days, fps and the render
@@ -165,6 +165,8 @@ def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height
         Local hour of the light [h] (default 10).
     seed : int, optional
         Sampler seed (default 0).
+    denoise : bool, optional
+        Denoise the frames (default True).
 
     Returns
     -------
@@ -192,7 +194,7 @@ def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height
     opts = dict(width=width or ANIMATE_DEFAULTS["width"],
                 height=height or ANIMATE_DEFAULTS["height"], spp=spp or ANIMATE_DEFAULTS["spp"],
                 camera=camera or ANIMATE_DEFAULTS["camera"], seed=int(seed), when=when,
-                max_depth=5)
+                max_depth=5, denoise=bool(denoise))
     if hour is not None:
         opts["hour"] = float(hour)
     return run, out, fdir, days, fps, opts, RenderOptions(**opts).validate(), folder
@@ -200,7 +202,8 @@ def prepare_animation(run_dir, out, scenario, *, camera=None, width=None, height
 
 def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
                 frames=None, every=None, fps=None, when=None, hour=None, light=None,
-                trees=None, scenario=None, gif_width=None, seed=0, progress=True) -> dict:
+                trees=None, scenario=None, gif_width=None, seed=0, denoise=True,
+                progress=True) -> dict:
     """Render the days of a run to ``animation.mp4`` and ``animation.gif`` in this process.
 
     The last day is rendered first: its exposure is used for every frame (no flicker). Frames go to
@@ -238,6 +241,8 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
         Downscale the GIF to this width [pixels] (default 360; 0 keeps the frame width).
     seed : int, optional
         Sampler seed (default 0); frame k renders with ``seed + k``.
+    denoise : bool, optional
+        Denoise the frames (default True).
     progress : bool, optional
         Show a progress bar over the frames (default True).
 
@@ -252,7 +257,7 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
     t0 = time.perf_counter()
     run, out, fdir, days, fps, opts, o, folder = prepare_animation(
         run_dir, out, scenario, camera=camera, width=width, height=height, spp=spp,
-        frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed)
+        frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed, denoise=denoise)
     version = tree_version(run, days[-1]) if trees is None else 0
     tree_list, seasons = trees_for_run(run, trees, days[-1])
     terrain = Terrain.from_scenario(run.scenario)

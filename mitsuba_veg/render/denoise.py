@@ -1,13 +1,15 @@
 """Denoising the display image of a render (Intel Open Image Denoise).
 
 A path-traced image at a few dozen samples per pixel is grainy. The display image (linear sRGB,
-the PNG's source) is denoised with Open Image Denoise's ``RT`` filter (``pyoidn``, on the CPU),
-guided by two auxiliary buffers that it needs to keep edges and textures: the surface albedo and
-the shading normal of the first hit, per pixel. Mitsuba's ``aov`` integrator makes them, but not
-on the spectral film of the render (its channels do not match), so they come from a pass of their
-own: a second camera with the same view and an RGB ``hdrfilm`` (:func:`aux_sensor_dict`),
-rendered by ``aov`` at :data:`AUX_SPP` samples per pixel (primary rays only: a fraction of the
-render's time).
+the PNG's source) is denoised with Open Image Denoise's ``RT`` filter (``pyoidn``, on the CPU).
+The filter can be guided by two auxiliary buffers, the surface albedo and the shading normal of
+the first hit per pixel (``RenderOptions.denoise_guides``). Mitsuba's ``aov`` integrator makes
+them, but not on the spectral film of the render (its channels do not match), so they come from
+a pass of their own: a second camera with the same view and an RGB ``hdrfilm``
+(:func:`aux_sensor_dict`), rendered by ``aov`` at :data:`AUX_SPP` samples per pixel. On the
+views measured (docs/render.md) the guides raised the error against a converged render by about
+0.3 percentage points, so they are off by default. The film's pixel filter is a box: the
+denoiser is trained on independent pixel noise, which a wider filter would correlate.
 
 Only the display image is denoised: the EXR keeps the rendered XYZ, RGB, red and far-red bands and
 R:FR as they came from the film, so measurements never see the denoiser.
@@ -116,7 +118,8 @@ def denoise(rgb, albedo=None, normal=None) -> np.ndarray:
 
 def timed_denoise(rs, images: dict, seed: int = 0) -> dict:
     """Add the denoised display image to a render's images: ``display`` (h, w, 3) linear sRGB,
-    and ``seconds_aux`` and ``seconds_denoise`` [s].
+    ``seconds_denoise`` [s], and with the scene's auxiliary camera (``RenderOptions.
+    denoise_guides``) the guided result and ``seconds_aux`` [s].
 
     Parameters
     ----------
@@ -133,10 +136,12 @@ def timed_denoise(rs, images: dict, seed: int = 0) -> dict:
         ``images``, updated.
     """
     t0 = time.perf_counter()
-    albedo, normal = aux_buffers(rs.scene, rs.aux_sensor, seed)
+    albedo = normal = None
+    if rs.aux_sensor is not None:
+        albedo, normal = aux_buffers(rs.scene, rs.aux_sensor, seed)
+        images["seconds_aux"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     images["display"] = denoise(images["rgb"], albedo, normal)
-    images["seconds_aux"] = t1 - t0
     images["seconds_denoise"] = time.perf_counter() - t1
     return images
 

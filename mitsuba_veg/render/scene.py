@@ -78,18 +78,25 @@ class RenderOptions:
     moss_carpet: bool = True
     seed: int = 0
     leaf_bins: int = 12
-    sampler: str = "multijitter"
+    #: Mitsuba's sampler: "ldsampler" (low discrepancy; power-of-two sample counts) by default
+    sampler: str = "ldsampler"
     #: denoise the display image (Open Image Denoise, :mod:`.denoise`); the EXR stays as rendered
     denoise: bool = True
+    #: guide the denoiser with albedo and normal buffers (a pass of their own); off by default:
+    #: on the measured views they raised the error against a converged render (docs/render.md)
+    denoise_guides: bool = False
 
     @property
     def samples(self) -> int:
         """Samples per pixel as the sampler takes them: ``multijitter`` needs a x b samples
-        (a = floor(sqrt(spp)), b = ceil(spp / a)); other samplers take ``spp`` as it is."""
+        (a = floor(sqrt(spp)), b = ceil(spp / a)), ``ldsampler`` a power of two (the next one up);
+        other samplers take ``spp`` as it is."""
         n = int(self.spp)
         if self.sampler == "multijitter":
             a = max(int(math.isqrt(n)), 1)
             return a * -(-n // a)
+        if self.sampler == "ldsampler":
+            return 1 << (n - 1).bit_length()
         return n
 
     def validate(self) -> "RenderOptions":
@@ -863,6 +870,46 @@ def sky_emitters(scn, when: str) -> dict:
     return em
 
 
+def weighted_sun(emitters: dict) -> dict:
+    """The daylight with the sun's ``sampling_weight`` set to its share of the light.
+
+    The path tracer picks one emitter per light sample in proportion to the emitters' sampling
+    weights (1 each by default): half the samples of a sunlit pixel then went to the sky, which
+    gives a sixth of its light on a clear morning. The sun's weight is the ratio of its horizontal
+    irradiance to the sky's (their spectra's means over 360-830 nm; between 1 and 20), so light
+    samples follow the light. The image's expectation is unchanged; its noise at 32 samples per
+    pixel fell from 7.6 % to 5.4 % on the courtyard's midsummer overview (docs/render.md).
+
+    Parameters
+    ----------
+    emitters : dict
+        ``{"sun": directional dict, "sky": veg_sky dict}`` (:func:`sky_emitters`); other
+        emitter dicts pass unchanged.
+
+    Returns
+    -------
+    dict
+        A copy with ``emitters["sun"]["sampling_weight"]`` set.
+    """
+    out = {k: dict(v) for k, v in emitters.items()}
+    sun, sky = out.get("sun"), out.get("sky")
+    if not (sun and sky and sun.get("type") == "directional" and "radiance" in sky):
+        return out
+
+    def mean(spec):
+        v = spec.get("values") if isinstance(spec, dict) else spec
+        if isinstance(v, str):
+            return float(np.mean([float(x) for x in v.split(",")]))
+        return float(np.mean(np.atleast_1d(spec.get("value", 0.0) if isinstance(spec, dict)
+                                           else spec)))
+    d = np.asarray(sun["direction"], float)
+    cos_z = max(-d[1] / max(np.linalg.norm(d), 1e-12), 0.0)
+    e_sun, e_sky = mean(sun["irradiance"]) * cos_z, np.pi * mean(sky["radiance"])
+    if e_sky > 0:
+        sun["sampling_weight"] = float(np.clip(e_sun / e_sky, 1.0, 20.0))
+    return out
+
+
 # ---- the scene -----------------------------------------------------------------------------------
 def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
                 trees=None, date: _dt.date | None = None,
@@ -932,9 +979,9 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     t3 = time.perf_counter()
     when = render_time(scn, date, options)
     em = emitters if emitters is not None else sky_emitters(scn, when)
-    d.update(em)
+    d.update(weighted_sun(em))
     d["camera"] = sensor_dict(scn, terrain, options, film_dict(options), moss, trees)
-    if options.denoise:
+    if options.denoise and options.denoise_guides:
         d[AUX_CAMERA] = aux_sensor_dict(d["camera"])
     scene = mi.load_dict(d, optimize=False)
     attach_scene(scene)

@@ -33,8 +33,9 @@ def render(rs, spp: int | None = None, seed: int | None = None,
     seed : int, optional
         Sampler seed (default: the scene's options).
     denoise : bool, optional
-        Denoise the display image (default: the scene's ``options.denoise``; it needs the
-        scene's auxiliary camera, :mod:`mitsuba_veg.render.denoise`).
+        Denoise the display image (default: the scene's ``options.denoise``; guided by albedo and
+        normal buffers when the scene has their camera, ``options.denoise_guides``;
+        :mod:`mitsuba_veg.render.denoise`).
 
     Returns
     -------
@@ -42,8 +43,8 @@ def render(rs, spp: int | None = None, seed: int | None = None,
         :func:`mitsuba_veg.render.film.develop`'s images (``rgb`` linear sRGB, ``XYZ``, ``bands``
         band-mean spectral radiance [W m-2 sr-1 nm-1], ``r_fr`` photon ratio, all as rendered),
         ``display`` (the linear sRGB image to show: denoised, or ``rgb``), ``seconds`` (the
-        render and its development [s]), and with denoising ``seconds_aux`` and
-        ``seconds_denoise`` [s].
+        render and its development [s]), and with denoising ``seconds_denoise`` (and
+        ``seconds_aux`` for the guides' pass) [s].
     """
     t0 = time.perf_counter()
     if spp is not None:
@@ -54,7 +55,7 @@ def render(rs, spp: int | None = None, seed: int | None = None,
     out = _film.develop(a)
     out["seconds"] = time.perf_counter() - t0
     out["display"] = out["rgb"]
-    if (rs.options.denoise if denoise is None else denoise) and rs.aux_sensor is not None:
+    if rs.options.denoise if denoise is None else denoise:
         timed_denoise(rs, out, seed)
     return out
 
@@ -95,7 +96,7 @@ def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None
     return {"files": files, "exposure": exp}
 
 
-RENDER_DEFAULTS = {"width": 800, "height": 450, "spp": 24, "cameras": ("overview", "shelter")}
+RENDER_DEFAULTS = {"width": 800, "height": 450, "spp": 32, "cameras": ("overview", "floor")}
 #: frames per second of the years' animation (``render --years``)
 YEARS_FPS = 1
 
@@ -110,7 +111,7 @@ def _cameras(camera) -> list[str]:
 
 def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=None,
                day=None, when=None, hour=None, max_depth=None, trees=None, scenario=None,
-               seed=0, progress=True) -> dict:
+               seed=0, denoise=True, progress=True) -> dict:
     """Render one day of a run from one or more camera presets.
 
     Writes, per camera, ``render_<camera>.exr`` (RGB + red/far-red bands + R:FR),
@@ -141,6 +142,8 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
         The run's scenario file (default: the one its summary names).
     seed : int, optional
         Sampler seed and tuft placement seed (default 0).
+    denoise : bool, optional
+        Denoise the PNG's image (default True; the EXR keeps the rendered channels).
     progress : bool, optional
         Show a progress bar over the cameras (default True).
 
@@ -165,7 +168,7 @@ def run_render(run_dir, out=None, *, camera=None, width=None, height=None, spp=N
     folder = OutputFolder(out, "render", info={"run": str(run.dir)}, reads=run.dir)
     opts = dict(width=width or RENDER_DEFAULTS["width"],
                 height=height or RENDER_DEFAULTS["height"], spp=spp or RENDER_DEFAULTS["spp"],
-                when=when, seed=int(seed))
+                when=when, seed=int(seed), denoise=bool(denoise))
     if hour is not None:
         opts["hour"] = float(hour)
     if max_depth is not None:
@@ -327,7 +330,7 @@ def _render_cameras(cams, opts, run, frame, tree_list, terrain, tree_cache, out,
         rfr = images.get("r_fr")
         results[cam] = {"render_s": images["seconds"],
                         "denoise_s": images.get("seconds_aux", 0.0) +
-                        images.get("seconds_denoise", 0.0) if "seconds_aux" in images else None,
+                        images["seconds_denoise"] if "seconds_denoise" in images else None,
                         "exposure": w["exposure"],
                         "info": rs.info, "files": w["files"],
                         "r_fr_median": float(np.nanmedian(rfr)) if rfr is not None else None,

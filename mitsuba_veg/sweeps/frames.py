@@ -74,7 +74,7 @@ def render_frame(spec: dict) -> dict:
 def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=None,
                     threads=None, camera=None, width=None, height=None, spp=None, frames=None,
                     every=None, fps=None, when=None, hour=None, light=None, scenario=None,
-                    gif_width=None, seed=0, progress=True) -> dict:
+                    gif_width=None, seed=0, denoise=True, progress=True) -> dict:
     """Render the days of a moss run as Dask tasks into ``animation.mp4`` and ``animation.gif``.
 
     See the module docstring: the last frame runs first and fixes the exposure of every frame.
@@ -122,6 +122,8 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
         Downscale the GIF to this width [pixels] (default 360; 0 keeps the frame width).
     seed : int, optional
         Render seed; frame k uses ``seed + k`` (default 0).
+    denoise : bool, optional
+        Denoise the frames (default True).
     progress : bool
         Print the dashboard link and show a progress bar (frames).
 
@@ -135,7 +137,7 @@ def animate_on_dask(run_dir, out=None, *, scheduler=None, workers=None, client=N
     t0 = time.perf_counter()
     run, out, fdir, days, fps, opts, o, folder = prepare_animation(
         run_dir, out, scenario, camera=camera, width=width, height=height, spp=spp,
-        frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed)
+        frames=frames, every=every, fps=fps, when=when, hour=hour, seed=seed, denoise=denoise)
     fixed_when = render_time(run.scenario, run.date(days[-1]), o) if light == "fixed" else None
     scen = scenario if scenario is None or hasattr(scenario, "data") else \
         str(Path(scenario).resolve())
