@@ -254,7 +254,8 @@ def _cmd_demo(a) -> int:
             print(f"  {p}")
     print(f"\nmitsuba-veg demo 3/4: spectral render of the last day and of midsummer -> "
           f"{out / 'world' / 'render'}/")
-    r = run_render(out / "world", camera="overview", progress=not a.quiet)
+    # the last day from the overview and from the floor across the moss; midsummer's overview
+    r = run_render(out / "world", camera="overview,floor", progress=not a.quiet)
     r2 = run_render(out / "world", out / "world" / "render_summer", camera="overview",
                     day=summer["day"], progress=not a.quiet)
     print(f"\nmitsuba-veg demo 4/4: animation of the year -> {out / 'world' / 'animation'}/")

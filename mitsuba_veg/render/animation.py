@@ -300,7 +300,9 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
                     when_k = render_time(run.scenario, fr.date, o)
                     rs.set_light(sky_emitters(run.scenario, when_k), when_k)
                 timings["update"] += time.perf_counter() - t1
-            images = render(rs, seed=int(seed) + k)
+            # one sampler seed for every frame: what does not change between frames keeps its
+            # noise (denoised), so a still scene does not flicker (benchmarks/render_noise.py)
+            images = render(rs, seed=int(seed))
             timings["render"] += images["seconds"]
             t2 = time.perf_counter()
             img8, exp = to_srgb8(images["display"], exposure)

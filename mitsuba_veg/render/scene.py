@@ -78,8 +78,8 @@ class RenderOptions:
     moss_carpet: bool = True
     seed: int = 0
     leaf_bins: int = 12
-    #: Mitsuba's sampler: "ldsampler" (low discrepancy; power-of-two sample counts) by default
-    sampler: str = "ldsampler"
+    #: Mitsuba's sampler (``multijitter``, ``ldsampler``, ``independent``, ...)
+    sampler: str = "multijitter"
     #: denoise the display image (Open Image Denoise, :mod:`.denoise`); the EXR stays as rendered
     denoise: bool = True
     #: guide the denoiser with albedo and normal buffers (a pass of their own); off by default:
@@ -89,14 +89,17 @@ class RenderOptions:
     @property
     def samples(self) -> int:
         """Samples per pixel as the sampler takes them: ``multijitter`` needs a x b samples
-        (a = floor(sqrt(spp)), b = ceil(spp / a)), ``ldsampler`` a power of two (the next one up);
-        other samplers take ``spp`` as it is."""
+        (a = floor(sqrt(spp)), b = ceil(spp / a)), ``ldsampler`` a square power of two (the next
+        power of 4 up); other samplers take ``spp`` as it is."""
         n = int(self.spp)
         if self.sampler == "multijitter":
             a = max(int(math.isqrt(n)), 1)
             return a * -(-n // a)
         if self.sampler == "ldsampler":
-            return 1 << (n - 1).bit_length()
+            k = 1
+            while k < n:
+                k *= 4
+            return k
         return n
 
     def validate(self) -> "RenderOptions":
@@ -531,6 +534,13 @@ class Terrain:
                 return mat.blend(mat.diffuse(a), mat.diffuse(b), noise)
         return mat.diffuse(name)
 
+    def _mean(self, name: str) -> dict:
+        """A material's diffuse BSDF, the even blend of it and its variant where one exists."""
+        for other in (name + "_light", name + "_dark"):
+            if other in mat.SPECTRA:
+                return mat.blend(mat.diffuse(name), mat.diffuse(other), 0.5)
+        return mat.diffuse(name)
+
     def ground_bsdf(self) -> dict:
         """The ground's (one-sided) BSDF dict.
 
@@ -602,9 +612,9 @@ class Terrain:
             else:
                 m = self.materials.get(sid, "concrete")
                 if isinstance(m, str):
-                    if uv is None:      # the plan as texture coordinates: the noise varies
-                        uv = _plan_uv(v, 2.0)
-                    bsdf = self._varied(m)
+                    # the 1/f variation over the mesh's own texture coordinates; without them the
+                    # mean of the material's two tones (a projection would streak on walls)
+                    bsdf = self._varied(m) if uv is not None else self._mean(m)
                 else:
                     bsdf = m
             out[sid] = make_mesh(sid, v, f, {"type": "twosided", "bsdf": bsdf}, uv=uv,
@@ -623,10 +633,8 @@ class Terrain:
                                             uv=_plan_uv(vn, self.uv_scale))
                 # the far ring without texture: a bitmap seen at grazing angles over kilometres
                 # would alias into stripes
-                far = mat.blend(mat.diffuse(m), mat.diffuse(m + "_light"), 0.5) \
-                    if m + "_light" in mat.SPECTRA else mat.diffuse(m)
                 out["surround_far"] = make_mesh("surround_far", vf, ff,
-                                                {"type": "twosided", "bsdf": far})
+                                                {"type": "twosided", "bsdf": self._mean(m)})
         return out
 
     def surround(self, radius: float | None = None):
