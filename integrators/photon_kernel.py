@@ -80,6 +80,9 @@ from .bands import _SLOTS
 from .photon_result import fixed_point_scale
 from .scene_index import SceneIndex, _reg_id, registry_id, scene_index
 
+__all__ = ["DEFAULT_BATCH", "KERNEL_MODES", "split_photons", "LaneSampler", "LaunchInputs",
+           "PassTables", "PhotonKernel", "switch_table", "aim_area"]
+
 _UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)
 DEFAULT_BATCH = LIGHT["batch"].default

@@ -31,6 +31,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+from .plugin_table import Parameter, with_parameter_table
+
 __all__ = ["LeafBSDF", "PLUGIN_NAME"]
 
 #: the name the BSDF is registered under
@@ -56,26 +58,21 @@ def _hmean(s):
     return acc * (1.0 / n)
 
 
+@with_parameter_table
 class LeafBSDF(mi.BSDF):
     """Mitsuba BSDF ``veg_leaf``: a thin two-sided leaf, diffuse reflectance R(lambda) and
     diffuse transmittance T(lambda) (module docstring).
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - reflectance
-         - spectrum or float
-         - 0.1
-         - R [-], the same on both sides; a number is a flat spectrum.
-       * - transmittance
-         - spectrum or float
-         - 0.05
-         - T [-]; R + T <= 1 at every wavelength (checked when the plugin is built).
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = PLUGIN_NAME, "bsdf"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("reflectance", "spectrum or float", "0.1",
+                  "R [-], the same on both sides; a number is a flat spectrum."),
+        Parameter("transmittance", "spectrum or float", "0.05",
+                  "T [-]; R + T <= 1 at every wavelength (checked when the plugin is built)."),
+    )
 
     #: its textures are inputs of a frozen function that reaches it (dr.freeze)
     DRJIT_STRUCT = {"reflectance": mi.Texture, "transmittance": mi.Texture}

@@ -10,6 +10,9 @@ import math
 import re
 
 
+__all__ = ["MitsubaVegError", "VariantError", "ParameterError", "FolderBusy", "SceneError",
+           "plugin_error", "check_range", "DependencyError", "unknown_field"]
+
 class MitsubaVegError(Exception):
     """Base class of all mitsuba-veg errors."""
 

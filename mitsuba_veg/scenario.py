@@ -32,6 +32,10 @@ from .errors import ParameterError, plugin_error, unknown_field
 from .inputs import check_scene_files, input_hashes
 from .light.clear_sky import daylight as _daylight
 
+__all__ = ["Field", "SCHEMA", "known_fields", "schema_markdown", "field_spec", "Scenario",
+           "load_scene_file", "XML_SET_FIELDS", "light_overrides", "apply_overrides", "validate",
+           "site_offset_hours", "site_time", "load_scenario"]
+
 _DEFAULTS = {
     "light": {k: LIGHT[k].default for k in ("photons", "max_depth", "seed", "indirect")},
     "site": {"latitude": 35.0, "longitude": 139.0},
@@ -66,6 +70,7 @@ def _num(kind, lo, hi, doc=""):
 _GEOLOGIES = ("humus", "sand", "asphalt")
 _VEC3 = Field("vec3", doc="[x, y, z] in metres")
 
+#: every scenario field by its dotted name (docs/scenario.md is generated from it)
 SCHEMA: dict[str, Field] = {
     "scene": Field("table", fields={"file": Field("file", doc="Mitsuba XML scene")}),
     "site": Field("table", fields={

@@ -52,6 +52,8 @@ from ..backend import versions
 from .args import add_out, add_quiet, add_set, ranged
 from .entry import standalone
 
+__all__ = ["load_tree_toml", "build_environment", "run_grow", "report", "add_parser", "main"]
+
 _TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
              "environment", "nongrowth", "output", "weber_penn", "name", "description"}
 _MODELS = ("growth", "branching", "weber_penn")

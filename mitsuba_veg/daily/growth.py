@@ -39,6 +39,9 @@ from ..trees.growth import TipLight
 from ..units import umol_per_joule
 from ..world.trees import adapts, ages
 
+__all__ = ["GROWTH_MODEL", "YearLight", "DayGrowth", "sphere_light", "floor_year", "floor_figure",
+           "floor_years_figure"]
+
 #: the model of the trees that grow from their light
 GROWTH_MODEL = "growth"
 

@@ -9,6 +9,8 @@ from ..scenario import Scenario, load_scenario
 from .pipeline import Simulation
 
 
+__all__ = ["run"]
+
 def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: bool = True,
         progress: bool = True, frames: bool = True, snapshot_every: int | None = None) -> dict:
     """Run a scenario into a folder through the daily pipeline.

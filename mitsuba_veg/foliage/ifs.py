@@ -36,6 +36,9 @@ from mitsuba_veg.errors import ParameterError, check_range
 from .pigments import LeafTraits, StageTable, stage_from_tau, stage_table, state_pigments
 from .spectra import leaf_spectra, spectrum_to_srgb
 
+__all__ = ["MAPLE_IFS", "fixed_point", "chaos_game", "vein_segments", "MapleLeaf", "maple_leaf",
+           "state_colours", "leaf_image"]
+
 #: paper 003 table 2: rows w1..w4, columns a b c d e f
 MAPLE_IFS = np.array([
     [0.8, 0.0, 0.0, 0.8, 0.1, 0.06],

@@ -42,6 +42,9 @@ from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
 from .light_study import leaf_values, tree_scene
 
 
+__all__ = ["shadow_scene", "InsolationResult", "instantaneous_insolation", "leaf_insolation",
+           "sky_view_factor", "sky_view_factor_photons"]
+
 # --------------------------------------------------------------------------------------------
 # Shadow scene
 # --------------------------------------------------------------------------------------------

@@ -43,6 +43,9 @@ from .clear_sky import band_irradiance, clear_sky_spectra, regular_spectrum
 from .photon import BANDS, photon_irradiance
 from .solar_position import sun_direction, sun_position
 
+__all__ = ["band_table", "daylight_bands", "reference", "step_starts", "SensorSeries",
+           "run_series", "daily_light_integral", "hours_above"]
+
 #: reference sun of the emitters' spectra
 REF_ELEVATION, REF_DOY = 45.0, 172
 

@@ -27,6 +27,9 @@ from mitsuba_veg.errors import SceneError
 from mitsuba_veg.meshes import make_mesh
 
 
+__all__ = ["grid_mesh", "box_mesh", "sun_vector", "roof_wall_scene", "path_reference", "as_meshes",
+           "plant_mesh", "plant_scene"]
+
 def grid_mesh(nx: int, nz: int, x=(-1.0, 1.0), z=(-1.0, 1.0), y=0.0, height=None, up=True):
     """Vertices/faces of a grid in the x-z plane at height ``y`` (normals +y when ``up``).
 

@@ -28,6 +28,8 @@ from pathlib import Path
 from ..atomic import atomic_write
 from .spec import Sweep, toml_value
 
+__all__ = ["RUN_COLUMNS", "flatten_record", "tidy", "write_table", "comparable"]
+
 #: leading columns (before the swept fields)
 RUN_COLUMNS = ("run", "index", "status", "error")
 

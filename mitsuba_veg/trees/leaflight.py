@@ -44,6 +44,9 @@ import numpy as np
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.trees.voxel import dda_advance, dda_start
 
+__all__ = ["Sky", "LeafLight", "inside_counts", "sphere_grid", "leaf_sphere_light",
+           "obstacle_sky_light"]
+
 #: "no triangle" marker of the kernels
 _NONE = 0xFFFFFFFF
 
