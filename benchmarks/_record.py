@@ -153,7 +153,7 @@ class Recorder:
                 pass
         return " ".join(["python"] + argv)
 
-    def add(self, key: str, value: float, unit: str, label: str) -> "Recorder":
+    def add(self, key: str, value: float, unit: str, label: str, **extra) -> "Recorder":
         """Add one headline figure.
 
         Parameters
@@ -166,6 +166,9 @@ class Recorder:
             Its unit (``"s"``, ``"ms"``, ``"ratio"``, ``"M photons/s"``, ...).
         label : str
             What was measured, in a few words (the table's row).
+        **extra
+            More fields of the figure (JSON values), e.g. a validation row's ``tolerance``
+            and ``test``.
 
         Returns
         -------
@@ -175,7 +178,7 @@ class Recorder:
         if any(f["key"] == key for f in self.figures):
             raise ValueError(f"figure {key!r} recorded twice in {self.name}")
         v = float(value) if not isinstance(value, (int, bool)) else value
-        self.figures.append({"key": key, "label": label, "value": v, "unit": unit})
+        self.figures.append({"key": key, "label": label, "value": v, "unit": unit, **extra})
         return self
 
     def as_dict(self, source: str = "measured", machine_: dict | None = None,

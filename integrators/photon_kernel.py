@@ -19,6 +19,7 @@ and the plugin's ``render_forward`` / ``render_backward`` (what ``mi.render(scen
 differentiates) are replays of such paths.
 
 Emitter sampling ("bounding-sphere aim", done tighter):
+
 - directional and infinite emitters (sun, sky): the direction comes from the emitter
   (``sample_direction``), the origin is uniform over the rectangle that covers the projection of
   the scene geometry's bounding box on the plane perpendicular to the photon direction, so

@@ -144,7 +144,7 @@ class LeafBSDF(mi.BSDF):
         bs : mi.BSDFSample3f
             Sampled direction ``wo`` (local frame), pdf [sr-1], eta = 1, sampled type and component.
         weight : mi.Spectrum
-            BSDF value × |cos θ_o| / pdf [-] (R/p or T/(1 − p)); 0 where invalid.
+            BSDF value × ``|cos θ_o|`` / pdf [-] (R/p or T/(1 − p)); 0 where invalid.
         """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         R, T = self._rt(si, active)
@@ -166,7 +166,7 @@ class LeafBSDF(mi.BSDF):
         return bs, dr.select(ok, weight, 0.0)
 
     def eval(self, ctx, si, wo, active=True):
-        """BSDF value times the cosine foreshortening: R/π or T/π times |cos θ_o|.
+        """BSDF value times the cosine foreshortening: R/π or T/π times ``|cos θ_o|``.
 
         Parameters
         ----------
@@ -182,7 +182,7 @@ class LeafBSDF(mi.BSDF):
         Returns
         -------
         mi.Spectrum
-            f(wi, wo) |cos θ_o| [sr-1]: R/π on the side of ``wi``, T/π on the other; 0 for grazing
+            f(wi, wo) ``|cos θ_o|`` [sr-1]: R/π on the side of ``wi``, T/π on the other; 0 for grazing
             ``wi`` or a disabled component.
         """
         cos_i = mi.Frame3f.cos_theta(si.wi)
@@ -211,7 +211,7 @@ class LeafBSDF(mi.BSDF):
         Returns
         -------
         mi.Float
-            p |cos θ_o| / π (same side as ``wi``) or (1 − p) |cos θ_o| / π (other side) [sr-1].
+            p ``|cos θ_o|`` / π (same side as ``wi``) or (1 − p) ``|cos θ_o|`` / π (other side) [sr-1].
         """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         cos_o = mi.Frame3f.cos_theta(wo)
@@ -238,7 +238,7 @@ class LeafBSDF(mi.BSDF):
         Returns
         -------
         value : mi.Spectrum
-            f(wi, wo) |cos θ_o| [sr-1].
+            f(wi, wo) ``|cos θ_o|`` [sr-1].
         pdf : mi.Float
             Sampling density of ``wo`` [sr-1].
         """

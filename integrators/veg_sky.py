@@ -16,18 +16,18 @@ without its search).
 Frame (project convention): +y up, +x east, +z south; the grid's azimuth is clockwise from north
 (-z). The plugin takes no ``to_world``.
 
-Properties
-----------
-radiance      spectrum S [W m-2 sr-1 nm-1] (explicit ``regular``/``uniform``/... spectrum; a
-              plain float becomes a *flat* (``uniform``) spectrum, not a D65 one); or
-irradiance    spectrum E (horizontal diffuse irradiance [W m-2 nm-1]); S = E/pi.
-sun_direction vector towards the sun (need not be normalised); must be above the horizon for
-              ``perez`` (its zenith angle enters the coefficients). Default: zenith.
-distribution  ``perez`` (default when perez_epsilon is given), ``cie_clear`` (CIE type 12,
-              the default otherwise), ``cie_turbid`` (type 13), ``uniform`` or ``custom``.
-perez_epsilon, perez_delta   Perez sky clearness (>= 1) and brightness (>= 0).
-a, b, c, d, e coefficients for ``custom``.
-resolution    rows of the sampling table over 0-90 deg zenith (default 128; 4x as many columns).
+Properties (the parameter table of VegSky)::
+
+    radiance      spectrum S [W m-2 sr-1 nm-1] (explicit regular/uniform/... spectrum; a
+                  plain float becomes a *flat* (uniform) spectrum, not a D65 one); or
+    irradiance    spectrum E (horizontal diffuse irradiance [W m-2 nm-1]); S = E/pi.
+    sun_direction vector towards the sun (need not be normalised); must be above the horizon for
+                  perez (its zenith angle enters the coefficients). Default: zenith.
+    distribution  perez (default when perez_epsilon is given), cie_clear (CIE type 12,
+                  the default otherwise), cie_turbid (type 13), uniform or custom.
+    perez_epsilon, perez_delta   Perez sky clearness (>= 1) and brightness (>= 0).
+    a, b, c, d, e coefficients for custom.
+    resolution    rows of the sampling table over 0-90 deg zenith (default 128; 4x as many columns).
 
 Note: Mitsuba's scene does not call ``set_scene`` on Python emitters (it is not part of the
 Python trampoline in 3.9.1). Call :func:`attach_scene` (or ``emitter.set_scene(scene)``) after

@@ -4,17 +4,17 @@ A scenario names a Mitsuba scene file and the settings of a run. Every value is 
 file is read; a bad one raises :class:`~mitsuba_veg.errors.ParameterError` naming the file, the
 field (dotted name), the value, the allowed range and the fix.
 
-Sections used so far (paths relative to the scenario file):
+Sections used so far (paths relative to the scenario file)::
 
-``[scene] file``            Mitsuba XML scene; loaded with ``optimize=False`` to keep shape ids.
-``[site] latitude, longitude``  [deg] north/east positive.
-``[light]``                 photons, max_depth, seed, indirect, and optionally ``when`` (ISO
-                            date-time): then the scene's own emitters are replaced by a physical
-                            daylight sun + sky (:func:`mitsuba_veg.light.daylight`).
-``[terrain]``               ground (shape id), geology_texture, soil_base_y [m],
-                            ``[terrain.soil_depth_mm]`` per-shape soil depth.
-``[regions.NAME]``          shapes, min, max: boxes [m] naming parts of the terrain.
-``[[sensors]]``             virtual light sensors: points and grids (docs/sensors.md).
+    [scene] file            Mitsuba XML scene; loaded with optimize=False to keep shape ids.
+    [site] latitude, longitude  [deg] north/east positive.
+    [light]                 photons, max_depth, seed, indirect, and optionally when (ISO
+                                date-time): then the scene's own emitters are replaced by a physical
+                                daylight sun + sky (:func:`mitsuba_veg.light.daylight`).
+    [terrain]               ground (shape id), geology_texture, soil_base_y [m],
+                                [terrain.soil_depth_mm] per-shape soil depth.
+    [regions.NAME]          shapes, min, max: boxes [m] naming parts of the terrain.
+    [[sensors]]             virtual light sensors: points and grids (docs/sensors.md).
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """``mitsuba-veg grow TREE.toml --out DIR``: grow a tree (or a stand) and write mesh, metrics
 and a picture.
 
-TREE.toml (all keys optional; see scenes/trees/*.toml and docs/trees.md)::
+TREE.toml (all keys optional; see ``scenes/trees/*.toml`` and docs/trees.md)::
 
     model = "growth"            # "growth" (paper 001), "branching" (no light) or "weber_penn"
     seed = 0

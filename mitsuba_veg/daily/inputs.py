@@ -33,7 +33,7 @@ WEATHER_FIELDS = ("T", "rh", "U", "A", "P", "beam", "diffuse")
 
 
 def noon_elevation(latitude: float, day_of_year) -> np.ndarray:
-    """Noon sun elevation from the FAO-56 declination: 90° − |latitude − δ|, at least 1° [deg].
+    """Noon sun elevation from the FAO-56 declination: 90° − ``|latitude − δ|``, at least 1° [deg].
 
     Parameters
     ----------

@@ -82,7 +82,7 @@ def random_leaf_cloud(lai: float, box_min, box_max, leaf_size: float = 0.05, see
         Random seed (default 0).
     normals : str
         ``"spherical"`` (isotropic: G = 0.5 for every direction, default) or ``"horizontal"``
-        (all normals +y: G = |cos θ|).
+        (all normals +y: G = ``|cos θ|``).
 
     Returns
     -------

@@ -6,7 +6,7 @@ The leaf is the attractor of the IFS of 4 affine maps of the paper's table 2,
 
 drawn by the chaos game (random iteration): many independent chains run side by side (NumPy
 arrays, one row per chain), each picks a map at random at every step; after a burn-in every
-visited point lies on the attractor. Map probabilities default to |det| of each map (even point
+visited point lies on the attractor. Map probabilities default to ``|det|`` of each map (even point
 density over the blade); the paper notes they change the look, not the shape.
 
 Aging per point (paper §3.1: colouring starts at the margin and the tip, farthest from the main
@@ -89,7 +89,7 @@ def chaos_game(n_points: int = 200_000, *, maps=MAPLE_IFS, probabilities=None,
     maps : array_like
         (k, 6) affine maps, rows a b c d e f [-] (default :data:`MAPLE_IFS`, paper 003 table 2).
     probabilities : array_like, optional
-        (k,) non-negative map weights (normalised here); default |det| of each map (even point
+        (k,) non-negative map weights (normalised here); default ``|det|`` of each map (even point
         density over the blade).
     chains : int
         Chains run side by side (default 8192; at most ``n_points`` are used).
@@ -300,7 +300,7 @@ def maple_leaf(n_points: int = 200_000, *, seed=0, vein_levels: int = 2, weights
     raster : int
         Raster size [pixels] of the blade mask for the margin's distance transform (default 256).
     probabilities : array_like, optional
-        Map probabilities of :func:`chaos_game` (default |det|).
+        Map probabilities of :func:`chaos_game` (default ``|det|``).
 
     Returns
     -------

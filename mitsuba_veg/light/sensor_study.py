@@ -12,7 +12,7 @@ mesh in sensor mode) and two emitters built once:
   diffuse spectrum (DHI) of the reference sun. Its light does not depend on the time except for
   a factor per band, so it is traced once, with ``sky_photons`` photons.
 
-Per step [t0, t1) and band b the reading is the mean over the step:
+Per step [t0, t1) and band b the reading is the mean over the step::
 
     sun:  R_b = c_b × (pass reading),  weights w_k = (Δt/T) DNI_PAR(k) / DNI_PAR,ref,
           c_b = Σ_k (Δt/T) DNI_b(k) sin e_k / Σ_k w_k DNI_b,ref sin e_k   (c_PAR = 1)

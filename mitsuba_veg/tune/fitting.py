@@ -1,5 +1,7 @@
 """``fit``: tune model parameters so that the relaxed moss run matches a target coverage map.
 
+Example::
+
     from mitsuba_veg import tune
     res = tune.fit("scenes/moss_garden/scenario.toml", target, params=["S1", "T1"], steps=60,
                    days=30, species=["bryum_argenteum"], out="out/tune")
