@@ -77,7 +77,9 @@ def check_light(name: str, value, label: str | None = None, source: str | None =
 
 
 def range_text(name: str) -> str:
-    """The allowed range of a light setting as text, e.g. ``"1 .. 1e9"``.
+    """The allowed range of a light setting as text.
+
+    For example ``"1 .. 1e9"`` for ``photons``.
 
     Parameters
     ----------

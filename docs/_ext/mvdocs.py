@@ -82,33 +82,56 @@ def _kind(obj) -> str:
     return "data"
 
 
+def _assigned(mname: str) -> set:
+    """Names a module assigns at its top level (its own constants, not imported ones)."""
+    import ast
+
+    mod = sys.modules[mname]
+    tree = ast.parse(Path(mod.__file__).read_text())
+    out = set()
+    for node in tree.body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)):
+            for t in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                for n in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                    if isinstance(n, ast.Name):
+                        out.add(n.id)
+    return out
+
+
 def canonical_places(modules: dict) -> dict:
     """``{(module, name): canonical 'module.name'}`` for every public name.
 
     A function or class is documented in the module that defines it when that module lists
-    it in ``__all__``; otherwise (and for data) in the deepest module that exports it.
+    it in ``__all__``; a constant in the module that assigns it; otherwise in the deepest
+    module that exports it.
     """
-    exporters: dict[int, list[tuple[str, str]]] = {}
+    assigned = {m: _assigned(m) for m in modules}
+    exporters: dict = {}
     for mname, mod in modules.items():
         for n in public_names(mod):
             obj = getattr(mod, n)
             if inspect.ismodule(obj):
                 continue
-            # plain values (None, numbers, strings) are not shared objects: key them by place
-            key = id(obj) if _kind(obj) != "data" or isinstance(obj, (dict, list, tuple, set)) \
-                and len(obj) else (mname, n)
+            if _kind(obj) == "data":
+                key = ("data", n, repr(obj)[:200])
+            else:
+                key = id(obj)
             exporters.setdefault(key, []).append((mname, n))
     place = {}
     for key, lst in exporters.items():
         obj = getattr(modules[lst[0][0]], lst[0][1])
-        home = getattr(obj, "__module__", None) if _kind(obj) != "data" else None
-        home_entry = [(m, n) for m, n in lst if m == home]
-        if home_entry:
-            canon = home_entry[0]
+        if _kind(obj) == "data":
+            home_entry = [(m, n) for m, n in lst if n in assigned[m]]
         else:
-            canon = max(lst, key=lambda mn: (mn[0].count("."), len(mn[0])))
+            home = getattr(obj, "__module__", None)
+            home_entry = [(m, n) for m, n in lst if m == home]
+        canon = home_entry[0] if home_entry else max(
+            lst, key=lambda mn: (mn[0].count("."), len(mn[0])))
         for m, n in lst:
-            place[(m, n)] = f"{canon[0]}.{canon[1]}"
+            if _kind(obj) == "data" and n in assigned[m]:
+                place[(m, n)] = f"{m}.{n}"      # a constant of its own with the same name
+            else:
+                place[(m, n)] = f"{canon[0]}.{canon[1]}"
     return place
 
 
@@ -274,6 +297,8 @@ def generate_plugins() -> list[str]:
                  "## Parameters", "", markdown_table(cls.PARAMETERS), ""]
         if cls.DOC_REST.strip():
             lines += ["## Use", "", "```{eval-rst}", cls.DOC_REST.strip(), "```", ""]
+        lines += ["## The module", "", "```{eval-rst}", f".. automodule:: {cls.__module__}",
+                  "   :no-index:", "   :no-members:", "```", ""]
         _write(PLUGINS / f"{name}.md", "\n".join(lines))
     idx = ["# Mitsuba plugins", "",
            "`import mitsuba_veg` registers these plugins with Mitsuba; a scene file or "
@@ -383,23 +408,30 @@ HEADLINES = [
 
 def validation_table(doc: dict) -> str:
     """The validation page's tables from ``validation.json`` (benchmarks/validation_page.py)."""
-    out = ["| reference | compared | measured error | tolerance | test |", "|---|---|---|---|---|"]
-    thr = []
+    out = ["| reference | compared (how the error is taken) | error | bound | within | test |",
+           "|---|---|---|---|---|---|"]
+    thr, files = [], []
     for f in doc["figures"]:
         if f.get("tolerance") is None:
             thr.append(f)
             continue
         unit = f["unit"] if f["unit"] not in ("", "fraction") else ""
-        err = _fmt(f["value"], f["unit"] or "-") if unit else (
-            f"{f['value']:.2e}" if f["value"] < 0.01 else f"{100 * f['value']:.2f} %")
-        tol = (f"{f['tolerance']:.0e} {unit}".strip() if unit else
-               (f"{f['tolerance']:.0e}" if f["tolerance"] < 0.01 else
-                f"{100 * f['tolerance']:.1f} %"))
-        ok = "" if f.get("passed") else " **(outside)**"
-        out.append(f"| {_md_cell(f['label'])} | {_md_cell(f.get('compared', ''))} | {err} "
-                   f"({_md_cell(f.get('measure', ''))}){ok} | {tol} | `{f.get('test', '')}` |")
-    out += ["", f"*{_machine(doc)}; `{doc.get('variant')}`; {doc.get('date')}. "
-                f"Reproduce: `{doc.get('command')}`*", ""]
+        if unit:
+            err, tol = f"{f['value']:.2e} {unit}", f"{f['tolerance']:.0e} {unit}"
+        else:
+            err = f"{f['value']:.2e}" if f["value"] < 0.01 else f"{100 * f['value']:.2f} %"
+            tol = f"{f['tolerance']:.0e}" if f["tolerance"] < 0.01 else \
+                f"{100 * f['tolerance']:.1f} %"
+        test = f.get("test", "")
+        fname, _, func = test.partition("::")
+        if fname and fname not in files:
+            files.append(fname)
+        ok = "yes" if f.get("passed") else "**no**"
+        out.append(f"| {_md_cell(f['label'])} | {_md_cell(f.get('compared', ''))} "
+                   f"({_md_cell(f.get('measure', ''))}) | {err} | {tol} | {ok} | `{func or test}` |")
+    out += ["", "Tests: " + ", ".join(f"`{x}`" for x in files) + ".", "",
+            f"*{_machine(doc)}; `{doc.get('variant')}`; {doc.get('date')}. "
+            f"Reproduce: `{doc.get('command')}`*", ""]
     if thr:
         out += ["**Photon-pass throughput in the same run** (ray casts per second of the whole "
                 "pass ÷ Mitsuba's raw casts of as many rays drawn like the photons):", "",

@@ -199,7 +199,7 @@ def autumn_time(daily_insolation, params: AutumnParams = AutumnParams(), seed=0)
         (n_leaves, days) insolation per day [MJ m-2] (finite, >= 0); or an
         :class:`~mitsuba_veg.foliage.insolation.InsolationResult` (its ``daily``).
     params : AutumnParams
-        Model parameters (validated here; default :class:`AutumnParams`()).
+        Model parameters (validated here; default ``AutumnParams()``).
     seed : int
         Seed of the per-leaf random factors (default 0).
 

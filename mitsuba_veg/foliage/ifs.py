@@ -215,7 +215,7 @@ class MapleLeaf:
         Parameters
         ----------
         table : StageTable, optional
-            Stage table (default: :func:`~mitsuba_veg.foliage.pigments.stage_table`()).
+            Stage table (default: ``~mitsuba_veg.foliage.pigments.stage_table()``).
 
         Returns
         -------
@@ -353,7 +353,7 @@ def state_colours(exposure: float = 2.2, traits=None, table=None) -> np.ndarray:
     exposure : float
         Factor on XYZ before encoding [-] (default 2.2).
     traits : LeafTraits, optional
-        Leaf structure, water and dry matter (default :class:`LeafTraits`()).
+        Leaf structure, water and dry matter (default ``LeafTraits()``).
     table : StageTable, optional
         Stage table (default: the shipped one).
 
@@ -391,7 +391,7 @@ def leaf_image(leaf: MapleLeaf, stage=None, tau=None, size: int = 256, colours=N
     size : int
         Image side [pixels] (default 256).
     colours : array_like, optional
-        (3, 3) sRGB [-] of the three states (default :func:`state_colours`()).
+        (3, 3) sRGB [-] of the three states (default ``state_colours()``).
     background : sequence of float
         sRGB [-] of empty pixels (default white).
 

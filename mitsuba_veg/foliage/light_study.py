@@ -120,7 +120,7 @@ def tree_scene(tree, *, emitters: dict, tau=None, n_classes: int = 7, ground=Tru
     obstacles : sequence
         Further shapes: ``(vertices [m], faces)`` pairs or ``mi.Mesh``.
     traits : LeafTraits, optional
-        Leaf structure, water and dry matter of the spectra (default :class:`LeafTraits`()).
+        Leaf structure, water and dry matter of the spectra (default ``LeafTraits()``).
 
     Returns
     -------

@@ -168,7 +168,7 @@ def pigments_at_stage(stage, table: StageTable | None = None) -> dict:
     stage : float or array_like
         Ishikura stage(s) [-] in [1, 7].
     table : StageTable, optional
-        Stage table (default: :func:`stage_table`()).
+        Stage table (default: ``stage_table()``).
 
     Returns
     -------
@@ -198,7 +198,7 @@ def pigments_at_tau(tau, table: StageTable | None = None) -> dict:
     tau : float or array_like
         Autumn logical time τ [-] (clipped to [0, 1]).
     table : StageTable, optional
-        Stage table (default: :func:`stage_table`()).
+        Stage table (default: ``stage_table()``).
 
     Returns
     -------
@@ -217,7 +217,7 @@ def state_pigments(table: StageTable | None = None) -> dict:
     Parameters
     ----------
     table : StageTable, optional
-        Stage table (default: :func:`stage_table`()).
+        Stage table (default: ``stage_table()``).
 
     Returns
     -------

@@ -311,7 +311,7 @@ def as_meshes(scene_dict: dict) -> dict:
     """A copy of a scene dict with its mesh shapes loaded as in-memory meshes (same ids).
 
     ``rectangle``, ``cube``, ``obj`` and ``ply`` shapes without an emitter become ``mi.Mesh``
-    objects with their world-space vertices [m] and their BSDF (``ref``s resolved to the dict's
+    objects with their world-space vertices [m] and their BSDF (``ref`` entries resolved to the dict's
     BSDFs), which :func:`path_reference` can cut triangles out of. Shapes with an area emitter
     and everything else are kept as they are.
 

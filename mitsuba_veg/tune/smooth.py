@@ -899,7 +899,7 @@ class SmoothMossModel:
         Near-field closure (``st.pair`` = w, per triangle the probability that a cell and a
         given one of its z neighbour cells are both occupied by an individual, moss or waiting
         propagule; occupancy rho per spot): losses of the day thin the occupants independently
-        (w *= s², s = surviving share); q = w / rho; a gemma settles in a free cell with
+        (``w *= s²``, s = surviving share); q = w / rho; a gemma settles in a free cell with
         probability 1 - q (its parent is next to it), a spore with 1 - rho; each newcomer adds
         its pairs, 2/z (1 + (z - 1) q_g) per gemma (the parent plus the other neighbours) and
         2 q10 per spore, q10 = (rho - w) / (1 - rho); a share theta (``near_overlap``) of a
