@@ -45,7 +45,9 @@ def render_tree(tree, tau, when, lat=35.0, lon=139.0, size=256, spp=32, n_classe
 
     az, el = (float(np.asarray(x)) for x in sun_position(lat, lon, when))
     em = daylight_from_angles(az, el, day_of_year=_day_of_year(when))
-    scene, _ = tree_scene(tree, emitters=em, tau=tau, n_classes=n_classes, ground_extent=400.0,
+    # the ground to 100 km: from 3 m up its edge lies 0.002 degrees below the horizon (no black
+    # band between the ground and the sky, which is zero below the horizon)
+    scene, _ = tree_scene(tree, emitters=em, tau=tau, n_classes=n_classes, ground_extent=2.0e5,
                           ground_resolution=4, ground_albedo=0.12)
     d = {"type": "scene", "integrator": {"type": "path", "max_depth": 6},
          "sensor": {"type": "perspective", "fov": 38,

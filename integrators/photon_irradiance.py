@@ -257,7 +257,7 @@ class PhotonIrradianceIntegrator(PhotonKernel):
               progress: bool = False, modes: dict | None = None,
               bsdf_override: dict | None = None, record=None,
               mode: str | None = None, tables: "PassTables | None" = None,
-              counts=None, frozen: bool = False) -> PhotonIrradianceResult:
+              counts=None, frozen: bool = False, wait: bool = True) -> PhotonIrradianceResult:
         """Trace a photon pass over ``scene`` and return per-element fluxes.
 
         Arguments left at None take the plugin's properties.
@@ -325,6 +325,11 @@ class PhotonIrradianceIntegrator(PhotonKernel):
             again (a daily loop: the same scene and tables every day, new contents). Python
             emitters and BSDFs in the scene must list their arrays in ``DRJIT_STRUCT`` (the
             package's do).
+        wait : bool
+            Return when the pass's kernels have run (default): the result's ``seconds`` [s]
+            is then the pass's time. False returns once they are launched (Dr.Jit runs them
+            asynchronously), for a caller that launches more work on the tallies and waits
+            itself (the daily loop's light stage); ``seconds`` is then the launch's time.
 
         Arguments left at None also fall back to the plugin's attributes :attr:`modes`,
         :attr:`bsdf_override` and :attr:`record`.
@@ -411,9 +416,16 @@ class PhotonIrradianceIntegrator(PhotonKernel):
                 dev.add_batch(g_i, acc, unit, book, rays)
                 done += n
                 if bar is not None:
+                    # the bar's rate counts photons traced, not launched: the batch's kernels
+                    # run on Dr.Jit's threads after the launch returns
+                    dr.sync_thread()
                     bar.update(n)
         if bar is not None:
             bar.close()
+        # the kernels were launched, not run (Dr.Jit evaluates asynchronously): the pass's
+        # time ends when its tallies are on the device, as the caller would read them
+        if wait:
+            dr.sync_thread()
         res = PhotonIrradianceResult(
             index=index, bands=names, band_ranges=ranges, emitters=em_names,
             photons=counts, seconds=_time.perf_counter() - t0,
@@ -514,6 +526,7 @@ class PhotonIrradianceIntegrator(PhotonKernel):
             dr.eval(e, front)
             elems.append(e)
             fronts.append(front)
+        dr.sync_thread()   # the depths' kernels run before the time is taken
         return PhotonPathRecord(emitter=name, photons=n, max_depth=depth_max, band=(lo, hi),
                                 w0=w0, elem=elems, front=fronts, n_elements=index.n_elements,
                                 areas=np.asarray(index.areas, np.float64), rays=rays,

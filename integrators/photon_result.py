@@ -67,7 +67,9 @@ class PhotonIrradianceResult:
     emitter): :meth:`device_flux` reads any part of them as a Dr.Jit expression (a daily loop
     feeds its soil and moss without a host round trip), while :attr:`flux` and the
     bookkeeping (``emitted``, ``escaped``, ``absorbed``, ``truncated`` [W] per emitter and
-    band, ``rays_traced``) are read back once, on first use.
+    band, ``rays_traced``) are read back once, on first use. ``seconds`` [s] is the pass's wall
+    time, its kernels' run included (``trace(..., wait=False)``: their launch only); reading
+    the flux back and converting it is not part of it.
     """
 
     def __init__(self, index, bands, band_ranges, emitters, flux=None, photons=None,

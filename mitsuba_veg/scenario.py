@@ -6,15 +6,16 @@ field (dotted name), the value, the allowed range and the fix.
 
 Sections used so far (paths relative to the scenario file)::
 
-    [scene] file            Mitsuba XML scene; loaded with optimize=False to keep shape ids.
+    [scene] file                Mitsuba XML scene; loaded with optimize=False to keep shape ids.
     [site] latitude, longitude  [deg] north/east positive.
-    [light]                 photons, max_depth, seed, indirect, and optionally when (ISO
+    [light]                     photons, max_depth, seed, indirect, and optionally when (ISO
                                 date-time): then the scene's own emitters are replaced by a physical
                                 daylight sun + sky (:func:`mitsuba_veg.light.daylight`).
-    [terrain]               ground (shape id), geology_texture, soil_base_y [m],
+    [terrain]                   ground (shape id), geology_texture, soil_base_y [m],
                                 [terrain.soil_depth_mm] per-shape soil depth.
-    [regions.NAME]          shapes, min, max: boxes [m] naming parts of the terrain.
-    [[sensors]]             virtual light sensors: points and grids (docs/sensors.md).
+    [regions.NAME]              shapes, min, max: boxes [m] naming parts of the terrain.
+    [[sensors]]                 virtual light sensors: points and grids (docs/sensors.md).
+    [[hemiphotos]]              hemispherical photographs at fixed floor points (docs/hemiphoto.md).
 """
 from __future__ import annotations
 
@@ -227,10 +228,25 @@ SCHEMA: dict[str, Field] = {
         "u": Field("vec3", doc="plane_grid: first edge [m]"),
         "v": Field("vec3", doc="plane_grid: second edge [m]"),
     }),
+    "hemiphotos": Field("tables", doc="hemispherical photographs at fixed floor points, taken "
+                        "by a run on their days (docs/hemiphoto.md)", fields={
+        "name": Field("str", doc="name in file names and tables (default photoN)"),
+        "at": Field("floats", -1e5, 1e5, length=2, doc="[x, z] [m]: the floor position"),
+        "height": _num("float", 0.01, 100.0, "[m] lens above the ground (default 1)"),
+        "on": Field("strs", doc="days of the year \"MM-DD\" (default [\"07-15\"])"),
+        "size": _num("int", 16, 8192, "[px] image side (default 1024)"),
+        "projection": Field("choice", choices=("equidistant", "equisolid"),
+                            doc="fisheye projection (default equidistant)"),
+        "ring_width": _num("float", 0.5, 90.0, "[deg] zenith rings of the table besides the "
+                           "LAI-2000's (default 5)"),
+    }),
     "render": Field("table", fields={
         "when": Field("datetime", doc="daylight of the render (default: the day at 10:00; "
                       "no offset: the site's local time)"),
-        "materials": Field("map", item=Field("str"), doc="render material per shape id"),
+        "materials": Field("map", item=Field("str"), doc="render material per shape id or "
+                           "pattern (log_*)"),
+        "surround": Field("str", doc="ground around the scene to the horizon: 'ground' (the "
+                          "ground's material), a material name, or 'none'"),
         "cameras": Field("map", item=Field("table", fields={
             "origin": _VEC3, "target": _VEC3, "up": _VEC3,
             "fov": _num("float", 1.0, 170.0, "[deg]"),
@@ -846,7 +862,8 @@ def load_scenario(path, overrides=None) -> Scenario:
         raise ParameterError("scenario", str(path), "a TOML file (not a folder)",
                              "pass the scenario file, e.g. scenes/moss_garden/scenario.toml")
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        # utf-8-sig: a byte-order mark (some editors write one) is not part of the TOML
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ParameterError("scenario", str(path), "a valid TOML text file",
                              f"fix the syntax: {e}") from None

@@ -148,6 +148,20 @@ CASES = [
     # export-gltf
     (["export-gltf", "{tmp}/missing_run"], "RUN_DIR"),
     (["export-gltf", "{tmp}/run", "--day", "0"], "--day"),
+    # hemiphoto
+    (["hemiphoto", "{tmp}/run", "--at", "1,2,3", "--day", "1"], "--at"),
+    (["hemiphoto", "{tmp}/run", "--at", "0.5,0.5"], "--day/--years"),
+    (["hemiphoto", "{tmp}/run", "--at", "0.5,0.5", "--day", "99"], "--day"),
+    (["hemiphoto", "{tmp}/run", "--at", "50,50", "--day", "1"], "--at"),
+    (["hemiphoto", "{tmp}/run", "--at", "0.5,0.5", "--years", "--on", "13-45"], "--on"),
+    (["hemiphoto", "{tmp}/run", "--at", "0.5,0.5", "--day", "1", "--size", "8"], "--size"),
+    (["hemiphoto", "{tmp}/run", "--at", "0.5,0.5", "--day", "1", "--height", "0"], "--height"),
+    (["hemiphoto", "{tmp}/o_none", "--at", "0.5,0.5", "--day", "1"], "RUN_DIR"),
+    (["hemiphoto", "{tmp}/run", "--at", "0.5,0.5", "--day", "1", "--out", "{tmp}/a_file"],
+     "--out"),
+    # light-study of a run folder (under a world's trees): the run's scenario has no sensors
+    (["light-study", "{tmp}/run", "--from", "2026-03-01", "--to", "2026-03-02", "--out",
+      "{tmp}/o4"], "sensors"),
     # the command itself
     (["grwo", "x.toml"], "grwo"),
 ]
@@ -161,7 +175,7 @@ def test_table_has_40_cases_over_every_command():
     assert len(CASES) >= 40
     cmds = {c[0][0] for c in CASES}
     assert {"run", "irradiance", "light-study", "render", "animate", "grow", "tune", "sweep",
-            "demo", "export-gltf"} <= cmds
+            "demo", "export-gltf", "hemiphoto"} <= cmds
 
 
 @pytest.mark.parametrize("argv, field", CASES, ids=[f"{i:02d}-{c[0][0]}-{c[1]}"

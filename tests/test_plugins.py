@@ -12,6 +12,7 @@ import pytest
 import mitsuba_veg as mv  # noqa: F401  (selects the variant, registers the plugins)
 import mitsuba as mi
 from mitsuba_veg.integrators.photon_irradiance import PhotonIrradianceIntegrator
+from mitsuba_veg.integrators.veg_fisheye import VegFisheye
 from mitsuba_veg.integrators.veg_leaf import LeafBSDF
 from mitsuba_veg.integrators.veg_sky import VegSky
 from mitsuba_veg.integrators.veg_sun import VegSunPath, VegSunSteps
@@ -27,6 +28,8 @@ PLUGINS = {
                       lambda p: _flat_value(p.m_spec) == pytest.approx(3.0)),
     "veg_leaf": (LeafBSDF, "bsdf", ("float", "reflectance", 0.3),
                  lambda p: _flat_value(p.reflectance) == pytest.approx(0.3)),
+    "veg_fisheye": (VegFisheye, "sensor", ("float", "fov", 150.0),
+                    lambda p: p.fov == 150.0 and p.theta_max == pytest.approx(1.308997)),
 }
 
 
@@ -55,6 +58,9 @@ def _read(cls) -> set[str]:
     names |= set(re.findall(r'"(\w+)" in props', src))
     names |= set(re.findall(r'props\["(\w+)"\]', src))
     names |= set(re.findall(r'_texture\(props, "(\w+)"', src))
+    names |= set(re.findall(r'_vector\(props, "(\w+)"', src))
+    # objects the Mitsuba base class's constructor reads (a sensor's film and sampler)
+    names |= set(getattr(cls, "BASE_PROPERTIES", ()))
     for letters in re.findall(r'props\.get\(k, None\) for k in "(\w+)"', src):
         names |= set(letters)
     return names
@@ -111,11 +117,11 @@ def _registrations() -> dict[str, str]:
 
 def test_every_plugin_lives_in_the_integrators_folder():
     """``integrators/`` is the one plugins folder: every plugin the package registers is in the
-    table above (all five), each registered there, each class defined in a module of
+    table above (all six), each registered there, each class defined in a module of
     ``mitsuba_veg.integrators`` (one file per plugin family)."""
     regs = _registrations()
     assert set(PLUGINS) == set(regs) == {"veg_photon_irradiance", "veg_sky", "veg_sun_path",
-                                         "veg_sun_steps", "veg_leaf"}
+                                         "veg_sun_steps", "veg_leaf", "veg_fisheye"}
     for name, (cls, *_) in PLUGINS.items():
         assert regs[name].startswith("integrators/"), (name, regs[name])
         assert cls.__module__.startswith("mitsuba_veg.integrators."), (name, cls.__module__)

@@ -149,3 +149,93 @@ def test_set_light_moves_the_daylight_in_place_without_a_recompile(scn, terrain)
     assert a.mean() < 0.8 * summer["XYZ"][..., 1].mean()   # a December morning is darker
     with pytest.raises(ParameterError, match="emitters"):
         rs.set_light({"lamp": {"type": "point"}})
+
+
+# ---- what the render draws around and of the run ------------------------------------------------
+def test_cameras_look_at_what_grew(scn, terrain):
+    """The floor view looks across the densest moss at eye height, the overview keeps the horizon
+    in its frame, the canopy view looks up into the trees."""
+    from mitsuba_veg.render import cameras
+    moss = carpet(20, x0=0.45, z0=-0.6)                      # moss east of the middle
+    t = simple_tree(height=1.0, seed=2).translated([0.3, 0.0, 0.4])
+    p = cameras.presets(scn, terrain, moss=moss, trees=[t])
+    focus = cameras.moss_focus(moss, *terrain.ground_bbox())
+    assert focus[0] == pytest.approx(moss.pos[:, 0].mean(), abs=0.06)
+    fl = p["floor"]
+    o, tg = np.array(fl["origin"]), np.array(fl["target"])
+    to_focus = (focus - o) / np.linalg.norm(focus - o)
+    look = (tg - o) / np.linalg.norm(tg - o)
+    assert np.degrees(np.arccos(np.clip(look @ to_focus, -1, 1))) < 25.0
+    W = max(np.ptp(terrain.meshes["ground"][0][:, [0, 2]], axis=0))
+    assert o[1] == pytest.approx(min(cameras.EYE_HEIGHT, 0.35 * W), abs=0.05)
+    ov = p["overview"]
+    d = np.array(ov["target"]) - np.array(ov["origin"])
+    pitch = np.degrees(np.arctan2(-d[1], np.hypot(d[0], d[2])))
+    half_v = np.degrees(np.arctan(np.tan(np.radians(ov["fov"] / 2)) * 9 / 16))
+    assert 0 < pitch < half_v - 1.0                       # the horizon is in a 16:9 frame
+    cv = p["canopy"]
+    d = np.array(cv["target"]) - np.array(cv["origin"])
+    assert np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))) >= 49.0
+    no = cameras.presets(scn, terrain)                     # nothing grown: the overview stands in
+    assert no["floor"] == no["overview"] and no["canopy"] == no["overview"]
+
+
+class _Scn:
+    def __init__(self, data, xml):
+        self.data, self.xml, self.path = data, xml, "test.toml"
+
+    def get(self, key, default=None):
+        d = self.data
+        for k in key.split("."):
+            if not isinstance(d, dict) or k not in d:
+                return default
+            d = d[k]
+        return d
+
+    def file(self, key):
+        return self.xml
+
+
+def test_materials_in_their_order(tmp_path):
+    """[render.materials] (ids or patterns), else the scene file's own BSDF, else the mesh's
+    name, else its geology class; a key matching no mesh is refused."""
+    import mitsuba as mi
+    from mitsuba_veg.render.scene import resolve_materials
+    xml = tmp_path / "s.xml"
+    xml.write_text('<scene version="3.0.0">'
+                   '<shape type="rectangle" id="ground"/>'
+                   '<shape type="rectangle" id="rock_1"/>'
+                   '<shape type="rectangle" id="log_2"><bsdf type="diffuse">'
+                   '<spectrum name="reflectance" value="0.2"/></bsdf></shape>'
+                   '<shape type="rectangle" id="shed"/>'
+                   '<shape type="rectangle" id="bed"/></scene>')
+    base = mi.load_file(str(xml), optimize=False)
+    meshes = {s.id(): None for s in base.shapes()}
+    data = {"scene": {"file": "s.xml"}, "render": {"materials": {"sh*": "wood"}},
+            "terrain": {"geology": {"bed": "sand"}}}
+    m = resolve_materials(_Scn(data, xml), meshes, "ground", base)
+    assert m["shed"] == "wood"                       # the scenario's pattern
+    assert not isinstance(m["log_2"], str)           # the scene file's own BSDF
+    assert m["rock_1"] == "stone"                    # the name
+    assert m["bed"] == "sand" and m["ground"] == "humus"   # the geology class
+    data["render"]["materials"] = {"log_*": "bark"}
+    assert resolve_materials(_Scn(data, xml), meshes, "ground", base)["log_2"] == "bark"
+    data["render"]["materials"] = {"tree_*": "bark"}
+    with pytest.raises(ParameterError, match="render.materials"):
+        resolve_materials(_Scn(data, xml), meshes, "ground", base)
+    data["render"]["materials"] = {"shed": "lava"}
+    with pytest.raises(ParameterError, match="lava"):
+        resolve_materials(_Scn(data, xml), meshes, "ground", base)
+
+
+def test_surround_continues_the_ground_to_the_horizon(terrain):
+    from mitsuba_veg.render.scene import SURROUND_RADIUS, _outer_boundary
+    (vn, fn), (vf, ff) = terrain.surround()
+    v, f = terrain.meshes["ground"][:2]
+    loop = _outer_boundary(v, f)
+    assert np.allclose(vn[:len(loop)], v[loop])      # it starts on the ground's rim: no gap
+    r = np.hypot(vf[:, 0], vf[:, 2])
+    assert r.max() >= 0.99 * SURROUND_RADIUS
+    # all faces up (two-sided anyway, but the normals are consistent)
+    p = vn[fn]
+    assert (np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 1] >= 0).all()

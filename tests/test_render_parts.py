@@ -12,6 +12,22 @@ from mitsuba_veg.render.moss import MossSet, growth_scale, place_tufts
 
 
 # ---- materials ---------------------------------------------------------------------------------
+def test_measured_spectra_are_read_with_their_source():
+    text = materials.MEASURED_FILE.read_text()
+    assert "earthlib 1.1.0, MIT licence" in text
+    for name in ("humus", "sand", "asphalt", "gravel", "concrete", "bark", "wood", "litter"):
+        assert f"# {name}:" in text
+        s = materials.SPECTRA[name]
+        # a measured curve: not a constant, and the file's 660-nm value
+        assert np.ptp(s) > 0.005
+    # organic soil is darker and less red than the library's median soil would be
+    r, g, b = materials.srgb("humus")
+    assert r > g > b and r < 0.45
+    # bark and litter rise towards the near infrared (no chlorophyll, cellulose and lignin)
+    for name in ("bark", "litter"):
+        assert materials.band_mean(name, 725, 735) > materials.band_mean(name, 450, 460)
+
+
 def test_spectra_are_physical_reflectances():
     for name, s in materials.SPECTRA.items():
         assert s.shape == materials.WAVELENGTHS.shape, name
@@ -30,10 +46,12 @@ def test_moss_spectra_have_a_red_edge_and_look_green(sp):
 
 
 def test_geology_spectra_order_and_colour():
-    # sand is brighter and yellower than humus; asphalt is grey (flat)
+    # sand is brighter and yellower than humus; asphalt is dark and nearly grey
     assert materials.band_mean("sand", 400, 700) > 2 * materials.band_mean("humus", 400, 700)
     a = materials.SPECTRA["asphalt"]
-    assert np.ptp(a) < 0.03
+    assert a.max() < 0.1 and np.ptp(a) < 0.05
+    r, g, b = materials.srgb("asphalt")
+    assert abs(r - b) < 0.08
     r, g, b = materials.srgb("sand")
     assert r > g > b
 
@@ -296,3 +314,24 @@ def test_tree_seasons_leaf_out_autumn_and_fall():
     s.apply(dt.date(2026, 10, 10))
     hi, lo = e > np.quantile(e, 0.8), e < np.quantile(e, 0.2)
     assert a["autumn_tau"][hi].mean() > a["autumn_tau"][lo].mean()
+
+
+# ---- denoiser ----------------------------------------------------------------------------------
+def test_denoise_removes_noise_and_keeps_scale_and_nans(tmp_path):
+    from mitsuba_veg.render import denoise
+    rng = np.random.default_rng(0)
+    y, x = np.mgrid[0:96, 0:128] / 96.0
+    clean = np.stack([0.02 + 0.03 * x, 0.03 + 0.02 * y, 0.025 + 0 * x], -1)   # W m-2 sr-1 nm-1
+    noisy = clean * (1 + 0.4 * rng.standard_normal(clean.shape))
+    noisy[5, 7] = np.nan
+    out = denoise.denoise(noisy)
+    err = lambda a: np.sqrt(np.nanmean((a - clean) ** 2)) / clean.mean()  # noqa: E731
+    assert err(out) < 0.25 * err(noisy)
+    assert np.nanmean(out) == pytest.approx(clean.mean(), rel=0.05)
+    assert np.isnan(out[5, 7]).all() and np.isfinite(out[6, 7]).all()
+    # the EXR keeps the rendered RGB and carries the display image beside it
+    images = {"rgb": noisy, "XYZ": noisy, "display": out}
+    p = film.write_exr(tmp_path / "a.exr", images)
+    ch = film.read_exr(p)
+    assert {"R", "display.R", "display.G", "display.B"} <= set(ch)
+    assert np.allclose(ch["display.G"], out[..., 1].astype(np.float32), equal_nan=True)

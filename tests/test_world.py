@@ -155,12 +155,14 @@ def test_sensors_read_under_the_trees_by_the_daily_pass(summer):
 
 
 def test_light_study_series_refuses_a_world_scenario(summer, tmp_path):
-    """A light-study time series traces the scene file's shapes only: with [[trees]] it would
-    leave the trees out, so it is refused, naming the world run as the way."""
+    """The sensor time series of a scenario file's shapes alone would leave a world's trees
+    out, so it is refused, naming the way that puts them in (``mitsuba-veg light-study``,
+    which runs the world's trees to their leaf state on each date:
+    tests/test_hemiphoto_world.py)."""
     from mitsuba_veg.errors import ParameterError
     from mitsuba_veg.foliage.light_series import run_sensor_study
     _, tmp = summer
-    with pytest.raises(ParameterError, match=r"trees.*mitsuba-veg run"):
+    with pytest.raises(ParameterError, match=r"trees.*light-study"):
         run_sensor_study(tmp / "scen" / "scenario.toml", tmp_path / "ls", year=2026,
                          progress=False)
 

@@ -4,6 +4,7 @@
     mitsuba-veg irradiance SCENE [--photons N] [--out DIR] [--when ISO] [--no-indirect] ...
     mitsuba-veg run SCENARIO [--out DIR] [--days N] [--set KEY=VALUE ...] [--fresh]
     mitsuba-veg light-study SCENE [--out DIR] ...
+    mitsuba-veg hemiphoto RUN_DIR --at X,Z [--at ...] (--day N | --years) [--truth] ...
     mitsuba-veg grow TREE.toml [--out DIR] [--set KEY=VALUE] [--seed S] [--generations G]
     mitsuba-veg sweep SWEEP.toml [--scheduler ADDRESS] [--workers N] [--out DIR]
 
@@ -28,7 +29,7 @@ from ..scenario import light_overrides, load_scenario, load_scene_file
 from ..sweeps.frames import run_animate
 from ..backend import __version__, versions
 from ..world.trees import scene_with_trees
-from . import grow, light_study, render, sweep, tune
+from . import grow, hemiphoto, light_study, render, sweep, tune
 from .args import (Parser, add_out, add_photons, add_quiet, add_set, iso_datetime, light_type,
                    ranged)
 from .entry import run_parsed
@@ -328,6 +329,7 @@ def build_parser():
     add_quiet(p)
     p.set_defaults(func=_cmd_irradiance)
     light_study.add_parser(sub)
+    hemiphoto.add_parser(sub)
     grow.add_parser(sub)
     render.add_parsers(sub)
     tune.add_parser(sub)

@@ -100,9 +100,11 @@ def load_tree_toml(path, overrides=()) -> dict:
     if not path.exists():
         raise ParameterError("TREE", src, "an existing .toml file", "check the path")
     try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ParameterError("TREE", src, "valid TOML", f"fix the syntax: {e}") from None
+        # utf-8-sig: a byte-order mark (some editors write one) is not part of the TOML
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ParameterError("TREE", src, "valid TOML (UTF-8 text)", f"fix the syntax: {e}") \
+            from None
     for item in overrides or ():
         top = str(item).split("=", 1)[0].strip().split(".")[0]
         if top not in _TOP_KEYS:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as _dt
 
+from ..canopy_photo.world_light import is_world, run_world_sensor_study
 from ..errors import ParameterError
 from ..foliage.light_series import SERIES_PHOTONS, run_sensor_study
 from ..foliage.light_study import run_light_study
@@ -33,8 +34,11 @@ def add_parser(subparsers):
         "light-study", help="spectral light study: PAR, red, far-red, R:FR maps under trees",
         description="Photon pass with PAR/red/far-red bands: ground maps (PNG + npz), per-leaf "
                     "values (CSV) and summary.json. SCENE: scenario .toml, scene .xml, or "
-                    "'sphere-tree' (built-in test tree under daylight).")
-    p.add_argument("scene", help="scenario .toml, Mitsuba .xml, or 'sphere-tree'")
+                    "'sphere-tree' (built-in test tree under daylight); for a time series also "
+                    "a world scenario (its trees run to their leaf state on each date) or a run "
+                    "folder (its trees and leaf states).")
+    p.add_argument("scene", help="scenario .toml, Mitsuba .xml, 'sphere-tree', or (time series) "
+                                 "a run folder")
     add_photons(p, None, "per light pass (default 2000000; time series: 500000 per sun "
                          "pass)")
     p.add_argument("--seed", type=light_type("seed"),
@@ -54,10 +58,12 @@ def add_parser(subparsers):
     p.add_argument("--leaves", type=ranged(int, 1, 1_000_000, "leaves"), default=3000,
                    help="'sphere-tree': number of leaves")
     g = p.add_argument_group(
-        "sensor time series (a scenario with [[sensors]]; docs/sensors.md)",
+        "sensor time series (a scenario with [[sensors]], or a run folder; docs/sensors.md)",
         "--year or --from/--to: clear-sky daylight of the scenario's site over the days; writes "
         "sensors.csv/.parquet (time x sensor x band x component), dli.csv, summary.json and "
-        "figures (DLI and R:FR maps of the first grid, one sensor's year, hour x day heat map)")
+        "figures (DLI and R:FR maps of the first grid, one sensor's year, hour x day heat map); "
+        "under a world's trees also hemispherical photographs at the point sensors "
+        "(hemiphotos/, docs/hemiphoto.md)")
     g.add_argument("--year", type=ranged(int, 1, 9999, "year"), nargs="?", const=-1,
                    metavar="YYYY", help="a whole calendar year (default: this year)")
     g.add_argument("--from", dest="date_from", metavar="YYYY-MM-DD", help="first local day")
@@ -89,12 +95,15 @@ def _series_cmd(a) -> int:
     if a.when is not None:
         raise ParameterError("--when", a.when, "not with --year/--from/--to",
                              "a time series covers its own days")
-    s = run_sensor_study(a.scene, a.out, start=a.date_from, end=a.date_to, year=year,
-                         step=a.step, photons=a.photons or SERIES_PHOTONS,
-                         sky_photons=a.sky_photons, seed=a.seed, max_depth=a.max_depth,
-                         indirect=False if a.no_indirect else None,
-                         heatmap_every=a.heatmap_every, par_threshold=a.par_threshold,
-                         sensor=a.sensor, overrides=a.set or (), progress=not a.quiet)
+    # a world (a run folder, or a scenario with trees): the trees in their leaf state on
+    # each date (mitsuba_veg.canopy_photo.world_light)
+    study = run_world_sensor_study if is_world(a.scene, a.set or ()) else run_sensor_study
+    s = study(a.scene, a.out, start=a.date_from, end=a.date_to, year=year,
+              step=a.step, photons=a.photons or SERIES_PHOTONS,
+              sky_photons=a.sky_photons, seed=a.seed, max_depth=a.max_depth,
+              indirect=False if a.no_indirect else None,
+              heatmap_every=a.heatmap_every, par_threshold=a.par_threshold,
+              sensor=a.sensor, overrides=a.set or (), progress=not a.quiet)
     per = s["per_sensor"]
     print(f"light study (sensors): {s['scenario']}: {s['period']['from']} to "
           f"{s['period']['to']}, {s['period']['steps']} {s['period']['step']} steps, "
@@ -112,6 +121,14 @@ def _series_cmd(a) -> int:
         print(line)
     if len(per) > 8:
         print(f"  ... {len(per) - 8} more sensors (summary.json, dli.csv)")
+    if s.get("world"):
+        n = len(s["world"]["segments"])
+        print(f"  under the world's trees ({s['world']['source']}): {n} leaf "
+              f"state{'s' if n != 1 else ''} over the period")
+    for r in s.get("hemiphotos", [])[:8]:
+        print(f"  hemiphoto {r['photo']} {r['date']}: openness {r['openness']:.3f}, "
+              f"LAI-2000 Le {r['lai_lai2000']:.2f}, true LAI {r['lai_true']:.2f}, DSF "
+              f"{r['site_factor_diffuse']:.3f}")
     print("wrote:")
     for v in s["files"].values():
         for f in (v.values() if isinstance(v, dict) else [v]):

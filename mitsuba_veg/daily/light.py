@@ -250,7 +250,9 @@ class DayLight:
         res = site.integrator.trace(site.scene, photons=self.photons, seed=seed,
                                     max_depth=self.max_depth, bands=BANDS,
                                     indirect=self.indirect, tables=t,
-                                    counts=self.counts[day], frozen=self.frozen)
+                                    counts=self.counts[day], frozen=self.frozen, wait=False)
+        # (not waited for here: the stage's sums launch behind the pass, and the day waits for
+        # both at the light stage's end)
         self.held = (day, res, leaf_area)
         return self._light(res, vals, leaf_area, canopy)
 

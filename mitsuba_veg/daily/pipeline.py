@@ -134,6 +134,14 @@ class DayPipeline:
         self.moss = DayMoss(site)
         self.record = DayRecord(site)
         self.scene_params = mi.traverse(site.scene) if self.leaves is not None else None
+        # (the CPU's kernels run on Dr.Jit's threads after their launch returns: see
+        # _stage_end)
+        self._wait_stages = mi.variant().startswith("llvm")
+
+    def _stage_end(self) -> None:
+        """End a stage's time with its kernels run, on the CPU (:meth:`run_day`, Notes)."""
+        if self._wait_stages:
+            dr.sync_thread()
 
     def new_state(self, moss=None) -> DayState:
         """The state before the first day: buckets at field capacity, no moss, bare trees.
@@ -170,6 +178,19 @@ class DayPipeline:
         fields : dict
             The day's per-element fields on the device (``S``, ``Ts``, ``rhs``, ``theta``,
             ``f_sun``, ``f_sky`` per terrain element; ``light``: the DayLightResult).
+
+        Notes
+        -----
+        The record's ``seconds`` are wall times of the stages. Dr.Jit launches kernels
+        asynchronously: without a wait, a stage's time would be its Python's (the soil's 1 ms
+        instead of its kernels' 30 ms on the courtyard world) and the next stage that reads a
+        value back would carry its kernels. On the CPU (LLVM backend) each stage waits for its
+        kernels: the world day measured the same with and without the waits
+        (``benchmarks/world_day.py --time-only``). On a GPU the launches stay
+        asynchronous (a wait would idle the device while Python traces the next stage): the
+        light's time includes its pass (it waits), the soil's and the leaves' are the host's
+        time to launch them, and the moss's and the record's include the kernels queued before
+        their read-backs. On both, the stages' sum is the day's wall time.
         """
         day = st.day
         launches = _Launches()
@@ -181,6 +202,7 @@ class DayPipeline:
         if self.leaves is not None:
             tables = self.leaves.start(st.leaves, date, self.scene_params)
             leaf_area = self.site.canopy.displayed_area()
+        self._stage_end()
         launches("leaves")
         # the population's own count, kept up to date by its changes (no count each day)
         counts = self.moss.counts(st.moss)
@@ -209,14 +231,17 @@ class DayPipeline:
         # the moss stage writes the count in place: no other reference may be left to it
         # (Dr.Jit would copy the array first)
         del counts
+        self._stage_end()
         launches("soil")
         t3 = time.perf_counter()
         if self.leaves is not None:
             self.leaves.end(st.leaves, date, light.S_leaf)
+        self._stage_end()
         launches("leaves")
         t4 = time.perf_counter()
         events = self.moss.step(st.moss, day, S32, Ts32, rhs32, table=g_table)
         counts_after = self.moss.counts(st.moss)
+        self._stage_end()
         launches("moss")
         t5 = time.perf_counter()
         if light.sensors is not None:
@@ -342,6 +367,7 @@ class Simulation:
         self.state = self.pipeline.new_state()
         if self.pipeline.leaves is not None:
             self.timings["leaves"] = 0.0
+        dr.sync_thread()    # the set-up's kernels in its time, not in the first day's
         self.timings["setup"] += time.perf_counter() - t0
 
     def initialise(self) -> None:
@@ -486,6 +512,7 @@ class Simulation:
             # December show the trees that grew that year)
             t0 = time.perf_counter()
             self.regrow()
+            dr.sync_thread()    # the new scene's kernels in the growth's time
             # the year's figures and tree files are outputs (timed as such in regrow)
             self.timings["growth"] = self.timings.get("growth", 0.0) + \
                 time.perf_counter() - t0 - self._year_out_s
@@ -692,7 +719,10 @@ class Simulation:
             for q in self.out.glob(pattern):
                 q.unlink()
         if not resumed:
+            t0 = time.perf_counter()
             self.initialise()
+            dr.sync_thread()    # the initial moss's kernels in the set-up's time
+            self.timings["setup"] += time.perf_counter() - t0
         bar = None
         if self.progress:
             bar = tqdm(total=self.days, initial=self.day, unit="day", desc="days")
@@ -725,7 +755,9 @@ class Simulation:
         finally:
             if bar is not None:
                 bar.close()
+        t0 = time.perf_counter()
         ckpt.save(self)
+        self.timings["output"] += time.perf_counter() - t0
         return self.summary(resumed)
 
     def resumable(self) -> bool:
@@ -760,7 +792,9 @@ class Simulation:
             simulation), ``species``, ``spot_grid`` (``cell_m`` [m]), ``final``
             (``covered_area_m2`` [m2], ``moss_alive``, ``propagules``, ``alive_by_species``,
             per-region covered and total area [m2] and live moss, ``propagules_crowded_out``),
-            ``timings_s`` (totals and ``per_day`` [s]), ``days_record`` (the daily records),
+            ``timings_s`` (wall times [s]: ``setup`` with the initial moss, the days' stages
+            summed as in the records (:meth:`DayPipeline.run_day` says what each covers),
+            ``output``, ``growth``, and ``per_day``), ``days_record`` (the daily records),
             ``versions``; a world adds ``world`` (with trees that grow from their light its
             ``growth_years``: one row per tree and year-end step) and, with sensors,
             ``sensors``.

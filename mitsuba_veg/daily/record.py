@@ -121,7 +121,8 @@ class DayRecord:
         sensors : numpy.ndarray, optional
             The day's sensor readings (n, quantities, components).
         seconds : dict, optional
-            The stages' times [s].
+            The stages' wall times [s], their kernels included on the CPU (what each covers:
+            :meth:`mitsuba_veg.daily.pipeline.DayPipeline.run_day`).
 
         Returns
         -------

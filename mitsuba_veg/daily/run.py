@@ -1,11 +1,14 @@
 """One run of a scenario into a folder: the daily pipeline (with the world's trees when the
-scenario has ``[[trees]]``), the day maps, moss snapshots and ``summary.json``."""
+scenario has ``[[trees]]``), the day maps, moss snapshots, the ``[[hemiphotos]]`` series and
+``summary.json``."""
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..outputs import RUN_OUTPUTS, DayFrames, OutputFolder, SnapshotWriter, write_summary
 from ..scenario import Scenario, load_scenario
+from .hemiphotos import FOLDER as PHOTO_FOLDER
+from .hemiphotos import PhotoSeries
 from .pipeline import Simulation
 
 
@@ -51,16 +54,20 @@ def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: 
         if not resume or not sim.checkpoint_path.exists():
             # a run that starts at day 0 owns the folder's run outputs: maps, snapshots,
             # renders and the GIF of an earlier run would otherwise be shown as this run's
-            folder.clear(RUN_OUTPUTS)
+            folder.clear(RUN_OUTPUTS + (PHOTO_FOLDER,))
         frames_writer = DayFrames(sim) if frames else None
         # living moss on frame days (exact animations)
         snapshots = SnapshotWriter(snapshot_every) if frames else None
+        # the scenario's [[hemiphotos]] on their days (docs/hemiphoto.md)
+        photos = PhotoSeries(sim) if scn.get("hemiphotos") else None
 
         def on_day(s, rec):
             if frames_writer is not None:
                 frames_writer(s, rec)
             if snapshots is not None:
                 snapshots(s, rec)
+            if photos is not None:
+                photos(s, rec)
 
         summary = sim.run(resume=resume, on_day=on_day)
         if frames_writer is not None:

@@ -81,13 +81,15 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
                      sky_photons: int | None = None, seed: int | None = None,
                      max_depth: int | None = None, indirect: bool | None = None,
                      heatmap_every: int = 7, par_threshold: float = 200.0,
-                     sensor: str | None = None, overrides=(), progress: bool = False) -> dict:
+                     sensor: str | None = None, overrides=(), progress: bool = False,
+                     segments=None, scenario_obj=None) -> dict:
     """Sensor time series of a scenario and its files (module docstring). Returns the summary.
 
     Parameters
     ----------
     scenario : str or Path
-        Scenario TOML with ``[[sensors]]`` and ``[site]`` (and no ``[[trees]]``).
+        Scenario TOML with ``[[sensors]]`` and ``[site]`` (with ``[[trees]]`` or a ``[stand]``
+        only together with ``segments``).
     out_dir : str or Path
         Output folder (a ``light-study`` folder).
     start, end : date or str, optional
@@ -114,6 +116,14 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
         ``--set`` overrides of the scenario.
     progress : bool
         Progress bars.
+    segments : callable, optional
+        A world's light scenes over the period: ``segments(start, end)`` returns
+        ``[(first day, last day, scene)]`` covering the days in order, each scene holding the
+        scene's shapes and the trees as they stand with their leaves on those days
+        (:func:`mitsuba_veg.canopy_photo.world_light.run_world_sensor_study` makes them);
+        each segment is traced with its own scene (its own sky pass).
+    scenario_obj : Scenario, optional
+        The loaded scenario (a run's own), instead of loading ``scenario``.
 
     Returns
     -------
@@ -125,13 +135,14 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     Raises
     ------
     ParameterError
-        When the scenario is not a ``.toml`` with ``[[sensors]]`` and without ``[[trees]]``, the
-        period is missing, reversed or given twice, or a setting is out of range.
+        When the scenario is not a ``.toml`` with ``[[sensors]]`` (and, without ``segments``,
+        without ``[[trees]]``), the period is missing, reversed or given twice, or a setting is
+        out of range.
     """
 
     t0 = time.perf_counter()
     p = Path(scenario)
-    if p.suffix.lower() != ".toml":
+    if scenario_obj is None and p.suffix.lower() != ".toml":
         raise ParameterError("SCENE", str(p), "a scenario .toml with [[sensors]] for a time "
                              "series", "write a scenario (docs/sensors.md)")
     check_light("photons", photons)
@@ -151,14 +162,15 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
                              "e.g. --from 2026-06-01 --to 2026-06-30")
     start, end = _date("--from", start), _date("--to", end)
     SS.step_starts(start, end, step)            # refuses a reversed or too long period first
-    scn = load_scenario(p, overrides)
-    if scn.get("trees") or scn.get("stand"):
-        # the series' light scene is the scene file's shapes: it would leave the trees out
+    scn = scenario_obj if scenario_obj is not None else load_scenario(p, overrides)
+    if (scn.get("trees") or scn.get("stand")) and segments is None:
+        # the scene file's shapes alone would leave the trees out
         raise ParameterError("trees", f"{len(scn.get('trees') or [])} [[trees]] entries"
                              + (" and a [stand]" if scn.get("stand") else ""),
-                             "a scenario without [[trees]] for a light-study time series",
-                             "a world run (mitsuba-veg run) reads the [[sensors]] under its "
-                             "trees every day (sensors_daily.csv)", str(p))
+                             "a scenario without [[trees]] here, or the world's scenes of the "
+                             "period (segments)", "use `mitsuba-veg light-study` (it runs the "
+                             "world's trees to their leaf state on each date) or "
+                             "mitsuba_veg.canopy_photo.run_world_sensor_study", str(p))
     scene = scn.load_scene(daylight=False)
     sensors = S.from_scenario(scn, scene)
     if sensors is None:
@@ -179,12 +191,13 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
     kw = dict(latitude=lat, longitude=lon, timezone=tz, photons=int(photons),
               sky_photons=sky_photons, seed=seed, max_depth=max_depth, indirect=indirect,
               progress=progress)
-    series = SS.run_series(scene, sensors, start=start, end=end, step=step, **kw)
+    segs = [(start, end, scene)] if segments is None else list(segments(start, end))
+    series, cache = _trace_segments(segs, sensors, step, kw)
     hourly = None
     if step == "hourly":
         hourly = series
     elif heatmap_every > 0:
-        hourly = _hourly_days(SS, scene, sensors, series, start, end, heatmap_every, kw)
+        hourly = _hourly_days(segs, cache, sensors, start, end, heatmap_every, kw)
     files = {}
     files["sensors"] = _write_table(series, out / "sensors")
     if hourly is not None and hourly is not series:
@@ -239,6 +252,7 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
                    "heatmap_days": int(len(hdays)) if hourly is not series else int(len(days))},
         "settings": {k: v for k, v in series.settings.items()
                      if k not in ("sky_readings", "light_scene")},
+        "sky_passes": len(segs),
         "par_threshold_umol_m2_s": float(par_threshold),
         "sensors": {"count": int(len(sensors)), "groups": sensors.groups,
                     "focus": str(sensors.names[focus])},
@@ -247,7 +261,9 @@ def run_sensor_study(scenario, out_dir, *, start=None, end=None, year=None,
         "per_sensor": per,
         "passes": {"sun": int(series.sun_passes + (hourly.sun_passes if hourly is not None
                                                    and hourly is not series else 0)),
-                   "sky": 1},
+                   "sky": len(segs)},
+        "world": None if segments is None else {
+            "segments": [{"from": a.isoformat(), "to": b.isoformat()} for a, b, _ in segs]},
         "timings_s": {"series": series.seconds,
                       "hourly": hourly.seconds if hourly is not None and hourly is not series
                       else 0.0, "total": time.perf_counter() - t0},
@@ -265,12 +281,36 @@ def _focus_sensor(sensors, name) -> int:
     return int(pts[0]) if len(pts) else 0
 
 
-def _hourly_days(SS, scene, sensors, series, start, end, every, kw):
-    """Hourly passes on every ``every``-th day of the period (one series per day, joined)."""
+def _join(parts):
+    """One series of consecutive parts (same sensors)."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    return SS.SensorSeries(first.sensors, np.concatenate([x.times for x in parts]),
+                           first.step_hours, first.timezone,
+                           np.concatenate([x.values for x in parts]),
+                           np.concatenate([x.open_values for x in parts]),
+                           sum(x.sun_passes for x in parts), first.photons,
+                           sum(x.seconds for x in parts), first.settings)
+
+
+def _trace_segments(segs, sensors, step, kw):
+    """Each segment's days with its own scene (one sky pass each), joined; and per segment
+    the light scene and sky readings that later passes of its days reuse."""
+    parts, cache = [], []
+    for a, b, scene in segs:
+        part = SS.run_series(scene, sensors, start=a, end=b, step=step, **kw)
+        parts.append(part)
+        cache.append(dict(sky_readings=part.settings["sky_readings"],
+                          light_scene=part.settings["light_scene"]))
+    return _join(parts), cache
+
+
+def _hourly_days(segs, cache, sensors, start, end, every, kw):
+    """Hourly passes on every ``every``-th day of the period (one series per day, joined),
+    each in the scene of its segment."""
     days = [start + _dt.timedelta(days=k) for k in range(0, (end - start).days + 1, every)]
     parts = []
-    reuse = dict(sky_readings=series.settings["sky_readings"],
-                 light_scene=series.settings["light_scene"])
     kw = dict(kw)
     progress = kw.pop("progress")
     bar = None
@@ -278,18 +318,14 @@ def _hourly_days(SS, scene, sensors, series, start, end, every, kw):
         from tqdm.auto import tqdm
         bar = tqdm(total=len(days), unit="day", desc="hourly heat-map days")
     for d in days:
-        parts.append(SS.run_series(scene, sensors, start=d, end=d, step="hourly",
-                                   progress=False, **kw, **reuse))
+        k = next(i for i, (a, b, _) in enumerate(segs) if a <= d <= b)
+        parts.append(SS.run_series(segs[k][2], sensors, start=d, end=d, step="hourly",
+                                   progress=False, **kw, **cache[k]))
         if bar is not None:
             bar.update(1)
     if bar is not None:
         bar.close()
-    first = parts[0]
-    return SS.SensorSeries(sensors, np.concatenate([s.times for s in parts]), 1.0,
-                           first.timezone, np.concatenate([s.values for s in parts]),
-                           np.concatenate([s.open_values for s in parts]),
-                           sum(s.sun_passes for s in parts), first.photons,
-                           sum(s.seconds for s in parts), first.settings)
+    return _join(parts)
 
 
 def _write_dli(path, days, dli, odli, sensors, hdays, hrs) -> str:

@@ -180,11 +180,11 @@ def load_species(path) -> dict[str, Species]:
     """
     p = Path(path)
     try:
-        with open(p, "rb") as fh:
-            data = _toml.load(fh)
+        # utf-8-sig: a byte-order mark (some editors write one) is not part of the TOML
+        data = _toml.loads(p.read_text(encoding="utf-8-sig"))
     except FileNotFoundError:
         raise ParameterError("path", str(p), "an existing TOML file", "check the file name") from None
-    except _toml.TOMLDecodeError as exc:
+    except (_toml.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError("toml", str(exc), "valid TOML", "fix the syntax", str(p)) from None
     return _species_from_mapping(data, str(p))
 

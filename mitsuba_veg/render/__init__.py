@@ -15,7 +15,7 @@ See docs/render.md.
 """
 from __future__ import annotations
 
-from . import materials  # noqa: F401
+from . import carpet, denoise, fidelity, materials  # noqa: F401
 from .film import BANDS, develop, read_exr, rfr_false_colour, to_srgb8, write_exr  # noqa: F401
 from ..outputs import SnapshotWriter, write_snapshot  # noqa: F401
 from .history import Frame, Run, load_run  # noqa: F401
@@ -31,4 +31,4 @@ __all__ = ["BANDS", "develop", "read_exr", "rfr_false_colour", "to_srgb8", "writ
            "Run", "SnapshotWriter", "load_run", "write_snapshot", "MossSet", "live_moss",
            "place_tufts", "RenderOptions", "RenderScene", "Terrain", "build_scene", "make_mesh",
            "render", "write_outputs", "make_tree", "scenario_trees", "simple_tree", "tuft_models",
-           "run_render", "run_animate", "materials"]
+           "run_render", "run_animate", "materials", "carpet", "denoise", "fidelity"]

@@ -298,7 +298,7 @@ def run_animate(run_dir, out=None, *, camera=None, width=None, height=None, spp=
             images = render(rs, seed=int(seed) + k)
             timings["render"] += images["seconds"]
             t2 = time.perf_counter()
-            img8, exp = to_srgb8(images["rgb"], exposure)
+            img8, exp = to_srgb8(images["display"], exposure)
             exposure = exp if exposure is None else exposure
             text = f"day {day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
             p = write_png(fdir / f"frame_{k:04d}.png", label_frame(img8, text))

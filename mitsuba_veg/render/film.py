@@ -92,7 +92,7 @@ def film_dict(options) -> dict:
     """
     xyz = _cmfs()
     d = {"type": "specfilm", "width": int(options.width), "height": int(options.height),
-         "component_format": "float32", "rfilter": {"type": "gaussian"}}
+         "component_format": "float32", "rfilter": {"type": "box"}}
     for i, c in enumerate("XYZ"):
         d[f"c{i}_{c}"] = _regular(xyz[i])
     for j, (name, (lo, hi)) in enumerate(BANDS.items()):
@@ -145,8 +145,10 @@ def develop(tensor) -> dict:
 def write_exr(path, images: dict, meta: dict | None = None) -> Path:
     """Write the images as OpenEXR (float32, ZIP compression, written atomically).
 
-    Channels R, G, B (linear sRGB), X, Y, Z, the bands (``red_655_665``, ``far_red_725_735``:
-    band-mean spectral radiance W m-2 sr-1 nm-1) and ``R_FR`` (photon ratio; NaN written as 0).
+    Channels R, G, B (linear sRGB, as rendered), X, Y, Z, the bands (``red_655_665``,
+    ``far_red_725_735``: band-mean spectral radiance W m-2 sr-1 nm-1), ``R_FR`` (photon ratio;
+    NaN written as 0) and, when the display image differs from the rendered one (denoised),
+    ``display.R``, ``display.G``, ``display.B`` (the PNG's linear sRGB before exposure).
 
     Parameters
     ----------
@@ -172,6 +174,11 @@ def write_exr(path, images: dict, meta: dict | None = None) -> Path:
     xyz = np.asarray(images["XYZ"], np.float32)
     for i, c in enumerate("XYZ"):
         ch[c] = np.ascontiguousarray(xyz[..., i])
+    disp = images.get("display")
+    if disp is not None and disp is not images["rgb"]:
+        disp = np.asarray(disp, np.float32)
+        for i, c in enumerate("RGB"):
+            ch[f"display.{c}"] = np.ascontiguousarray(disp[..., i])
     for name, img in images.get("bands", {}).items():
         lo, hi = BANDS[name]
         ch[f"{name}_{lo:.0f}_{hi:.0f}"] = np.ascontiguousarray(np.asarray(img, np.float32))

@@ -2,16 +2,27 @@
 
 Every material is an explicit spectrum over Mitsuba's range (360-830 nm, 5 nm steps), never an
 RGB colour: RGB is up-sampled inside the visible range only and means nothing at 730 nm, and the
-render's far-red band must see the vegetation's red edge. The curves are smooth, hand-fitted
-shapes of typical measured spectra (soil and concrete rise slowly with wavelength; iron-rich
-sand absorbs below ~550 nm; asphalt is dark and flat; chlorophyll-bearing moss and leaves reflect
-a little green, absorb red near 670 nm and reflect strongly beyond the red edge at ~700-740 nm).
-Their band means agree with the moss model's albedo per band (``[moss] albedo`` of the moss
-garden: red 0.05, far-red 0.45) within a few hundredths; ``band_mean`` reports them.
+render's far-red band must see the vegetation's red edge.
+
+- **Measured** (``mitsuba_veg/data/earthlib_spectra.csv``, from the Earth Library, earthlib
+  1.1.0, MIT licence; ``scripts/vendor_earthlib.py`` documents the selection): soils (``humus``,
+  ``humus_light``: the 8th and 22nd percentiles of 4,185 soil spectra, the darker, organic end),
+  ``sand``, ``asphalt``, ``gravel``, ``concrete`` (sidewalks), ``bark``, ``wood`` and leaf
+  ``litter``, each with a dark or light variant for texture. earthlib starts at 400 nm; below,
+  the curves are extended linearly.
+- **Fitted** (no measured library curve at hand): ``stone`` (weathered granite-like rock, flat
+  and grey, rising a little into the red), ``grass`` (a meadow, for surroundings) and the moss
+  species (chlorophyll: a little green,
+  absorption near 670 nm, the red edge at ~700-740 nm up to a near-infrared plateau). Their band
+  means agree with the moss model's albedo per band (``[moss] albedo`` of the moss garden: red
+  0.05, far-red 0.45) within a few hundredths; ``band_mean`` reports them.
 
 Leaves use PROSPECT-D spectra and the two-sided ``veg_leaf`` BSDF (:mod:`mitsuba_veg.foliage`).
 """
 from __future__ import annotations
+
+import csv
+from pathlib import Path
 
 import numpy as np
 
@@ -30,13 +41,6 @@ def _gauss(x, x0, s):
     return np.exp(-0.5 * ((x - x0) / s) ** 2)
 
 
-def _soil(lo, hi, knee=600.0, width=120.0, floor_uv=0.7):
-    """A soil-like curve rising from ``lo`` (blue) to ``hi`` (near infrared)."""
-    wl = WAVELENGTHS
-    r = lo + (hi - lo) * _logistic(wl, knee, width) / _logistic(830.0, knee, width)
-    return r * np.where(wl < 400, floor_uv + (1 - floor_uv) * (wl - 360) / 40.0, 1.0)
-
-
 def _vegetation(blue, green, red, nir, yellow=0.0, edge=705.0, edge_width=11.0,
                 green_width=32.0):
     """Chlorophyll vegetation: low blue, a green bump at 550 nm, a red trough at ~670 nm and the
@@ -49,21 +53,29 @@ def _vegetation(blue, green, red, nir, yellow=0.0, edge=705.0, edge_width=11.0,
     return vis * (1.0 - redge) + nir * redge
 
 
+#: the measured curves (earthlib), one column per material
+MEASURED_FILE = Path(__file__).resolve().parents[1] / "data" / "earthlib_spectra.csv"
+
+
+def _measured() -> dict:
+    lines = [ln for ln in MEASURED_FILE.read_text().splitlines() if not ln.startswith("#")]
+    rows = list(csv.reader(lines))
+    a = np.array(rows[1:], float)
+    if not np.allclose(a[:, 0], WAVELENGTHS):
+        raise ValueError(f"{MEASURED_FILE}: wavelengths are not 360-830 nm in 5 nm steps")
+    return {name: a[:, j + 1] for j, name in enumerate(rows[0][1:])}
+
+
 def _spectra() -> dict:
     wl = WAVELENGTHS
     s = {
-        # ground (paper 000 geology classes; texture colours in mitsuba_veg.terrain)
-        "humus": _soil(0.035, 0.16, knee=640, width=110),
-        "humus_light": _soil(0.05, 0.20, knee=640, width=110),
-        "sand": np.clip(0.15 + 0.27 * _logistic(wl, 530.0, 35.0) + 0.05 * (wl - 600) / 230, 0, 1),
-        "sand_light": np.clip(0.19 + 0.31 * _logistic(wl, 525.0, 35.0)
-                              + 0.05 * (wl - 600) / 230, 0, 1),
-        "asphalt": 0.075 + 0.02 * (wl - 360) / 470,
-        "asphalt_light": 0.11 + 0.025 * (wl - 360) / 470,
-        # built structure and surroundings
-        "concrete": 0.24 + 0.11 * _logistic(wl, 520.0, 90.0),
-        "gravel": 0.13 + 0.03 * _logistic(wl, 560.0, 80.0),
-        "bark": _soil(0.045, 0.30, knee=700, width=70),
+        **_measured(),
+        # a meadow (the courtyard's surroundings): chlorophyll, a little dry grass
+        "grass": _vegetation(0.035, 0.11, 0.045, 0.42, yellow=0.02, green_width=30.0),
+        "grass_light": _vegetation(0.05, 0.15, 0.08, 0.46, yellow=0.05, green_width=34.0),
+        # rock: no measured curve at hand (earthlib has none); weathered granite-like grey
+        "stone": 0.2 + 0.07 * _logistic(wl, 560.0, 90.0),
+        "stone_light": 0.26 + 0.08 * _logistic(wl, 560.0, 90.0),
         # moss: established (dark) and young/tip (light) tones per species
         "bryum_argenteum": _vegetation(0.045, 0.15, 0.065, 0.46, yellow=0.02, green_width=30.0),
         "bryum_argenteum_light": _vegetation(0.09, 0.27, 0.12, 0.55, yellow=0.02,
@@ -74,9 +86,6 @@ def _spectra() -> dict:
                                                 green_width=28.0),
         "polytrichum": _vegetation(0.02, 0.09, 0.025, 0.38, green_width=26.0),
         "polytrichum_light": _vegetation(0.03, 0.14, 0.035, 0.44, yellow=0.01, green_width=26.0),
-        # the carpet of old stems and rhizoids under living moss
-        "moss_base": _vegetation(0.03, 0.06, 0.045, 0.28, yellow=0.015, edge=712,
-                                 edge_width=16.0),
     }
     return {k: np.clip(v, 0.0, 0.95) for k, v in s.items()}
 

@@ -2,16 +2,19 @@
 
 Input is the moss population of a run (positions, surface normals, species, total growth
 G_moss; :func:`live_moss` reads them from a checkpoint or snapshot). Each moss becomes one of the
-species' tuft models (:mod:`.tufts`), with
+species' tuft models (:mod:`.tufts`), standing on its patch of the moss carpet
+(:mod:`.carpet`, which draws the moss's cover), with
 
 - a random rotation about the surface normal and a small random tilt (paper 000: "randomly
   rotated");
-- 1/f-noise jitter of its placement in the tangent plane (paper 000: "1/f noise on the place"),
-  amplitude ``jitter`` x the moss size, and 1/f-noise modulation of its size and tone so that
-  neighbouring tufts vary together (patches) rather than independently;
-- a scale from its growth: ``size * (0.45 + (1 - exp(-G / 4)))`` (a young moss with G ~ 0
-  is half-size, an established one with G >> 4 reaches 1.45 x ``size``: established moss spreads
-  sideways, so that neighbouring tufts on the 1-cm spot grid close into a carpet).
+- its place: the centre of the moss's spot-grid cell (where its carpet patch lies) when the
+  grid's origin is given, else the moss's own position, moved by 1/f-noise jitter in the
+  tangent plane (paper 000: "1/f noise on the place"), amplitude ``jitter`` x the moss size;
+- 1/f-noise modulation of its size and tone, so that neighbouring tufts vary together
+  (patches) rather than independently;
+- a scale from its growth: ``size * (0.45 + 0.5 (1 - exp(-G / 4)))`` (a young moss with G ~ 0
+  is half-size, an established one with G >> 4 reaches 0.95 x ``size``: its footprint stays
+  inside its cell, so the tufts add relief, not cover, to what the carpet draws).
 
 Mitsuba 3.9.1 does not scale to one ``instance`` per tuft (../shared/MITSUBA_NOTES.md), so all
 tufts of a species are merged into one triangle mesh (vectorised: one einsum per tuft variant).
@@ -25,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ParameterError
+from .carpet import cell_keys
 from .noise import pink_noise
 from .tufts import TUFT_SIZE, tuft_models
 
@@ -100,7 +104,7 @@ def live_moss(arrays: dict, species_names) -> MossSet:
 def growth_scale(growth) -> np.ndarray:
     """Tuft scale factor from total growth G_moss (see module docstring).
 
-    ``0.45 + (1 - exp(-G / 4))``, G clipped at 0: 0.45 for a young moss, up to 1.45.
+    ``0.45 + 0.5 (1 - exp(-G / 4))``, G clipped at 0: 0.45 for a young moss, up to 0.95.
 
     Parameters
     ----------
@@ -110,10 +114,41 @@ def growth_scale(growth) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        Scale factor in [0.45, 1.45) [-], of the shape of ``growth``.
+        Scale factor in [0.45, 0.95) [-], of the shape of ``growth``.
     """
     g = np.maximum(np.asarray(growth, np.float64), 0.0)
-    return 0.45 + 1.0 * (1.0 - np.exp(-g / 4.0))
+    return 0.45 + 0.5 * (1.0 - np.exp(-g / 4.0))
+
+
+def cell_centres(pos, nrm, origin, size: float) -> np.ndarray:
+    """The centre of each moss's cell seen along its dominant axis, on its tangent plane.
+
+    Parameters
+    ----------
+    pos, nrm : array_like
+        Moss positions [m] and unit normals [-], (n, 3).
+    origin : array_like
+        The spot grid's origin (3,) [m].
+    size : float
+        Cell side [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        Points (n, 3) [m].
+    """
+    pos = np.asarray(pos, np.float64)
+    nrm = np.asarray(nrm, np.float64)
+    origin = np.asarray(origin, np.float64)
+    d, ia, ib = cell_keys(pos, nrm, origin, size)
+    a, b = (d + 1) % 3, (d + 2) % 3
+    r = np.arange(len(pos))
+    out = pos.copy()
+    out[r, a] = origin[a] + (ia + 0.5) * size
+    out[r, b] = origin[b] + (ib + 0.5) * size
+    out[r, d] = pos[r, d] - (nrm[r, a] * (out[r, a] - pos[r, a]) +
+                             nrm[r, b] * (out[r, b] - pos[r, b])) / nrm[r, d]
+    return out
 
 
 def _tangent_frames(n):
@@ -135,9 +170,9 @@ class TuftMesh:
     count: int
 
 
-def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
+def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.12,
                 tilt_deg: float = 12.0, seed: int = 0, variants: int | None = None,
-                noise_scale: float = 0.08) -> list[TuftMesh]:
+                noise_scale: float = 0.08, origin=None, lift: float = 0.0) -> list[TuftMesh]:
     """Merge one tuft model per moss into one mesh per species (module docstring).
 
     A moss keeps its look from frame to frame when the seed and its position stay the same: every
@@ -151,7 +186,7 @@ def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
         Tuft footprint [m] at scale 1 (the moss size of the run; default :data:`TUFT_SIZE`,
         0.01 m).
     jitter : float, optional
-        1/f placement jitter amplitude as a fraction of ``size`` [-] (default 0.35).
+        1/f placement jitter amplitude as a fraction of ``size`` [-] (default 0.12).
     tilt_deg : float, optional
         Largest random tilt of the tuft axis from the surface normal [degrees] (default 12).
     seed : int, optional
@@ -161,6 +196,13 @@ def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
     noise_scale : float, optional
         The 1/f noise's largest wavelength [m] (default 0.08; size and tone patches use twice
         that).
+    origin : array_like, optional
+        The spot grid's origin (3,) [m] (:func:`mitsuba_veg.render.carpet.grid_origin`): each
+        tuft then stands at the centre of its moss's cell, on the moss's tangent plane; None: at
+        the moss's position.
+    lift : float, optional
+        Height of the tufts' base above the surface [m] (default 0; the carpet's height when the
+        tufts stand on it).
 
     Returns
     -------
@@ -195,12 +237,13 @@ def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
 
     n = moss.nrm
     t, b = _tangent_frames(n)
+    base = moss.pos if origin is None else cell_centres(moss.pos, n, origin, size)
     # 1/f jitter of placement, tangent to the surface
     jx = pink_noise(moss.pos, noise_scale, seed=seed + 1)
     jy = pink_noise(moss.pos, noise_scale, seed=seed + 2)
-    pos = moss.pos + jitter * size * 2.0 * (jx[:, None] * t + jy[:, None] * b)
+    pos = base + jitter * size * 2.0 * (jx[:, None] * t + jy[:, None] * b)
     patch = pink_noise(moss.pos, noise_scale * 2.0, seed=seed + 3)   # patches of size/tone
-    scale = (size / TUFT_SIZE) * growth_scale(moss.growth) * (1.0 + 0.25 * patch) * \
+    scale = (size / TUFT_SIZE) * growth_scale(moss.growth) * (1.0 + 0.15 * patch) * \
         (0.9 + 0.2 * rnd(1))     # the models are ~TUFT_SIZE across, in metres
     # tilt the axis a little, rotate about it at random
     tilt = np.radians(tilt_deg) * np.sqrt(rnd(2))
@@ -214,7 +257,7 @@ def place_tufts(moss: MossSet, size: float = TUFT_SIZE, jitter: float = 0.35,
     ez = -s * ta + c * ba         # local z
     tone_shift = 0.25 * patch + 0.15 * (rnd(5) - 0.5) - 0.2 * np.exp(-moss.growth / 3.0)
     # push the base a little into the surface so that tufts never float
-    pos = pos - axis * (0.05 * TUFT_SIZE * scale)[:, None]
+    pos = pos + n * lift - axis * (0.05 * TUFT_SIZE * scale)[:, None]
     M = np.stack([ex, axis, ez], axis=1) * scale[:, None, None]     # rows: local axes in world
     names = moss.species_names
     for si in np.unique(moss.species):

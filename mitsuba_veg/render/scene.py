@@ -42,7 +42,9 @@ from ..scenario import site_offset_hours, site_time
 from . import materials as mat
 from .cameras import sensor_dict
 from .film import film_dict
-from .moss import MossSet, growth_scale, place_tufts
+from .denoise import AUX_CAMERA, aux_sensor_dict
+from .carpet import BUMP_SCALE, carpet_patches, grid_origin, moss_texture
+from .moss import MossSet, place_tufts
 from .noise import pink_noise_image
 from .trees import leaf_bin_arrays, tree_shapes
 
@@ -68,13 +70,17 @@ class RenderOptions:
     #: ISO date-time of the light; None: the day being rendered at ``hour`` local time
     when: str | None = None
     hour: float = 10.0
-    #: material of the ring around the ground (None: no ring)
-    surround: str | None = "gravel"
-    moss_jitter: float = 0.35
+    #: the ground around the scene to the horizon: "auto" (the scenario's ``render.surround``,
+    #: else "ground"), "ground" (the ground's own material), a material name, or None / "none"
+    surround: str | None = "auto"
+    moss_jitter: float = 0.12
+    #: draw each moss's carpet patch (its simulated cover); False: tufts only
+    moss_carpet: bool = True
     seed: int = 0
     leaf_bins: int = 12
-    cover_resolution: int = 1024
     sampler: str = "multijitter"
+    #: denoise the display image (Open Image Denoise, :mod:`.denoise`); the EXR stays as rendered
+    denoise: bool = True
 
     @property
     def samples(self) -> int:
@@ -90,8 +96,8 @@ class RenderOptions:
         """Check the settings' ranges.
 
         width and height 8-16384 [px], spp 1-2^20, max_depth 1-100, hour 0-24 [h],
-        moss_jitter 0-2 [-], leaf_bins 1-64, cover_resolution 16-8192 [px], surround a material of
-        :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
+        moss_jitter 0-2 [-], leaf_bins 1-64, surround ``"auto"``, ``"ground"``, ``"none"``, a
+        material of :data:`~mitsuba_veg.render.materials.SPECTRA` or None.
 
         Returns
         -------
@@ -110,10 +116,10 @@ class RenderOptions:
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
-        check_range("cover_resolution", self.cover_resolution, 16, 8192)
-        if self.surround is not None and self.surround not in mat.SPECTRA:
-            raise ParameterError("surround", self.surround, "a material name or None",
-                                 "one of " + ", ".join(sorted(mat.SPECTRA)))
+        if self.surround not in (None, "auto", "ground", "none") and \
+                self.surround not in mat.SPECTRA:
+            raise ParameterError("surround", self.surround, "'auto', 'ground', 'none', a material "
+                                 "name or None", "one of " + ", ".join(sorted(mat.SPECTRA)))
         return self
 
 
@@ -131,13 +137,15 @@ class RenderScene:
     moss_size: float = 0.01
     species: list = field(default_factory=list)
     tree_cache: dict | None = None
+    #: the albedo/normal camera of the denoiser (None when the scene does not denoise)
+    aux_sensor: mi.Sensor | None = None
 
     def update(self, moss: MossSet | None = None, trees=None) -> dict:
         """Replace the moss (and, when given, the trees' leaves) of the scene.
 
         The scene must have been built with ``species`` (and with trees when ``trees`` is given).
-        The moss meshes, the ground's moss-cover texture and the leaf-bin meshes get new buffers;
-        the Mitsuba objects stay the same.
+        The moss meshes (tufts and carpet) and the leaf-bin meshes get new buffers; the Mitsuba
+        objects stay the same.
 
         Parameters
         ----------
@@ -160,24 +168,20 @@ class RenderScene:
         params = mi.traverse(self.scene)
         keys = set(params.keys())
         info = {}
-        parts = _moss_parts(moss, self.moss_size, self.options, self.species)
-        for sid, (v, f, tone, count) in parts.items():
+        parts = _moss_parts(moss, self.moss_size, self.options, self.species, self.terrain)
+        for sid, part in parts.items():
             if f"{sid}.faces" not in keys:
                 raise SceneError(f"update(): the scene has no mesh '{sid}': build it with "
                                  f"species={self.species!r}")
-            params[f"{sid}.vertex_positions"] = mi.Float(np.ascontiguousarray(v).ravel())
-            params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
-            params[f"{sid}.vertex_tone"] = mi.Float(np.ascontiguousarray(tone).ravel())
-        info["tufts"] = int(sum(c for *_, c in parts.values()))
-        g = self.terrain.ground if self.terrain is not None else None
-        ck = f"{g}.bsdf.brdf_0.weight.data"
-        if g is not None and ck in keys:
-            cover = self.terrain.moss_cover(moss, self.moss_size, self.options.cover_resolution) \
-                if moss is not None and len(moss) else None
-            shape = tuple(params[ck].shape)
-            if cover is None or cover.shape != shape[:2]:
-                cover = np.zeros(shape[:2], np.float32) if cover is None else cover
-            params[ck] = mi.TensorXf(np.ascontiguousarray(cover.reshape(shape)))
+            flat = lambda a: np.ascontiguousarray(a).ravel()  # noqa: E731
+            params[f"{sid}.vertex_positions"] = mi.Float(flat(part["v"]))
+            params[f"{sid}.faces"] = mi.UInt32(flat(part["f"]))
+            params[f"{sid}.vertex_tone"] = mi.Float(flat(part["tone"]))
+            if "normals" in part:
+                params[f"{sid}.vertex_normals"] = mi.Float(flat(part["normals"]))
+                params[f"{sid}.vertex_texcoords"] = mi.Float(flat(part["uv"]))
+        info["tufts"] = int(sum(p["count"] for sid, p in parts.items()
+                                if not sid.startswith(CARPET_PREFIX)))
         if trees is not None:
             for sid, (v, f) in leaf_bin_arrays(trees, self.options, self.tree_cache).items():
                 if f"{sid}.faces" in keys:
@@ -276,6 +280,161 @@ def _bitmap(img, raw=True, filter_type="bilinear", wrap="clamp") -> dict:
             "wrap_mode": wrap}
 
 
+#: distance of the surround's far edge from the ground's centre [m]: from 20 m up its edge lies
+#: 0.01 degrees below the horizon (under a pixel of a 1920-px, 50-degree view)
+SURROUND_RADIUS = 1.0e5
+#: materials chosen from a mesh's name when neither the scenario nor the scene file gives one
+#: (shell-style patterns, first match wins)
+NAME_MATERIALS = (("log*", "bark"), ("trunk*", "bark"), ("stump*", "wood"), ("branch*", "bark"),
+                  ("rock*", "stone"), ("stone*", "stone"), ("boulder*", "stone"),
+                  ("house*", "concrete"), ("wall*", "concrete"), ("building*", "concrete"),
+                  ("roof*", "concrete"), ("path*", "asphalt"), ("road*", "asphalt"),
+                  ("pavement*", "asphalt"), ("sand*", "sand"), ("gravel*", "gravel"))
+
+
+def _plan_uv(v, metres_per_uv: float) -> np.ndarray:
+    """Texture coordinates from the plan: (x, z) / ``metres_per_uv``."""
+    v = np.asarray(v, np.float64)
+    return (v[:, [0, 2]] / float(metres_per_uv)).astype(np.float32)
+
+
+def _outer_boundary(v, f):
+    """The vertex indices of a mesh's longest boundary loop, in order (None if it has none)."""
+    f = np.asarray(f, np.int64)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    bnd = e[cnt[inv.ravel()] == 1]
+    if len(bnd) < 3:
+        return None
+    nxt = dict(zip(bnd[:, 0].tolist(), bnd[:, 1].tolist()))
+    loops, seen = [], set()
+    for s0 in nxt:
+        if s0 in seen:
+            continue
+        loop, p = [], s0
+        while p not in seen and p in nxt:
+            seen.add(p)
+            loop.append(p)
+            p = nxt[p]
+        if p == s0 and len(loop) >= 3:
+            loops.append(loop)
+    if not loops:
+        return None
+    v = np.asarray(v, np.float64)
+    # the outer loop encloses the largest area in plan
+    def plan_area(lp):
+        x, z = v[lp, 0], v[lp, 2]
+        return abs(np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1)))
+    return np.array(max(loops, key=plan_area))
+
+
+def _strips(rings):
+    """Triangles joining consecutive closed loops of equal length (faces up)."""
+    verts = np.concatenate(rings)
+    n = len(rings[0])
+    i = np.arange(n)
+    j = (i + 1) % n
+    faces = []
+    for k in range(len(rings) - 1):
+        a, b = k * n, (k + 1) * n
+        faces += [np.c_[a + i, b + i, b + j], np.c_[a + i, b + j, a + j]]
+    faces = np.concatenate(faces)
+    p = verts[faces]
+    down = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 1] < 0
+    faces[down] = faces[down][:, [0, 2, 1]]
+    return verts, faces
+
+
+def scene_bsdf_ids(path) -> set:
+    """The ids of the shapes that a Mitsuba XML scene file gives a BSDF of their own (a nested
+    ``<bsdf>`` or a ``<ref>`` to one).
+
+    Parameters
+    ----------
+    path : path-like
+        The XML file.
+
+    Returns
+    -------
+    set of str
+        Shape ids.
+    """
+    import xml.etree.ElementTree as ET
+    try:
+        root = ET.parse(str(path)).getroot()
+    except (ET.ParseError, OSError):
+        return set()
+    bsdf_ids = {el.get("id") for el in root.iter("bsdf") if el.get("id")}
+    out = set()
+    for sh in root.iter("shape"):
+        sid = sh.get("id")
+        if not sid:
+            continue
+        if sh.find("bsdf") is not None or any(r.get("id") in bsdf_ids for r in sh.findall("ref")):
+            out.add(sid)
+    return out
+
+
+def resolve_materials(scn, meshes: dict, ground: str | None, base) -> dict:
+    """The render material of every terrain mesh, in this order:
+
+    1. the scenario's ``[render.materials]``: a shape id or a shell-style pattern (``"log_*"``)
+       mapped to a material of :data:`~mitsuba_veg.render.materials.SPECTRA` (the first key that
+       matches, in the file's order; a key that matches no mesh is refused);
+    2. the scene file's own BSDF of that shape (the loaded object, as the file defines it);
+    3. a material from the mesh's name (:data:`NAME_MATERIALS`: ``log_*`` bark, ``rock_*``
+       stone, ``house``/``wall`` concrete, ...);
+    4. its terrain role: the ``[terrain.geology]`` class of the moss model (humus, sand,
+       asphalt; humus by default).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario.
+    meshes : dict
+        The terrain meshes by id.
+    ground : str or None
+        The ground's id.
+    base : mitsuba.Scene
+        The loaded scene (its shapes' BSDF objects).
+
+    Returns
+    -------
+    dict
+        ``{id: material name or mitsuba.BSDF}``.
+
+    Raises
+    ------
+    ParameterError
+        If ``[render.materials]`` names an unknown material or a key matches no mesh.
+    """
+    import fnmatch
+    given = dict(scn.get("render.materials", {}) or {})
+    for k, v in given.items():
+        if v not in mat.SPECTRA:
+            raise ParameterError(f"render.materials.{k}", v, "one of " +
+                                 ", ".join(sorted(mat.SPECTRA)), None, str(scn.path))
+        if not any(fnmatch.fnmatchcase(sid, k) for sid in meshes):
+            raise ParameterError("render.materials", k, "a mesh id or pattern of the scene: " +
+                                 ", ".join(meshes), "remove it or fix its name", str(scn.path))
+    own = scene_bsdf_ids(scn.file("scene.file")) if scn.get("scene.file") else set()
+    objs = {sh.id(): sh.bsdf() for sh in base.shapes() if sh.is_mesh()}
+    geology = dict(scn.get("terrain.geology", {}) or {})
+    out = {}
+    for sid in meshes:
+        hit = next((v for k, v in given.items() if fnmatch.fnmatchcase(sid, k)), None)
+        if hit is None and sid in own and sid in objs:
+            hit = objs[sid]
+        if hit is None:
+            hit = next((m for pat, m in NAME_MATERIALS if fnmatch.fnmatchcase(sid.lower(), pat)),
+                       None)
+        if hit is None:
+            hit = mat.GEOLOGY_MATERIAL.get(geology.get(sid, "humus"), "humus")
+        out[sid] = hit
+    return out
+
+
 # ---- terrain -----------------------------------------------------------------------------------
 @dataclass
 class Terrain:
@@ -288,7 +447,9 @@ class Terrain:
     noise: np.ndarray                 # (H, W) 1/f noise in [0, 1]
     base_scene: mi.Scene              # the scenario's geometry (for ray casts)
     uv_scale: float = 1.0             # metres per UV unit on the ground
-    materials: dict = field(default_factory=dict)   # id -> material name
+    #: id -> material name (:data:`~mitsuba_veg.render.materials.SPECTRA`) or the scene file's own
+    #: BSDF object (:func:`resolve_materials`)
+    materials: dict = field(default_factory=dict)
 
     @staticmethod
     def from_scenario(scn) -> "Terrain":
@@ -340,118 +501,87 @@ class Terrain:
                 masks = [(codes == k).astype(np.float32) for k in range(3)]
         noise = pink_noise_image((512, 512), scale_px=96.0, octaves=6, seed=7)
         noise = np.clip(0.5 + 1.1 * noise, 0.0, 1.0).astype(np.float32)
-        mats = dict(scn.get("render.materials", {}) or {})
-        for k, v in mats.items():
-            if v not in mat.SPECTRA:
-                raise ParameterError(f"render.materials.{k}", v, "one of " +
-                                     ", ".join(sorted(mat.SPECTRA)), None, str(scn.path))
-        return Terrain(meshes, ground, masks, noise, base, uv_scale, mats)
+        if ground is not None and meshes[ground][2] is None:
+            # a ground without texture coordinates: its plan (x, z) over its extent, so that
+            # the ground's 1/f texture varies over it
+            v, f, _, nrm = meshes[ground]
+            lo, hi = v.min(0), v.max(0)
+            span = float(max(hi[0] - lo[0], hi[2] - lo[2], 1e-6))
+            uv = np.c_[(v[:, 0] - lo[0]) / span, (v[:, 2] - lo[2]) / span].astype(np.float32)
+            meshes[ground] = (v, f, uv, nrm)
+            uv_scale = span
+        materials = resolve_materials(scn, meshes, ground, base)
+        return Terrain(meshes, ground, masks, noise, base, uv_scale, materials)
 
-    # ground material --------------------------------------------------------------------------
-    def ground_bsdf(self, cover: np.ndarray | None) -> dict:
-        """The ground's BSDF dict: geology classes, 1/f variation and moss cover.
+    # materials -------------------------------------------------------------------------------
+    def _varied(self, name: str) -> dict:
+        """A material's diffuse BSDF, varied by the 1/f noise between it and its ``_light`` (or
+        ``_dark``) variant where one exists."""
+        noise = _bitmap(self.noise, wrap="repeat")
+        for other, first in ((name + "_light", True), (name + "_dark", False)):
+            if other in mat.SPECTRA:
+                a, b = (name, other) if first else (other, name)
+                return mat.blend(mat.diffuse(a), mat.diffuse(b), noise)
+        return mat.diffuse(name)
 
-        Humus everywhere, sand and asphalt where their masks are 1 (nested ``blendbsdf``s); each
-        class varies between its dark and light spectrum by the noise image; the moss-carpet base
-        spectrum is blended in by ``cover``. Without geology masks the ground's
-        ``[render.materials]`` material (default humus) is used.
+    def ground_bsdf(self) -> dict:
+        """The ground's (one-sided) BSDF dict.
 
-        Parameters
-        ----------
-        cover : numpy.ndarray or None
-            Moss cover (H, W) in [0, 1] [-] over the ground's UV space (:meth:`moss_cover`), or
-            None.
+        With geology masks (``terrain.geology_texture``): humus everywhere, sand and asphalt where
+        their masks are 1 (nested ``blendbsdf``s); each class varies between its dark and light
+        spectrum by the 1/f noise image. Without them, the ground's material
+        (:func:`resolve_materials`), varied the same way when it is a named spectrum.
 
         Returns
         -------
-        dict
-            The (one-sided) BSDF dict.
+        dict or mitsuba.BSDF
+            The BSDF (the scene file's own object where that is the ground's material).
         """
-        noise = _bitmap(self.noise, wrap="repeat")
-
-        def varied(name):
-            light = name + "_light"
-            if light not in mat.SPECTRA:
-                return mat.diffuse(name)
-            return mat.blend(mat.diffuse(name), mat.diffuse(light), noise)
-
         if self.geology_masks is None:
-            b = varied(self.materials.get(self.ground, "humus"))
-        else:
-            hum, sand, asph = self.geology_masks
-            # humus everywhere, sand where its mask is 1, asphalt where its mask is 1
-            b = varied("humus")
-            if sand.any():
-                b = mat.blend(b, varied("sand"), _bitmap(sand))
-            if asph.any():
-                b = mat.blend(b, varied("asphalt"), _bitmap(asph))
-        if cover is not None:
-            b = mat.blend(b, mat.diffuse("moss_base"), _bitmap(cover))
+            m = self.materials.get(self.ground, "humus")
+            return self._varied(m) if isinstance(m, str) else m
+        hum, sand, asph = self.geology_masks
+        b = self._varied("humus")
+        if sand.any():
+            b = mat.blend(b, self._varied("sand"), _bitmap(sand))
+        if asph.any():
+            b = mat.blend(b, self._varied("asphalt"), _bitmap(asph))
         return b
 
-    def moss_cover(self, moss: MossSet, size: float, resolution: int = 1024) -> np.ndarray | None:
-        """Moss cover of the ground in its UV space (H, W) in [0, 1].
-
-        Each moss on the ground (found by a 6 mm ray from 2 mm above it, down its normal) is
-        splatted into a ``resolution`` x ``resolution`` image with weight ``growth_scale(G)^2`` and
-        blurred with a Gaussian of sigma 0.45 ``size`` (the tuft's footprint).
+    def grid_origin(self, size: float) -> np.ndarray:
+        """The origin of the run's spot grid of cell ``size`` [m] (its cells are the moss
+        carpet's patches): 1.5 cells below the terrain meshes' bounding box, as the daily loop
+        builds it (:func:`mitsuba_veg.render.carpet.grid_origin`).
 
         Parameters
         ----------
-        moss : MossSet
-            The living moss.
         size : float
-            Moss size of the run [m].
-        resolution : int, optional
-            Image size [px] (default 1024).
+            The run's moss size [m].
 
         Returns
         -------
-        numpy.ndarray or None
-            Cover (resolution, resolution) float32 in [0, 1] [-]; None when there is no ground with
-            UVs, no moss, or no moss on the ground.
+        numpy.ndarray
+            (3,) [m].
         """
-        if self.ground is None or self.meshes[self.ground][2] is None or len(moss) == 0:
-            return None
-        o = moss.pos + moss.nrm * 2e-3
-        ray = mi.Ray3f(mi.Point3f(*[mi.Float(o[:, k].astype(np.float32)) for k in range(3)]),
-                       mi.Vector3f(*[mi.Float((-moss.nrm[:, k]).astype(np.float32))
-                                     for k in range(3)]))
-        ray.maxt = mi.Float(6e-3)
-        si = self.base_scene.ray_intersect(ray)
-        valid = np.asarray(si.is_valid())
-        gid = np.array([s.id() == self.ground for s in self.base_scene.shapes()])
-        reg = np.asarray(dr.reinterpret_array(mi.UInt32, self.base_scene.shapes_dr()))
-        shp = np.asarray(dr.reinterpret_array(mi.UInt32, si.shape))
-        on = valid & np.isin(shp, reg[gid])
-        if not on.any():
-            return None
-        uv = np.stack([np.asarray(si.uv.x), np.asarray(si.uv.y)], 1)[on]
-        R = int(resolution)
-        img = np.zeros((R, R))
-        col = np.clip((uv[:, 0] * R).astype(np.int64), 0, R - 1)
-        row = np.clip((uv[:, 1] * R).astype(np.int64), 0, R - 1)
-        w = growth_scale(moss.growth[on]) ** 2
-        np.add.at(img, (row, col), w)
-        # a disc of the tuft's footprint: Gaussian blur with sigma ~ 0.45 size (FFT)
-        sigma = 0.45 * size / (self.uv_scale / R)
-        img = _gauss_blur(img, sigma) * (2 * math.pi * sigma ** 2) * 0.9
-        return np.clip(img, 0.0, 1.0).astype(np.float32)
+        v = np.concatenate([np.asarray(m[0], np.float64).reshape(-1, 3)
+                            for m in self.meshes.values()])
+        return grid_origin(v.min(0), size)
 
     # shapes -----------------------------------------------------------------------------------
-    def shapes(self, cover=None, surround: str | None = "gravel") -> dict:
+    def shapes(self, surround: str | None = "ground") -> dict:
         """Mitsuba mesh dicts of the terrain, all two-sided.
 
-        The ground gets :meth:`ground_bsdf`, other meshes their ``[render.materials]`` spectrum
-        (default concrete); ``surround`` adds a flat ring out to 2 km around the ground, 1 mm below
-        its rim.
+        The ground gets :meth:`ground_bsdf`, other meshes their material
+        (:func:`resolve_materials`: a named spectrum, varied by noise where it has a variant, or
+        the scene file's own BSDF); ``surround`` adds ground around the scene out to
+        :data:`SURROUND_RADIUS` (:meth:`surround`).
 
         Parameters
         ----------
-        cover : numpy.ndarray, optional
-            Moss cover of the ground (:meth:`moss_cover`), or None.
         surround : str or None, optional
-            Material of the ring around the ground (default ``"gravel"``; None: no ring).
+            Material of the ground around the scene: ``"ground"`` (default: the ground's own
+            material, humus for a geology-textured ground), a material name, or None (no
+            surround).
 
         Returns
         -------
@@ -461,42 +591,80 @@ class Terrain:
         out = {}
         for sid, (v, f, uv, nrm) in self.meshes.items():
             if sid == self.ground:
-                bsdf = self.ground_bsdf(cover)
+                bsdf = self.ground_bsdf()
             else:
-                bsdf = mat.diffuse(self.materials.get(sid, "concrete"))
+                m = self.materials.get(sid, "concrete")
+                if isinstance(m, str):
+                    if uv is None:      # the plan as texture coordinates: the noise varies
+                        uv = _plan_uv(v, 2.0)
+                    bsdf = self._varied(m)
+                else:
+                    bsdf = m
             out[sid] = make_mesh(sid, v, f, {"type": "twosided", "bsdf": bsdf}, uv=uv,
                                  normals=nrm)
         if surround is not None:
-            ring = self._surround()
+            ring = self.surround()
             if ring is not None:
-                out["surround"] = make_mesh("surround", ring[0], ring[1],
-                                            {"type": "twosided", "bsdf": mat.diffuse(surround)})
+                m = surround
+                if surround == "ground":
+                    g = self.materials.get(self.ground, "humus")
+                    m = "humus" if self.geology_masks is not None or not isinstance(g, str) \
+                        else g
+                (vn, fn), (vf, ff) = ring
+                out["surround"] = make_mesh("surround", vn, fn,
+                                            {"type": "twosided", "bsdf": self._varied(m)},
+                                            uv=_plan_uv(vn, self.uv_scale))
+                # the far ring without texture: a bitmap seen at grazing angles over kilometres
+                # would alias into stripes
+                far = mat.blend(mat.diffuse(m), mat.diffuse(m + "_light"), 0.5) \
+                    if m + "_light" in mat.SPECTRA else mat.diffuse(m)
+                out["surround_far"] = make_mesh("surround_far", vf, ff,
+                                                {"type": "twosided", "bsdf": far})
         return out
 
-    def _surround(self, radius: float = 2000.0):
+    def surround(self, radius: float | None = None):
+        """Ground around the scene to the horizon: a skirt from the ground's rim out to
+        ``radius``, in two parts.
+
+        The ground mesh's outer boundary loop is joined to copies of it scaled about the ground's
+        centre (1.15, 1.4, 1.8 and 2.5 times its size) whose heights ease (smoothstep) from the
+        rim's own to the rim's median height: no gap at the rim, no ramp edges, flat beyond. The
+        far part joins the last copy to a loop at ``radius``: from a camera a few metres up its
+        edge lies within a hundredth of a degree of the horizon (the sky is zero below it).
+
+        Parameters
+        ----------
+        radius : float, optional
+            Distance of the far edge from the ground's centre [m] (default
+            :data:`SURROUND_RADIUS`).
+
+        Returns
+        -------
+        tuple or None
+            ``((vertices, faces) near, (vertices, faces) far)`` [m], faces up; None without a
+            ground or when its boundary is not a closed loop.
+        """
         if self.ground is None:
             return None
-        v = self.meshes[self.ground][0].astype(np.float64)
-        lo, hi = v.min(0), v.max(0)
-        # the ground's rim height: vertices on its bounding rectangle
-        rim = (np.isclose(v[:, 0], lo[0]) | np.isclose(v[:, 0], hi[0]) |
-               np.isclose(v[:, 2], lo[2]) | np.isclose(v[:, 2], hi[2]))
-        y = float(np.median(v[rim, 1])) - 1e-3 if rim.any() else float(lo[1])
-        x0, x1, z0, z1 = lo[0], hi[0], lo[2], hi[2]
-        R = radius
-        inner = [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
-        outer = [(-R, -R), (R, -R), (R, R), (-R, R)]
-        verts = np.array([[x, y, z] for x, z in inner + outer])
-        faces = []
-        for i in range(4):
-            j = (i + 1) % 4
-            faces += [[i, 4 + i, 4 + j], [i, 4 + j, j]]
-        faces = np.array(faces)
-        # orient upwards (+y normals)
-        p = verts[faces]
-        n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        faces[n[:, 1] < 0] = faces[n[:, 1] < 0][:, [0, 2, 1]]
-        return verts, faces
+        R = float(SURROUND_RADIUS if radius is None else radius)
+        v, f = self.meshes[self.ground][0].astype(np.float64), self.meshes[self.ground][1]
+        loop = _outer_boundary(v, f)
+        if loop is None:
+            return None
+        b = v[loop]
+        c = 0.5 * (v.min(0) + v.max(0))
+        y = float(np.median(b[:, 1])) - 1e-3
+        d = b[:, [0, 2]] - c[[0, 2]]
+        r = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+        R = max(R, 4.0 * float(r.max()))
+        rings = [b]
+        for k in (1.15, 1.4, 1.8, 2.5):
+            t = (k - 1.0) / 1.5
+            ease = t * t * (3.0 - 2.0 * t)
+            h = b[:, 1] + (y - b[:, 1]) * ease
+            rings.append(np.c_[c[0] + k * d[:, 0], h, c[2] + k * d[:, 1]])
+        far = np.c_[c[0] + d[:, 0] / r * R, np.full(len(b), y), c[2] + d[:, 1] / r * R]
+        return _strips(rings), _strips([rings[-1], far])
 
     def bbox(self):
         """Bounding box of all meshes.
@@ -523,40 +691,75 @@ class Terrain:
         return v.min(0).astype(float), v.max(0).astype(float)
 
 
-def _gauss_blur(img, sigma):
-    if sigma < 0.3:
-        return img
-    h, w = img.shape
-    fy = np.fft.fftfreq(h)[:, None]
-    fx = np.fft.rfftfreq(w)[None, :]
-    g = np.exp(-2 * (math.pi * sigma) ** 2 * (fx ** 2 + fy ** 2))
-    return np.fft.irfft2(np.fft.rfft2(img) * g, s=img.shape)
-
-
 # ---- moss ----------------------------------------------------------------------------------------
-_EMPTY = (np.full((3, 3), -1e4, np.float32), np.array([[0, 1, 2]], np.uint32),
-          np.zeros(3, np.float32), 0)   # one degenerate triangle far away: an "empty" mesh
+#: mesh ids of the carpet: ``moss_carpet_<species>``; of the tufts: ``moss_<species>``
+CARPET_PREFIX = "moss_carpet_"
+
+
+def _empty_part(carpet: bool) -> dict:
+    """One degenerate triangle far away: an "empty" mesh that keeps the scene's structure."""
+    part = {"v": np.full((3, 3), -1e4, np.float32), "f": np.array([[0, 1, 2]], np.uint32),
+            "tone": np.zeros(3, np.float32), "count": 0}
+    if carpet:
+        part.update(normals=np.tile(np.float32([0, 1, 0]), (3, 1)),
+                    uv=np.zeros((3, 2), np.float32))
+    return part
 
 
 def _moss_parts(moss: MossSet | None, size: float, options: RenderOptions,
-                species: list | None = None) -> dict:
-    """{mesh id: (vertices, faces, tone, tuft count)}: one merged mesh per species present,
-    and an empty one for each key in ``species`` without moss."""
+                species: list | None = None, terrain: "Terrain | None" = None) -> dict:
+    """``{mesh id: {"v", "f", "tone", "count"[, "normals", "uv"]}}`` per species present: one
+    merged tuft mesh (``moss_<species>``) and, with ``options.moss_carpet`` and a terrain, one
+    carpet mesh (``moss_carpet_<species>``, with shading normals and texture coordinates); empty
+    ones for each key in ``species`` without moss."""
     out = {}
+    carpet = bool(options.moss_carpet and terrain is not None)
+    origin = terrain.grid_origin(size) if terrain is not None else None
     if moss is not None and len(moss):
-        for tm in place_tufts(moss, size=size, jitter=options.moss_jitter, seed=options.seed):
-            out[f"moss_{tm.species}"] = (tm.vertices, tm.faces, tm.tone, tm.count)
+        # tufts stand on the carpet's cushion (its edge ~0.05 size, its centre ~0.1 size high)
+        for tm in place_tufts(moss, size=size, jitter=options.moss_jitter, seed=options.seed,
+                              origin=origin, lift=0.08 * size if carpet else 0.0):
+            out[f"moss_{tm.species}"] = {"v": tm.vertices, "f": tm.faces, "tone": tm.tone,
+                                         "count": tm.count}
+        if carpet:
+            for cm in carpet_patches(moss, size, origin, scene=terrain.base_scene,
+                                     seed=options.seed):
+                out[f"{CARPET_PREFIX}{cm.species}"] = {
+                    "v": cm.vertices, "f": cm.faces, "tone": cm.tone, "normals": cm.normals,
+                    "uv": cm.uv, "count": cm.count}
     for sp in species or []:
-        out.setdefault(f"moss_{sp}", _EMPTY)
+        out.setdefault(f"moss_{sp}", _empty_part(False))
+        if carpet:
+            out.setdefault(f"{CARPET_PREFIX}{sp}", _empty_part(True))
     return dict(sorted(out.items()))
 
 
-def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
-                species: list | None = None) -> tuple[dict, dict]:
-    """Merged tuft meshes (one per species) and counts.
+def _moss_bsdf(species: str, carpet: bool) -> dict:
+    """The two-sided BSDF of a species' tufts or carpet.
 
-    Each mesh is two-sided and blends the species' dark and light spectra by its per-vertex
-    ``vertex_tone`` (species without spectra of their own use ``hypnum_plumaeforme``'s).
+    Tufts blend the species' dark and light spectra by their ``vertex_tone``. The carpet
+    shows shoot tips (:func:`~mitsuba_veg.render.carpet.moss_texture`, over its texture
+    coordinates in metres / :data:`~mitsuba_veg.render.carpet.TEXTURE_TILE`): between the tips the
+    dark spectrum, on them the blend by ``vertex_tone``; the same texture bumps its shading.
+    """
+    key = species if species in mat.MOSS_MATERIAL else "hypnum_plumaeforme"
+    dark = mat.diffuse(mat.MOSS_MATERIAL[key])
+    light = mat.diffuse(mat.MOSS_MATERIAL[key] + "_light")
+    toned = mat.blend(dark, light, {"type": "mesh_attribute", "name": "vertex_tone"})
+    if not carpet:
+        return {"type": "twosided", "bsdf": toned}
+    tex = _bitmap(moss_texture(), wrap="repeat")
+    return {"type": "twosided", "bsdf": {"type": "bumpmap", "arg": tex, "scale": BUMP_SCALE,
+                                         "bsdf": mat.blend(dark, toned, tex)}}
+
+
+def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
+                species: list | None = None, terrain: "Terrain | None" = None
+                ) -> tuple[dict, dict]:
+    """Merged moss meshes (tufts and carpet, one each per species) and counts.
+
+    Both are two-sided and blend the species' dark and light spectra (species without spectra
+    of their own use ``hypnum_plumaeforme``'s; :func:`_moss_bsdf`).
 
     Parameters
     ----------
@@ -565,28 +768,29 @@ def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
     size : float
         Moss size of the run [m].
     options : RenderOptions
-        Gives ``moss_jitter`` and ``seed``.
+        Gives ``moss_jitter``, ``moss_carpet`` and ``seed``.
     species : list of str, optional
-        Species keys that always get a mesh (an empty one without moss).
+        Species keys that always get meshes (empty ones without moss).
+    terrain : Terrain, optional
+        The terrain: its spot grid places the tufts and the carpet (:mod:`.carpet`); None: tufts
+        at the moss positions and no carpet.
 
     Returns
     -------
     shapes : dict
-        ``{"moss_<species>": mesh}``.
+        ``{"moss_<species>": mesh, "moss_carpet_<species>": mesh}``.
     info : dict
-        ``tufts`` and ``moss_triangles`` counts.
+        ``tufts``, ``carpet_patches`` and ``moss_triangles`` counts.
     """
-    out, info = {}, {"tufts": 0, "moss_triangles": 0}
-    for sid, (v, f, tone, count) in _moss_parts(moss, size, options, species).items():
-        sp = sid[len("moss_"):]
-        key = sp if sp in mat.MOSS_MATERIAL else "hypnum_plumaeforme"
-        dark = mat.diffuse(mat.MOSS_MATERIAL[key])
-        light = mat.diffuse(mat.MOSS_MATERIAL[key] + "_light")
-        bsdf = {"type": "twosided", "bsdf": mat.blend(dark, light, {
-            "type": "mesh_attribute", "name": "vertex_tone"})}
-        out[sid] = make_mesh(sid, v, f, bsdf, attributes={"vertex_tone": tone})
-        info["tufts"] += count
-        info["moss_triangles"] += len(f) if count else 0
+    out, info = {}, {"tufts": 0, "carpet_patches": 0, "moss_triangles": 0}
+    for sid, part in _moss_parts(moss, size, options, species, terrain).items():
+        carpet = sid.startswith(CARPET_PREFIX)
+        sp = sid[len(CARPET_PREFIX if carpet else "moss_"):]
+        out[sid] = make_mesh(sid, part["v"], part["f"], _moss_bsdf(sp, carpet),
+                             uv=part.get("uv"), normals=part.get("normals"),
+                             attributes={"vertex_tone": part["tone"]})
+        info["carpet_patches" if carpet else "tufts"] += part["count"]
+        info["moss_triangles"] += len(part["f"]) if part["count"] else 0
     return out, info
 
 
@@ -703,21 +907,23 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     t0 = time.perf_counter()
     terrain = terrain or Terrain.from_scenario(scn)
     t1 = time.perf_counter()
-    info = {"tufts": 0, "moss_triangles": 0, "trees": 0, "leaves": 0, "tree_triangles": 0}
+    info = {"tufts": 0, "carpet_patches": 0, "moss_triangles": 0, "trees": 0, "leaves": 0,
+            "tree_triangles": 0}
     d = {"type": "scene",
          "integrator": {"type": "path", "max_depth": int(options.max_depth),
                         "rr_depth": 4, "hide_emitters": False}}
-    cover = None
-    if moss is not None and len(moss):
-        cover = terrain.moss_cover(moss, moss_size, options.cover_resolution)
     if (moss is not None and len(moss)) or species:
-        ms, mi_info = moss_shapes(moss, moss_size, options, species)
+        ms, mi_info = moss_shapes(moss, moss_size, options, species, terrain)
         d.update(ms)
         info.update(mi_info)
-    if species and cover is None:
-        cover = np.zeros((8, 8), np.float32)
     t2 = time.perf_counter()
-    d.update(terrain.shapes(cover, options.surround))
+    surround = options.surround
+    if surround == "auto":
+        surround = scn.get("render.surround") or "ground"
+        if surround != "ground" and surround != "none" and surround not in mat.SPECTRA:
+            raise ParameterError("render.surround", surround, "'ground', 'none' or a material",
+                                 "one of " + ", ".join(sorted(mat.SPECTRA)), str(scn.path))
+    d.update(terrain.shapes(None if surround == "none" else surround))
     if trees:
         tree_cache = {} if tree_cache is None else tree_cache
         ts, t_info = tree_shapes(trees, options, cache=tree_cache)
@@ -727,14 +933,17 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     when = render_time(scn, date, options)
     em = emitters if emitters is not None else sky_emitters(scn, when)
     d.update(em)
-    d["camera"] = sensor_dict(scn, terrain, options, film_dict(options))
+    d["camera"] = sensor_dict(scn, terrain, options, film_dict(options), moss, trees)
+    if options.denoise:
+        d[AUX_CAMERA] = aux_sensor_dict(d["camera"])
     scene = mi.load_dict(d, optimize=False)
     attach_scene(scene)
-    sensor = [s for s in scene.sensors() if s.id() == "camera"][0]
+    sensors = {s.id(): s for s in scene.sensors()}
+    sensor = sensors["camera"]
     t4 = time.perf_counter()
     info.update({"when": when, "camera": options.camera,
                  "triangles": int(sum(s.face_count() for s in scene.shapes() if s.is_mesh())),
                  "seconds": {"terrain": t1 - t0, "moss": t2 - t1, "trees": t3 - t2,
                              "load": t4 - t3, "total": t4 - t0}})
     return RenderScene(scene, sensor, options, info, terrain, float(moss_size),
-                       list(species or []), tree_cache)
+                       list(species or []), tree_cache, sensors.get(AUX_CAMERA))

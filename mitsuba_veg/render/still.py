@@ -15,12 +15,14 @@ from ..outputs import OutputFolder, write_json
 from ..backend import versions
 from . import film as _film
 from .history import load_run
+from .denoise import timed_denoise
 from .scene import IMAGE_LIMITS, RenderOptions, Terrain, build_scene
 from .world import trees_for_run
 
 
-def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
-    """Render an assembled scene.
+def render(rs, spp: int | None = None, seed: int | None = None,
+           denoise: bool | None = None) -> dict:
+    """Render an assembled scene, and denoise its display image.
 
     Parameters
     ----------
@@ -30,22 +32,30 @@ def render(rs, spp: int | None = None, seed: int | None = None) -> dict:
         Samples per pixel (default: the scene's options).
     seed : int, optional
         Sampler seed (default: the scene's options).
+    denoise : bool, optional
+        Denoise the display image (default: the scene's ``options.denoise``; it needs the
+        scene's auxiliary camera, :mod:`mitsuba_veg.render.denoise`).
 
     Returns
     -------
     dict
         :func:`mitsuba_veg.render.film.develop`'s images (``rgb`` linear sRGB, ``XYZ``, ``bands``
-        band-mean spectral radiance [W m-2 sr-1 nm-1], ``r_fr`` photon ratio) and ``seconds``
-        [s].
+        band-mean spectral radiance [W m-2 sr-1 nm-1], ``r_fr`` photon ratio, all as rendered),
+        ``display`` (the linear sRGB image to show: denoised, or ``rgb``), ``seconds`` (the
+        render and its development [s]), and with denoising ``seconds_aux`` and
+        ``seconds_denoise`` [s].
     """
     t0 = time.perf_counter()
     if spp is not None:
         spp = replace(rs.options, spp=int(spp)).samples
-    img = mi.render(rs.scene, sensor=rs.sensor, spp=int(spp or rs.options.samples),
-                    seed=int(rs.options.seed if seed is None else seed))
+    seed = int(rs.options.seed if seed is None else seed)
+    img = mi.render(rs.scene, sensor=rs.sensor, spp=int(spp or rs.options.samples), seed=seed)
     a = np.asarray(img)   # waits for the kernel
     out = _film.develop(a)
     out["seconds"] = time.perf_counter() - t0
+    out["display"] = out["rgb"]
+    if (rs.options.denoise if denoise is None else denoise) and rs.aux_sensor is not None:
+        timed_denoise(rs, out, seed)
     return out
 
 
@@ -76,7 +86,7 @@ def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     exr = _film.write_exr(out_dir / f"{stem}.exr", images, meta)
-    img8, exp = _film.to_srgb8(images["rgb"], exposure)
+    img8, exp = _film.to_srgb8(images.get("display", images["rgb"]), exposure)
     png = _film.write_png(out_dir / f"{stem}.png", img8)
     files = {"exr": str(exr), "png": str(png)}
     if "r_fr" in images:
@@ -315,7 +325,10 @@ def _render_cameras(cams, opts, run, frame, tree_list, terrain, tree_cache, out,
         title = f"red : far-red   day {day} ({frame.date.isoformat()}), {cam}"
         w = write_outputs(images, out, stem=f"render_{cam}", meta=meta, title=title)
         rfr = images.get("r_fr")
-        results[cam] = {"render_s": images["seconds"], "exposure": w["exposure"],
+        results[cam] = {"render_s": images["seconds"],
+                        "denoise_s": images.get("seconds_aux", 0.0) +
+                        images.get("seconds_denoise", 0.0) if "seconds_aux" in images else None,
+                        "exposure": w["exposure"],
                         "info": rs.info, "files": w["files"],
                         "r_fr_median": float(np.nanmedian(rfr)) if rfr is not None else None,
                         "mean_rgb": np.nanmean(images["rgb"].reshape(-1, 3), 0).tolist()}

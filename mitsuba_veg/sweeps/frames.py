@@ -64,7 +64,7 @@ def render_frame(spec: dict) -> dict:
                      date=fr.date, options=o, terrain=Terrain.from_scenario(run.scenario),
                      emitters=emitters, species=run.species)
     images = render(rs, seed=int(spec["seed"]) + int(spec["k"]))
-    img8, exp = to_srgb8(images["rgb"], spec.get("exposure"))
+    img8, exp = to_srgb8(images["display"], spec.get("exposure"))
     text = f"day {fr.day:3d}  {fr.date.isoformat()}  {len(fr.moss):,d} moss"
     p = write_png(spec["png"], label_frame(img8, text))
     return {"k": int(spec["k"]), "day": int(fr.day), "date": fr.date.isoformat(),

@@ -302,9 +302,10 @@ def load_sweep(path, overrides=()) -> Sweep:
         raise ParameterError("SWEEP", src, "an existing sweep TOML file",
                              "check the path (e.g. scenes/moss_garden/sweep.toml)")
     try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ParameterError("SWEEP", src, "valid TOML", str(e)) from None
+        # utf-8-sig: a byte-order mark (some editors write one) is not part of the TOML
+        doc = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ParameterError("SWEEP", src, "valid TOML (UTF-8 text)", str(e)) from None
     for k in doc:
         if k not in TOP_KEYS:
             raise ParameterError(k, doc[k], "the tables [sweep] and [axes]", _closest(k, TOP_KEYS),

@@ -428,11 +428,11 @@ def load_params(preset_or_params="quaking_aspen") -> WeberPennParams:
             raise ParameterError("preset", s, "one of " + ", ".join(PRESETS)
                                  + " or a path to a .toml file",
                                  "use a shipped preset name or a parameter file")
-        with open(path, "rb") as f:
-            try:
-                d = tomllib.load(f)
-            except tomllib.TOMLDecodeError as e:
-                raise ParameterError("file", str(path), "valid TOML", str(e)) from None
+        try:
+            # utf-8-sig: a byte-order mark (some editors write one) is not part of the TOML
+            d = tomllib.loads(Path(path).read_text(encoding="utf-8-sig"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+            raise ParameterError("file", str(path), "valid TOML (UTF-8 text)", str(e)) from None
         base = WeberPennParams(name=path.stem)
         if d.get("preset") and d.get("preset") != path.stem:
             base = load_params(d["preset"])

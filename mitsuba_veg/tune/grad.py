@@ -151,6 +151,7 @@ def value_and_grad(model: SmoothMossModel, params: dict, loss_fn, days: int | No
     if mode == "graph":
         out = model.run(leaves, days=days)
         loss = loss_fn(out, model)
+        dr.sync_thread()   # the forward's launched kernels in its time (the rest stays lazy)
         t1 = time.perf_counter()
         dr.backward(loss)
         g = {k: _scalar(dr.grad(v)) for k, v in leaves.items()}
@@ -181,6 +182,7 @@ def value_and_grad(model: SmoothMossModel, params: dict, loss_fn, days: int | No
                 checkpoints.append(st.detached())
             st = model.step(st, Pf, light)
         final = st.detached()
+    dr.sync_thread()       # the days' kernels run on Dr.Jit's threads after their launch
     t_fwd = time.perf_counter() - t1
 
     arrays = final.arrays()

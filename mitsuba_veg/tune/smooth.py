@@ -1250,8 +1250,10 @@ class SmoothMossModel:
             if maps_every and st.day % maps_every == 0:
                 maps[st.day] = np.asarray(self.cover(st))
             if bar is not None:
+                dr.sync_thread()   # the bar's rate counts days run, not launched
                 bar.update(1)
         if bar is not None:
             bar.close()
+        dr.sync_thread()           # the last days' kernels in the run's time
         return RunResult(st, self.cover(st), self.moss_density(st), hist, maps,
                          time.perf_counter() - t0)

@@ -53,19 +53,31 @@ def box(lo, hi, cell=0.5):
 
 
 def write_ply(path, V, F, uv=None):
-    with open(path, "w") as f:
-        f.write("ply\nformat ascii 1.0\n")
-        f.write(f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n")
-        if uv is not None:
-            f.write("property float u\nproperty float v\n")
-        f.write(f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n")
-        for k, v in enumerate(V):
-            f.write(" ".join(f"{c:.6f}" for c in v))
-            if uv is not None:
-                f.write(f" {uv[k, 0]:.6f} {uv[k, 1]:.6f}")
-            f.write("\n")
-        for t in F:
-            f.write(f"3 {t[0]} {t[1]} {t[2]}\n")
+    """Binary little-endian PLY: float32 x y z [u v], faces as uchar-count int32 index lists.
+
+    Coordinates are rounded to 6 decimals [m] before the float32 conversion (the courtyard's
+    geometry as first defined: the same float32 values Mitsuba read from that text).
+    """
+    header = ["ply", "format binary_little_endian 1.0",
+              "comment mitsuba-veg courtyard (scenes/courtyard/make_scene.py)",
+              f"element vertex {len(V)}",
+              "property float x", "property float y", "property float z"]
+    cols = [np.asarray(V, float)]
+    if uv is not None:
+        header += ["property float u", "property float v"]
+        cols.append(np.asarray(uv, float))
+    header += [f"element face {len(F)}", "property list uchar int vertex_indices",
+               "end_header"]
+    # decimal text -> float32, as a PLY reader does (float() of the 6-decimal string)
+    vdata = np.array([[float(f"{c:.6f}") for c in row] for row in np.hstack(cols)],
+                     np.float64).astype("<f4")
+    fdata = np.zeros(len(F), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    fdata["n"] = 3
+    fdata["i"] = F
+    with open(path, "wb") as fh:
+        fh.write(("\n".join(header) + "\n").encode("ascii"))
+        fh.write(vdata.tobytes())
+        fh.write(fdata.tobytes())
 
 
 def texture():
