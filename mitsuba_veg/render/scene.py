@@ -528,7 +528,7 @@ class Terrain:
         """The ground's (one-sided) BSDF dict.
 
         With geology masks (``terrain.geology_texture``): humus everywhere, sand and asphalt where
-        their masks are 1 (nested ``blendbsdf``s); each class varies between its dark and light
+        their masks are 1 (nested ``blendbsdf`` nodes); each class varies between its dark and light
         spectrum by the 1/f noise image. Without them, the ground's material
         (:func:`resolve_materials`), varied the same way when it is a named spectrum.
 
