@@ -61,6 +61,17 @@ def main(argv=None):
     if a.json:
         with open(a.json, "w") as fh:
             json.dump(out, fh, indent=2)
+    from _record import Recorder
+    rec = Recorder("autumn_insolation", notes=f"{a.leaves:,d} leaves, {a.days} days from 1 "
+                   f"October at 35° N, hourly ({len(path)} daytime steps); median of {a.repeat}")
+    rec.add("insolation_s", med["insolation_s"], "s",
+            f"insolation ({med['rays']:,.0f} shadow rays)")
+    rec.add("total_s", med["total_s"], "s", "sun path + scene + insolation")
+    rec.add("rays_per_s", med["rays_per_s"] / 1e6, "M rays/s", "shadow rays per second")
+    rec.add("translucent_s", med["with_leaf_transmittance_s"], "s",
+            "with leaf transmittance (multi-hit)")
+    rec.add("sky_view_s", med["with_sky_view_64_rays_s"], "s", "with the sky view factor (64 rays)")
+    rec.write()
     return out
 
 

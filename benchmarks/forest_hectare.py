@@ -137,6 +137,20 @@ def main(argv=None) -> int:
         total = t_setup + wall
         print(f"ten years with the set-up: {total:.0f} s ({total / 60:.1f} min); the GPU "
               f"target 15 min: ratio {total / 900:.2f}")
+    from _record import Recorder
+    import mitsuba as mi
+    dev = "cpu" if "llvm" in mi.variant() else "gpu"
+    rec = Recorder(f"forest_hectare_{dev}", notes=f"{len(sim.site.trees)} Weber-Penn aspens on "
+                   f"1 ha ({leaves:,d} leaves), {a.photons:,d} photons a pass, {a.days} days")
+    rec.add("setup_s", t_setup, "s", "set-up")
+    rec.add("run_s", wall, "s", f"{a.days} days after the set-up")
+    rec.add("day_s", wall / a.days, "s", "per day (mean)")
+    rec.add("peak_memory_gb", peak() / GB, "GB", "peak memory")
+    if a.days >= 3652:
+        rec.add("ten_years_s", t_setup + wall, "s", "ten years with the set-up")
+    elif plain and year_end_day is not None:
+        rec.add("ten_years_projected_s", ten, "s", "ten years projected from this run")
+    rec.write()
     if not a.out:
         shutil.rmtree(out, ignore_errors=True)
     return 0

@@ -102,6 +102,17 @@ def main(argv=None) -> int:
     print(f"target: 10 years of 0.1 ha <= 1800 s ({a.photons:,d} photons a pass, a pass "
           f"every {every} day(s)): ratio {wall / 1800 * 10 / a.years:.2f} (scaled to 10 years)")
     floor_trend(out / "years")
+    from _record import Recorder
+    rec = Recorder("forest_stand", notes=f"scenes/forest_stand ({len(sim.site.trees)} trees, "
+                   f"{a.photons:,d} photons a pass, a pass every {every} day(s)), {a.years} "
+                   "years")
+    rec.add("run_s", wall, "s", f"{a.years} years ({days} days)")
+    rec.add("day_s", wall / days, "s", "per day (mean)")
+    rec.add("ten_years_over_target", wall / 1800 * 10 / a.years, "ratio",
+            "scaled to 10 years ÷ the 1,800 s target")
+    rec.add("peak_memory_gb", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "GB",
+            "peak memory")
+    rec.write()
     if not a.out:
         shutil.rmtree(out, ignore_errors=True)
     return 0

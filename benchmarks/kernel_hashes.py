@@ -90,6 +90,12 @@ def main(argv=None) -> int:
     total = sum(len(v) for v in per_stage.values())
     print(f"kernels whose code differs between the {a.processes} processes: {varying} of "
           f"{total} (target 0: every run finds them in Dr.Jit's disk cache)")
+    from _record import Recorder
+    rec = Recorder("kernel_hashes", notes=f"{a.processes} processes, the world's day {a.days}, "
+                   f"{a.photons:,d} photons")
+    rec.add("kernels", total, "", "JIT kernels of the day")
+    rec.add("kernels_differing", varying, "", "kernels whose code differs between processes")
+    rec.write()
     return 0
 
 

@@ -18,10 +18,12 @@ import mitsuba_veg as mv
 from mitsuba_veg.scenario import load_scenario
 from mitsuba_veg.daily import Simulation
 
+from _record import Recorder
+
 SCEN = Path(__file__).resolve().parent.parent / "scenes" / "moss_garden" / "scenario.toml"
 
 
-def part_a(days, out):
+def part_a(days, out, recorder):
     t = time.perf_counter()
     s = mv.run(SCEN, out=out, days=days, resume=False, progress=False, frames=True,
                overrides=["light.photons=1000000"])
@@ -33,9 +35,16 @@ def part_a(days, out):
     print(f"    per day: light {per['light']:.3f} s ({per['light'] / day:.0%}), soil "
           f"{per['soil'] * 1e3:.2f} ms, moss {per['moss'] * 1e3:.1f} ms; outputs "
           f"{s['timings_s']['output']:.1f} s in all; final {s['final']['moss_alive']} moss")
+    recorder.add("garden_run_s", total, "s", f"{days}-day moss-garden run, 1M photons a day, capacity "
+            "16,384 (outputs included)")
+    recorder.add("garden_light_s", per["light"], "s", "light per day (garden run)")
+    recorder.add("garden_soil_ms", per["soil"] * 1e3, "ms", "soil per day (garden run)")
+    recorder.add("garden_moss_ms", per["moss"] * 1e3, "ms", "moss per day (garden run)")
+    recorder.add("garden_outputs_s", s["timings_s"]["output"], "s",
+            "maps and checkpoints in all (garden run)")
 
 
-def part_b(out, capacity=1_000_000, initial=900_000, days=20):
+def part_b(out, recorder, capacity=1_000_000, initial=900_000, days=20):
     """Soil + moss update against the whole day at a million individuals.
 
     900,000 moss placed at random (1.5 mm spots) fill the 1,000,000 slots within a few days:
@@ -71,6 +80,11 @@ def part_b(out, capacity=1_000_000, initial=900_000, days=20):
         print(f"    {name}: light {light * 1e3:.0f} ms, soil {soil * 1e3:.1f} ms, moss "
               f"{moss * 1e3:.1f} ms a day (mean) -> soil + moss = {share:.1%} of the day "
               f"(median day {np.median(a[sel, 4]):.1%}){verdict}")
+        key = "full" if name.startswith("full") else "filling"
+        recorder.add(f"moss_share_{key}", share, "fraction",
+                     f"soil + moss share of a day at 1M moss, {name}")
+        recorder.add(f"moss_ms_{key}", moss * 1e3, "ms", f"moss per day at 1M moss, {name}")
+        recorder.add(f"light_ms_{key}", light * 1e3, "ms", f"light per day at 1M moss, {name}")
 
 
 def main():
@@ -80,10 +94,13 @@ def main():
     ap.add_argument("--skip-b", action="store_true")
     ap.add_argument("--out", default="out/bench_moss")
     a = ap.parse_args()
+    rec = Recorder("moss_run", notes="(b) capacity 1,000,000, 900,000 initial moss, 1.5 mm "
+                   "spots, 1M photons a day, 20 days; (a) the moss garden as shipped")
     if not a.skip_b:
-        part_b(Path(a.out) / "b")
+        part_b(Path(a.out) / "b", rec)
     if not a.skip_a:
-        part_a(a.days, Path(a.out) / "a")
+        part_a(a.days, Path(a.out) / "a", rec)
+    rec.write()
 
 
 if __name__ == "__main__":

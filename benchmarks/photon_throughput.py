@@ -32,6 +32,7 @@ import mitsuba as mi
 import drjit as dr
 
 sys.path.insert(0, os.path.dirname(__file__))
+from _record import Recorder  # noqa: E402
 from _scenes import garden_80k  # noqa: E402
 from mitsuba_veg.integrators.photon_irradiance import PhotonIrradianceIntegrator, SceneIndex  # noqa
 from mitsuba_veg.light import validation as V  # noqa: E402
@@ -157,7 +158,12 @@ def main():
           f"threads")
     full = a.scene != "plants1000"
     plugin = getattr(integ, "integ", integ)      # (the world's pass wraps the plugin)
+    rec = Recorder(f"photon_throughput_{a.scene}",
+                   notes=f"scene {a.scene}: {index.n_elements:,d} elements, "
+                         f"{len(index.instances)} instances, {len(scene.emitters())} emitters; "
+                         f"median of {a.reps} interleaved repetitions")
     for n in a.photons:
+        tag = f"{n / 1e6:g}M"
         res = integ.trace(scene, photons=n, seed=0)  # compile
         if a.split:
             t_walk = {False: [], True: []}
@@ -181,6 +187,8 @@ def main():
                   f"parts {np.median(t_walk[True]):.3f} s: two parts / one loop "
                   f"{np.median(ratios):.2f} (per rep: {', '.join(f'{x:.2f}' for x in ratios)}; "
                   f"same tallies; the default: {'two parts' if type(plugin).split_walk else 'one loop'})")
+            rec.add(f"split_over_one_loop_{tag}", float(np.median(ratios)), "ratio",
+                    f"walk in two parts / in one loop, {tag} photons (time)")
         O, D = raw_rays(integ, scene, res.rays_traced, seed=99)
         time_raw(scene, O, D, "prelim", 0)
         if full:
@@ -209,6 +217,15 @@ def main():
         if full:
             print(f"          ray_intersect (full) {nr / np.median(t_full) / 1e6:.2f} M rays/s "
                   f"-> ratio {np.median(ratio_full):.2f}")
+        rec.add(f"pass_s_{tag}", tp, "s", f"photon pass of {tag} photons")
+        rec.add(f"photons_per_s_{tag}", n / tp / 1e6, "M photons/s", f"photons per second, {tag}")
+        rec.add(f"casts_per_photon_{tag}", nr / n, "", f"ray casts per photon, {tag}")
+        rec.add(f"ratio_preliminary_{tag}", float(np.median(ratio_pre)), "ratio",
+                f"pass ray casts/s ÷ `ray_intersect_preliminary` rays/s, {tag} photons")
+        if full:
+            rec.add(f"ratio_full_{tag}", float(np.median(ratio_full)), "ratio",
+                    f"pass ray casts/s ÷ `ray_intersect` rays/s, {tag} photons")
+    rec.write()
 
 
 if __name__ == "__main__":

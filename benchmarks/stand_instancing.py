@@ -226,6 +226,9 @@ def main(argv=None):
     print(f"{versions()}; {os.cpu_count()} CPU threads; load average "
           f"{os.getloadavg()[0]:.2f}", flush=True)
     rows = []
+    from _record import Recorder
+    rec = Recorder("stand_instancing", notes=f"stands of {a.preset} ({a.variants} variants): "
+                   "memory and rays, instanced vs plain meshes")
     for n in a.counts:
         stand, _ = make_stand(n, a.preset, a.variants)
         est = stand_memory(stand, build_variants(stand))      # the world loop: leaves recorded
@@ -237,6 +240,10 @@ def main(argv=None):
               f"{est.geometry_instanced / 2 ** 30:.3f}, photon pass "
               f"{est.photon_instanced / 2 ** 30:.2f}); per leaf {pl['plain']:.0f} B plain, "
               f"{pl['instanced']:.0f} B instanced", flush=True)
+        rec.add(f"n{n}_leaves", est.leaves, "", f"{n} trees: leaves")
+        rec.add(f"n{n}_bytes_per_leaf_plain", pl["plain"], "B", f"{n} trees: estimate per leaf, plain")
+        rec.add(f"n{n}_bytes_per_leaf_instanced", pl["instanced"], "B",
+                f"{n} trees: estimate per leaf, instanced")
         modes = ["instanced"]
         if est.geometry_plain / 2 ** 30 > a.max_plain_gb:
             print(f"  plain     skipped: geometry estimate {est.geometry_plain / 2 ** 30:.1f} GB "
@@ -249,6 +256,7 @@ def main(argv=None):
             if r is None:
                 continue
             rows.append(r)
+            rec.add(f"n{n}_{mode}_rss_mb", r["rss_mb"], "MB", f"{n} trees, {mode}: memory after load")
             print(f"  {mode:9s} load {r['load_s']:7.2f} s  RSS +{r['rss_mb']:7.0f} MB "
                   f"(estimate {r['estimate_geometry_mb']:7.0f} MB)  peak {r['peak_mb']:6.0f} MB",
                   flush=True)
@@ -270,6 +278,7 @@ def main(argv=None):
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
+    rec.write()
 
 
 if __name__ == "__main__":

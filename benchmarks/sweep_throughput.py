@@ -63,6 +63,9 @@ def main():
     print(f"machine: {cores} cores; sweep: {n_runs} runs x {a.days} days, "
           f"{a.photons:,d} photons/day, maps on")
     rates = {}
+    from _record import Recorder
+    rec = Recorder("sweep_throughput", notes=f"{n_runs} runs x {a.days} days, {a.photons:,d} "
+                   "photons a day, maps on, on a local Dask cluster")
     for workers in (1, 2):
         t0 = time.perf_counter()
         with open_client(workers=workers, dashboard_address=":0") as (cl, info):
@@ -82,6 +85,8 @@ def main():
                   f"{n_runs} runs in {wall:.1f} s = {rates[workers]:.0f} runs/hour "
                   f"({wall / n_runs:.2f} s/run; cluster start {t_start:.1f} s, warm-up "
                   f"{t_warm:.1f} s)")
+            rec.add(f"runs_per_hour_{workers}w", rates[workers], "runs/h",
+                    f"runs per hour, {workers} worker process{'es' if workers > 1 else ''}")
             if workers == 1:
                 # (b) overhead per task, on the 1-worker cluster (same Dr.Jit threads here)
                 rt = []
@@ -111,7 +116,13 @@ def main():
                 print(f"    a 5-day run: in this process {ml:.2f} s, as a Dask task {mr:.2f} s "
                       f"round trip ({mi_:.2f} s inside the worker): overhead {mr - ml:+.2f} s "
                       f"per run ({(mr - ml) / ml:+.1%}); medians of {a.reps}")
+                rec.add("task_round_trip_ms", statistics.median(rt) * 1e3, "ms",
+                        "trivial Dask task round trip (median of 50)")
+                rec.add("task_overhead", (mr - ml) / ml, "fraction",
+                        "a 5-day run as a Dask task vs in this process (overhead)")
     print(f"(a) speed-up 2 workers vs 1: {rates[2] / rates[1]:.2f}x")
+    rec.add("speedup_2w", rates[2] / rates[1], "ratio", "2 workers vs 1")
+    rec.write()
     print(f"files under {tmp}")
 
 

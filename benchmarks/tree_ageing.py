@@ -69,6 +69,13 @@ def main(argv=None) -> int:
     print(f"{a.trees} aspens ({leaves:,d} leaves) aged one year, {os.cpu_count()} cores: one "
           f"thread {s:.2f} s, map_on_cores {p:.2f} s (median of {a.reps}): ratio {s / p:.2f}; "
           "the results identical")
+    from _record import Recorder
+    rec = Recorder("tree_ageing", notes=f"{a.trees} Weber-Penn aspens ({leaves:,d} leaves) aged "
+                   f"one year; median of {a.reps}; results identical")
+    rec.add("one_thread_s", s, "s", "one thread")
+    rec.add("map_on_cores_s", p, "s", "map_on_cores (a thread per core)")
+    rec.add("speedup", s / p, "ratio", "map_on_cores vs one thread")
+    rec.write()
     return 0
 
 

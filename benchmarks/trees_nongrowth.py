@@ -97,6 +97,14 @@ def main(argv=None):
     if a.out:
         with open(a.out, "w") as f:
             json.dump(res, f, indent=2, default=str)
+    from _record import Recorder
+    rec = Recorder("trees_nongrowth", notes="5 x 5 stand grown by paper 001's model, then "
+                   "deformed by paper 002's rules (death, heliotropism) in its voxel light")
+    rec.add("deform_s", wall, "s", "5 x 5 deformation (death + heliotropism)")
+    rec.add("voxel_rays_per_s", rays / wall / 1e6, "M rays/s", "voxel rays per second overall")
+    rec.add("ratio_to_raw", rays / wall / raw, "ratio",
+            "voxel rays/s ÷ raw `ray_intersect_preliminary` on the trees' mesh, same rays")
+    rec.write()
 
 
 if __name__ == "__main__":

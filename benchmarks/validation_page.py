@@ -23,9 +23,13 @@ References (all computed with the package's own functions; the references are in
 - ``prospect``: PROSPECT-D vs the ``prosail`` reference implementation;
 - ``throughput``: photon-pass ray casts/s vs ``scene.ray_intersect`` on the same rays.
 
+Every full run (not ``--quick``, not ``--only``) records its rows in
+``benchmarks/results/validation.json`` (``benchmarks/_record.py``); the docs' validation page is
+built from that file. ``--out`` also writes the rows as a Markdown page.
+
 Usage::
 
-    .venv/bin/python benchmarks/validation_page.py                 # writes docs/validation.md
+    .venv/bin/python benchmarks/validation_page.py       # benchmarks/results/validation.json
     .venv/bin/python benchmarks/validation_page.py --quick --out /tmp/v.md --json /tmp/v.json
     .venv/bin/python benchmarks/validation_page.py --only plane spa --out /tmp/v.md
 """
@@ -51,7 +55,6 @@ from mitsuba_veg.light import BANDS, photon_irradiance
 from mitsuba_veg.light import validation as V
 
 ROOT = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = ROOT / "docs" / "validation.md"
 SCRIPT = "benchmarks/validation_page.py"
 PY = ".venv/bin/python"
 #: groups of references, in page order
@@ -666,19 +669,48 @@ def markdown(result: dict) -> str:
     return "\n".join(out)
 
 
+def record(result: dict):
+    """Write the rows as ``benchmarks/results/validation.json`` (the docs' validation page).
+
+    Parameters
+    ----------
+    result : dict
+        The result of :func:`run`.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from _record import Recorder
+
+    rec = Recorder("validation", command=f"{PY} {SCRIPT}",
+                   notes=f"every light reference, {result['seconds']:.0f} s in all")
+    for r in result["rows"]:
+        thr = r["tolerance"] is None
+        rec.add(r["key"], r["error"], "ratio" if thr else r["unit"], r["reference"],
+                compared=r["compared"], measure=r["measure"], tolerance=r["tolerance"],
+                test=r["test"], passed=r["passed"], detail=r["detail"])
+    return rec.write()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true",
                     help="smaller photon and sample counts (for tests; larger errors)")
-    ap.add_argument("--out", default=str(DEFAULT_OUT), help="page to write (docs/validation.md)")
+    ap.add_argument("--out", default=None, help="also write the rows as a Markdown page here")
     ap.add_argument("--json", default=None, help="also write the rows as JSON here")
     ap.add_argument("--only", nargs="+", choices=GROUPS, default=list(GROUPS),
                     help="run only these reference groups")
     a = ap.parse_args(argv)
     result = run(a.only, quick=a.quick)
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(markdown(result))
-    print(f"wrote {a.out}")
+    if a.out:
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.out).write_text(markdown(result))
+        print(f"wrote {a.out}")
+    if not a.quick and list(a.only) == list(GROUPS):
+        record(result)
     if a.json:
         Path(a.json).write_text(json.dumps(result, indent=1))
         print(f"wrote {a.json}")

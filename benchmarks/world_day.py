@@ -156,6 +156,22 @@ def main(argv=None) -> int:
           f"launches, compiled {max(c_bare)}")
     print("launches per stage (min-max over the days): " + ", ".join(
         f"{k} {min(v)}-{max(v)}" for k, v in per_stage.items() if max(v) > 0))
+    from _record import Recorder
+    rec = Recorder(f"world_day_{dev.lower()}",
+                   notes=f"the courtyard world of world_year.py ({sim.canopy.n_leaves:,d} "
+                         f"leaves, full leaf), {a.photons:,d} photons a day, {a.days} days "
+                         "after two warm-up days")
+    rec.add("day_ms", float(np.median(days)) * 1e3, "ms", "steady world day (median)")
+    for k, v in stages.items():
+        rec.add(f"{k}_ms", float(np.median(v)) * 1e3, "ms", f"of which {k}")
+    if still:
+        rec.add("day_no_compile_ms", float(np.median(still)) * 1e3, "ms",
+                "day that compiled nothing (median)")
+    rec.add("bare_pass_ms", float(np.median(passes)) * 1e3, "ms",
+            "bare photon pass, same scene, tables and photon split")
+    rec.add("day_over_pass", float(np.median(ratios)), "ratio", "world day ÷ its bare pass")
+    rec.add("launches_per_day", float(np.median(k_day)), "", "kernel launches a day (median)")
+    rec.write()
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

@@ -92,6 +92,16 @@ def main(argv=None) -> int:
         print(f"leaf mesh: {s['world']['leaf_triangles']:,d} triangles, "
               f"{s['world']['leaf_mesh_updates']} vertex updates (leaf-out growth, fallen "
               f"blades collapsed); stage and fall changes are per-triangle tables")
+    from _record import Recorder
+    rec = Recorder("world_year", notes=f"the courtyard plus a sassafras and a second aspen "
+                   f"({leaves:,d} leaves), {a.photons:,d} photons a day, {a.days} days")
+    rec.add("run_s", wall, "s", f"{a.days} days of the world, wall time")
+    rec.add("cpu_cores_used", cpu / wall, "", "process CPU time ÷ wall time")
+    t = {k: float(np.mean([r["seconds"].get(k, 0.0) for r in recs])) for k in keys}
+    for k in keys:
+        rec.add(f"{k}_ms", t[k] * 1e3, "ms", f"{k} per day (mean)")
+    rec.add("leaves_share", t["leaves"] / sum(t.values()), "fraction", "leaves' share of a day")
+    rec.write()
     shutil.rmtree(tmp, ignore_errors=True)
     return 0
 

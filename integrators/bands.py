@@ -6,6 +6,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+__all__ = ["BANDS", "DEFAULT_BANDS", "COMPONENTS", "SIDES", "band_range", "parse_bands"]
+
 #: Named spectral bands [nm]. "total" is Mitsuba's spectral range (360-830 nm, what its
 #: irradiancemeter integrates); "shortwave" is the solar broadband range used for energy budgets.
 BANDS: dict[str, tuple[float, float]] = {
@@ -19,8 +21,11 @@ BANDS: dict[str, tuple[float, float]] = {
     "nir": (700.0, 1100.0),
 }
 
+#: the bands a pass records unless told otherwise
 DEFAULT_BANDS = ("total", "par", "red", "far_red")
+#: components of a result: first hit, later hits, their sum
 COMPONENTS = ("direct", "indirect", "total")
+#: sides of an element: the one its geometric normal faces, the other
 SIDES = ("front", "back")
 _SLOTS = 4  # wavelengths carried by one Mitsuba spectral sample
 

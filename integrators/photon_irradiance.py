@@ -48,10 +48,14 @@ from .photon_result import (DeviceTallies, PhotonIrradianceResult,  # noqa: F401
                             PhotonPathRecord, fixed_point_scale)
 from .scene_index import (SceneIndex, _reg_id, emitter_name, registry_id,  # noqa: F401
                           scene_index)
+from .plugin_table import Parameter, with_parameter_table
+
+__all__ = ["PhotonIrradianceIntegrator"]
 
 _UInt64 = mi.UInt64
 
 
+@with_parameter_table
 class PhotonIrradianceIntegrator(PhotonKernel):
     r"""Mitsuba integrator ``veg_photon_irradiance``: photon tracing with per-element records.
 
@@ -67,58 +71,6 @@ class PhotonIrradianceIntegrator(PhotonKernel):
     shape or instance consecutive); :attr:`result` (a :class:`PhotonIrradianceResult`) holds the
     last pass with the element layout, per-emitter flux and the energy bookkeeping.
     :func:`mitsuba_veg.light.photon_irradiance` is a thin wrapper over the same path.
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - photons
-         - integer
-         - 1000000
-         - Photons per pass, shared among the emitters by the power they send towards the
-           geometry (each >= 5 %), 1 - 1e9. With ``output="elements"`` this is the pass's
-           whole effort: ``mi.render(..., spp=N)`` is refused (a photon pass has no samples
-           per pixel); with ``output="image"``, ``spp`` is the camera's samples per pixel of
-           the light map.
-       * - max_depth
-         - integer
-         - 8
-         - Most surface hits per photon (1 = direct light only), 1-1000.
-       * - seed
-         - integer
-         - 0
-         - Random seed, 0 - 2^31 - 1; ``mi.render(scene, seed=k)`` traces with ``seed + k``.
-       * - indirect
-         - boolean
-         - true
-         - false: record only the first hit (no inter-reflection).
-       * - bands
-         - string
-         - "total,par,red,far_red"
-         - Comma-separated band names of :data:`BANDS` or ranges ``"500-510"`` [nm].
-       * - emitters
-         - string
-         - "" (all)
-         - Comma-separated ids of the emitters to trace.
-       * - batch
-         - integer
-         - 4194304
-         - Photons per kernel launch, >= 1024 (bounds memory; any size is exact).
-       * - mode
-         - string
-         - "roulette"
-         - "roulette": a photon goes on after a hit with probability max_k a_k (paper 000
-           §3.4). "weights": every photon goes on (cosine-weighted) up to ``max_depth`` hits,
-           its power multiplied by the albedo (same expectation; what the differentiable pass
-           replays).
-       * - output
-         - string
-         - "elements"
-         - "elements": the element tensor above. "image": run the pass, then show the sensor's
-           view of the front irradiance [W m-2] of the first band (a light map).
 
     Example (XML)::
 
@@ -136,6 +88,39 @@ class PhotonIrradianceIntegrator(PhotonKernel):
     replays of weights-mode paths (:meth:`trace_paths`, :meth:`replay`), exact derivatives of
     the replayed estimate for Lambertian BSDFs; geometry is not differentiated.
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = "veg_photon_irradiance", "integrator"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("photons", "integer", str(LIGHT["photons"].default),
+                  "Photons per pass, shared among the emitters by the power they send towards "
+                  "the geometry (each >= 5 %), 1 - 1e9. With ``output=\"elements\"`` this is the "
+                  "pass's whole effort: ``mi.render(..., spp=N)`` is refused (a photon pass has "
+                  "no samples per pixel); with ``output=\"image\"``, ``spp`` is the camera's "
+                  "samples per pixel of the light map."),
+        Parameter("max_depth", "integer", str(LIGHT["max_depth"].default),
+                  "Most surface hits per photon (1 = direct light only), 1-1000."),
+        Parameter("seed", "integer", str(LIGHT["seed"].default),
+                  "Random seed, 0 - 2^31 - 1; ``mi.render(scene, seed=k)`` traces with "
+                  "``seed + k``."),
+        Parameter("indirect", "boolean", str(LIGHT["indirect"].default).lower(),
+                  "false: record only the first hit (no inter-reflection)."),
+        Parameter("bands", "string", '"total,par,red,far_red"',
+                  "Comma-separated band names of ``BANDS`` or ranges ``\"500-510\"`` [nm]."),
+        Parameter("emitters", "string", '"" (all)', "Comma-separated ids of the emitters to trace."),
+        Parameter("batch", "integer", str(LIGHT["batch"].default),
+                  "Photons per kernel launch, >= 1024 (bounds memory; any size is exact)."),
+        Parameter("mode", "string", '"roulette"',
+                  "\"roulette\": a photon goes on after a hit with probability max_k a_k (paper "
+                  "000 §3.4). \"weights\": every photon goes on (cosine-weighted) up to "
+                  "``max_depth`` hits, its power multiplied by the albedo (same expectation; what "
+                  "the differentiable pass replays)."),
+        Parameter("output", "string", '"elements"',
+                  "\"elements\": the element tensor above. \"image\": run the pass, then show "
+                  "the sensor's view of the front irradiance [W m-2] of the first band (a light "
+                  "map)."),
+    )
 
     def __init__(self, props=None):
         super().__init__(props if props is not None else mi.Properties())

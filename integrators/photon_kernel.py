@@ -19,6 +19,7 @@ and the plugin's ``render_forward`` / ``render_backward`` (what ``mi.render(scen
 differentiates) are replays of such paths.
 
 Emitter sampling ("bounding-sphere aim", done tighter):
+
 - directional and infinite emitters (sun, sky): the direction comes from the emitter
   (``sample_direction``), the origin is uniform over the rectangle that covers the projection of
   the scene geometry's bounding box on the plane perpendicular to the photon direction, so
@@ -79,6 +80,9 @@ from mitsuba_veg.errors import ParameterError, SceneError
 from .bands import _SLOTS
 from .photon_result import fixed_point_scale
 from .scene_index import SceneIndex, _reg_id, registry_id, scene_index
+
+__all__ = ["DEFAULT_BATCH", "KERNEL_MODES", "split_photons", "LaneSampler", "LaunchInputs",
+           "PassTables", "PhotonKernel", "switch_table", "aim_area"]
 
 _UInt64 = mi.UInt64
 #: photons traced per kernel launch (bounded memory; larger counts run in batches)

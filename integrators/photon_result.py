@@ -17,6 +17,8 @@ from mitsuba_veg.units import umol_per_joule
 
 from .bands import COMPONENTS, SIDES, _SLOTS, _band_name
 
+__all__ = ["fixed_point_scale", "PhotonIrradianceResult", "DeviceTallies", "PhotonPathRecord"]
+
 def fixed_point_scale(photons: int, hits: int, pmax: float) -> tuple[float, float]:
     """Scale and cap of the 64-bit fixed-point flux accumulator.
 

@@ -14,6 +14,9 @@ import numpy as np
 from mitsuba_veg.errors import SceneError
 from mitsuba_veg.meshes import triangle_geometry
 
+__all__ = ["scene_index", "forget_scene_index", "registry_id", "emitter_name", "MeshGeometry",
+           "SceneIndex"]
+
 _INDEX_CACHE: dict = {}
 
 

@@ -30,6 +30,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+from .plugin_table import Parameter, with_parameter_table
+
 __all__ = ["VegFisheye", "PROJECTIONS", "zenith_of_radius", "radius_of_zenith"]
 
 #: the lens projections
@@ -103,51 +105,35 @@ def _vector(props, name, default):
     return v
 
 
+@with_parameter_table
 class VegFisheye(mi.Sensor):
     """Mitsuba sensor ``veg_fisheye``: a circular fisheye lens (module docstring).
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - projection
-         - string
-         - "equidistant"
-         - ``equidistant`` (r = θ/θ_max) or ``equisolid`` (r = sin(θ/2)/sin(θ_max/2)).
-       * - fov
-         - float
-         - 180
-         - Full field of view of the image disc [deg], (0, 180]; θ_max = fov/2.
-       * - to_world
-         - transform
-         - look_at(origin, origin + direction, up)
-         - Sensor to world: local +z the optical axis, +y the image's top (not with
-           origin, direction or up).
-       * - origin
-         - point
-         - [0, 0, 0]
-         - Centre of the lens [m] (scene frame: +y up, +x east, +z south).
-       * - direction
-         - vector
-         - [0, 1, 0]
-         - Optical axis (the zenith for a canopy photo); need not be normalised.
-       * - up
-         - vector
-         - [0, 0, -1]
-         - Direction shown at the image's top (north); not parallel to ``direction``.
-       * - film
-         - film
-         - hdrfilm 768 x 576
-         - Any film (the package's spectral ``specfilm`` of mitsuba_veg.render.film too);
-           the image disc's diameter is its shorter side. Read by mi.Sensor's constructor.
-       * - sampler
-         - sampler
-         - independent, 4 spp
-         - Samples per pixel. Read by mi.Sensor's constructor.
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = "veg_fisheye", "sensor"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("projection", "string", '"equidistant"',
+                  "``equidistant`` (r = θ/θ_max) or ``equisolid`` (r = sin(θ/2)/sin(θ_max/2))."),
+        Parameter("fov", "float", "180",
+                  "Full field of view of the image disc [deg], (0, 180]; θ_max = fov/2."),
+        Parameter("to_world", "transform", "look_at(origin, origin + direction, up)",
+                  "Sensor to world: local +z the optical axis, +y the image's top (not with "
+                  "origin, direction or up)."),
+        Parameter("origin", "point", "[0, 0, 0]",
+                  "Centre of the lens [m] (scene frame: +y up, +x east, +z south)."),
+        Parameter("direction", "vector", "[0, 1, 0]",
+                  "Optical axis (the zenith for a canopy photo); need not be normalised."),
+        Parameter("up", "vector", "[0, 0, -1]",
+                  "Direction shown at the image's top (north); not parallel to ``direction``."),
+        Parameter("film", "film", "hdrfilm 768 x 576",
+                  "Any film (the package's spectral ``specfilm`` of mitsuba_veg.render.film "
+                  "too); the image disc's diameter is its shorter side. Read by mi.Sensor's "
+                  "constructor."),
+        Parameter("sampler", "sampler", "independent, 4 spp",
+                  "Samples per pixel. Read by mi.Sensor's constructor."),
+    )
 
     #: properties the base class ``mi.Sensor`` reads (the film and the sampler: objects, named
     #: ``_arg_<i>`` in a scene file); tests/test_plugins.py counts them as read

@@ -31,6 +31,8 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+from .plugin_table import Parameter, with_parameter_table
+
 __all__ = ["LeafBSDF", "PLUGIN_NAME"]
 
 #: the name the BSDF is registered under
@@ -56,26 +58,21 @@ def _hmean(s):
     return acc * (1.0 / n)
 
 
+@with_parameter_table
 class LeafBSDF(mi.BSDF):
     """Mitsuba BSDF ``veg_leaf``: a thin two-sided leaf, diffuse reflectance R(lambda) and
     diffuse transmittance T(lambda) (module docstring).
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - reflectance
-         - spectrum or float
-         - 0.1
-         - R [-], the same on both sides; a number is a flat spectrum.
-       * - transmittance
-         - spectrum or float
-         - 0.05
-         - T [-]; R + T <= 1 at every wavelength (checked when the plugin is built).
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = PLUGIN_NAME, "bsdf"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("reflectance", "spectrum or float", "0.1",
+                  "R [-], the same on both sides; a number is a flat spectrum."),
+        Parameter("transmittance", "spectrum or float", "0.05",
+                  "T [-]; R + T <= 1 at every wavelength (checked when the plugin is built)."),
+    )
 
     #: its textures are inputs of a frozen function that reaches it (dr.freeze)
     DRJIT_STRUCT = {"reflectance": mi.Texture, "transmittance": mi.Texture}
@@ -147,7 +144,7 @@ class LeafBSDF(mi.BSDF):
         bs : mi.BSDFSample3f
             Sampled direction ``wo`` (local frame), pdf [sr-1], eta = 1, sampled type and component.
         weight : mi.Spectrum
-            BSDF value × |cos θ_o| / pdf [-] (R/p or T/(1 − p)); 0 where invalid.
+            BSDF value × ``|cos θ_o|`` / pdf [-] (R/p or T/(1 − p)); 0 where invalid.
         """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         R, T = self._rt(si, active)
@@ -169,7 +166,7 @@ class LeafBSDF(mi.BSDF):
         return bs, dr.select(ok, weight, 0.0)
 
     def eval(self, ctx, si, wo, active=True):
-        """BSDF value times the cosine foreshortening: R/π or T/π times |cos θ_o|.
+        """BSDF value times the cosine foreshortening: R/π or T/π times ``|cos θ_o|``.
 
         Parameters
         ----------
@@ -185,7 +182,7 @@ class LeafBSDF(mi.BSDF):
         Returns
         -------
         mi.Spectrum
-            f(wi, wo) |cos θ_o| [sr-1]: R/π on the side of ``wi``, T/π on the other; 0 for grazing
+            f(wi, wo) ``|cos θ_o|`` [sr-1]: R/π on the side of ``wi``, T/π on the other; 0 for grazing
             ``wi`` or a disabled component.
         """
         cos_i = mi.Frame3f.cos_theta(si.wi)
@@ -214,7 +211,7 @@ class LeafBSDF(mi.BSDF):
         Returns
         -------
         mi.Float
-            p |cos θ_o| / π (same side as ``wi``) or (1 − p) |cos θ_o| / π (other side) [sr-1].
+            p ``|cos θ_o|`` / π (same side as ``wi``) or (1 − p) ``|cos θ_o|`` / π (other side) [sr-1].
         """
         cos_i = mi.Frame3f.cos_theta(si.wi)
         cos_o = mi.Frame3f.cos_theta(wo)
@@ -241,7 +238,7 @@ class LeafBSDF(mi.BSDF):
         Returns
         -------
         value : mi.Spectrum
-            f(wi, wo) |cos θ_o| [sr-1].
+            f(wi, wo) ``|cos θ_o|`` [sr-1].
         pdf : mi.Float
             Sampling density of ``wo`` [sr-1].
         """

@@ -16,18 +16,18 @@ without its search).
 Frame (project convention): +y up, +x east, +z south; the grid's azimuth is clockwise from north
 (-z). The plugin takes no ``to_world``.
 
-Properties
-----------
-radiance      spectrum S [W m-2 sr-1 nm-1] (explicit ``regular``/``uniform``/... spectrum; a
-              plain float becomes a *flat* (``uniform``) spectrum, not a D65 one); or
-irradiance    spectrum E (horizontal diffuse irradiance [W m-2 nm-1]); S = E/pi.
-sun_direction vector towards the sun (need not be normalised); must be above the horizon for
-              ``perez`` (its zenith angle enters the coefficients). Default: zenith.
-distribution  ``perez`` (default when perez_epsilon is given), ``cie_clear`` (CIE type 12,
-              the default otherwise), ``cie_turbid`` (type 13), ``uniform`` or ``custom``.
-perez_epsilon, perez_delta   Perez sky clearness (>= 1) and brightness (>= 0).
-a, b, c, d, e coefficients for ``custom``.
-resolution    rows of the sampling table over 0-90 deg zenith (default 128; 4x as many columns).
+Properties (the parameter table of VegSky)::
+
+    radiance      spectrum S [W m-2 sr-1 nm-1] (explicit regular/uniform/... spectrum; a
+                  plain float becomes a *flat* (uniform) spectrum, not a D65 one); or
+    irradiance    spectrum E (horizontal diffuse irradiance [W m-2 nm-1]); S = E/pi.
+    sun_direction vector towards the sun (need not be normalised); must be above the horizon for
+                  perez (its zenith angle enters the coefficients). Default: zenith.
+    distribution  perez (default when perez_epsilon is given), cie_clear (CIE type 12,
+                  the default otherwise), cie_turbid (type 13), uniform or custom.
+    perez_epsilon, perez_delta   Perez sky clearness (>= 1) and brightness (>= 0).
+    a, b, c, d, e coefficients for custom.
+    resolution    rows of the sampling table over 0-90 deg zenith (default 128; 4x as many columns).
 
 Note: Mitsuba's scene does not call ``set_scene`` on Python emitters (it is not part of the
 Python trampoline in 3.9.1). Call :func:`attach_scene` (or ``emitter.set_scene(scene)``) after
@@ -46,6 +46,8 @@ from mitsuba_veg.arrays import DiscreteSampler
 from mitsuba_veg.errors import ParameterError, SceneError
 from mitsuba_veg.light.sky import normalisation, sampling_table, sky_coefficients
 
+from .plugin_table import Parameter, with_parameter_table
+
 __all__ = ["VegSky", "attach_scene"]
 
 
@@ -57,52 +59,37 @@ def _opaque(v):
 
 
 
+@with_parameter_table
 class VegSky(mi.Emitter):
     """Mitsuba emitter ``veg_sky``: a separable clear-sky environment, L(w, lam) = S(lam) f(w)
     (module docstring).
 
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - radiance
-         - spectrum or float
-         - (one of radiance / irradiance)
-         - S, the radiance of a uniform sky with the same horizontal irradiance
-           [W m-2 sr-1 nm-1]; a number is a flat spectrum.
-       * - irradiance
-         - spectrum or float
-         - (one of radiance / irradiance)
-         - E, the horizontal diffuse irradiance [W m-2 nm-1]; S = E / pi.
-       * - sun_direction
-         - vector
-         - [0, 1, 0]
-         - Towards the sun (scene frame, +y up); above the horizon for ``perez``.
-       * - distribution
-         - string
-         - "perez" with perez_epsilon, else "cie_clear"
-         - ``perez``, ``cie_clear`` (CIE type 12), ``cie_turbid`` (type 13), ``uniform`` or
-           ``custom``.
-       * - perez_epsilon
-         - float
-         - (required by ``perez``)
-         - Perez sky clearness [-], >= 1.
-       * - perez_delta
-         - float
-         - (required by ``perez``)
-         - Perez sky brightness [-], >= 0.
-       * - a, b, c, d, e
-         - float
-         - (required by ``custom``)
-         - Perez-form coefficients of f.
-       * - resolution
-         - integer
-         - 128
-         - Rows of the sampling table over 0-90 deg zenith (4 x as many columns), 4-2048.
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = "veg_sky", "emitter"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("radiance", "spectrum or float", "(one of radiance / irradiance)",
+                  "S, the radiance of a uniform sky with the same horizontal irradiance "
+                  "[W m-2 sr-1 nm-1]; a number is a flat spectrum."),
+        Parameter("irradiance", "spectrum or float", "(one of radiance / irradiance)",
+                  "E, the horizontal diffuse irradiance [W m-2 nm-1]; S = E / pi."),
+        Parameter("sun_direction", "vector", "[0, 1, 0]",
+                  "Towards the sun (scene frame, +y up); above the horizon for ``perez``."),
+        Parameter("distribution", "string", '"perez" with perez_epsilon, else "cie_clear"',
+                  "``perez``, ``cie_clear`` (CIE type 12), ``cie_turbid`` (type 13), "
+                  "``uniform`` or ``custom``."),
+        Parameter("perez_epsilon", "float", "(required by ``perez``)",
+                  "Perez sky clearness [-], >= 1."),
+        Parameter("perez_delta", "float", "(required by ``perez``)",
+                  "Perez sky brightness [-], >= 0."),
+        Parameter("a, b, c, d, e", "float", "(required by ``custom``)",
+                  "Perez-form coefficients of f."),
+        Parameter("resolution", "integer", "128",
+                  "Rows of the sampling table over 0-90 deg zenith (4 x as many columns), "
+                  "4-2048."),
+    )
 
     #: its arrays are inputs of a frozen function that reaches it (dr.freeze)
     DRJIT_STRUCT = {"m_cos_edges": mi.Float, "m_cell_pdf": mi.Float, "m_distr": DiscreteSampler,

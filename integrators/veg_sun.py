@@ -27,6 +27,8 @@ import numpy as np
 from mitsuba_veg.arrays import DiscreteSampler, host_array, opaque
 from mitsuba_veg.errors import ParameterError
 
+from .plugin_table import Parameter, with_parameter_table
+
 __all__ = ["DeltaSun", "VegSunPath", "VegSunSteps", "SLOTS"]
 
 #: sun directions one ``veg_sun_steps`` step can hold (a day at 10-minute sub-steps has at most
@@ -166,26 +168,23 @@ class DeltaSun(mi.Emitter):
         pass
 
 
+@with_parameter_table
 class VegSunPath(DeltaSun):
     """Mitsuba emitter ``veg_sun_path``: a delta-direction emitter with a discrete set of sun
     directions (module docstring).
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - scale
-         - float
-         - 1.0
-         - Spectral irradiance per unit weight [W m-2 nm-1] (flat spectrum).
 
     Directions are set with :meth:`set_day` (default: one sun at the zenith). Supports the
     photon pass and ``sample_direction`` (next-event estimation of path tracers); light tracers
     (``sample_ray``, e.g. Mitsuba's ``ptracer``) get no light from it.
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = "veg_sun_path", "emitter"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("scale", "float", "1.0",
+                  "Spectral irradiance per unit weight [W m-2 nm-1] (flat spectrum)."),
+    )
 
     #: its arrays are inputs of a frozen function that reaches it (dr.freeze: a frozen photon
     #: pass replays with each day's sun path)
@@ -265,22 +264,10 @@ class VegSunPath(DeltaSun):
 
 
 
+@with_parameter_table
 class VegSunSteps(DeltaSun):
     """Mitsuba emitter ``veg_sun_steps``: the sun over one time step, a discrete set of
     directions with weights and a spectrum.
-
-    .. list-table::
-       :header-rows: 1
-
-       * - Property
-         - Type
-         - Default
-         - Description
-       * - irradiance
-         - spectrum or float
-         - 1.0
-         - Beam irradiance on a plane normal to the sun per unit weight [W m-2 nm-1]; a
-           number is a flat spectrum.
 
     :meth:`set_directions` sets the step's directions (towards the sun)
     and weights; a photon picks direction k with probability w_k / Σw and carries Σw × the
@@ -288,6 +275,15 @@ class VegSunSteps(DeltaSun):
     fixed size (:data:`SLOTS`) and opaque values: changing them does not recompile the kernel.
     For the photon pass (``sample_direction``); ``sample_ray`` returns zero-weight rays.
     """
+
+    #: the name the plugin is registered under, and its kind
+    PLUGIN, PLUGIN_KIND = "veg_sun_steps", "emitter"
+    #: every property the constructor reads (the docstring's table and the docs' plugin page)
+    PARAMETERS = (
+        Parameter("irradiance", "spectrum or float", "1.0",
+                  "Beam irradiance on a plane normal to the sun per unit weight [W m-2 nm-1]; a "
+                  "number is a flat spectrum."),
+    )
 
     def __init__(self, props: mi.Properties):
         DeltaSun.__init__(self, props)

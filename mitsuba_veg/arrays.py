@@ -155,7 +155,7 @@ def exp(x):
 
 
 def abs_(x):
-    """|x| on either backend.
+    """``|x|`` on either backend.
 
     Parameters
     ----------

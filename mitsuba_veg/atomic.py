@@ -11,6 +11,8 @@ import contextlib
 import os
 from pathlib import Path
 
+__all__ = ["watch", "unwatch", "atomic_write"]
+
 #: callables ``watcher(path)`` told of every file about to be moved into place
 _WATCHERS: list = []
 

@@ -16,6 +16,8 @@ import numpy
 
 from .errors import VariantError
 
+__all__ = ["SUPPORTED", "select_variant", "variant", "versions"]
+
 #: the package version (also ``mitsuba_veg.__version__``)
 __version__ = "0.1.0"
 

@@ -32,7 +32,13 @@ import numpy as np
 
 from .errors import ParameterError, check_range
 
-GSC = 1361.0          # solar constant [W m-2] (Kopp & Lean 2011; FAO-56 uses 1367)
+__all__ = ["GSC", "SECONDS_PER_DAY", "ClimateTable", "DailyWeather", "solar_declination",
+           "extraterrestrial_irradiation", "sunset_hour_angle", "diffuse_fraction_daily",
+           "rain_schedule", "daily_weather", "load_csv"]
+
+#: solar constant [W m-2] (Kopp & Lean 2011; FAO-56 uses 1367)
+GSC = 1361.0
+#: seconds in a day [s]
 SECONDS_PER_DAY = 86400.0
 
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from .errors import check_range
 
 
+__all__ = ["Setting", "MAX_PHOTONS", "LIGHT", "check_light", "range_text"]
+
 @dataclass(frozen=True)
 class Setting:
     """One setting: ``default``, closed range ``lo`` .. ``hi`` (None: unbounded), ``doc``
@@ -32,6 +34,7 @@ class Setting:
 #: (more gains little: the estimate's noise falls as 1/sqrt(N) and a day has other errors)
 MAX_PHOTONS = 1_000_000_000
 
+#: the light pass's settings by name: photons, max_depth, seed, indirect, batch
 LIGHT: dict[str, Setting] = {
     "photons": Setting(1_000_000, 1, MAX_PHOTONS,
                        "photons of one light pass, shared among the emitters by power",
@@ -74,7 +77,9 @@ def check_light(name: str, value, label: str | None = None, source: str | None =
 
 
 def range_text(name: str) -> str:
-    """The allowed range of a light setting as text, e.g. ``"1 .. 1e9"``.
+    """The allowed range of a light setting as text.
+
+    For example ``"1 .. 1e9"`` for ``photons``.
 
     Parameters
     ----------

@@ -10,6 +10,9 @@ import math
 import re
 
 
+__all__ = ["MitsubaVegError", "VariantError", "ParameterError", "FolderBusy", "SceneError",
+           "plugin_error", "check_range", "DependencyError", "unknown_field"]
+
 class MitsubaVegError(Exception):
     """Base class of all mitsuba-veg errors."""
 
@@ -59,7 +62,9 @@ class SceneError(MitsubaVegError, ValueError):
 
 def plugin_error(exc: BaseException) -> str:
     """The message of an error raised inside a Python plugin's constructor, without Mitsuba's
-    wrapping: a loader that fails to build a plugin raises ``RuntimeError("... failed to
+    wrapping.
+
+    A loader that fails to build a plugin raises ``RuntimeError("... failed to
     instantiate <kind> plugin of type "<name>": Traceback ... <Error>: <message>")``; this
     returns ``'<where>: <message>'`` (``where`` = the XML position and plugin), or the whole
     message, whitespace collapsed, when it is not such an error.

@@ -27,8 +27,13 @@ from pathlib import Path
 
 from .errors import ParameterError
 
+__all__ = ["FILE_FIELDS", "TREE_FILE_FIELDS", "MISSING", "file_sha256", "scene_references",
+           "input_files", "input_hashes", "changed_input", "check_same_inputs",
+           "same_run_scenario", "check_resume", "ply_problem", "check_scene_files"]
+
 #: scenario fields naming files the run reads (``trees`` entries: ``file``, ``leaves_file``)
 FILE_FIELDS = ("scene.file", "climate.csv", "species_file", "terrain.geology_texture")
+#: fields of a ``[[trees]]`` entry that name files (hashed for a resume)
 TREE_FILE_FIELDS = ("file", "leaves_file")
 #: the hash recorded for a referenced file that does not exist
 MISSING = "missing"

@@ -9,6 +9,8 @@ import numpy as np
 from .parallel import map_on_cores
 
 
+__all__ = ["make_mesh", "triangle_geometry"]
+
 def make_mesh(name: str, vertices, faces, bsdf=None, uv=None, normals=None,
               attributes: dict | None = None, *, albedo: float | None = None) -> mi.Mesh:
     """An in-memory Mitsuba mesh from NumPy arrays, its id set (the one mesh helper of the

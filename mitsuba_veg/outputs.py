@@ -20,6 +20,11 @@ from .errors import FolderBusy, ParameterError
 from .plots import _mpl, plan_map
 
 
+__all__ = ["write_json", "MARKER", "LOCK", "READERS", "RUN_OUTPUTS", "folder_kind",
+           "EXITING_GRACE_S", "lock_holders", "OutputFolder", "RunReader", "clear_outputs",
+           "SNAPSHOT_DIR", "SnapshotWriter", "write_snapshot", "write_summary", "jsonable",
+           "DayFrames"]
+
 def write_json(path, data, indent: int = 2) -> None:
     """Write ``data`` as JSON atomically (NumPy values converted).
 
@@ -41,7 +46,9 @@ def write_json(path, data, indent: int = 2) -> None:
 # Output folders: one kind of result per folder, one writer at a time, and a manifest of the
 # files the package wrote (it deletes or overwrites nothing else)
 # --------------------------------------------------------------------------------------------
+#: the marker file of an output folder (kind of result, manifest of the files written)
 MARKER = ".mitsuba-veg.json"
+#: the lock file of an output folder (held while a process writes there)
 LOCK = ".mitsuba-veg.lock"
 #: a shared lock held by the commands that read a run folder (render, animate): a run that
 #: would clear the folder (``--fresh``) is refused while one is held
@@ -719,6 +726,7 @@ def clear_outputs(folder, names) -> None:
 # --------------------------------------------------------------------------------------------
 # Moss snapshots (living moss on frame days, read by the render's animation)
 # --------------------------------------------------------------------------------------------
+#: the folder of a run's snapshots
 SNAPSHOT_DIR = "snapshots"
 
 

@@ -12,6 +12,8 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 
+__all__ = ["map_on_cores"]
+
 def map_on_cores(fn, items, max_workers: int | None = None) -> list:
     """``[fn(x) for x in items]`` on the machine's cores, one thread per core.
 

@@ -13,6 +13,8 @@ from .atomic import atomic_write
 from .meshes import triangle_geometry
 
 
+__all__ = ["plan_map", "irradiance_figure", "result_geometry", "save_figure", "loss_curve_figure"]
+
 def _mpl():
     """pyplot, with the backend matplotlib chose: Agg without a display, the notebook's own
     inline backend in Jupyter (forcing Agg here would leave later plt.show() calls blank)."""

@@ -4,18 +4,18 @@ A scenario names a Mitsuba scene file and the settings of a run. Every value is 
 file is read; a bad one raises :class:`~mitsuba_veg.errors.ParameterError` naming the file, the
 field (dotted name), the value, the allowed range and the fix.
 
-Sections used so far (paths relative to the scenario file):
+Sections used so far (paths relative to the scenario file)::
 
-``[scene] file``            Mitsuba XML scene; loaded with ``optimize=False`` to keep shape ids.
-``[site] latitude, longitude``  [deg] north/east positive.
-``[light]``                 photons, max_depth, seed, indirect, and optionally ``when`` (ISO
-                            date-time): then the scene's own emitters are replaced by a physical
-                            daylight sun + sky (:func:`mitsuba_veg.light.daylight`).
-``[terrain]``               ground (shape id), geology_texture, soil_base_y [m],
-                            ``[terrain.soil_depth_mm]`` per-shape soil depth.
-``[regions.NAME]``          shapes, min, max: boxes [m] naming parts of the terrain.
-``[[sensors]]``             virtual light sensors: points and grids (docs/sensors.md).
-``[[hemiphotos]]``          hemispherical photographs at fixed floor points (docs/hemiphoto.md).
+    [scene] file                Mitsuba XML scene; loaded with optimize=False to keep shape ids.
+    [site] latitude, longitude  [deg] north/east positive.
+    [light]                     photons, max_depth, seed, indirect, and optionally when (ISO
+                                date-time): then the scene's own emitters are replaced by a physical
+                                daylight sun + sky (:func:`mitsuba_veg.light.daylight`).
+    [terrain]                   ground (shape id), geology_texture, soil_base_y [m],
+                                [terrain.soil_depth_mm] per-shape soil depth.
+    [regions.NAME]              shapes, min, max: boxes [m] naming parts of the terrain.
+    [[sensors]]                 virtual light sensors: points and grids (docs/sensors.md).
+    [[hemiphotos]]              hemispherical photographs at fixed floor points (docs/hemiphoto.md).
 """
 from __future__ import annotations
 
@@ -32,6 +32,10 @@ from .defaults import LIGHT, MAX_PHOTONS  # noqa: F401  (MAX_PHOTONS: part of th
 from .errors import ParameterError, plugin_error, unknown_field
 from .inputs import check_scene_files, input_hashes
 from .light.clear_sky import daylight as _daylight
+
+__all__ = ["Field", "SCHEMA", "known_fields", "schema_markdown", "field_spec", "Scenario",
+           "load_scene_file", "XML_SET_FIELDS", "light_overrides", "apply_overrides", "validate",
+           "site_offset_hours", "site_time", "load_scenario"]
 
 _DEFAULTS = {
     "light": {k: LIGHT[k].default for k in ("photons", "max_depth", "seed", "indirect")},
@@ -67,6 +71,7 @@ def _num(kind, lo, hi, doc=""):
 _GEOLOGIES = ("humus", "sand", "asphalt")
 _VEC3 = Field("vec3", doc="[x, y, z] in metres")
 
+#: every scenario field by its dotted name (docs/scenario.md is generated from it)
 SCHEMA: dict[str, Field] = {
     "scene": Field("table", fields={"file": Field("file", doc="Mitsuba XML scene")}),
     "site": Field("table", fields={

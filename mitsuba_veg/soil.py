@@ -93,6 +93,7 @@ class GeologyParams(NamedTuple):
     theta_sat: float  #: saturated volumetric water content [m3 m-3]
 
 
+#: the integer codes of the geology classes
 HUMUS, SAND, ASPHALT = 0, 1, 2
 #: Table 3.4, keyed by geology code (0 humus, 1 sand, 2 asphalt). Humus and sand from the paper's
 #: ref. [13]; the asphalt values are the paper's own assumption.

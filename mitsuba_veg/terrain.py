@@ -36,6 +36,7 @@ from .meshes import triangle_geometry
 #: geology classes, indexed by the integer code used everywhere (0 humus, 1 sand, 2 asphalt);
 #: the order matches the rows of paper 000 table 3.4 (F1, F2, theta_SAT)
 GEOLOGY: tuple[str, ...] = ("humus", "sand", "asphalt")
+#: the integer codes of the geology classes
 HUMUS, SAND, ASPHALT = 0, 1, 2
 
 #: reference texture colours [8-bit sRGB-encoded values, as stored in a PNG], one per class in
@@ -193,6 +194,7 @@ def texel_index(uv: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np
 
 #: soil depth bounds [mm] (paper 000 eq 3.8: 1 mm where there is no soil, capped at 1000 mm)
 SOIL_DEPTH_MIN_MM: float = 1.0
+#: (upper bound)
 SOIL_DEPTH_MAX_MM: float = 1000.0
 #: faces steeper than this [deg] (angle between the normal and +y) carry no soil: walls,
 #: cliffs, overhangs and undersides get :data:`SOIL_DEPTH_MIN_MM`

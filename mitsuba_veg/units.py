@@ -1,9 +1,14 @@
 """Physical constants (SI, exact since 2019) and the energy-to-photon conversion of a band."""
 from __future__ import annotations
 
-PLANCK = 6.62607015e-34        # Planck constant h [J s]
-LIGHT_SPEED = 2.99792458e8     # speed of light c [m s-1]
-AVOGADRO = 6.02214076e23       # Avogadro constant N_A [mol-1]
+__all__ = ["PLANCK", "LIGHT_SPEED", "AVOGADRO", "umol_per_joule"]
+
+#: Planck constant h [J s]
+PLANCK = 6.62607015e-34
+#: speed of light c [m s-1]
+LIGHT_SPEED = 2.99792458e8
+#: Avogadro constant N_A [mol-1]
+AVOGADRO = 6.02214076e23
 
 
 def umol_per_joule(lo_nm: float, hi_nm: float) -> float:

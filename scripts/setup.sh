@@ -5,6 +5,8 @@
 #   2. ffmpeg (MP4 animations), when missing and apt is available;
 #   3. a virtual environment .venv with the package, its test extras and the Dask extra
 #      (sweeps on Dask).
+#
+#   bash scripts/setup.sh docs   # also the docs extra (Sphinx, MyST, furo, numpydoc, gallery)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -41,5 +43,13 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
     .venv/bin/python -m pip install -q --upgrade pip
     .venv/bin/python -m pip install -q -e ".[test,distributed]"
     touch "$stamp"
+fi
+if [ "${1:-}" = "docs" ]; then
+    docs_stamp=.venv/.mitsuba-veg-docs-installed
+    if [ ! -f "$docs_stamp" ] || [ pyproject.toml -nt "$docs_stamp" ]; then
+        echo "[setup] installing the docs extra into .venv"
+        .venv/bin/python -m pip install -q -e ".[test,distributed,docs]"
+        touch "$docs_stamp"
+    fi
 fi
 .venv/bin/python -c "import mitsuba_veg as mv; print('[setup] ready:', mv.__version__, mv.variant())"

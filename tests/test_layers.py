@@ -1,4 +1,4 @@
-"""The package's layers (docs/architecture.md), checked on the source with ``ast``.
+"""The package's layers (docs/explanation/architecture.md), checked on the source with ``ast``.
 
 Imports go one way, from a layer to its own layer or the layers below it:
 
@@ -24,7 +24,7 @@ PACKAGE = "mitsuba_veg"
 SOURCES = {PACKAGE: ROOT / "mitsuba_veg", f"{PACKAGE}.integrators": ROOT / "integrators"}
 
 # The layers, lowest first; a module belongs to the layer of its longest matching prefix (the
-# names are relative to ``mitsuba_veg``). Keep this table and docs/architecture.md the same.
+# names are relative to ``mitsuba_veg``). Keep this table and docs/explanation/architecture.md the same.
 LAYERS: list[tuple[str, list[str]]] = [
     ("base", ["backend", "errors", "defaults", "atomic", "arrays", "meshes", "outputs", "parallel",
               "plots", "units"]),
@@ -342,7 +342,7 @@ def test_every_package_ships():
 
 
 def test_layer_names_match_the_architecture_doc():
-    doc = (ROOT / "docs" / "architecture.md").read_text()
+    doc = (ROOT / "docs" / "explanation" / "architecture.md").read_text()
     for name, _ in LAYERS:
         assert name in doc, name
 

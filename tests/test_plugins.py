@@ -68,12 +68,16 @@ def _read(cls) -> set[str]:
 
 @pytest.mark.parametrize("name", sorted(PLUGINS))
 def test_docstring_is_the_parameter_table(name):
+    """The class's ``PARAMETERS`` (the machine-readable table the docs' plugin page is made
+    from) names every property the constructor reads and no other, and the docstring shows it."""
     cls = PLUGINS[name][0]
     table, read = _table(cls), _read(cls)
     assert read, f"{name}: found no property reads in {cls.__name__}.__init__"
     assert len(table) == len(set(table)), table
     assert set(table) == read, (set(table) ^ read)
     assert f"``{name}``" in inspect.getdoc(cls)
+    assert cls.PLUGIN == name and cls.PLUGIN_KIND == PLUGINS[name][1]
+    assert [n for p in cls.PARAMETERS for n in p.names] == table
 
 
 @pytest.mark.parametrize("name", sorted(PLUGINS))

@@ -47,6 +47,7 @@ from ..meshes import make_mesh
 
 __all__ = ["light_truth", "SKY", "SUN", "DEFAULT_SIZE", "DEFAULT_PHOTONS"]
 
+#: the emitters of the light truth, by name
 SKY, SUN = "sky", "sun"
 #: default side of the point's sensor [m] and photons of the sky pass
 DEFAULT_SIZE, DEFAULT_PHOTONS = 0.3, 20_000_000

@@ -14,6 +14,9 @@ import sys
 from ..defaults import LIGHT, range_text
 
 
+__all__ = ["HelpFormatter", "Parser", "ranged", "iso_datetime", "out_dir", "add_out", "add_set",
+           "add_quiet", "add_photons", "light_type"]
+
 class HelpFormatter(argparse.HelpFormatter):
     """Help that shows each option's default (when it has one) after its text."""
 

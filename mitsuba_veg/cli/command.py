@@ -35,6 +35,8 @@ from .args import (Parser, add_out, add_photons, add_quiet, add_set, iso_datetim
 from .entry import run_parsed
 
 
+__all__ = ["DEFAULT_SCENARIO", "DEMO_WHEN", "run_irradiance", "build_parser", "main"]
+
 def _default_scenario(name: str = "courtyard") -> Path:
     """A shipped scenario (default: the courtyard world): from the source tree, else from the
     installed package data."""
@@ -46,7 +48,8 @@ def _default_scenario(name: str = "courtyard") -> Path:
                      "file explicitly (mitsuba-veg run SCENARIO.toml)")
 
 
-DEFAULT_SCENARIO = None  # resolved lazily by _default_scenario()
+#: the demo's scenario file (None until ``_default_scenario()`` resolves it)
+DEFAULT_SCENARIO = None
 #: a summer morning in the courtyard: trees in full leaf, the house wall's shade on the bed
 DEMO_WHEN = "2026-07-15T10:00:00+09:00"
 

@@ -10,6 +10,8 @@ from ..errors import MitsubaVegError
 from .args import Parser
 
 
+__all__ = ["run_parsed", "standalone"]
+
 def _setup_logging(a) -> None:
     level = (getattr(a, "log_level", None) or ("info" if getattr(a, "verbose", False)
                                                else "warning")).upper()

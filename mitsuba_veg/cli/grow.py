@@ -1,7 +1,7 @@
 """``mitsuba-veg grow TREE.toml --out DIR``: grow a tree (or a stand) and write mesh, metrics
 and a picture.
 
-TREE.toml (all keys optional; see scenes/trees/*.toml and docs/trees.md)::
+TREE.toml (all keys optional; see ``scenes/trees/*.toml`` and docs/trees.md)::
 
     model = "growth"            # "growth" (paper 001), "branching" (no light) or "weber_penn"
     seed = 0
@@ -51,6 +51,8 @@ from ..trees.nongrowth import deform
 from ..backend import versions
 from .args import add_out, add_quiet, add_set, ranged
 from .entry import standalone
+
+__all__ = ["load_tree_toml", "build_environment", "run_grow", "report", "add_parser", "main"]
 
 _TOP_KEYS = {"model", "seed", "generations", "positions", "position", "preset", "growth",
              "environment", "nongrowth", "output", "weber_penn", "name", "description"}

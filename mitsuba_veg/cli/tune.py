@@ -1,5 +1,7 @@
 """``mitsuba-veg tune``: fit parameters of the relaxed moss model to a target coverage map.
 
+Example::
+
     mitsuba-veg tune scenes/moss_garden/scenario.toml --target out/run/checkpoint.npz \\
         --params S1,T1 --species bryum_argenteum --days 30 --out out/tune
     python -m mitsuba_veg.tune SCENARIO.toml --target synthetic:S1=60,T1=299.15 --init S1=42

@@ -26,6 +26,8 @@ from ..parallel import map_on_cores
 from ..world.trees import age_tree, tree_from_state, tree_state, with_alive
 
 
+__all__ = ["fingerprint", "save", "load"]
+
 def fingerprint(sim) -> str:
     """What must match for a checkpoint to be resumed: the settings of the run and the
     content of every file it reads (:func:`mitsuba_veg.inputs.input_hashes`).

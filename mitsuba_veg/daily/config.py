@@ -11,6 +11,9 @@ from ..scenario import Scenario
 from ..trees.entries import check_render_trees
 from ..world.phenology import PhenologyParams
 
+__all__ = ["BANDS", "MOSS_DEFAULTS", "SIM_DEFAULTS", "MossConfig"]
+
+#: the bands of the daily photon pass
 BANDS = ("total", "par", "red", "far_red")
 _PCG_STREAM = 0xDA3E39CB94B95BDB  # Dr.Jit's default PCG32 stream (lane i adds i)
 
@@ -29,6 +32,7 @@ MOSS_DEFAULTS = {
     "priority": None,           # species priority for occupancy conflicts (default all 0)
     "shapes": None,             # shapes moss may live on (default: all meshes)
 }
+#: defaults of ``[simulation]`` (days, start date, checkpoint and map intervals, ...)
 SIM_DEFAULTS = {"days": 300, "start_date": "2026-03-01", "checkpoint_every": 10,
                 "frame_every": 10, "light_every": 1}
 

@@ -14,7 +14,7 @@ pass gave them (:class:`YearLight`, device arrays, one value per leaf):
 
 At the end of each calendar year (the night of 31 December, when the leaves are down) every
 growth tree grows one generation (:func:`mitsuba_veg.world.trees.regrow`, paper 001 §2.3) with
-each leaf sphere's light from its leaves' sums (:meth:`DayGrowth.tip_lights`):
+each leaf sphere's light from its leaves' sums (:meth:`DayGrowth.tip_lights`)::
 
     received  = Σ S_l / Σ B + D                          (eq 2.3's fraction of the open's light)
     R:FR      = (Σ R_l / Σ FR_l) / (Σ R_open / Σ FR_open)  (eq 2.5's ratio, 1 in the open)
@@ -38,6 +38,9 @@ from ..plots import _mpl, plan_map, save_figure
 from ..trees.growth import TipLight
 from ..units import umol_per_joule
 from ..world.trees import adapts, ages
+
+__all__ = ["GROWTH_MODEL", "YearLight", "DayGrowth", "sphere_light", "floor_year", "floor_figure",
+           "floor_years_figure"]
 
 #: the model of the trees that grow from their light
 GROWTH_MODEL = "growth"

@@ -24,12 +24,16 @@ from ..light.clear_sky import DEFAULT_ATMOSPHERE, SPCTRL2_RANGE_NM, _spectrl2
 from ..light.photon import band_range
 from ..light.sunpath import DaySunPaths, day_sun_paths
 from .config import BANDS
+
+__all__ = ["WEATHER_FIELDS", "noon_elevation", "band_shapes_days", "band_shapes", "DayInputs",
+           "DayValues"]
+
 #: the weather fields a day's kernels read [units of climate.DailyWeather]
 WEATHER_FIELDS = ("T", "rh", "U", "A", "P", "beam", "diffuse")
 
 
 def noon_elevation(latitude: float, day_of_year) -> np.ndarray:
-    """Noon sun elevation from the FAO-56 declination: 90° − |latitude − δ|, at least 1° [deg].
+    """Noon sun elevation from the FAO-56 declination: 90° − ``|latitude − δ|``, at least 1° [deg].
 
     Parameters
     ----------

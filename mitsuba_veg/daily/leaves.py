@@ -17,6 +17,8 @@ from ..world.canopy import Canopy
 from ..world.phenology import Phenology
 
 
+__all__ = ["DayLeaves"]
+
 class DayLeaves:
     """The leaves stage (module docstring).
 

@@ -51,6 +51,8 @@ from ..world.canopy import LEAF_MESH
 from .config import BANDS
 from .inputs import DayInputs, DayValues
 
+__all__ = ["WIDTH_TOTAL", "DayLightResult", "DayLight"]
+
 #: width of the "total" band (360-830 nm): a unit emitter gives 470 W m-2 there
 WIDTH_TOTAL = band_range("total")[1] - band_range("total")[0]
 

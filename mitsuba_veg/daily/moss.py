@@ -22,6 +22,8 @@ from ..moss.population import (FREE, GEMMA, MOSS, PROPAGULE, SPORE, MossPopulati
 from ..moss.propagules import land, settle, spore_direction, uniform_sphere
 from ..moss.spatial import SpotGrid, per_element_count
 
+__all__ = ["parents_in_order", "MossState", "DayMoss"]
+
 _PCG_STREAM = 0xDA3E39CB94B95BDB  # Dr.Jit's default PCG32 stream (lane i adds i)
 
 

@@ -71,6 +71,8 @@ from .site import Site, build_site
 from .soil import day_soil
 
 
+__all__ = ["DayState", "DayPipeline", "HostFields", "Simulation", "Interrupted"]
+
 @dataclass
 class DayState:
     """The state of a run between two days (module docstring).

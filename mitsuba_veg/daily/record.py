@@ -27,6 +27,8 @@ from ..moss.population import MOSS, PROPAGULE
 from ..soil import linearisation_error
 from ..units import umol_per_joule
 
+__all__ = ["DayRecord"]
+
 _GROUND_FIELDS = ("par", "red", "far_red", "red_sky", "far_red_sky", "cover", "S", "Ts", "rhs")
 
 # Bounds of the summed quantities (arrays.Tally: a column with a bound is summed in one kernel

@@ -12,6 +12,8 @@ from .hemiphotos import PhotoSeries
 from .pipeline import Simulation
 
 
+__all__ = ["run"]
+
 def run(scenario, out="out/run", days: int | None = None, overrides=(), resume: bool = True,
         progress: bool = True, frames: bool = True, snapshot_every: int | None = None) -> dict:
     """Run a scenario into a folder through the daily pipeline.

@@ -37,6 +37,8 @@ from ..world.trees import scenario_trees
 from .config import BANDS, MossConfig
 
 
+__all__ = ["Site", "build_site", "prepare_site"]
+
 class Site:
     """A run's light scene and surfaces (module docstring). Build with :func:`build_site`.
 

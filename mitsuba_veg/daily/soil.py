@@ -15,6 +15,8 @@ from .. import soil as soil_model
 from .inputs import DayValues
 
 
+__all__ = ["day_soil"]
+
 def day_soil(site, vals: DayValues, O, S, counts) -> soil_model.SoilDay:
     """One day of the soil model on the terrain elements (module docstring).
 

@@ -32,10 +32,19 @@ from mitsuba_veg.errors import ParameterError, check_range
 
 from .spectra import LeafSpectra, leaf_spectra
 
+__all__ = ["RED_NM", "FAR_RED_NM", "PAR_NM", "FORWARD_T", "FORWARD_R", "forward_scatter",
+           "gap_from_alpha_l", "red_far_red_attenuation", "absorbed_fraction", "growth_alphas",
+           "with_leaf_optics"]
+
+#: the red band [nm]
 RED_NM = (655.0, 665.0)
+#: the far-red band [nm]
 FAR_RED_NM = (725.0, 735.0)
+#: the PAR band [nm]
 PAR_NM = (400.0, 700.0)
+#: share of transmitted light scattered forward by spherically oriented bi-Lambertian leaves
 FORWARD_T = 5.0 / 6.0
+#: share of reflected light scattered forward by spherically oriented bi-Lambertian leaves
 FORWARD_R = 1.0 / 6.0
 
 

@@ -29,8 +29,35 @@ from mitsuba_veg.errors import ParameterError, check_range
 from .pigments import pigments_at_stage, stage_from_tau, vary_pigments
 
 
+__all__ = ["AutumnParams", "AutumnState", "autumn_time", "tau_raw", "leaf_factors", "params_dict",
+           "apply_to_tree"]
+
 @dataclass(frozen=True)
 class AutumnParams:
+    """Parameters of the autumn logical time (paper 003 §3.3) and of leaf fall.
+
+    Attributes
+    ----------
+    insolation_full : float
+        H_full [MJ m-2]: cumulative insolation that turns a median leaf all red.
+    time_weight : float
+        β [-]: weight of ageing with time alone (shaded leaves still colour).
+    days_full : float
+        D_full [days]: days after the onset that turn a leaf all red by time alone.
+    onset_day : int
+        d0: day index of the insolation result at which colouring starts.
+    rate_sigma : float
+        Log-sd of the per-leaf rate factor ξ [-].
+    pigment_sigma : float
+        Log-sd of the per-leaf pigment variation [-].
+    fall : bool
+        Whether leaves fall when τ_raw reaches their threshold.
+    fall_tau : float
+        Median τ_raw at which a leaf falls [-].
+    fall_sigma : float
+        Log-sd of the per-leaf fall threshold [-].
+    """
+
     insolation_full: float = 250.0   # H_full [MJ m-2]
     time_weight: float = 0.2         # β [-]
     days_full: float = 60.0          # D_full [days]
@@ -172,7 +199,7 @@ def autumn_time(daily_insolation, params: AutumnParams = AutumnParams(), seed=0)
         (n_leaves, days) insolation per day [MJ m-2] (finite, >= 0); or an
         :class:`~mitsuba_veg.foliage.insolation.InsolationResult` (its ``daily``).
     params : AutumnParams
-        Model parameters (validated here; default :class:`AutumnParams`()).
+        Model parameters (validated here; default ``AutumnParams()``).
     seed : int
         Seed of the per-leaf random factors (default 0).
 

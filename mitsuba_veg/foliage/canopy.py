@@ -18,6 +18,10 @@ from mitsuba_veg.errors import ParameterError, check_range
 from mitsuba_veg.meshes import make_mesh
 from mitsuba_veg.trees.structure import Leaves, Tree, leaf_quads, tube_mesh
 
+__all__ = ["LEAF_AREA_FACTOR", "leaf_area", "random_unit_vectors", "random_leaf_cloud",
+           "leaf_layer_triangles", "sphere_crown_tree", "leaves_mesh_arrays", "bark_mesh_arrays",
+           "class_meshes", "mesh"]
+
 #: a leaf quad is size x (2 * 0.3 size) (mitsuba_veg.trees.structure.leaf_quads)
 LEAF_AREA_FACTOR = 0.6
 
@@ -78,7 +82,7 @@ def random_leaf_cloud(lai: float, box_min, box_max, leaf_size: float = 0.05, see
         Random seed (default 0).
     normals : str
         ``"spherical"`` (isotropic: G = 0.5 for every direction, default) or ``"horizontal"``
-        (all normals +y: G = |cos θ|).
+        (all normals +y: G = ``|cos θ|``).
 
     Returns
     -------

@@ -6,7 +6,7 @@ The leaf is the attractor of the IFS of 4 affine maps of the paper's table 2,
 
 drawn by the chaos game (random iteration): many independent chains run side by side (NumPy
 arrays, one row per chain), each picks a map at random at every step; after a burn-in every
-visited point lies on the attractor. Map probabilities default to |det| of each map (even point
+visited point lies on the attractor. Map probabilities default to ``|det|`` of each map (even point
 density over the blade); the paper notes they change the look, not the shape.
 
 Aging per point (paper §3.1: colouring starts at the margin and the tip, farthest from the main
@@ -35,6 +35,9 @@ from mitsuba_veg.errors import ParameterError, check_range
 
 from .pigments import LeafTraits, StageTable, stage_from_tau, stage_table, state_pigments
 from .spectra import leaf_spectra, spectrum_to_srgb
+
+__all__ = ["MAPLE_IFS", "fixed_point", "chaos_game", "vein_segments", "MapleLeaf", "maple_leaf",
+           "state_colours", "leaf_image"]
 
 #: paper 003 table 2: rows w1..w4, columns a b c d e f
 MAPLE_IFS = np.array([
@@ -86,7 +89,7 @@ def chaos_game(n_points: int = 200_000, *, maps=MAPLE_IFS, probabilities=None,
     maps : array_like
         (k, 6) affine maps, rows a b c d e f [-] (default :data:`MAPLE_IFS`, paper 003 table 2).
     probabilities : array_like, optional
-        (k,) non-negative map weights (normalised here); default |det| of each map (even point
+        (k,) non-negative map weights (normalised here); default ``|det|`` of each map (even point
         density over the blade).
     chains : int
         Chains run side by side (default 8192; at most ``n_points`` are used).
@@ -212,7 +215,7 @@ class MapleLeaf:
         Parameters
         ----------
         table : StageTable, optional
-            Stage table (default: :func:`~mitsuba_veg.foliage.pigments.stage_table`()).
+            Stage table (default: ``~mitsuba_veg.foliage.pigments.stage_table()``).
 
         Returns
         -------
@@ -297,7 +300,7 @@ def maple_leaf(n_points: int = 200_000, *, seed=0, vein_levels: int = 2, weights
     raster : int
         Raster size [pixels] of the blade mask for the margin's distance transform (default 256).
     probabilities : array_like, optional
-        Map probabilities of :func:`chaos_game` (default |det|).
+        Map probabilities of :func:`chaos_game` (default ``|det|``).
 
     Returns
     -------
@@ -350,7 +353,7 @@ def state_colours(exposure: float = 2.2, traits=None, table=None) -> np.ndarray:
     exposure : float
         Factor on XYZ before encoding [-] (default 2.2).
     traits : LeafTraits, optional
-        Leaf structure, water and dry matter (default :class:`LeafTraits`()).
+        Leaf structure, water and dry matter (default ``LeafTraits()``).
     table : StageTable, optional
         Stage table (default: the shipped one).
 
@@ -388,7 +391,7 @@ def leaf_image(leaf: MapleLeaf, stage=None, tau=None, size: int = 256, colours=N
     size : int
         Image side [pixels] (default 256).
     colours : array_like, optional
-        (3, 3) sRGB [-] of the three states (default :func:`state_colours`()).
+        (3, 3) sRGB [-] of the three states (default ``state_colours()``).
     background : sequence of float
         sRGB [-] of empty pixels (default white).
 

@@ -15,12 +15,12 @@ Here:
 - :func:`leaf_insolation` traces one shadow ray from every leaf centre towards the sun at every
   daytime step: all leaves × all steps in one Dr.Jit kernel per ≤ 8M rays
   (``scene.ray_test`` against the tree's leaf quads, bark tubes and any obstacles), and sums
-  I |L·S| per leaf per day. A leaf is a thin blade lit on either face, hence |L·S| (the paper's
+  I ``|L·S|`` per leaf per day. A leaf is a thin blade lit on either face, hence ``|L·S|`` (the paper's
   L·S with the blade's sunlit face; ``two_sided=False`` keeps max(L·S, 0)).
   Occluding leaves are opaque (as in the paper) unless ``leaf_transmittance`` > 0: then each
   leaf crossed passes that fraction (up to ``max_layers`` leaves; bark and obstacles block).
 - ``sky=True`` adds diffuse skylight: DHI(t) × the leaf's sky view factor V (an isotropic sky,
-  both faces: V = (1/π) ∫_upper vis(ω) |ω·L| dω, 1 for an unobstructed leaf of any tilt),
+  both faces: V = (1/π) ∫_upper vis(ω) ``|ω·L|`` dω, 1 for an unobstructed leaf of any tilt),
   estimated once per leaf with ``sky_rays`` stratified shadow rays.
 
 Units: irradiance W m-2, insolation MJ m-2 (per unit one-sided leaf area).
@@ -41,6 +41,9 @@ from ..trees.structure import Leaves, Tree
 from .canopy import bark_mesh_arrays, leaves_mesh_arrays, mesh
 from .light_study import leaf_values, tree_scene
 
+
+__all__ = ["shadow_scene", "InsolationResult", "instantaneous_insolation", "leaf_insolation",
+           "sky_view_factor", "sky_view_factor_photons"]
 
 # --------------------------------------------------------------------------------------------
 # Shadow scene
@@ -139,7 +142,7 @@ class InsolationResult:
 
 def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
                              two_sided: bool = True, obstacles=()) -> np.ndarray:
-    """I |L·S| [W m-2] per leaf for one sun direction (towards the sun), 0 where shaded.
+    """I ``|L·S|`` [W m-2] per leaf for one sun direction (towards the sun), 0 where shaded.
 
     Parameters
     ----------
@@ -151,7 +154,7 @@ def instantaneous_insolation(scene_or_tree, sun_vector, intensity: float = 1.0,
     intensity : float
         Beam (direct-normal) irradiance I [W m-2] (default 1).
     two_sided : bool
-        |L·S| (a blade lit on either face, default) or max(L·S, 0).
+        ``|L·S|`` (a blade lit on either face, default) or max(L·S, 0).
     obstacles : sequence
         Further occluders (``(vertices, faces)`` pairs or ``mi.Mesh``) when a scene is built.
 
@@ -179,7 +182,7 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
     """Daily insolation per leaf over ``path`` with ray-traced shadows (module docstring).
 
     One shadow ray from every leaf centre towards the sun at every daytime step, all leaves × all
-    steps in one Dr.Jit kernel per ``batch`` rays; I |L·S| × step [MJ m-2] summed per leaf per
+    steps in one Dr.Jit kernel per ``batch`` rays; I ``|L·S|`` × step [MJ m-2] summed per leaf per
     day. With ``sky`` the diffuse horizontal irradiance times the leaf's sky view factor is added.
 
     Parameters
@@ -195,7 +198,7 @@ def leaf_insolation(tree_or_scene, path: SunPath, *, obstacles=(), two_sided: bo
         Further occluders (``(vertices [m], faces)`` pairs or ``mi.Mesh``), used when a scene is
         built.
     two_sided : bool
-        |L·S| (a thin blade lit on either face, default) or max(L·S, 0).
+        ``|L·S|`` (a thin blade lit on either face, default) or max(L·S, 0).
     shadows : bool
         Trace shadow rays (default True); False: every leaf sees the sun.
     leaf_transmittance : float
@@ -351,7 +354,7 @@ def _transmit_loop(scene, ray, active, sid_leaf, t_leaf, max_layers):
 def sky_view_factor(tree_or_scene, rays: int = 64, seed: int = 0) -> np.ndarray:
     """Per-leaf view factor of an isotropic sky, both faces.
 
-    V = (1/π) ∫_upper vis |ω·L| dω (1 for an unobstructed leaf of any tilt), by ``rays``
+    V = (1/π) ∫_upper vis ``|ω·L|`` dω (1 for an unobstructed leaf of any tilt), by ``rays``
     stratified uniform-hemisphere shadow rays per leaf.
 
     Parameters

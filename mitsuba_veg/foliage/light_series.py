@@ -38,6 +38,10 @@ from mitsuba_veg.defaults import check_light
 from mitsuba_veg.scenario import load_scenario
 from mitsuba_veg.backend import versions
 
+__all__ = ["FILES", "SERIES_PHOTONS", "run_sensor_study", "year_figure", "heatmap_figure",
+           "grid_map_figure"]
+
+#: the files a sensor study writes
 FILES = ("sensors.csv", "sensors.parquet", "sensors_hourly.csv", "sensors_hourly.parquet",
          "dli.csv", "summary.json", "dli_map.png", "rfr_map.png", "sensor_year.png",
          "heatmap.png")

@@ -54,7 +54,12 @@ from .light_series import _write_table
 from .pigments import LeafTraits
 from .spectra import leaf_spectra
 
+__all__ = ["BANDS", "DEFAULT_WHEN", "stage_classes", "tree_scene", "leaf_values", "open_reference",
+           "run_light_study", "light_maps_figure"]
+
+#: the bands of a light study's photon pass
 BANDS = ("total", "par", "red", "far_red")
+#: the time of a light study unless given (ISO 8601 with offset)
 DEFAULT_WHEN = "2026-07-15T12:00:00+09:00"
 
 
@@ -115,7 +120,7 @@ def tree_scene(tree, *, emitters: dict, tau=None, n_classes: int = 7, ground=Tru
     obstacles : sequence
         Further shapes: ``(vertices [m], faces)`` pairs or ``mi.Mesh``.
     traits : LeafTraits, optional
-        Leaf structure, water and dry matter of the spectra (default :class:`LeafTraits`()).
+        Leaf structure, water and dry matter of the spectra (default ``LeafTraits()``).
 
     Returns
     -------

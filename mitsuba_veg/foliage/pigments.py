@@ -17,7 +17,13 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
+__all__ = ["TABLE_FILE", "N_STAGES", "STATES", "StageTable", "stage_table", "LeafTraits",
+           "stage_from_tau", "tau_from_stage", "pigments_at_stage", "pigments_at_tau",
+           "state_pigments", "vary_pigments"]
+
+#: the pigment table per stage (Ishikura's seven stages, reconstructed)
 TABLE_FILE = Path(__file__).resolve().parent.parent / "data" / "foliage_ishikura_stages.csv"
+#: number of autumn stages (Ishikura)
 N_STAGES = 7
 #: names of the three tissue states drawn on a leaf (stage 1, stage 5, stage 7 contents)
 STATES = ("green", "dark_green_red", "red")
@@ -25,6 +31,22 @@ STATES = ("green", "dark_green_red", "red")
 
 @dataclass(frozen=True)
 class StageTable:
+    """The pigment table of the seven autumn stages (``data/foliage_ishikura_stages.csv``).
+
+    Attributes
+    ----------
+    stage : numpy.ndarray
+        Stages 1..7.
+    coloured : numpy.ndarray
+        Area fraction of the blade that is dark green-red or red [-].
+    red : numpy.ndarray
+        Area fraction that is red [-].
+    cab, car, anth : numpy.ndarray
+        Chlorophyll a+b, carotenoid and anthocyanin contents [µg cm-2].
+    source : str
+        Where the table comes from.
+    """
+
     stage: np.ndarray      # 1..7
     coloured: np.ndarray   # area fraction dark green-red or red
     red: np.ndarray        # area fraction red
@@ -146,7 +168,7 @@ def pigments_at_stage(stage, table: StageTable | None = None) -> dict:
     stage : float or array_like
         Ishikura stage(s) [-] in [1, 7].
     table : StageTable, optional
-        Stage table (default: :func:`stage_table`()).
+        Stage table (default: ``stage_table()``).
 
     Returns
     -------
@@ -176,7 +198,7 @@ def pigments_at_tau(tau, table: StageTable | None = None) -> dict:
     tau : float or array_like
         Autumn logical time τ [-] (clipped to [0, 1]).
     table : StageTable, optional
-        Stage table (default: :func:`stage_table`()).
+        Stage table (default: ``stage_table()``).
 
     Returns
     -------
@@ -195,7 +217,7 @@ def state_pigments(table: StageTable | None = None) -> dict:
     Parameters
     ----------
     table : StageTable, optional
-        Stage table (default: :func:`stage_table`()).
+        Stage table (default: ``stage_table()``).
 
     Returns
     -------

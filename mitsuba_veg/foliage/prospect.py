@@ -31,6 +31,8 @@ from .prospect_dr import (WAVELENGTHS, ProspectCoefficients, calctav,  # noqa: F
                           coefficients)
 
 
+__all__ = ["prospect_d"]
+
 def prospect_d(N=1.5, Cab=40.0, Car=5.0, Anth=0.0, Cbrown=0.0, Cw=0.012, Cm=0.005,
                alpha: float = 40.0):
     """PROSPECT-D on NumPy arrays: reflectance and transmittance, 400-2500 nm by 1 nm.

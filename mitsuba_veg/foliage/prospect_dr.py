@@ -198,6 +198,7 @@ def _float64_type():
     return dr.float64_array_t(mi.Float)
 
 
+#: the Float64 array type of the active variant's backend (LLVM or CUDA), with AD
 Float64 = _float64_type()
 
 

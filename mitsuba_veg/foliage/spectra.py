@@ -15,6 +15,8 @@ from .colour_dr import colour_weights, xyz_to_srgb_np
 from .pigments import LeafTraits, pigments_at_stage, stage_from_tau
 from .prospect import prospect_d
 
+__all__ = ["MITSUBA_MIN_NM", "LeafSpectra", "leaf_spectra", "mitsuba_spectrum", "spectrum_to_srgb"]
+
 #: Mitsuba's spectral range starts at 360 nm, PROSPECT-D at 400 nm: below 400 nm the 400 nm
 #: value is held constant (leaves absorb strongly in the UV-A too; documented in docs/foliage.md)
 MITSUBA_MIN_NM = 360.0

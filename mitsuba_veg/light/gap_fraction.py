@@ -56,7 +56,9 @@ __all__ = ["LAI2000_RINGS", "LAI2000_CENTRES", "LAI2000_WEIGHTS", "LAI2000_PATHS
 LAI2000_RINGS = ((0.0, 13.0), (16.0, 28.0), (32.0, 43.0), (47.0, 58.0), (61.0, 74.0))
 #: their centres [deg], weights W_i [-] and path lengths S_i = 1/cos θ_i [-] (LAI-2000 manual)
 LAI2000_CENTRES = (7.0, 23.0, 38.0, 53.0, 68.0)
+#: (the weights W_i)
 LAI2000_WEIGHTS = (0.034, 0.104, 0.160, 0.218, 0.484)
+#: (the path lengths S_i)
 LAI2000_PATHS = (1.008, 1.087, 1.270, 1.662, 2.670)
 #: sky radiance distributions of the diffuse site factor
 SKIES = ("uniform", "soc")

@@ -12,7 +12,7 @@ mesh in sensor mode) and two emitters built once:
   diffuse spectrum (DHI) of the reference sun. Its light does not depend on the time except for
   a factor per band, so it is traced once, with ``sky_photons`` photons.
 
-Per step [t0, t1) and band b the reading is the mean over the step:
+Per step [t0, t1) and band b the reading is the mean over the step::
 
     sun:  R_b = c_b × (pass reading),  weights w_k = (Δt/T) DNI_PAR(k) / DNI_PAR,ref,
           c_b = Σ_k (Δt/T) DNI_b(k) sin e_k / Σ_k w_k DNI_b,ref sin e_k   (c_PAR = 1)
@@ -42,6 +42,9 @@ from . import sensors as S
 from .clear_sky import band_irradiance, clear_sky_spectra, regular_spectrum
 from .photon import BANDS, photon_irradiance
 from .solar_position import sun_direction, sun_position
+
+__all__ = ["band_table", "daylight_bands", "reference", "step_starts", "SensorSeries",
+           "run_series", "daily_light_integral", "hours_above"]
 
 #: reference sun of the emitters' spectra
 REF_ELEVATION, REF_DOY = 45.0, 172

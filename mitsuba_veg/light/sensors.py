@@ -83,8 +83,10 @@ KINDS = ("cosine", "hemispherical", "spherical")
 PASS_BANDS = ("par", "red", "far_red", "shortwave")
 #: quantities of a reading, in order
 QUANTITIES = ("par", "red", "far_red", "rfr", "shortwave")
+#: the unit of each quantity
 UNITS = {"par": "umol m-2 s-1", "red": "umol m-2 s-1", "far_red": "umol m-2 s-1", "rfr": "-",
          "shortwave": "W m-2"}
+#: components of a reading
 COMPONENTS = ("direct", "diffuse", "total")
 #: id of the mesh that holds every sensor of a light scene
 SENSOR_SHAPE = "veg_sensors"

@@ -21,6 +21,9 @@ from .clear_sky import clear_sky_broadband
 from .solar_position import sun_direction, sun_position
 
 
+__all__ = ["SunPath", "sun_path", "day_sun_path", "DaySunPaths", "SUN_PATH_BLOCK_DAYS",
+           "day_sun_paths"]
+
 @dataclass
 class SunPath:
     """The sun at regular steps (daytime only): times, angles, direction, irradiances."""

@@ -27,6 +27,9 @@ from mitsuba_veg.errors import SceneError
 from mitsuba_veg.meshes import make_mesh
 
 
+__all__ = ["grid_mesh", "box_mesh", "sun_vector", "roof_wall_scene", "path_reference", "as_meshes",
+           "plant_mesh", "plant_scene"]
+
 def grid_mesh(nx: int, nz: int, x=(-1.0, 1.0), z=(-1.0, 1.0), y=0.0, height=None, up=True):
     """Vertices/faces of a grid in the x-z plane at height ``y`` (normals +y when ``up``).
 
@@ -308,7 +311,7 @@ def as_meshes(scene_dict: dict) -> dict:
     """A copy of a scene dict with its mesh shapes loaded as in-memory meshes (same ids).
 
     ``rectangle``, ``cube``, ``obj`` and ``ply`` shapes without an emitter become ``mi.Mesh``
-    objects with their world-space vertices [m] and their BSDF (``ref``s resolved to the dict's
+    objects with their world-space vertices [m] and their BSDF (``ref`` entries resolved to the dict's
     BSDFs), which :func:`path_reference` can cut triangles out of. Shapes with an area emitter
     and everything else are kept as they are.
 

@@ -28,7 +28,9 @@ __all__ = ["s", "fitness", "daily_fitness", "daily_growth", "germination_value",
 
 #: Germination windows of eq 3.24 [days since the propagule was made] (paper 000 §3.6).
 SPORE_L0, SPORE_L1 = 60.0, 365.0
+#: (gemmae)
 GEMMA_L0, GEMMA_L1 = -60.0, 60.0
+#: both windows by propagule kind [days]
 GERMINATION_WINDOW = {"spore": (SPORE_L0, SPORE_L1), "gemma": (GEMMA_L0, GEMMA_L1)}
 
 _FOUR_LN2 = 4.0 * math.log(2.0)

@@ -29,6 +29,9 @@ from .fitness_model import GEMMA_L0, GEMMA_L1, SPORE_L0, SPORE_L1, daily_fitness
 from .spatial import per_element_count
 from .species import Species
 
+__all__ = ["GEMMA_STEP", "SPORE_THRESHOLD", "DayEvents", "SlotQueue", "concat_u32", "SpeciesTable",
+           "MossPopulation"]
+
 FREE, PROPAGULE, MOSS = 0, 1, 2
 GEMMA, SPORE = 0, 1
 #: G_moss step that releases one gemma (paper 000 §3.6: "every +0.5")

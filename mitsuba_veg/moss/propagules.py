@@ -25,6 +25,8 @@ from .population import MossPopulation
 from .spatial import _SLOT_MASK
 
 
+__all__ = ["uniform_sphere", "spore_direction", "land", "settle"]
+
 def uniform_sphere(u: mi.Point2f) -> mi.Vector3f:
     """Uniform random unit vectors on the sphere (the direction I of a gemma, eq 3.22).
 

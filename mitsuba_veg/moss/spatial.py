@@ -39,6 +39,9 @@ import numpy as np
 
 from ..arrays import Counters, opaque
 
+__all__ = ["NEIGHBOURS", "SpotGrid", "per_element_count", "max_per_element"]
+
+#: the 26 neighbour offsets of a cell (dx, dy, dz)
 NEIGHBOURS = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
               if (dx, dy, dz) != (0, 0, 0)]
 

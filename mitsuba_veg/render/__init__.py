@@ -1,5 +1,7 @@
 """The final spectral render: scene assembly, images and animations of a run.
 
+Example::
+
     import mitsuba_veg as mv
     from mitsuba_veg import render as mr
     run = mr.load_run("out/demo/moss")                  # a moss run folder

@@ -20,7 +20,7 @@ Each patch is a 3 x 3 lattice (9 vertices, 8 triangles):
 - a per-vertex ``tone`` in [0, 1] (1/f noise over the carpet, the growth, lighter at the centre)
   blends the species' dark and light spectral reflectances, as for the tufts.
 
-The tufts (:mod:`.moss`) stand on the carpet for the relief seen up close; the carpet gives the
+The tufts (:mod:`mitsuba_veg.render.moss`) stand on the carpet for the relief seen up close; the carpet gives the
 cover seen from afar.
 """
 from __future__ import annotations
@@ -42,6 +42,7 @@ __all__ = ["CarpetMesh", "grid_origin", "carpet_patches", "cell_keys", "patch_ar
 PATCH_VERTICES = 9
 #: a fan around the centre (vertex 4): 8 triangles over the lattice's ring
 _RING = [0, 1, 2, 5, 8, 7, 6, 3]
+#: the patch's 8 triangles (vertex indices), a fan around the centre
 PATCH_FACES = np.array([[4, _RING[k], _RING[(k + 1) % 8]] for k in range(8)], np.int64)
 #: side of the carpet's shoot texture in the scene [m] (it repeats)
 TEXTURE_TILE = 0.08

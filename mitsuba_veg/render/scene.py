@@ -12,9 +12,9 @@
   (:data:`~mitsuba_veg.render.materials.SPECTRA`) or concrete.
 - **surround**: an optional flat ring of gravel around the ground out to 2 km, so that views do
   not end at the garden's edge in black (the ``veg_sky`` is zero below the horizon).
-- **moss**: one tuft model per living moss (:mod:`.moss`), merged into one mesh per species,
+- **moss**: one tuft model per living moss (:mod:`mitsuba_veg.render.moss`), merged into one mesh per species,
   two-sided, blending the species' dark and light spectra by a per-vertex ``tone`` attribute.
-- **trees**: bark tubes and leaves (:mod:`.trees`): leaves binned by autumn logical time, one
+- **trees**: bark tubes and leaves (:mod:`mitsuba_veg.render.trees`): leaves binned by autumn logical time, one
   ``veg_leaf`` (PROSPECT-D) BSDF per bin (:mod:`mitsuba_veg.foliage`).
 - **light**: the physical sun (``directional``) and sky (``veg_sky``) of
   :func:`mitsuba_veg.light.daylight` for the scenario's site and the render time, with explicit
@@ -545,7 +545,7 @@ class Terrain:
         """The ground's (one-sided) BSDF dict.
 
         With geology masks (``terrain.geology_texture``): humus everywhere, sand and asphalt where
-        their masks are 1 (nested ``blendbsdf``s); each class varies between its dark and light
+        their masks are 1 (nested ``blendbsdf`` nodes); each class varies between its dark and light
         spectrum by the 1/f noise image. Without them, the ground's material
         (:func:`resolve_materials`), varied the same way when it is a named spectrum.
 

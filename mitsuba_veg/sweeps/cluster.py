@@ -14,6 +14,10 @@ import drjit as dr
 
 from ..errors import DependencyError, ParameterError
 
+__all__ = ["WORKER_MEMORY", "require_distributed", "require_pandas", "machine_cores",
+           "machine_memory", "local_workers", "ClusterInfo", "open_client", "worker_drjit_threads",
+           "set_drjit_threads"]
+
 #: memory one worker process should have for a moss-garden run at the default scale [bytes]
 WORKER_MEMORY = 2 * 1024**3
 

@@ -26,6 +26,8 @@ from ..render.world import trees_for_run
 from ..backend import versions
 from .cluster import open_client, set_drjit_threads, worker_drjit_threads
 
+__all__ = ["TASK_PREFIX", "render_frame", "animate_on_dask", "run_animate"]
+
 #: task key prefix (groups the frames on the Dask dashboard)
 TASK_PREFIX = "mitsuba-veg-frame"
 

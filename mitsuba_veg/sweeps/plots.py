@@ -20,6 +20,8 @@ from .spec import SEED_FIELD, Sweep
 from .table import _cell
 
 
+__all__ = ["sweep_plots"]
+
 def _groups(df, fields):
     if not fields:
         return [("all runs", df)]

@@ -38,6 +38,9 @@ from .plots import sweep_plots
 from .spec import RunSpec, Sweep, load_sweep
 from .table import tidy, write_table
 
+__all__ = ["TASK_PREFIX", "expected_days", "finished", "RUN_LOCK_WAIT_S", "BUSY_RETRIES",
+           "run_task", "sweep"]
+
 #: task key prefix (groups the runs on the Dask dashboard)
 TASK_PREFIX = "mitsuba-veg-run"
 

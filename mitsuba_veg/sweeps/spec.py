@@ -42,12 +42,16 @@ from ..errors import ParameterError, unknown_field
 from ..inputs import input_hashes
 from ..scenario import load_scenario
 
+__all__ = ["SWEEP_KEYS", "TOP_KEYS", "RANGE_KEYS", "SEED_FIELD", "RunSpec", "Sweep", "toml_value",
+           "known_fields", "load_sweep"]
+
 #: keys of the [sweep] table
 SWEEP_KEYS = ("scenario", "days", "seeds", "set", "frames")
 #: top-level tables of a sweep file
 TOP_KEYS = ("sweep", "axes")
 #: keys of a range table: {start, stop, num} or {start, stop, step}
 RANGE_KEYS = {"start", "stop", "num", "step"}
+#: the scenario field a sweep's seeds set
 SEED_FIELD = "light.seed"
 
 

@@ -1,27 +1,27 @@
 """The tidy table of a sweep: one row per run and day, written as Parquet and CSV.
 
-Columns, in order:
+Columns, in order::
 
-``run``                     run folder name (``runs/<run>``)
-``index``                   position of the run in the sweep (axes product, then seeds)
-``status``                  ``done`` (run now), ``skipped`` (finished before), ``failed``
-``error``                   the error of a failed run (one line), else empty
-one column per swept field  its dotted name (``climate.temperature``, ``light.seed``); lists
-                            and tables as their TOML text
-``day``, ``date``           simulated day (1-based) and its date (a failed run: one row, empty)
-``moss_alive``              live moss at the end of the day
-``alive.<Species>``         live moss per species
-``propagules``              waiting gemmae and spores
-``covered_area_m2``         covered area [m2], and ``regions.<name>.covered_area_m2`` per region
-``mean_S_W_m2``, ``mean_Ts_K``, ``mean_rhs``, ``mean_theta``
-                            area-weighted daily means over the living surfaces (insolation
-                            [W m-2], soil surface temperature [K], relative humidity at the
-                            surface [-], soil water content [-])
-``events.<name>``           the day's life-cycle events (germinations, deaths, propagules ...)
-``seconds.<part>``          wall time of the day's light, soil, moss (and leaves) stages and
-                            of its record [s], their kernels included on the CPU (on a GPU the
-                            light's only: DayPipeline.run_day); not reproducible: leave them
-                            out when comparing runs
+    run                         run folder name (runs/<run>)
+    index                       position of the run in the sweep (axes product, then seeds)
+    status                      done (run now), skipped (finished before), failed
+    error                       the error of a failed run (one line), else empty
+    one column per swept field  its dotted name (climate.temperature, light.seed); lists
+                                and tables as their TOML text
+    day, date                   simulated day (1-based) and its date (a failed run: one row, empty)
+    moss_alive                  live moss at the end of the day
+    alive.<Species>             live moss per species
+    propagules                  waiting gemmae and spores
+    covered_area_m2             covered area [m2], and regions.<name>.covered_area_m2 per region
+    mean_S_W_m2, mean_Ts_K, mean_rhs, mean_theta
+                                area-weighted daily means over the living surfaces (insolation
+                                [W m-2], soil surface temperature [K], relative humidity at the
+                                surface [-], soil water content [-])
+    events.<name>               the day's life-cycle events (germinations, deaths, propagules ...)
+    seconds.<part>              wall time of the day's light, soil, moss (and leaves) stages and
+                                of its record [s], their kernels included on the CPU (on a GPU the
+                                light's only: DayPipeline.run_day); not reproducible: leave them
+                                out when comparing runs
 """
 from __future__ import annotations
 
@@ -29,6 +29,8 @@ from pathlib import Path
 
 from ..atomic import atomic_write
 from .spec import Sweep, toml_value
+
+__all__ = ["RUN_COLUMNS", "flatten_record", "tidy", "write_table", "comparable"]
 
 #: leading columns (before the swept fields)
 RUN_COLUMNS = ("run", "index", "status", "error")

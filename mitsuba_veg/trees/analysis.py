@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 
+__all__ = ["crown_points", "crown_shift", "outward_shift", "flatness", "main_axis_length", "lean"]
+
 def crown_points(tree) -> np.ndarray:
     """Crown points of a tree: its leaf-sphere centres, else its leaves, else its live segment ends.
 

@@ -13,6 +13,8 @@ from ..errors import ParameterError
 from . import weber_penn
 from .growth import GrowthParams
 
+__all__ = ["RENDER_TREE_FIELDS", "RENDER_TREE_MODELS", "check_render_tree", "check_render_trees"]
+
 #: fields of a ``[[render.trees]]`` entry
 RENDER_TREE_FIELDS = ("preset", "model", "seed", "position", "height", "autumn", "overrides",
                       "generations", "growth")

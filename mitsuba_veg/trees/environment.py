@@ -37,6 +37,8 @@ from ..meshes import triangle_geometry
 from .leaflight import obstacle_sky_light
 
 
+__all__ = ["Obstacle", "Environment"]
+
 @dataclass
 class Obstacle:
     """One obstacle mesh: vertices (n, 3) [m], faces (m, 3), reflected-light factor."""

@@ -10,6 +10,8 @@ import numpy as np
 
 from ..plots import _mpl
 
+__all__ = ["VIEWS", "draw", "picture"]
+
 #: view name -> (horizontal axis, vertical axis, axis labels)
 VIEWS = {
     "side": (0, 1, ("x [m]", "y (up) [m]")),

@@ -38,6 +38,9 @@ from .environment import Environment
 from .leaflight import LeafLight, Sky, leaf_sphere_light
 from .structure import Leaves, Tree
 
+__all__ = ["PAPER_SYMBOLS", "GrowthParams", "grow_forest", "base_positions", "grow", "TipLight",
+           "grow_step", "branching"]
+
 #: paper symbols of the parameters (table 3.1)
 PAPER_SYMBOLS = {
     "branch_angle": "θ", "main_length": "L_t", "lateral_length": "L_l", "phototropism": "H",

@@ -287,7 +287,7 @@ def sprouts(value, step=1.0):
 
     Returns
     -------
-    numpy.ndarray or numpy.bool_
+    numpy.ndarray or ``numpy.bool_``
         True where ``value - step <= 0`` (a NumPy scalar for a scalar ``value``).
     """
     return dormancy_after(value, step) <= 0.0

@@ -10,7 +10,7 @@ C2 x env (:mod:`mitsuba_veg.trees.environment`). Then, per band (light α_l, red
 far-red α_fr):
 
     received = Σ B(h,v) S(h,v) / Σ B0(h,v) S(h,v)                       (eq 2.3)
-    light vector = Σ N B S / |Σ N B S|   (with the light band α_l)       (eq 2.4)
+    light vector = Σ N B S / ``|Σ N B S|``   (with the light band α_l)       (eq 2.4)
 
 Counting the spheres a ray passes — three engines that make the same decisions:
 
@@ -43,6 +43,9 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 from mitsuba_veg.trees.voxel import dda_advance, dda_start
+
+__all__ = ["Sky", "LeafLight", "inside_counts", "sphere_grid", "leaf_sphere_light",
+           "obstacle_sky_light"]
 
 #: "no triangle" marker of the kernels
 _NONE = 0xFFFFFFFF

@@ -36,6 +36,9 @@ from .environment import Environment
 from .structure import Tree, segment_depth
 from .voxel import VoxelSpace, gradient_sampler
 
+__all__ = ["RULES", "DeformResult", "TIP_SHADING", "deform", "death_by_leaf_light"]
+
+#: the deformation rules of paper 002
 RULES = ("death", "heliotropism")
 
 

@@ -53,7 +53,9 @@ from .weber_penn import PRESETS
 GROWTH = "growth"
 #: names a mix may use: the Weber-Penn presets and the growth model
 SPECIES = tuple(PRESETS) + (GROWTH,)
+#: how a stand places its trees
 PLACEMENTS = ("poisson_disc", "clumped")
+#: cluster processes of the clumped placement
 CLUSTERS = ("thomas", "matern")
 #: points per s² [-] that Bridson's fill reaches: 0.621-0.626 on a 100 s x 100 s square (k = 30,
 #: 5 seeds), less on small or narrow plots (edges). Densities above 0.6/s² are refused before

@@ -30,6 +30,9 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError
 
+__all__ = ["POINT_ATTRS", "LEAF_SPHERE_ATTRS", "Leaves", "Tree", "scaled_tree", "DIRECTION_ATTRS",
+           "placed_tree", "segment_depth", "subtree_sum", "tube_mesh", "leaf_quads"]
+
 NORMAL, KNOT, SPROUTED_KNOT = 0, 1, 2
 #: attrs holding points [m] that move with the tree
 POINT_ATTRS = ("leaf_sphere_center",)

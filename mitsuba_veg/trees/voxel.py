@@ -23,6 +23,9 @@ import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
+__all__ = ["OPAQUE_TAU", "TAU_STOP", "sky_rays", "dda_start", "dda_advance", "VoxelSpace",
+           "gradient_sampler"]
+
 #: optical depth of an opaque (obstacle) voxel per voxel length
 OPAQUE_TAU = 1e3
 #: rays stop when their optical depth exceeds this (transmission < 1e-9)

@@ -39,7 +39,9 @@ __all__ = ["PRESETS", "WeberPennParams", "shape_ratio", "load_params", "generate
            "export", "preset_path", "SHAPES"]
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "data" / "weber_penn"
+#: the Weber-Penn species shipped in ``data/weber_penn``
 PRESETS = ("quaking_aspen", "black_tupelo", "weeping_willow", "ca_black_oak", "sassafras")
+#: Weber & Penn's crown shapes, by the index of the ``Shape`` parameter
 SHAPES = ("conical", "spherical", "hemispherical", "cylindrical", "tapered cylindrical", "flame",
           "inverse conical", "tend flame", "envelope")
 

@@ -334,6 +334,24 @@ class DiscreteMossModel:
 # ------------------------------------------------------------------------------------------
 @dataclass
 class DiscreteFitResult:
+    """The result of :func:`fit_discrete` (the discrete model fitted by defect correction).
+
+    Attributes
+    ----------
+    values : dict
+        Fitted values (the last iterate), by parameter name.
+    initial : dict
+        Starting values.
+    iterations : list
+        Per outer iteration: parameters, discrete loss, shift norm and more.
+    discrete_loss : float
+        Loss of the discrete mean at ``values``.
+    seconds : float
+        Wall time of the fit [s].
+    files : dict
+        Files written (name -> path).
+    """
+
     values: dict                  # fitted values (the last iterate)
     initial: dict
     iterations: list              # per outer iteration: params, discrete loss, shift norm ...

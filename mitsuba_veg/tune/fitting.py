@@ -1,5 +1,7 @@
 """``fit``: tune model parameters so that the relaxed moss run matches a target coverage map.
 
+Example::
+
     from mitsuba_veg import tune
     res = tune.fit("scenes/moss_garden/scenario.toml", target, params=["S1", "T1"], steps=60,
                    days=30, species=["bryum_argenteum"], out="out/tune")
@@ -45,6 +47,28 @@ __all__ = ["fit", "FitResult", "target_array", "parameter_scale", "parameter_bou
 
 @dataclass
 class FitResult:
+    """The result of :func:`fit` (the relaxed moss model fitted by Adam).
+
+    Attributes
+    ----------
+    values : dict
+        Fitted parameter values.
+    initial : dict
+        Starting values.
+    history : list
+        Per step: ``{"step", "loss", "params": {...}, "grad": {...}}``.
+    loss : float
+        Final loss (at ``values``).
+    files : dict
+        Files written (``fitted.json``, ``loss_curve.png``, ...).
+    seconds : float
+        Wall time of the fit [s].
+    model : SmoothMossModel or None
+        The model at the fitted values.
+    stats : dict
+        Timings and counts of the fit.
+    """
+
     values: dict                  # fitted parameter values
     initial: dict                 # starting values
     history: list                 # per step: {"step", "loss", "params": {...}, "grad": {...}}

@@ -38,6 +38,22 @@ __all__ = ["value_and_grad", "finite_difference", "GradResult", "loss_value"]
 
 @dataclass
 class GradResult:
+    """A loss and its gradient through many days (:func:`value_and_grad`).
+
+    Attributes
+    ----------
+    loss : float
+        The loss.
+    grad : dict
+        d loss / d value, by parameter name.
+    seconds : float
+        Wall time [s].
+    stats : dict
+        Timings and counts (checkpoints, days).
+    result : RunResult or None
+        The forward run.
+    """
+
     loss: float
     grad: dict                  # name -> d loss / d value
     seconds: float = 0.0

@@ -339,6 +339,34 @@ LUT_RANGES = {"N": (1.0, 3.0), "Cab": (0.0, 80.0), "Car": (0.0, 20.0), "Anth": (
 
 @dataclass
 class LeafColourFit:
+    """The result of :func:`fit_leaf_colour` (pigments fitted to a colour or a spectrum).
+
+    Attributes
+    ----------
+    values : dict
+        Fitted parameters.
+    initial : dict
+        Starting values of the fitted parameters.
+    fixed : dict
+        Values of the parameters that were not fitted.
+    history : list
+        Per step: ``{"step", "loss", "params", "grad"}``.
+    loss : float
+        Final loss.
+    target : LeafColourTarget
+        What was fitted.
+    colour : dict
+        :func:`predict_leaf_colour` of the fit (the start's under ``"start"``).
+    delta_e : float
+        ΔE*ab between the fit's and the target's colour [-].
+    files : dict
+        Files written.
+    seconds : float
+        Wall time [s].
+    stats : dict
+        Timings and counts.
+    """
+
     values: dict                 # fitted parameters
     initial: dict                # starting values of the fitted parameters
     fixed: dict                  # values of the parameters that were not fitted

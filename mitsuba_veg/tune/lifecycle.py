@@ -49,8 +49,8 @@ from . import relax
 __all__ = ["SpeciesState", "CohortLifeCycle", "relaxed_life_cycle", "discrete_life_cycle", "GEMMA_STEP", "SPORE_THRESHOLD",
            "species_fitness", "real_type"]
 
-GEMMA_STEP = 0.5          # G_moss per gemma (population.py)
-SPORE_THRESHOLD = 2.0     # G_moss from which growing moss release spores (population.py)
+GEMMA_STEP = 0.5          #: G_moss per gemma (population.py)
+SPORE_THRESHOLD = 2.0     #: G_moss from which growing moss release spores (population.py)
 
 
 def real_type(precision: str = "float32"):

@@ -205,6 +205,24 @@ class LightStudy:
 
 @dataclass
 class LightFitResult:
+    """The result of :func:`fit_light` (emitter strengths or reflectances fitted to a light map).
+
+    Attributes
+    ----------
+    values : dict
+        Fitted values, by parameter name.
+    initial : dict
+        Starting values.
+    history : list
+        Per step: loss, parameters and gradient.
+    loss : float
+        Final loss.
+    seconds : float
+        Wall time [s].
+    stats : dict
+        Timings and counts.
+    """
+
     values: dict
     initial: dict
     history: list

@@ -15,7 +15,7 @@ occlusion is handled by the ray cast; pixels that hit nothing or a shape without
 - ``mode="gray"``: the pixel value (0-1: 8-bit / 255, 16-bit / 65535) *is* the covered fraction
   (a classified moss map);
 - ``mode="colour"``: the pixel colour is unmixed between a bare-surface colour and a moss colour
-  (sRGB 0-1, as a colour picker gives them) in linear light: c = clip(<p - b, m - b> / |m - b|^2,
+  (sRGB 0-1, as a colour picker gives them) in linear light: c = clip(``<p - b, m - b> / |m - b|^2``,
   0, 1), with p, b, m linearised by the sRGB transfer curve.
 
 Triangles seen by fewer than ``min_pixels`` pixels are NaN (ignored by

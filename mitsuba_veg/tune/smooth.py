@@ -75,7 +75,7 @@ __all__ = ["ModelData", "LightSetup", "prepare", "with_daily_light", "SmoothMoss
 
 #: spatial closures of :class:`SmoothMossModel` (docs/tuning.md)
 CLOSURES = ("mean-field", "near-field")
-NEIGHBOUR_CELLS = 8       # neighbour cells of a moss on a surface (in-plane part of the 26)
+NEIGHBOUR_CELLS = 8       #: neighbour cells of a moss on a surface (in-plane part of the 26)
 #: climate parameters that can be tuned: name -> ClimateTable field (the value replaces the
 #: table's; a per-day series is shifted by the difference)
 CLIMATE_PARAMS = {"T": "temperature", "rh": "humidity"}
@@ -375,6 +375,24 @@ def prepare(scenario, days: int | None = None, overrides=(), species=None,
 # ------------------------------------------------------------------------------------------
 @dataclass
 class State:
+    """The relaxed moss model's state after a number of days.
+
+    Attributes
+    ----------
+    day : int
+        Days done (the next day to simulate).
+    O : drjit array
+        (n_el) bucket water [mm].
+    species : list
+        ``SpeciesState`` per species.
+    per_species : int
+        Arrays per species (``SpeciesState.FIELDS``).
+    pair : drjit array or None
+        (n_el) near-field closure: neighbour-pair density.
+    pair_moss : drjit array or None
+        (n_el) the pairs whose first cell holds moss.
+    """
+
     day: int          # days done (the next day to simulate)
     O: object         # (n_el) bucket water [mm]
     species: list     # SpeciesState per species
@@ -881,7 +899,7 @@ class SmoothMossModel:
         Near-field closure (``st.pair`` = w, per triangle the probability that a cell and a
         given one of its z neighbour cells are both occupied by an individual, moss or waiting
         propagule; occupancy rho per spot): losses of the day thin the occupants independently
-        (w *= s², s = surviving share); q = w / rho; a gemma settles in a free cell with
+        (``w *= s²``, s = surviving share); q = w / rho; a gemma settles in a free cell with
         probability 1 - q (its parent is next to it), a spore with 1 - rho; each newcomer adds
         its pairs, 2/z (1 + (z - 1) q_g) per gemma (the parent plus the other neighbours) and
         2 q10 per spore, q10 = (rho - w) / (1 - rho); a share theta (``near_overlap``) of a

@@ -49,6 +49,8 @@ from ..integrators.photon_irradiance import HIDDEN, SURFACE, registry_id
 from ..meshes import make_mesh
 from ..parallel import map_on_cores
 
+__all__ = ["LEAF_MESH", "Canopy"]
+
 #: bark reflectance: 0.07 at 360 nm rising to 0.30 at 830 nm (7 values 78 nm apart; grey-brown)
 _BARK = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
          "values": "0.07, 0.08, 0.11, 0.15, 0.20, 0.26, 0.30"}

@@ -33,6 +33,8 @@ from ..foliage.autumn import AutumnParams, leaf_factors, tau_raw
 from ..foliage.pigments import stage_from_tau
 
 
+__all__ = ["PhenologyParams", "Phenology"]
+
 @dataclass(frozen=True)
 class PhenologyParams:
     """Scenario ``[phenology]`` (days of year are 1-366)."""

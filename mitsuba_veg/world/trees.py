@@ -37,6 +37,12 @@ from ..trees.nongrowth import death_by_leaf_light, deform
 from ..trees.structure import Leaves, Tree, leaf_quads, placed_tree, scaled_tree, tube_mesh
 from .canopy import Canopy
 
+__all__ = ["MODELS", "TUBE_SIDES", "TWIG_SIDES", "WorldTree", "build_trees", "AGE_SHAPE",
+           "AGE_RATE", "age_curve", "ages", "age_tree", "adapts", "adapt_tree", "with_alive",
+           "obstacles", "regrow", "tree_state", "tree_from_state", "world_tree",
+           "STAND_WORLD_FIELDS", "build_stand", "scenario_trees", "scene_with_trees"]
+
+#: the kinds of a ``[[trees]]`` entry
 MODELS = ("growth", "weber_penn", "mesh")
 #: sides of the wood tubes of growth trees and of a stand's Weber-Penn trees
 TUBE_SIDES = 6
