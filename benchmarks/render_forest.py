@@ -50,6 +50,8 @@ def main(argv=None):
     ap.add_argument("--spp", type=int, default=None, help="default: the render command's")
     ap.add_argument("--out", default=None, help="write render_<camera>.png/.exr here")
     ap.add_argument("--json", help="write the figures here")
+    ap.add_argument("--record", help="suffix of the results file (default: the scenario's "
+                    "folder name: render_forest_forest_stand.json)")
     a = ap.parse_args(argv)
     t_start = time.perf_counter()
 
@@ -101,6 +103,19 @@ def main(argv=None):
         print(f"  wrote {w['files']['png']}")
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=1))
+    from _record import Recorder
+    rec = Recorder("render_forest_" + (a.record or Path(run.scenario.path).parent.name),
+                   notes=f"{run.dir.name} day {day} ({fr.date}): {len(trees)} trees, "
+                   f"{out['leaves']:,} leaves, {len(fr.moss):,} moss, {out['triangles']:,} "
+                   f"triangles; {a.camera} at {a.width}x{a.height}, {spp} spp")
+    rec.add("image_s_without_compile", out["image_s_without_compile"], "s",
+            "an image: scene build + render + denoise, without first-time kernel compilation "
+            "(target <= 180 s)")
+    rec.add("build_s", build_s, "s", "scene build (trees, leaves, moss, litter, Mitsuba load)")
+    rec.add("render_s", im["seconds"], "s", "render (path tracing and the film)")
+    rec.add("kernel_compile_s", compile_s, "s", "first-time kernel compilation")
+    rec.add("peak_rss_gb", out["peak_rss_gb"], "GB", "peak resident memory (machine: 24 GB)")
+    rec.write()
     return out
 
 

@@ -35,6 +35,8 @@ def main(argv=None):
     ap.add_argument("--no-litter", action="store_true", help="no fallen leaves on the floor")
     ap.add_argument("--png", help="write the render and the moss masks here (a PNG)")
     ap.add_argument("--json", help="write the figures here")
+    ap.add_argument("--record", help="suffix of the results file (default: the scenario's "
+                    "folder name: render_moss_cover_courtyard.json)")
     a = ap.parse_args(argv)
     if not (Path(a.run_dir) / "summary.json").is_file():
         raise SystemExit(f"{a.run_dir}: no run folder (make demo writes out/demo/world)")
@@ -87,6 +89,21 @@ def main(argv=None):
                                               masks.astype(np.uint8)], 0))
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=1))
+    from _record import Recorder
+    name = "render_moss_cover_" + (a.record or Path(run.scenario.path).parent.name)
+    rec = Recorder(name, notes=f"{run.dir.name}, day {day} ({fr.date}), {len(fr.moss):,d} moss, "
+                   f"top view {a.width}x{a.width} at {a.spp} spp"
+                   + (", litter off" if a.no_litter else ""))
+    rec.add("area_ratio_ndvi", c["area_ratio"], "ratio",
+            "drawn / simulated moss area on the ground, pixels with NDVI > 0.45 (target 0.8-1.25)")
+    rec.add("mad_mossy_ndvi", c["mad_mossy"], "cover",
+            "mean |drawn - simulated| cover over mossy triangles, NDVI (target <= 0.1)")
+    rec.add("area_ratio_geometric", c["geometric_area_ratio"], "ratio",
+            "drawn / simulated moss area, pixels whose ray meets moss first")
+    rec.add("mad_mossy_geometric", c["geometric_mad_mossy"], "cover",
+            "mean |drawn - simulated| cover over mossy triangles, geometric")
+    rec.add("simulated_m2", c["simulated_m2"], "m2", "simulated moss area on the compared ground")
+    rec.write()
     return out
 
 

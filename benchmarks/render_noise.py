@@ -112,6 +112,21 @@ def main(argv=None):
           f"{100 * flicker['seed_per_frame_raw']:.2f} % without")
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=1))
+    from _record import Recorder
+    rec = Recorder("render_noise", notes=f"the courtyard's midsummer {a.camera} (day {day}) at "
+                   f"480x270: the shipped render ({spp} spp, denoised) against {a.ref_spp} spp")
+    rec.add("error_denoised", out["error_denoised"], "ratio",
+            "RMS error / mean, shipped (denoised) against the reference (target <= 0.05)")
+    rec.add("error_raw", out["error_raw"], "ratio", "the same without the denoiser")
+    rec.add("time_ratio", out["time_ratio"], "ratio",
+            "shipped / reference wall time, command to command (target <= 0.125)")
+    rec.add("shipped_s", t_ship, "s", "the shipped render command")
+    rec.add("reference_s", t_ref, "s", f"the {a.ref_spp}-spp render command")
+    rec.add("flicker_one_seed", flicker["one_seed_denoised"], "ratio",
+            "mean |frame - frame| / mean of a static scene, animate's settings (one seed)")
+    rec.add("flicker_seed_per_frame", flicker["seed_per_frame_denoised"], "ratio",
+            "the same with a new seed per frame, denoised")
+    rec.write()
     return out
 
 
