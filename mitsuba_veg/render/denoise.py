@@ -118,8 +118,8 @@ def denoise(rgb, albedo=None, normal=None) -> np.ndarray:
 
 def timed_denoise(rs, images: dict, seed: int = 0) -> dict:
     """Add the denoised display image to a render's images: ``display`` (h, w, 3) linear sRGB,
-    ``seconds_denoise`` [s], and with the scene's auxiliary camera (``RenderOptions.
-    denoise_guides``) the guided result and ``seconds_aux`` [s].
+    ``seconds_denoise`` [s], and with the scene's auxiliary camera
+    (``RenderOptions.denoise_guides``) the guided result and ``seconds_aux`` [s].
 
     Parameters
     ----------
