@@ -64,6 +64,12 @@ def _spectra() -> dict:
         "concrete": 0.24 + 0.11 * _logistic(wl, 520.0, 90.0),
         "gravel": 0.13 + 0.03 * _logistic(wl, 560.0, 80.0),
         "bark": _soil(0.045, 0.30, knee=700, width=70),
+        # the weathered tops of the bark's ridges (the furrows between them are ``bark``)
+        "bark_light": _soil(0.085, 0.28, knee=730, width=90),
+        # leaf litter: a freshly fallen, dry brown leaf (no chlorophyll: no red edge, a high
+        # near-infrared plateau), and the same leaf decomposing, wet and dark, towards humus
+        "litter": _soil(0.04, 0.40, knee=660, width=55),
+        "litter_dark": _soil(0.028, 0.13, knee=620, width=90),
         # moss: established (dark) and young/tip (light) tones per species
         "bryum_argenteum": _vegetation(0.045, 0.15, 0.065, 0.46, yellow=0.02, green_width=30.0),
         "bryum_argenteum_light": _vegetation(0.09, 0.27, 0.12, 0.55, yellow=0.02,
