@@ -1,15 +1,19 @@
 """Trees and leaves for the render.
 
 - **bark**: for Weber-Penn trees the smooth mesh with junctions (:func:`mitsuba_veg.trees.junction.
-  tree_mesh`, paper 004), for the other trees (growth model) the tube mesh of
-  :meth:`mitsuba_veg.trees.Tree.to_mesh`; all trees merged into one two-sided spectral ``bark``
-  mesh.
-- **leaves**: one blade per leaf (an oval for Weber-Penn trees, else a quad), binned
-  by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
+  tree_mesh`, paper 004) with its knots drawn as rounded swellings (``round_knots``), for the
+  other trees (growth model, paper 001) smooth swept tubes through the branches' joints
+  (:func:`mitsuba_veg.render.bark.swept_tubes`); all trees merged into one ``bark`` mesh with
+  UVs and vertex normals, its textured, bump-mapped bark BSDF (:func:`mitsuba_veg.render.bark.
+  bark_bsdf`).
+- **leaves**: one folded, cupped blade of the tree's leaf outline per leaf
+  (:mod:`mitsuba_veg.render.leaves`: 14-16 triangles, the area of the light pass's blade),
+  binned by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
   ``leaf_bins`` meshes, each with the leaf BSDF of its bin's tau
   (:func:`mitsuba_veg.render.materials.leaf_bsdf`: PROSPECT-D spectra in the two-sided
-  ``veg_leaf`` BSDF). Leaves with ``fallen`` set are
-  not drawn; an optional ``leaf_scale`` attr (0..1) shrinks leaves (spring leaf-out).
+  ``veg_leaf`` BSDF). Leaves with ``fallen`` set are not drawn on the tree (the litter draws
+  them, :mod:`mitsuba_veg.render.litter`); an optional ``leaf_scale`` attr (0..1) shrinks
+  leaves about their centre (spring leaf-out).
 
 :func:`scenario_trees` builds the trees a scenario asks for in ``[[render.trees]]``::
 
@@ -34,29 +38,40 @@ from ..meshes import make_mesh
 from ..trees import weber_penn
 from ..trees.entries import check_render_tree
 from ..trees.growth import GrowthParams, grow
-from ..trees.junction import leaf_mesh, tree_mesh
-from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh  # noqa: F401
+from ..trees.junction import tree_mesh
+from ..trees.structure import Leaves, Tree, scaled_tree
 from . import materials as mat
+from .bark import bark_bsdf, swept_tubes
+from .leaves import blade_mesh, leaf_shape_of
 
 
 # ---- meshes -------------------------------------------------------------------------------------
-def _bark_and_leaf_geometry(tree, smooth=True):
-    """(bark (v, f), leaves (v, f, leaf index per face))."""
-    bark = leaves = None
+def _smooth_normals(v, f):
+    """Area-weighted vertex normals, shared by vertices at the same position (a tube's seam)."""
+    p = v[f]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    key, inv = np.unique(np.round(v / 1e-6).astype(np.int64), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    acc = np.zeros((len(key), 3))
+    for j in range(3):
+        np.add.at(acc, inv[f[:, j]], fn)
+    n = acc[inv]
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+
+
+def _bark_and_leaf_geometry(tree):
+    """(bark (v, f, uv, normals), leaves (v, f, k vertices per leaf) or None)."""
     if getattr(tree, "weber_penn", None) is not None:
-        b, _ = tree_mesh(tree, smooth=smooth, leaves=False)
-        bark = (np.asarray(b.vertices), np.asarray(b.faces))
-        if len(tree.leaves):
-            lm = leaf_mesh(tree)
-            leaves = (np.asarray(lm.vertices), np.asarray(lm.faces),
-                      np.asarray(lm.metadata["leaf"]))
-    if bark is None:
-        a = tree.alive
-        v, f = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], 6)
-        bark = (v, f)
-    if leaves is None and len(tree.leaves):
-        v, f = leaf_quads(tree.leaves)
-        leaves = (v, f, np.repeat(np.arange(len(tree.leaves)), 2))
+        b, _ = tree_mesh(tree, smooth=True, leaves=False, round_knots=True)
+        v, f = np.asarray(b.vertices), np.asarray(b.faces, np.int64)
+        bark = (v, f, np.asarray(b.visual.uv), _smooth_normals(v, f))
+    else:
+        bark = swept_tubes(tree)
+    leaves = None
+    if len(tree.leaves):
+        lv = tree.leaves
+        v, f = blade_mesh(lv.position, lv.normal, lv.up, lv.size, leaf_shape_of(tree))
+        leaves = (v, f, len(v) // len(lv))
     return bark, leaves
 
 
@@ -74,13 +89,16 @@ def tree_geometry(trees, cache=None):
     Returns
     -------
     bark : tuple of numpy.ndarray or None
-        ``(vertices (v, 3) [m], faces (f, 3))`` of all trees, None without trees.
+        ``(vertices (v, 3) [m], faces (f, 3), uv (v, 2), normals (v, 3))`` of all trees, None
+        without trees.
     leaves : dict or None
-        ``v`` vertices [m], ``f`` faces, ``leaf`` leaf index per face, and per leaf ``tau``
-        (autumn logical time [-], 0 when absent), ``keep`` (not fallen), ``scale`` (leaf-out size
-        factor [-], 1 when absent) and ``centre`` (position [m]); None without leaves.
+        ``v`` vertices [m] (float32), ``f`` faces, ``vleaf`` leaf index per vertex (int32; a
+        leaf's vertices and faces are consecutive), ``fleaf`` leaf index per face, and per leaf
+        ``tau`` (autumn logical time [-], 0 when absent), ``keep`` (not fallen), ``scale``
+        (leaf-out size factor [-], 1 when absent) and ``centre`` (position [m]); None without
+        leaves.
     """
-    bv, bf, lv, lf, lleaf, ltau, lkeep, lscale, lcentre = [], [], [], [], [], [], [], [], []
+    bark_parts, lv, lf, vleaf, fleaf, ltau, lkeep, lscale, lcentre = ([] for _ in range(9))
     nb = nl = nleaf = 0
     for t in trees:
         key = id(t)
@@ -92,25 +110,28 @@ def tree_geometry(trees, cache=None):
                 # the tree itself is kept in the entry: while the cache lives, its id cannot be
                 # reused by another object
                 cache[key] = (t, bark, leaves)
-        bv.append(bark[0])
-        bf.append(bark[1] + nb)
+        bark_parts.append((bark[0], bark[1] + nb, bark[2], bark[3]))
         nb += len(bark[0])
         if leaves is not None:
             m = len(t.leaves)
             attrs = t.leaves.attrs
-            lv.append(leaves[0])
-            lf.append(leaves[1] + nl)
-            lleaf.append(leaves[2] + nleaf)
+            v, f, k = leaves
+            lv.append(v)
+            lf.append(f + np.uint32(nl))
+            vleaf.append((np.arange(m, dtype=np.int32) + nleaf).repeat(k))
+            fleaf.append((np.arange(m, dtype=np.int32) + nleaf).repeat(len(f) // m))
             ltau.append(np.asarray(attrs.get("autumn_tau", np.zeros(m)), float))
             lkeep.append(~np.asarray(attrs.get("fallen", np.zeros(m, bool)), bool))
             lscale.append(np.asarray(attrs.get("leaf_scale", np.ones(m)), float))
             lcentre.append(np.asarray(t.leaves.position, float))
-            nl += len(leaves[0])
+            nl += len(v)
             nleaf += m
-    bark = (np.concatenate(bv), np.concatenate(bf)) if bv else None
+    bark = tuple(np.concatenate([p[j] for p in bark_parts]) for j in range(4)) \
+        if bark_parts else None
     if not lv:
         return bark, None
-    return bark, {"v": np.concatenate(lv), "f": np.concatenate(lf), "leaf": np.concatenate(lleaf),
+    return bark, {"v": np.concatenate(lv), "f": np.concatenate(lf),
+                  "vleaf": np.concatenate(vleaf), "fleaf": np.concatenate(fleaf),
                   "tau": np.concatenate(ltau), "keep": np.concatenate(lkeep),
                   "scale": np.concatenate(lscale), "centre": np.concatenate(lcentre)}
 
@@ -147,31 +168,32 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
     if lv is None:
         return out
     keep_leaf = lv["keep"] & (lv["scale"] > 1e-3)
-    bins = np.minimum((np.clip(lv["tau"], 0, 1) * K).astype(np.int64), K - 1)
-    face_leaf = lv["leaf"]
-    verts = lv["v"]
-    if np.any(lv["scale"] != 1.0):   # per-leaf scale about its centre (leaf-out)
-        vleaf = np.zeros(len(verts), np.int64)
-        vleaf[lv["f"].ravel()] = np.repeat(face_leaf, 3)
-        s = lv["scale"][vleaf][:, None]
-        c = lv["centre"][vleaf]
+    bins = np.where(keep_leaf, np.minimum((np.clip(lv["tau"], 0, 1) * K).astype(np.int64),
+                                          K - 1), -1)
+    verts, vleaf = lv["v"], lv["vleaf"]
+    if np.any(lv["scale"][keep_leaf] != 1.0):   # per-leaf scale about its centre (leaf-out)
+        s = lv["scale"].astype(np.float32)[vleaf][:, None]
+        c = lv["centre"].astype(np.float32)[vleaf]
         verts = c + s * (verts - c)
-    fb = np.where(keep_leaf[face_leaf], bins[face_leaf], -1)
+    vb = bins[vleaf]
+    fb = bins[lv["fleaf"]]
     for b in range(K):
-        fsel = fb == b
-        if not fsel.any():
+        vsel = vb == b
+        if not vsel.any():
             continue
-        f = lv["f"][fsel]
-        used, inv = np.unique(f.ravel(), return_inverse=True)
-        out[f"leaves_{b:02d}"] = (verts[used].astype(np.float32),
-                                  inv.reshape(-1, 3).astype(np.uint32))
+        # a leaf's vertices are its own: the faces of the bin, renumbered by a running count
+        new = np.cumsum(vsel, dtype=np.int64) - 1
+        f = new[lv["f"][fb == b]]
+        out[f"leaves_{b:02d}"] = (np.ascontiguousarray(verts[vsel], np.float32),
+                                  f.astype(np.uint32))
     return out
 
 
 def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts.
 
-    The bark is one two-sided diffuse ``bark`` mesh; leaf bin k of K gets the leaf BSDF of
+    The bark is one mesh with the textured, bump-mapped bark BSDF
+    (:func:`mitsuba_veg.render.bark.bark_bsdf`); leaf bin k of K gets the leaf BSDF of
     tau = (k + 0.5) / K (:func:`mitsuba_veg.render.materials.leaf_bsdf`).
 
     Parameters
@@ -194,8 +216,8 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     out = {}
     info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
     if bark is not None and len(bark[1]):
-        out["bark"] = make_mesh("bark", bark[0], bark[1],
-                                {"type": "twosided", "bsdf": mat.diffuse("bark")})
+        out["bark"] = make_mesh("bark", bark[0], bark[1], bark_bsdf(), uv=bark[2],
+                                normals=bark[3])
         info["tree_triangles"] += len(bark[1])
     if lv is None:
         return out, info

@@ -320,7 +320,8 @@ def _tube_faces(oA, oB, S):
 def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_sides: int = 8,
               D_u=None, stretch=None, compress=None, gain=None, knot_gain=None,
               leaves: bool = True,
-              leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True):
+              leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True,
+              round_knots: bool = False):
     """``(bark, leaves)`` trimesh meshes of ``tree``.
 
     The bark carries UVs (u around the stem, v along it in units of the stem's base
@@ -360,6 +361,12 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
         Lower bound on the drawn radii [m] (default 0).
     caps : bool, optional
         Close branch tips and roots with triangle fans (default True).
+    round_knots : bool, optional
+        Draw knots (kind ``KNOT``, paper 004 §3.3) as swellings of the bark: the rings of a knot's
+        stem follow the half-ellipse r(s) = R sqrt(1 − (s / L)²) of its first radius R and its
+        length L (s: distance from the knot's base) instead of the segments' linear taper (a cone with
+        a pointed tip); the knot keeps its length, base radius and junction. Default False (the
+        light scene's mesh, unchanged).
 
     Returns
     -------
@@ -404,6 +411,16 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     Sg = _sides_of(tree, sides, knot_sides)
     r0 = np.maximum(tree.radius_start, min_radius)
     r1 = np.maximum(tree.radius_end, min_radius)
+    if round_knots:          # a knot's stem as a half-ellipse of its base radius and length
+        kn = tree.kind == 1                                 # KNOT (structure.KNOT)
+        L_k = np.maximum(st["stem_length"], 1e-30)
+        heads = ~st["cont"]                                 # R: the knot stem's first radius
+        base = np.zeros(int(st["stem"].max()) + 1 if n else 0)
+        base[st["stem"][heads]] = tree.radius_start[heads]
+        R_k = base[st["stem"]]
+        prof = lambda s: R_k * np.sqrt(np.clip(1.0 - (s / L_k) ** 2, 0.0, 1.0))  # noqa: E731
+        r0 = np.where(kn, np.maximum(prof(st["arc"]), min_radius), r0)
+        r1 = np.where(kn, np.maximum(prof(st["arc"] + st["length"]), min_radius), r1)
     lobes = np.asarray(tree.attrs.get("lobes", np.zeros(n)), float)
     depth = np.asarray(tree.attrs.get("lobe_depth", np.zeros(n)), float)
     circ = 2 * np.pi * np.maximum(st["stem_radius"], 1e-6)
