@@ -57,10 +57,15 @@ def test_phenology_keeps_the_day_each_leaf_fell_through_the_next_leaf_out():
     assert np.all(np.asarray(q.fall_day) == -1)
 
 
-def test_first_leaf_out_sheds_nothing():
-    ph = Phenology(3, PhenologyParams(leaf_out_doy=100), leaf_out_shift=np.array([-4.0, 0, 0]))
-    for k in range(8):                      # leaves unfolding a few days early
-        ph.start_of_day(dt.date(2026, 4, 5) + dt.timedelta(days=k))
+def test_leaves_unfolding_early_are_not_shed_at_leaf_out():
+    """New leaves that unfold a few days before the leaf-out day (their clock runs until it)
+    are not last year's hanging leaves."""
+    ph = Phenology(3, PhenologyParams(leaf_out_doy=100), leaf_out_shift=np.array([-4.0, -2, 0]))
+    for k in range(12):                     # leaves unfolding a few days early
+        d = dt.date(2026, 4, 1) + dt.timedelta(days=k)
+        ph.start_of_day(d)
+        ph.end_of_day(d, np.full(3, 5.0))
+    assert np.asarray(ph.grown).min() > 0 and np.asarray(ph.t).max() == 0   # reset on doy 100
     assert np.all(np.asarray(ph.fall_day) == -1)
 
 

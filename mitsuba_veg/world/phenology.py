@@ -154,9 +154,10 @@ class Phenology:
         d = opaque(mi.Float64, float(doy))
         x = dr.clip((d - (p.leaf_out_doy + self.shift)) / float(p.leaf_out_days), 0.0, 1.0)
         if doy == p.leaf_out_doy:
-            # last year's leaves still hanging (out through an autumn, not fallen) are shed
-            # today (the litter's record only)
-            hanging = (self.grown > 0) & (self.t > 0) & ~self.fallen
+            # last year's leaves still hanging are shed today (the litter's record only): out
+            # and not fallen, on the tree through more of the autumn clock's days than a new
+            # leaf unfolding early this spring (at most -shift days) can have been
+            hanging = (self.grown > 0) & (self.t > 1.0 - self.shift) & ~self.fallen
             self.fall_day = dr.select(hanging, opaque(mi.Float64, float(date.toordinal())),
                                       self.fall_day)
             self.H = dr.zeros(mi.Float64, self.n)
