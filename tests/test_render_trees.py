@@ -209,9 +209,11 @@ def test_bark_bsdf_loads_and_blends_the_two_bark_spectra():
 
 
 def test_knots_are_drawn_as_swellings_and_the_light_mesh_is_unchanged():
-    from mitsuba_veg.trees import weber_penn as wp
+    from mitsuba_veg.render.trees import make_tree
     from mitsuba_veg.trees.junction import stem_structure, tree_mesh
-    t = wp.generate("quaking_aspen", seed=3, knots=True)
+    # scaled to 5 m (the drawn geometry, not the generator's attrs, sets the knot's length)
+    t = make_tree({"preset": "quaking_aspen", "seed": 3, "height": 5.0})
+    assert t.weber_penn.knots
     before = {k: np.array(getattr(t, k)) for k in ("start", "end", "radius_start",
                                                     "radius_end")}
     plain, _ = tree_mesh(t, leaves=False)
@@ -223,8 +225,9 @@ def test_knots_are_drawn_as_swellings_and_the_light_mesh_is_unchanged():
     st = stem_structure(t)
     knot = np.nonzero((t.kind == 1) & ~st["cont"] & (st["nxt"] >= 0))[0][0]
     # the knot stem's segments: the drawn radius at each segment's end follows the ellipse
-    j, seen = knot, 0
-    R, Lk = t.radius_start[knot], st["stem_length"][knot]
+    j, seen, s = knot, 0, 0.0
+    R = t.radius_start[knot]
+    Lk = st["length"][st["stem"] == st["stem"][knot]].sum()
     vr = rnd.metadata["vertex_ring"]
     rs = rnd.metadata["ring_segment"]
     top = rnd.metadata["top_ring"]
@@ -232,7 +235,7 @@ def test_knots_are_drawn_as_swellings_and_the_light_mesh_is_unchanged():
         ring = np.nonzero(vr == top[j])[0]
         assert rs[top[j]] == j
         r = np.linalg.norm(rnd.vertices[ring] - t.end[j], axis=1).mean()
-        s = st["arc"][j] + st["length"][j]
+        s += st["length"][j]
         assert r == pytest.approx(R * np.sqrt(1 - (s / Lk) ** 2), rel=1e-3)
         assert r >= t.radius_end[j] - 1e-12                      # fuller than the cone
         j, seen = st["nxt"][j], seen + 1

@@ -2,7 +2,8 @@
 
 **Swept tubes** (:func:`swept_tubes`, trees without paper 004's junction mesh: paper 001's growth
 model, paper 002's and the simple trees). The segments of one branch (a segment and the child
-that continues it, :func:`mitsuba_veg.trees.junction.stem_structure`) are chained into one
+that continues it, :func:`mitsuba_veg.trees.junction.stem_structure`; where a stem ends, its
+thickest live child of at least 0.6 of its radius) are chained into one
 centreline through their joints (a branch's first point moved back into its parent's tube by
 the parent's radius); the radius at a joint is the mean of the two segments' radii
 there (continuous). Two rounds of corner cutting (Chaikin, a quarter of each edge) round every
@@ -53,6 +54,19 @@ def _chains(tree):
     alive = tree.alive
     par = tree.parent
     cont = st["cont"] & alive
+    # a segment whose own stem ends there (its apex stopped) is continued by its thickest live
+    # child when that child is at least 0.6 of its radius (a sympodial axis: no tip and collar)
+    has = np.zeros(n, bool)
+    has[par[cont]] = True
+    cand = np.nonzero(alive & (par >= 0) & ~cont)[0]
+    cand = cand[alive[par[cand]] & ~has[par[cand]]
+                & (tree.radius_start[cand] >= 0.6 * tree.radius_end[par[cand]])]
+    if len(cand):
+        order = cand[np.lexsort((tree.radius_start[cand], par[cand]))]   # thickest last
+        best = np.full(n, -1)
+        best[par[order]] = order
+        cont = cont.copy()
+        cont[best[best >= 0]] = True
     head = np.where(cont, par, np.arange(n))
     pos = cont.astype(np.int64)
     # pointer jumping: log2(chain length) rounds over all segments at once

@@ -413,14 +413,23 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     r1 = np.maximum(tree.radius_end, min_radius)
     if round_knots:          # a knot's stem as a half-ellipse of its base radius and length
         kn = tree.kind == 1                                 # KNOT (structure.KNOT)
-        L_k = np.maximum(st["stem_length"], 1e-30)
         heads = ~st["cont"]                                 # R: the knot stem's first radius
-        base = np.zeros(int(st["stem"].max()) + 1 if n else 0)
+        m = int(st["stem"].max()) + 1 if n else 0
+        base, L_k = np.zeros(m), np.zeros(m)
         base[st["stem"][heads]] = tree.radius_start[heads]
-        R_k = base[st["stem"]]
+        np.add.at(L_k, st["stem"], st["length"])            # lengths of the drawn geometry
+        R_k, L_k = base[st["stem"]], np.maximum(L_k[st["stem"]], 1e-30)
+        # distance from the stem's base along the segments (the attrs' arc may be of the
+        # tree before a scaling)
+        arc = np.zeros(n)
+        for _ in range(int(kn.sum()) + 1):
+            new = np.where(st["cont"] & kn, arc[pp] + st["length"][pp], 0.0)
+            if np.array_equal(new, arc):
+                break
+            arc = new
         prof = lambda s: R_k * np.sqrt(np.clip(1.0 - (s / L_k) ** 2, 0.0, 1.0))  # noqa: E731
-        r0 = np.where(kn, np.maximum(prof(st["arc"]), min_radius), r0)
-        r1 = np.where(kn, np.maximum(prof(st["arc"] + st["length"]), min_radius), r1)
+        r0 = np.where(kn, np.maximum(prof(arc), min_radius), r0)
+        r1 = np.where(kn, np.maximum(prof(arc + st["length"]), min_radius), r1)
     lobes = np.asarray(tree.attrs.get("lobes", np.zeros(n)), float)
     depth = np.asarray(tree.attrs.get("lobe_depth", np.zeros(n)), float)
     circ = 2 * np.pi * np.maximum(st["stem_radius"], 1e-6)
