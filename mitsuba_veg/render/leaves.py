@@ -38,6 +38,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import ParameterError
+from ..foliage.ifs import MAPLE_IFS, chaos_game, fixed_point
 
 #: one-sided blade area per size² [-]: the light pass's quad (length x 0.6 length)
 LEAF_AREA = 0.6
@@ -76,8 +77,6 @@ def _maple():
     """Paper 003's IFS maple: the attractor's outline seen from the petiole (fixed point of w1),
     simplified (Douglas-Peucker) to its lobe tips and sinuses; x across, y along, the petiole at
     (0, 0) and the top lobe's tip at (0, 1)."""
-    from ..foliage.ifs import MAPLE_IFS, chaos_game, fixed_point
-
     pts, _ = chaos_game(120_000, seed=0)
     pet = fixed_point(MAPLE_IFS[0])                 # the petiole (0.5, 0.3)
     tip = fixed_point(MAPLE_IFS[1])                 # the top lobe's tip (0.5, 0.93)

@@ -18,7 +18,7 @@ world's trees are rebuilt at a year's end when they grow or age) come as
 - y: where a ray cast straight down from above the scene meets the terrain (the scenario's own
   meshes: the ground, logs, rocks, roofs; the Terrain's base scene), 3 mm above it; a leaf whose
   ray misses (off the terrain) is not drawn;
-- lying flat on the surface, its normal within 25° of the surface's, turned at random about it,
+- lying flat on the surface, its normal within 15° of the surface's, turned at random about it,
   curled (:func:`mitsuba_veg.render.leaves.leaf_template` ``curl`` :data:`CURL`), in its tree's
   outline and size (the same area as on the tree).
 
@@ -66,11 +66,11 @@ LIFE_DAYS = (270.0, 330.0)
 #: days over which a leaf shrinks to nothing before its lifetime ends
 SHRINK_DAYS = 60.0
 #: extra curl of a leaf on the ground (:func:`mitsuba_veg.render.leaves.leaf_template`)
-CURL = 0.35
+CURL = 0.2
 #: height above the surface of a leaf's centre [m]
 LIFT = 0.003
 #: largest tilt of a leaf from the surface it lies on [rad]
-TILT = np.radians(25.0)
+TILT = np.radians(15.0)
 
 _EMPTY_V = np.full((3, 3), -1e4, np.float32)
 _EMPTY_F = np.array([[0, 1, 2]], np.uint32)

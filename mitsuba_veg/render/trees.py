@@ -46,16 +46,18 @@ from .leaves import blade_mesh, leaf_shape_of
 
 
 # ---- meshes -------------------------------------------------------------------------------------
-def _smooth_normals(v, f):
-    """Area-weighted vertex normals, shared by vertices at the same position (a tube's seam)."""
+def _smooth_normals(v, f, vring):
+    """Area-weighted vertex normals; a ring's seam vertex (its last, a copy of its first) shares
+    the first's normal (``vring``: the ring of each vertex, -1 for a cap's apex)."""
     p = v[f]
     fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    key, inv = np.unique(np.round(v / 1e-6).astype(np.int64), axis=0, return_inverse=True)
-    inv = inv.ravel()
-    acc = np.zeros((len(key), 3))
-    for j in range(3):
-        np.add.at(acc, inv[f[:, j]], fn)
-    n = acc[inv]
+    n = np.stack([sum(np.bincount(f[:, j], fn[:, k], len(v)) for j in range(3))
+                  for k in range(3)], 1)
+    vring = np.asarray(vring)
+    first = np.nonzero((vring >= 0) & (np.r_[-2, vring[:-1]] != vring))[0]
+    last = np.nonzero((vring >= 0) & (np.r_[vring[1:], -2] != vring))[0]
+    both = n[first] + n[last]
+    n[first], n[last] = both, both
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
 
 
@@ -64,7 +66,7 @@ def _bark_and_leaf_geometry(tree):
     if getattr(tree, "weber_penn", None) is not None:
         b, _ = tree_mesh(tree, smooth=True, leaves=False, round_knots=True)
         v, f = np.asarray(b.vertices), np.asarray(b.faces, np.int64)
-        bark = (v, f, np.asarray(b.visual.uv), _smooth_normals(v, f))
+        bark = (v, f, np.asarray(b.visual.uv), _smooth_normals(v, f, b.metadata["vertex_ring"]))
     else:
         bark = swept_tubes(tree)
     leaves = None
@@ -162,8 +164,11 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
         ``{"leaves_KK": (vertices (v, 3) float32 [m], faces (f, 3) uint32)}`` for all
         ``options.leaf_bins`` bins.
     """
-    _, lv = tree_geometry(trees, cache)
-    K = int(options.leaf_bins)
+    return _bin_leaves(tree_geometry(trees, cache)[1], int(options.leaf_bins))
+
+
+def _bin_leaves(lv, K: int) -> dict:
+    """:func:`leaf_bin_arrays` of the leaves of :func:`tree_geometry`."""
     out = {f"leaves_{b:02d}": (_EMPTY_V, _EMPTY_F) for b in range(K)}
     if lv is None:
         return out
@@ -182,7 +187,7 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
         if not vsel.any():
             continue
         # a leaf's vertices are its own: the faces of the bin, renumbered by a running count
-        new = np.cumsum(vsel, dtype=np.int64) - 1
+        new = np.cumsum(vsel, dtype=np.int32) - 1
         f = new[lv["f"][fb == b]]
         out[f"leaves_{b:02d}"] = (np.ascontiguousarray(verts[vsel], np.float32),
                                   f.astype(np.uint32))
@@ -223,7 +228,7 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
         return out, info
     info["leaves"] = int((lv["keep"] & (lv["scale"] > 1e-3)).sum())
     K = int(options.leaf_bins)
-    for sid, (v, f) in leaf_bin_arrays(trees, options, cache).items():
+    for sid, (v, f) in _bin_leaves(lv, K).items():
         b = int(sid.split("_")[1])
         out[sid] = make_mesh(sid, v, f, mat.leaf_bsdf((b + 0.5) / K if K > 1 else 0.0))
         if f is not _EMPTY_F:

@@ -8,6 +8,8 @@ import numpy as np
 
 from ..world.trees import scenario_trees as world_scenario_trees
 from ..world.trees import age_tree, ages, tree_from_state, with_alive
+from .leaves import leaf_shape_of
+from .litter import LIFE_DAYS, LitterLeaves
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
@@ -91,9 +93,6 @@ class WorldLeaves:
             ``{tree index: LitterLeaves}`` (empty without an earlier version, when it began more
             than a litter lifetime before ``date``, or without its leaf state).
         """
-        from .litter import LIFE_DAYS, LitterLeaves
-        from .leaves import leaf_shape_of
-
         if self.first_day <= 1:
             return {}
         start = self.run.date(self.first_day)
@@ -168,8 +167,14 @@ def world_trees(run, day: int | None = None):
     """
     if not (run.scenario.get("trees") or run.scenario.get("stand")):
         return [], []
-    base = run.scenario.load_scene(daylight=False)
-    built = world_scenario_trees(run.scenario, base)
+    # the trees the run started with, built once per loaded run (the litter of a tree's
+    # earlier version asks for them again); the list is copied, its trees are replaced, not
+    # changed
+    built = getattr(run, "_initial_trees", None)
+    if built is None:
+        built = world_scenario_trees(run.scenario, run.scenario.load_scene(daylight=False))
+        run._initial_trees = built
+    built = list(built)
     day = run.final_day if day is None else int(day)
     versions = [p for first, p in grown_trees(run) if first <= day]
     if versions:
