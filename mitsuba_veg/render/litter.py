@@ -307,30 +307,31 @@ def litter_arrays(trees, terrain, options=None, cache=None) -> dict:
             if not len(sel):
                 continue
             b = np.minimum((stage(age[sel]) * BINS).astype(np.int64), BINS - 1)
-            v, fc = blade_mesh(pl["pos"][sel], pl["normal"][sel], pl["up"][sel],
-                               size[sel] * f[sel], shape, curl=CURL,
-                               variant=(sel * 2654435761 >> 7) % 4)
-            k, nt = len(v) // len(sel), len(fc) // len(sel)
-            F0 = fc[:nt].astype(np.int64)                  # the first leaf's: local indices
             count += len(sel)
             for bb in np.unique(b):
-                ls = np.nonzero(b == bb)[0]
-                vi = (ls[:, None] * k + np.arange(k)[None]).ravel()
-                ff = (F0[None] + (np.arange(len(ls)) * k)[:, None, None]).reshape(-1, 3)
-                parts[int(bb)].append((v[vi], ff))
+                ls = sel[b == bb]
+                v, fc = blade_mesh(pl["pos"][ls], pl["normal"][ls], pl["up"][ls],
+                                   size[ls] * f[ls], shape, curl=CURL,
+                                   variant=(ls * 2654435761 >> 7) % 4)
+                parts[int(bb)].append((v, fc))
     out = {}
     for b in range(BINS):
         sid = f"litter_{b:02d}"
         if not parts[b]:
             out[sid] = (_EMPTY_V, _EMPTY_F)
             continue
-        vs, fs, n = [], [], 0
+        # one copy into the bin's arrays (the faces renumbered by the vertices before)
+        verts = np.empty((sum(len(v) for v, _ in parts[b]), 3), np.float32)
+        faces = np.empty((sum(len(f) for _, f in parts[b]), 3), np.uint32)
+        o = of = 0
         for v, f in parts[b]:
-            vs.append(v)
-            fs.append(f + n)
-            n += len(v)
-        out[sid] = (np.ascontiguousarray(np.concatenate(vs), np.float32),
-                    np.concatenate(fs).astype(np.uint32))
+            verts[o:o + len(v)] = v
+            faces[of:of + len(f)] = f
+            faces[of:of + len(f)] += np.uint32(o)
+            o += len(v)
+            of += len(f)
+        parts[b] = None
+        out[sid] = (verts, faces)
     out["count"] = count
     return out
 

@@ -77,6 +77,28 @@ def _bark_and_leaf_geometry(tree):
     return bark, leaves
 
 
+def _geometry(t, cache):
+    """(bark, leaves) of one tree (:func:`_bark_and_leaf_geometry`), from the cache."""
+    key = id(t)
+    if cache is not None and key in cache and cache[key][0] is t:
+        return cache[key][1], cache[key][2]
+    bark, leaves = _bark_and_leaf_geometry(t)
+    if cache is not None:
+        # the tree itself is kept in the entry: while the cache lives, its id cannot be
+        # reused by another object
+        cache[key] = (t, bark, leaves)
+    return bark, leaves
+
+
+def _leaf_state(t):
+    """Per leaf: tau [-], drawn (not fallen, leaf-out size > 1e-3), leaf-out size [-]."""
+    m, attrs = len(t.leaves), t.leaves.attrs
+    tau = np.asarray(attrs.get("autumn_tau", np.zeros(m)), float)
+    scale = np.asarray(attrs.get("leaf_scale", np.ones(m)), float)
+    keep = ~np.asarray(attrs.get("fallen", np.zeros(m, bool)), bool) & (scale > 1e-3)
+    return tau, keep, scale
+
+
 def tree_geometry(trees, cache=None):
     """Merged bark and per-leaf geometry of several trees (cached per tree object id).
 
@@ -95,36 +117,27 @@ def tree_geometry(trees, cache=None):
         without trees.
     leaves : dict or None
         ``v`` vertices [m] (float32), ``f`` faces, ``vleaf`` leaf index per vertex (int32; a
-        leaf's vertices and faces are consecutive), ``fleaf`` leaf index per face, and per leaf
-        ``tau`` (autumn logical time [-], 0 when absent), ``keep`` (not fallen), ``scale``
+        leaf's vertices and faces are consecutive), and per leaf ``tau`` (autumn logical time
+        [-], 0 when absent), ``keep`` (drawn: not fallen, leaf-out size > 1e-3), ``scale``
         (leaf-out size factor [-], 1 when absent) and ``centre`` (position [m]); None without
         leaves.
     """
-    bark_parts, lv, lf, vleaf, fleaf, ltau, lkeep, lscale, lcentre = ([] for _ in range(9))
+    bark_parts, lv, lf, vleaf, ltau, lkeep, lscale, lcentre = ([] for _ in range(8))
     nb = nl = nleaf = 0
     for t in trees:
-        key = id(t)
-        if cache is not None and key in cache and cache[key][0] is t:
-            _, bark, leaves = cache[key]
-        else:
-            bark, leaves = _bark_and_leaf_geometry(t)
-            if cache is not None:
-                # the tree itself is kept in the entry: while the cache lives, its id cannot be
-                # reused by another object
-                cache[key] = (t, bark, leaves)
+        bark, leaves = _geometry(t, cache)
         bark_parts.append((bark[0], bark[1] + nb, bark[2], bark[3]))
         nb += len(bark[0])
         if leaves is not None:
             m = len(t.leaves)
-            attrs = t.leaves.attrs
             v, f, k = leaves
+            tau, keep, scale = _leaf_state(t)
             lv.append(v)
             lf.append(f + np.uint32(nl))
             vleaf.append((np.arange(m, dtype=np.int32) + nleaf).repeat(k))
-            fleaf.append((np.arange(m, dtype=np.int32) + nleaf).repeat(len(f) // m))
-            ltau.append(np.asarray(attrs.get("autumn_tau", np.zeros(m)), float))
-            lkeep.append(~np.asarray(attrs.get("fallen", np.zeros(m, bool)), bool))
-            lscale.append(np.asarray(attrs.get("leaf_scale", np.ones(m)), float))
+            ltau.append(tau)
+            lkeep.append(keep)
+            lscale.append(scale)
             lcentre.append(np.asarray(t.leaves.position, float))
             nl += len(v)
             nleaf += m
@@ -133,9 +146,9 @@ def tree_geometry(trees, cache=None):
     if not lv:
         return bark, None
     return bark, {"v": np.concatenate(lv), "f": np.concatenate(lf),
-                  "vleaf": np.concatenate(vleaf), "fleaf": np.concatenate(fleaf),
-                  "tau": np.concatenate(ltau), "keep": np.concatenate(lkeep),
-                  "scale": np.concatenate(lscale), "centre": np.concatenate(lcentre)}
+                  "vleaf": np.concatenate(vleaf), "tau": np.concatenate(ltau),
+                  "keep": np.concatenate(lkeep), "scale": np.concatenate(lscale),
+                  "centre": np.concatenate(lcentre)}
 
 
 _EMPTY_V = np.full((3, 3), -1e4, np.float32)
@@ -147,7 +160,8 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
 
     Leaf-out scales each leaf about its centre; fallen leaves and leaves with ``leaf_scale``
     <= 1e-3 are left out. An empty bin is one degenerate triangle far away, so that the scene keeps
-    its structure.
+    its structure. Built tree by tree (the selected leaves' copies only: a hectare's millions of
+    leaves are not concatenated first).
 
     Parameters
     ----------
@@ -164,33 +178,45 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
         ``{"leaves_KK": (vertices (v, 3) float32 [m], faces (f, 3) uint32)}`` for all
         ``options.leaf_bins`` bins.
     """
-    return _bin_leaves(tree_geometry(trees, cache)[1], int(options.leaf_bins))
-
-
-def _bin_leaves(lv, K: int) -> dict:
-    """:func:`leaf_bin_arrays` of the leaves of :func:`tree_geometry`."""
-    out = {f"leaves_{b:02d}": (_EMPTY_V, _EMPTY_F) for b in range(K)}
-    if lv is None:
-        return out
-    keep_leaf = lv["keep"] & (lv["scale"] > 1e-3)
-    bins = np.where(keep_leaf, np.minimum((np.clip(lv["tau"], 0, 1) * K).astype(np.int64),
-                                          K - 1), -1)
-    verts, vleaf = lv["v"], lv["vleaf"]
-    if np.any(lv["scale"][keep_leaf] != 1.0):   # per-leaf scale about its centre (leaf-out)
-        s = lv["scale"].astype(np.float32)[vleaf][:, None]
-        c = lv["centre"].astype(np.float32)[vleaf]
-        verts = c + s * (verts - c)
-    vb = bins[vleaf]
-    fb = bins[lv["fleaf"]]
-    for b in range(K):
-        vsel = vb == b
-        if not vsel.any():
+    K = int(options.leaf_bins)
+    parts = {b: [] for b in range(K)}
+    for t in trees:
+        leaves = _geometry(t, cache)[1]
+        if leaves is None:
             continue
-        # a leaf's vertices are its own: the faces of the bin, renumbered by a running count
-        new = np.cumsum(vsel, dtype=np.int32) - 1
-        f = new[lv["f"][fb == b]]
-        out[f"leaves_{b:02d}"] = (np.ascontiguousarray(verts[vsel], np.float32),
-                                  f.astype(np.uint32))
+        v, f, k = leaves
+        m = len(t.leaves)
+        nt = len(f) // m
+        tau, keep, scale = _leaf_state(t)
+        bins = np.where(keep, np.minimum((np.clip(tau, 0, 1) * K).astype(np.int64), K - 1), -1)
+        V = v.reshape(m, k, 3)
+        F0 = f[:nt].astype(np.uint32)                   # leaf 0's faces: local indices
+        for b in np.unique(bins[bins >= 0]):
+            sel = np.nonzero(bins == b)[0]
+            vb = V[sel]
+            s = scale[sel]
+            if np.any(s != 1.0):                        # leaf-out: about the leaf's centre
+                c = t.leaves.position[sel].astype(np.float32)[:, None, :]
+                vb = c + s.astype(np.float32)[:, None, None] * (vb - c)
+            parts[int(b)].append((vb.reshape(-1, 3), F0, k, len(sel)))
+    out = {}
+    for b in range(K):
+        if not parts[b]:
+            out[f"leaves_{b:02d}"] = (_EMPTY_V, _EMPTY_F)
+            continue
+        n = sum(len(p[0]) for p in parts[b])
+        verts = np.empty((n, 3), np.float32)
+        faces = np.empty((sum(len(p[1]) * p[3] for p in parts[b]), 3), np.uint32)
+        o = of = 0
+        for vb, F0, k, cnt in parts[b]:
+            verts[o:o + len(vb)] = vb
+            fb = faces[of:of + len(F0) * cnt].reshape(cnt, len(F0), 3)
+            fb[:] = F0[None]
+            fb += (np.uint32(o) + k * np.arange(cnt, dtype=np.uint32))[:, None, None]
+            o += len(vb)
+            of += len(F0) * cnt
+        parts[b] = None
+        out[f"leaves_{b:02d}"] = (verts, faces)
     return out
 
 
@@ -217,18 +243,23 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     info : dict
         ``trees``, ``leaves`` (drawn) and ``tree_triangles`` counts.
     """
-    bark, lv = tree_geometry(trees, cache)
     out = {}
     info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
-    if bark is not None and len(bark[1]):
-        out["bark"] = make_mesh("bark", bark[0], bark[1], bark_bsdf(), uv=bark[2],
-                                normals=bark[3])
-        info["tree_triangles"] += len(bark[1])
-    if lv is None:
-        return out, info
-    info["leaves"] = int((lv["keep"] & (lv["scale"] > 1e-3)).sum())
+    parts = [_geometry(t, cache)[0] for t in trees]
+    if parts:
+        bark, n = [], 0
+        for p in parts:
+            bark.append((p[0], p[1] + n, p[2], p[3]))
+            n += len(p[0])
+        bark = [np.concatenate([p[j] for p in bark]) for j in range(4)]
+        if len(bark[1]):
+            out["bark"] = make_mesh("bark", bark[0], bark[1], bark_bsdf(), uv=bark[2],
+                                    normals=bark[3])
+            info["tree_triangles"] += len(bark[1])
+        del bark
+    info["leaves"] = int(sum(_leaf_state(t)[1].sum() for t in trees if len(t.leaves)))
     K = int(options.leaf_bins)
-    for sid, (v, f) in _bin_leaves(lv, K).items():
+    for sid, (v, f) in leaf_bin_arrays(trees, options, cache).items():
         b = int(sid.split("_")[1])
         out[sid] = make_mesh(sid, v, f, mat.leaf_bsdf((b + 0.5) / K if K > 1 else 0.0))
         if f is not _EMPTY_F:
