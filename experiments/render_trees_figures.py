@@ -116,6 +116,15 @@ def panels(out: Path, stand: str | None, spp: int) -> dict:
     return log
 
 
+def _ground_y(scn, x, z):
+    """Height of the scenario's terrain at (x, z) [m] (a ray cast straight down)."""
+    import mitsuba as mi
+    scene = scn.load_scene(daylight=False)
+    si = scene.ray_intersect(mi.Ray3f(mi.Point3f(float(x), 100.0, float(z)),
+                                      mi.Vector3f(0.0, -1.0, 0.0)))
+    return 100.0 - float(si.t[0]) if bool(si.is_valid()[0]) else 0.0
+
+
 def _stand_panels(run_dir: Path, out: Path, spp: int) -> dict:
     from mitsuba_veg.render.history import load_run
     from mitsuba_veg.render.scene import Terrain
@@ -129,21 +138,20 @@ def _stand_panels(run_dir: Path, out: Path, spp: int) -> dict:
         for s in seasons:
             s.apply(date)
         base = np.array([t.start[0] for t in trees])
-        lo, hi = base.min(0), base.max(0)
-        mid = 0.5 * (lo + hi)
-        # the tree nearest the plot's middle
-        i = int(np.argmin(np.hypot(base[:, 0] - mid[0], base[:, 2] - mid[2])))
+        # the east-most tree, seen from outside the stand (the crowns close above the floor)
+        i = int(np.argmax(base[:, 0]))
         t = trees[i]
         b = t.start[0]
+        p = t.leaves.position
         if name == "leaves_stand":
-            p = t.leaves.position
-            top = np.percentile(p[:, 1], 70)
-            c = np.array([b[0], top, b[2]])
-            cam = {"origin": (c + [2.2, 0.3, 2.2]).tolist(), "target": c.tolist(),
+            c = np.array([p[:, 0].max(), np.percentile(p[:, 1], 60), b[2]])
+            cam = {"origin": (c + [2.0, 0.4, 0.8]).tolist(), "target": c.tolist(),
                    "fov": 45.0}
-        else:
-            cam = {"origin": (b + [3.5, 1.6, 3.5]).tolist(), "target": (b + [0, 0.2, 0]).tolist(),
-                   "fov": 55.0}
+        else:        # inside the plot's east edge, looking west and down onto the floor
+            x0 = min(p[:, 0].max() + 1.0, 14.0) if len(p) else b[0] + 2.0
+            cam = {"origin": [x0, _ground_y(run.scenario, x0, b[2] + 0.5) + 1.4, b[2] + 0.5],
+                   "target": [x0 - 3.0, _ground_y(run.scenario, x0 - 3.0, b[2]), b[2]],
+                   "fov": 60.0}
         scn = _scenario(run.scenario, {name: cam})
         terrain = Terrain.from_scenario(scn)
         frame = run.frame(min(day, run.final_day))
