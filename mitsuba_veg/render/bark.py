@@ -3,14 +3,15 @@
 **Swept tubes** (:func:`swept_tubes`, trees without paper 004's junction mesh: paper 001's growth
 model, paper 002's and the simple trees). The segments of one branch (a segment and the child
 that continues it, :func:`mitsuba_veg.trees.junction.stem_structure`; where a stem ends, its
-thickest live child of at least 0.6 of its radius) are chained into one
+thickest live child of at least 0.3 of its radius) are chained into one
 centreline through their joints (a branch's first point moved back into its parent's tube by
 the parent's radius); the radius at a joint is the mean of the two segments' radii
 there (continuous). Two rounds of corner cutting (Chaikin, a quarter of each edge) round every
 joint (a kink of angle a becomes four of about a / 4 over the joint's neighbourhood; the ends stay).
 Rings of ``S`` corners follow the centreline in parallel-transport frames (each ring's frame is
 the previous one projected onto the new cross-section: no twist), ``S`` from the branch's base
-radius (:data:`SIDES`). The tips are closed by a fan to a point half a radius past the end.
+radius (:data:`SIDES`). The tips are closed by a fan to a point half a radius past the end
+(flat where thinner branches go on from the end).
 Vertex normals are the rings' radial directions (smooth shading).
 
 **UVs** (both here and in :func:`mitsuba_veg.trees.junction.tree_mesh`): u around the stem
@@ -55,12 +56,13 @@ def _chains(tree):
     par = tree.parent
     cont = st["cont"] & alive
     # a segment whose own stem ends there (its apex stopped) is continued by its thickest live
-    # child when that child is at least 0.6 of its radius (a sympodial axis: no tip and collar)
+    # child when that child is at least 0.3 of its radius (a sympodial axis, tapering into it:
+    # no tip and collar)
     has = np.zeros(n, bool)
     has[par[cont]] = True
     cand = np.nonzero(alive & (par >= 0) & ~cont)[0]
     cand = cand[alive[par[cand]] & ~has[par[cand]]
-                & (tree.radius_start[cand] >= 0.6 * tree.radius_end[par[cand]])]
+                & (tree.radius_start[cand] >= 0.3 * tree.radius_end[par[cand]])]
     if len(cand):
         order = cand[np.lexsort((tree.radius_start[cand], par[cand]))]   # thickest last
         best = np.full(n, -1)
@@ -207,6 +209,12 @@ def swept_tubes(tree, rounds: int = 2, min_radius: float = 0.0):
     circ = 2 * np.pi * np.maximum(R[:, 0], 1e-6)
     vcoord = arc / circ[:, None]
     S_chain = _sides(R[:, 0])
+    # chains whose last segment has live children (their ends are closed flat)
+    kids = np.zeros(len(tree), bool)
+    kids[tree.parent[alive & (tree.parent >= 0)]] = True
+    last_seg = np.zeros(nc, np.int64)
+    last_seg[cid[p == nseg[cid] - 1]] = segs[p == nseg[cid] - 1]
+    forked = kids[last_seg]
     # the valid points, flat (chain-major): ring r of chain c is flat row off[c] + r
     off = np.r_[0, np.cumsum(m)[:-1]]
     Pf, Rf, Uf, Vf = P[valid], R[valid], U[valid], V[valid]
@@ -243,10 +251,11 @@ def swept_tubes(tree, rounds: int = 2, min_radius: float = 0.0):
         faces.append(q)
         base = nv
         nv += len(pts) * (S + 1)
-        # tip caps: a fan to a point half a tip radius past the end
+        # tip caps: a fan to a point half a tip radius past the end (flat where thinner
+        # branches go on from the end)
         tip = first + cnt - 1
         tipT, tipR = T[selc, cnt - 1], Rf[tip]
-        apex = Pf[tip] + 0.5 * tipR[:, None] * tipT
+        apex = Pf[tip] + (0.5 * tipR * ~forked[selc])[:, None] * tipT
         ai = nv + np.arange(len(selc))
         o = base + last_of[:, None] * (S + 1)
         fan = np.stack([o + k, o + k + 1, np.broadcast_to(ai[:, None], (len(selc), S))], -1)
