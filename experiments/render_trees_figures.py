@@ -15,7 +15,7 @@ of 480 x 270 side by side, labelled, palette-quantised under 300 kB):
 - docs/images/render_knots.png: a knot on an aspen's trunk (paper 004)
 - docs/images/render_litter.png: the stand's floor in late November of the third year
 
-Rendering uses Mitsuba 3 (llvm_ad_spectral) on the CPU; about 15 minutes on 2 cores.
+Rendering uses Mitsuba 3 (llvm_ad_spectral) on the CPU; 8-10 minutes on 2 cores.
 """
 from __future__ import annotations
 
