@@ -185,8 +185,8 @@ def leaf_template(shape: str = "ovate", variant: int = 0,
     """One blade of unit size: vertices and faces in the leaf's frame (module docstring).
 
     The half outline (:func:`half_outline`) and its mirror image are joined to the midrib
-    (petiole, a station at 0.45 of the length, tip) by strips of triangles; the relief of the variant is
-    added (fold about the midrib, cup, arch) and the blade scaled to the area
+    (petiole, a station at 0.45 of the length, tip) by strips of triangles; the relief of the
+    variant is added (fold about the midrib, cup, arch) and the blade scaled to the area
     :data:`LEAF_AREA` and centred on its area centroid.
 
     Parameters

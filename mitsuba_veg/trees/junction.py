@@ -364,9 +364,9 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     round_knots : bool, optional
         Draw knots (kind ``KNOT``, paper 004 §3.3) as swellings of the bark: the rings of a knot's
         stem follow the half-ellipse r(s) = R sqrt(1 − (s / L)²) of its first radius R and its
-        length L (s: distance from the knot's base) instead of the segments' linear taper (a cone with
-        a pointed tip); the knot keeps its length, base radius and junction. Default False (the
-        light scene's mesh, unchanged).
+        drawn length L (s: distance from the knot's base) instead of the segments' linear taper
+        (a cone with a pointed tip); the knot keeps its length, base radius and junction.
+        Default False (the light scene's mesh, unchanged).
 
     Returns
     -------
