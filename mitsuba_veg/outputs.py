@@ -5,6 +5,7 @@ the coverage map also draws the other living surfaces' moss as points.
 """
 from __future__ import annotations
 
+import datetime as _dt
 import json
 import os
 import threading
@@ -735,7 +736,11 @@ class SnapshotWriter:
     """``on_day`` hook for :meth:`mitsuba_veg.daily.Simulation.run` that writes moss snapshots.
 
     Writes the living moss to ``OUT/snapshots/day_NNNN.npz`` on day 1, every ``every`` days
-    (default: the run's ``frame_every``) and on the last day (a world adds every leaf's state).
+    (default: the run's ``frame_every``) and on the last day. A world adds every leaf's state
+    (``leaf_tau``, ``leaf_grown``, ``leaf_on`` and ``leaf_fall_day``, the date ordinal of each
+    leaf's last fall, −1 for none) and writes a snapshot on every 31 December too: the year's
+    end may regrow its trees and start their leaves anew, and the render's litter reads the
+    year's falls from that day's snapshot (:mod:`mitsuba_veg.render.litter`).
     About 0.3 MB per 16,000 moss (compressed).
 
     Parameters
@@ -749,17 +754,28 @@ class SnapshotWriter:
 
     def __call__(self, sim, rec) -> None:
         every = max(int(self.every or getattr(sim, "frame_every", 10) or 10), 1)
-        if sim.day % every == 0 or sim.day == sim.days or sim.day == 1:
+        phen = getattr(sim, "phen", None)
+        year_end = phen is not None and _is_31_december(rec.get("date"))
+        if sim.day % every == 0 or sim.day == sim.days or sim.day == 1 or year_end:
             # live moss per terrain element (the glTF export's moss cover)
             extra = {"moss_counts": np.asarray(sim.counts()[:sim.site.n_terrain])
                      .astype(np.uint32)}
-            phen = getattr(sim, "phen", None)
             if phen is not None:   # a world: every leaf's state (the render draws it)
                 extra.update({"leaf_tau": np.asarray(phen.tau).astype(np.float16),
                               "leaf_grown": np.asarray(phen.grown).astype(np.float16),
-                              "leaf_on": np.asarray(phen.on_tree)})
+                              "leaf_on": np.asarray(phen.on_tree),
+                              "leaf_fall_day": np.asarray(phen.fall_day).astype(np.int32)})
             write_snapshot(Path(sim.out) / SNAPSHOT_DIR, sim.day, sim.pop.to_numpy(),
                            date=rec.get("date"), extra=extra)
+
+
+def _is_31_december(date) -> bool:
+    """Whether an ISO date (a day record's ``date``) is 31 December (False without one)."""
+    try:
+        d = _dt.date.fromisoformat(str(date)[:10])
+    except ValueError:
+        return False
+    return d.month == 12 and d.day == 31
 
 
 def write_snapshot(directory, day: int, population: dict, date: str | None = None,
@@ -782,7 +798,8 @@ def write_snapshot(directory, day: int, population: dict, date: str | None = Non
     date : str, optional
         Calendar date of the day (ISO); default None (stored as ``""``).
     extra : dict of str to numpy.ndarray, optional
-        More arrays to store (a world's ``leaf_tau``, ``leaf_grown``, ``leaf_on``); default None.
+        More arrays to store (a world's ``leaf_tau``, ``leaf_grown``, ``leaf_on``,
+        ``leaf_fall_day``); default None.
 
     Returns
     -------

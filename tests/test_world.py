@@ -618,7 +618,8 @@ def test_render_years_draws_each_years_last_day(tmp_path):
                  "48", "--height", "32", "--spp", "2", "--quiet"]) == 0
     j = {y: json.loads((tmp_path / "run" / f"render_{y}" / "render.json").read_text())
          for y in (2026, 2027)}
-    assert (j[2026]["day"], j[2027]["day"]) == (1, 3)
+    # a world writes a snapshot every 31 December (day 2 here): 2026 is drawn on it
+    assert (j[2026]["day"], j[2027]["day"]) == (2, 3)
     assert (tmp_path / "run" / "render_2027" / "render_overview.png").stat().st_size > 0
     # the years as an animation: one frame a year, from the same camera
     from PIL import Image

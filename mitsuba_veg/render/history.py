@@ -132,20 +132,28 @@ class Run:
         Returns
         -------
         dict or None
-            ``leaf_tau`` (autumn logical time [-]), ``leaf_grown`` (leaf-out size factor [-]) and
-            ``leaf_on`` (bool), one entry per leaf of its trees; None without such a snapshot (or
-            when the snapshot has no leaf state).
+            ``leaf_tau`` (autumn logical time [-]), ``leaf_grown`` (leaf-out size factor [-]),
+            ``leaf_on`` (bool) and ``leaf_fall_day`` (date ordinal of the leaf's last fall, −1:
+            none; all −1 in a snapshot written before runs kept it), one entry per leaf of its
+            trees, ``fall_day_known`` (whether the snapshot has the fall days) and ``day``, the
+            snapshot's day; None without such a snapshot (or when the
+            snapshot has no leaf state).
         """
         best = None
         for d, p in self.snapshots:
             if d <= day:
-                best = p
+                best = (d, p)
         if best is None:
             return None
-        z = _read_snapshot(best)
+        z = _read_snapshot(best[1])
         if "leaf_tau" not in z:
             return None
-        return {k: np.asarray(z[k]) for k in ("leaf_tau", "leaf_grown", "leaf_on")}
+        out = {k: np.asarray(z[k]) for k in ("leaf_tau", "leaf_grown", "leaf_on")}
+        out["fall_day_known"] = "leaf_fall_day" in z
+        out["leaf_fall_day"] = np.asarray(z["leaf_fall_day"], np.int64) \
+            if "leaf_fall_day" in z else np.full(len(out["leaf_tau"]), -1, np.int64)
+        out["day"] = int(best[0])
+        return out
 
     def frame_days(self, count: int | None = None, every: int | None = None) -> list[int]:
         """Days to animate.

@@ -47,6 +47,7 @@ from .carpet import BUMP_SCALE, carpet_patches, grid_origin, moss_texture
 from .moss import MossSet, place_tufts
 from .noise import pink_noise_image
 from .trees import leaf_bin_arrays, tree_shapes
+from .litter import litter_arrays, litter_shapes      # (litter: render/litter.py)
 
 __all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_time",
            "Terrain"]
@@ -85,6 +86,8 @@ class RenderOptions:
     #: guide the denoiser with albedo and normal buffers (a pass of their own); off by default:
     #: on the measured views they raised the error against a converged render (docs/render.md)
     denoise_guides: bool = False
+    #: draw the trees' fallen leaves on the ground (:mod:`mitsuba_veg.render.litter`)
+    litter: bool = True
 
     @property
     def samples(self) -> int:
@@ -197,6 +200,16 @@ class RenderScene:
                 if f"{sid}.faces" in keys:
                     params[f"{sid}.vertex_positions"] = mi.Float(np.ascontiguousarray(v).ravel())
                     params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
+            # ---- litter (render/litter.py): the same fixed meshes, new buffers ----
+            if self.options.litter and self.terrain is not None:
+                la = litter_arrays(trees, self.terrain, self.options, self.tree_cache)
+                info["litter"] = la.pop("count")
+                for sid, (v, f) in la.items():
+                    if f"{sid}.faces" in keys:
+                        params[f"{sid}.vertex_positions"] = mi.Float(
+                            np.ascontiguousarray(v).ravel())
+                        params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
+            # ---- end litter ----
         params.update()
         self.info.update(info)
         return info
@@ -984,6 +997,10 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
         ts, t_info = tree_shapes(trees, options, cache=tree_cache)
         d.update(ts)
         info.update(t_info)
+        if options.litter:      # the fallen leaves on the ground (render/litter.py)
+            ls, l_info = litter_shapes(trees, terrain, options, cache=tree_cache)
+            d.update(ls)
+            info.update(l_info)
     t3 = time.perf_counter()
     when = render_time(scn, date, options)
     em = emitters if emitters is not None else sky_emitters(scn, when)

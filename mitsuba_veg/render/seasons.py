@@ -15,8 +15,9 @@ simple phenology driven by the calendar and by light (documented in docs/render.
 - **leaf fall**: a leaf falls when its raw tau passes a per-leaf threshold (log-normal around
   1.25, as :class:`mitsuba_veg.foliage.AutumnParams` with ``fall=True``).
 
-:meth:`TreeSeasons.apply` writes ``leaf_scale``, ``autumn_tau`` and ``fallen`` into
-``tree.leaves.attrs`` for one date; the renderer reads them.
+:meth:`TreeSeasons.apply` writes ``leaf_scale``, ``autumn_tau``, ``fallen`` and ``litter_age``
+(days since the leaf fell, NaN before: :mod:`mitsuba_veg.render.litter` lays it on the ground)
+into ``tree.leaves.attrs`` for one date; the renderer reads them.
 """
 from __future__ import annotations
 
@@ -110,13 +111,17 @@ class TreeSeasons:
             self.state = None
             self.tau_raw = np.zeros((n, self.days))
             self.fall_thr = np.full(n, np.inf)
+        # the day index each leaf falls (raw tau first past its threshold), NaN: not in range
+        past = self.tau_raw >= self.fall_thr[:, None]
+        self.fall_index = np.where(past.any(1), np.argmax(past, axis=1), np.nan)
 
     def apply(self, date: _dt.date) -> None:
         """Write the tree's leaf attributes for ``date``.
 
         Sets ``leaf_scale`` (the leaf-out smoothstep, 0..1 [-]; 1 after day-of-year 200),
-        ``autumn_tau`` (logical autumn time clipped to [0, 1] [-]) and ``fallen`` (raw tau past the
-        leaf's fall threshold) in ``tree.leaves.attrs``.
+        ``autumn_tau`` (logical autumn time clipped to [0, 1] [-]), ``fallen`` (raw tau past the
+        leaf's fall threshold) and ``litter_age`` (days since the leaf fell [days], NaN if it
+        has not) in ``tree.leaves.attrs``.
 
         Parameters
         ----------
@@ -134,3 +139,5 @@ class TreeSeasons:
         raw = self.tau_raw[:, i]
         lv.attrs["autumn_tau"] = np.clip(raw, 0.0, 1.0)
         lv.attrs["fallen"] = raw >= self.fall_thr
+        age = (date - self.start).days - self.fall_index
+        lv.attrs["litter_age"] = np.where(age >= 0, age, np.nan)

@@ -1,15 +1,19 @@
 """Trees and leaves for the render.
 
 - **bark**: for Weber-Penn trees the smooth mesh with junctions (:func:`mitsuba_veg.trees.junction.
-  tree_mesh`, paper 004), for the other trees (growth model) the tube mesh of
-  :meth:`mitsuba_veg.trees.Tree.to_mesh`; all trees merged into one two-sided spectral ``bark``
-  mesh.
-- **leaves**: one blade per leaf (an oval for Weber-Penn trees, else a quad), binned
-  by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
+  tree_mesh`, paper 004) with its knots drawn as rounded swellings (``round_knots``), for the
+  other trees (growth model, paper 001) smooth swept tubes through the branches' joints
+  (:func:`mitsuba_veg.render.bark.swept_tubes`); all trees merged into one ``bark`` mesh with
+  UVs and vertex normals, its textured, bump-mapped bark BSDF (:func:`mitsuba_veg.render.bark.
+  bark_bsdf`).
+- **leaves**: one folded, cupped blade of the tree's leaf outline per leaf
+  (:mod:`mitsuba_veg.render.leaves`: 14-16 triangles, the area of the light pass's blade),
+  binned by autumn logical time tau (leaf attr ``autumn_tau``, paper 003; 0 when absent) into
   ``leaf_bins`` meshes, each with the leaf BSDF of its bin's tau
   (:func:`mitsuba_veg.render.materials.leaf_bsdf`: PROSPECT-D spectra in the two-sided
-  ``veg_leaf`` BSDF). Leaves with ``fallen`` set are
-  not drawn; an optional ``leaf_scale`` attr (0..1) shrinks leaves (spring leaf-out).
+  ``veg_leaf`` BSDF). Leaves with ``fallen`` set are not drawn on the tree (the litter draws
+  them, :mod:`mitsuba_veg.render.litter`); an optional ``leaf_scale`` attr (0..1) shrinks
+  leaves about their centre (spring leaf-out).
 
 :func:`scenario_trees` builds the trees a scenario asks for in ``[[render.trees]]``::
 
@@ -34,30 +38,65 @@ from ..meshes import make_mesh
 from ..trees import weber_penn
 from ..trees.entries import check_render_tree
 from ..trees.growth import GrowthParams, grow
-from ..trees.junction import leaf_mesh, tree_mesh
-from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree, tube_mesh  # noqa: F401
+from ..trees.junction import tree_mesh
+from ..trees.structure import Leaves, Tree, scaled_tree
 from . import materials as mat
+from .bark import bark_bsdf, swept_tubes
+from .leaves import blade_mesh, leaf_shape_of
 
 
 # ---- meshes -------------------------------------------------------------------------------------
-def _bark_and_leaf_geometry(tree, smooth=True):
-    """(bark (v, f), leaves (v, f, leaf index per face))."""
-    bark = leaves = None
+def _smooth_normals(v, f, vring):
+    """Area-weighted vertex normals; a ring's seam vertex (its last, a copy of its first) shares
+    the first's normal (``vring``: the ring of each vertex, -1 for a cap's apex)."""
+    p = v[f]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n = np.stack([sum(np.bincount(f[:, j], fn[:, k], len(v)) for j in range(3))
+                  for k in range(3)], 1)
+    vring = np.asarray(vring)
+    first = np.nonzero((vring >= 0) & (np.r_[-2, vring[:-1]] != vring))[0]
+    last = np.nonzero((vring >= 0) & (np.r_[vring[1:], -2] != vring))[0]
+    both = n[first] + n[last]
+    n[first], n[last] = both, both
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+
+
+def _bark_and_leaf_geometry(tree):
+    """(bark (v, f, uv, normals), leaves (v, f, k vertices per leaf) or None)."""
     if getattr(tree, "weber_penn", None) is not None:
-        b, _ = tree_mesh(tree, smooth=smooth, leaves=False)
-        bark = (np.asarray(b.vertices), np.asarray(b.faces))
-        if len(tree.leaves):
-            lm = leaf_mesh(tree)
-            leaves = (np.asarray(lm.vertices), np.asarray(lm.faces),
-                      np.asarray(lm.metadata["leaf"]))
-    if bark is None:
-        a = tree.alive
-        v, f = tube_mesh(tree.start[a], tree.end[a], tree.radius_start[a], tree.radius_end[a], 6)
-        bark = (v, f)
-    if leaves is None and len(tree.leaves):
-        v, f = leaf_quads(tree.leaves)
-        leaves = (v, f, np.repeat(np.arange(len(tree.leaves)), 2))
+        b, _ = tree_mesh(tree, smooth=True, leaves=False, round_knots=True)
+        v, f = np.asarray(b.vertices), np.asarray(b.faces, np.int64)
+        bark = (v, f, np.asarray(b.visual.uv), _smooth_normals(v, f, b.metadata["vertex_ring"]))
+    else:
+        bark = swept_tubes(tree)
+    leaves = None
+    if len(tree.leaves):
+        lv = tree.leaves
+        v, f = blade_mesh(lv.position, lv.normal, lv.up, lv.size, leaf_shape_of(tree))
+        leaves = (v, f, len(v) // len(lv))
     return bark, leaves
+
+
+def _geometry(t, cache):
+    """(bark, leaves) of one tree (:func:`_bark_and_leaf_geometry`), from the cache."""
+    key = id(t)
+    if cache is not None and key in cache and cache[key][0] is t:
+        return cache[key][1], cache[key][2]
+    bark, leaves = _bark_and_leaf_geometry(t)
+    if cache is not None:
+        # the tree itself is kept in the entry: while the cache lives, its id cannot be
+        # reused by another object
+        cache[key] = (t, bark, leaves)
+    return bark, leaves
+
+
+def _leaf_state(t):
+    """Per leaf: tau [-], drawn (not fallen, leaf-out size > 1e-3), leaf-out size [-]."""
+    m, attrs = len(t.leaves), t.leaves.attrs
+    tau = np.asarray(attrs.get("autumn_tau", np.zeros(m)), float)
+    scale = np.asarray(attrs.get("leaf_scale", np.ones(m)), float)
+    keep = ~np.asarray(attrs.get("fallen", np.zeros(m, bool)), bool) & (scale > 1e-3)
+    return tau, keep, scale
 
 
 def tree_geometry(trees, cache=None):
@@ -74,45 +113,42 @@ def tree_geometry(trees, cache=None):
     Returns
     -------
     bark : tuple of numpy.ndarray or None
-        ``(vertices (v, 3) [m], faces (f, 3))`` of all trees, None without trees.
+        ``(vertices (v, 3) [m], faces (f, 3), uv (v, 2), normals (v, 3))`` of all trees, None
+        without trees.
     leaves : dict or None
-        ``v`` vertices [m], ``f`` faces, ``leaf`` leaf index per face, and per leaf ``tau``
-        (autumn logical time [-], 0 when absent), ``keep`` (not fallen), ``scale`` (leaf-out size
-        factor [-], 1 when absent) and ``centre`` (position [m]); None without leaves.
+        ``v`` vertices [m] (float32), ``f`` faces, ``vleaf`` leaf index per vertex (int32; a
+        leaf's vertices and faces are consecutive), and per leaf ``tau`` (autumn logical time
+        [-], 0 when absent), ``keep`` (drawn: not fallen, leaf-out size > 1e-3), ``scale``
+        (leaf-out size factor [-], 1 when absent) and ``centre`` (position [m]); None without
+        leaves.
     """
-    bv, bf, lv, lf, lleaf, ltau, lkeep, lscale, lcentre = [], [], [], [], [], [], [], [], []
+    bark_parts, lv, lf, vleaf, ltau, lkeep, lscale, lcentre = ([] for _ in range(8))
     nb = nl = nleaf = 0
     for t in trees:
-        key = id(t)
-        if cache is not None and key in cache and cache[key][0] is t:
-            _, bark, leaves = cache[key]
-        else:
-            bark, leaves = _bark_and_leaf_geometry(t)
-            if cache is not None:
-                # the tree itself is kept in the entry: while the cache lives, its id cannot be
-                # reused by another object
-                cache[key] = (t, bark, leaves)
-        bv.append(bark[0])
-        bf.append(bark[1] + nb)
+        bark, leaves = _geometry(t, cache)
+        bark_parts.append((bark[0], bark[1] + nb, bark[2], bark[3]))
         nb += len(bark[0])
         if leaves is not None:
             m = len(t.leaves)
-            attrs = t.leaves.attrs
-            lv.append(leaves[0])
-            lf.append(leaves[1] + nl)
-            lleaf.append(leaves[2] + nleaf)
-            ltau.append(np.asarray(attrs.get("autumn_tau", np.zeros(m)), float))
-            lkeep.append(~np.asarray(attrs.get("fallen", np.zeros(m, bool)), bool))
-            lscale.append(np.asarray(attrs.get("leaf_scale", np.ones(m)), float))
+            v, f, k = leaves
+            tau, keep, scale = _leaf_state(t)
+            lv.append(v)
+            lf.append(f + np.uint32(nl))
+            vleaf.append((np.arange(m, dtype=np.int32) + nleaf).repeat(k))
+            ltau.append(tau)
+            lkeep.append(keep)
+            lscale.append(scale)
             lcentre.append(np.asarray(t.leaves.position, float))
-            nl += len(leaves[0])
+            nl += len(v)
             nleaf += m
-    bark = (np.concatenate(bv), np.concatenate(bf)) if bv else None
+    bark = tuple(np.concatenate([p[j] for p in bark_parts]) for j in range(4)) \
+        if bark_parts else None
     if not lv:
         return bark, None
-    return bark, {"v": np.concatenate(lv), "f": np.concatenate(lf), "leaf": np.concatenate(lleaf),
-                  "tau": np.concatenate(ltau), "keep": np.concatenate(lkeep),
-                  "scale": np.concatenate(lscale), "centre": np.concatenate(lcentre)}
+    return bark, {"v": np.concatenate(lv), "f": np.concatenate(lf),
+                  "vleaf": np.concatenate(vleaf), "tau": np.concatenate(ltau),
+                  "keep": np.concatenate(lkeep), "scale": np.concatenate(lscale),
+                  "centre": np.concatenate(lcentre)}
 
 
 _EMPTY_V = np.full((3, 3), -1e4, np.float32)
@@ -124,7 +160,8 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
 
     Leaf-out scales each leaf about its centre; fallen leaves and leaves with ``leaf_scale``
     <= 1e-3 are left out. An empty bin is one degenerate triangle far away, so that the scene keeps
-    its structure.
+    its structure. Built tree by tree (the selected leaves' copies only: a hectare's millions of
+    leaves are not concatenated first).
 
     Parameters
     ----------
@@ -141,37 +178,53 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
         ``{"leaves_KK": (vertices (v, 3) float32 [m], faces (f, 3) uint32)}`` for all
         ``options.leaf_bins`` bins.
     """
-    _, lv = tree_geometry(trees, cache)
     K = int(options.leaf_bins)
-    out = {f"leaves_{b:02d}": (_EMPTY_V, _EMPTY_F) for b in range(K)}
-    if lv is None:
-        return out
-    keep_leaf = lv["keep"] & (lv["scale"] > 1e-3)
-    bins = np.minimum((np.clip(lv["tau"], 0, 1) * K).astype(np.int64), K - 1)
-    face_leaf = lv["leaf"]
-    verts = lv["v"]
-    if np.any(lv["scale"] != 1.0):   # per-leaf scale about its centre (leaf-out)
-        vleaf = np.zeros(len(verts), np.int64)
-        vleaf[lv["f"].ravel()] = np.repeat(face_leaf, 3)
-        s = lv["scale"][vleaf][:, None]
-        c = lv["centre"][vleaf]
-        verts = c + s * (verts - c)
-    fb = np.where(keep_leaf[face_leaf], bins[face_leaf], -1)
-    for b in range(K):
-        fsel = fb == b
-        if not fsel.any():
+    parts = {b: [] for b in range(K)}
+    for t in trees:
+        leaves = _geometry(t, cache)[1]
+        if leaves is None:
             continue
-        f = lv["f"][fsel]
-        used, inv = np.unique(f.ravel(), return_inverse=True)
-        out[f"leaves_{b:02d}"] = (verts[used].astype(np.float32),
-                                  inv.reshape(-1, 3).astype(np.uint32))
+        v, f, k = leaves
+        m = len(t.leaves)
+        nt = len(f) // m
+        tau, keep, scale = _leaf_state(t)
+        bins = np.where(keep, np.minimum((np.clip(tau, 0, 1) * K).astype(np.int64), K - 1), -1)
+        V = v.reshape(m, k, 3)
+        F0 = f[:nt].astype(np.uint32)                   # leaf 0's faces: local indices
+        for b in np.unique(bins[bins >= 0]):
+            sel = np.nonzero(bins == b)[0]
+            vb = V[sel]
+            s = scale[sel]
+            if np.any(s != 1.0):                        # leaf-out: about the leaf's centre
+                c = t.leaves.position[sel].astype(np.float32)[:, None, :]
+                vb = c + s.astype(np.float32)[:, None, None] * (vb - c)
+            parts[int(b)].append((vb.reshape(-1, 3), F0, k, len(sel)))
+    out = {}
+    for b in range(K):
+        if not parts[b]:
+            out[f"leaves_{b:02d}"] = (_EMPTY_V, _EMPTY_F)
+            continue
+        n = sum(len(p[0]) for p in parts[b])
+        verts = np.empty((n, 3), np.float32)
+        faces = np.empty((sum(len(p[1]) * p[3] for p in parts[b]), 3), np.uint32)
+        o = of = 0
+        for vb, F0, k, cnt in parts[b]:
+            verts[o:o + len(vb)] = vb
+            fb = faces[of:of + len(F0) * cnt].reshape(cnt, len(F0), 3)
+            fb[:] = F0[None]
+            fb += (np.uint32(o) + k * np.arange(cnt, dtype=np.uint32))[:, None, None]
+            o += len(vb)
+            of += len(F0) * cnt
+        parts[b] = None
+        out[f"leaves_{b:02d}"] = (verts, faces)
     return out
 
 
 def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts.
 
-    The bark is one two-sided diffuse ``bark`` mesh; leaf bin k of K gets the leaf BSDF of
+    The bark is one mesh with the textured, bump-mapped bark BSDF
+    (:func:`mitsuba_veg.render.bark.bark_bsdf`); leaf bin k of K gets the leaf BSDF of
     tau = (k + 0.5) / K (:func:`mitsuba_veg.render.materials.leaf_bsdf`).
 
     Parameters
@@ -190,16 +243,21 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
     info : dict
         ``trees``, ``leaves`` (drawn) and ``tree_triangles`` counts.
     """
-    bark, lv = tree_geometry(trees, cache)
     out = {}
     info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
-    if bark is not None and len(bark[1]):
-        out["bark"] = make_mesh("bark", bark[0], bark[1],
-                                {"type": "twosided", "bsdf": mat.diffuse("bark")})
-        info["tree_triangles"] += len(bark[1])
-    if lv is None:
-        return out, info
-    info["leaves"] = int((lv["keep"] & (lv["scale"] > 1e-3)).sum())
+    parts = [_geometry(t, cache)[0] for t in trees]
+    if parts:
+        bark, n = [], 0
+        for p in parts:
+            bark.append((p[0], p[1] + n, p[2], p[3]))
+            n += len(p[0])
+        bark = [np.concatenate([p[j] for p in bark]) for j in range(4)]
+        if len(bark[1]):
+            out["bark"] = make_mesh("bark", bark[0], bark[1], bark_bsdf(), uv=bark[2],
+                                    normals=bark[3])
+            info["tree_triangles"] += len(bark[1])
+        del bark
+    info["leaves"] = int(sum(_leaf_state(t)[1].sum() for t in trees if len(t.leaves)))
     K = int(options.leaf_bins)
     for sid, (v, f) in leaf_bin_arrays(trees, options, cache).items():
         b = int(sid.split("_")[1])

@@ -8,24 +8,45 @@ import numpy as np
 
 from ..world.trees import scenario_trees as world_scenario_trees
 from ..world.trees import age_tree, ages, tree_from_state, with_alive
+from .leaves import leaf_shape_of
+from .litter import LIFE_DAYS, LitterLeaves
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
 
 class WorldLeaves:
     """The leaf state of a world run's trees on a frame's date (from the run's snapshots):
-    ``apply(date)`` writes ``autumn_tau``, ``leaf_scale`` and ``fallen`` into the trees'
-    leaves, as the daily loop had them that day."""
+    ``apply(date)`` writes ``autumn_tau``, ``leaf_scale``, ``fallen`` and ``litter_age`` into the
+    trees' leaves, as the daily loop had them that day, and the litter of the trees' earlier
+    version (``attrs["litter_extra"]``).
 
-    def __init__(self, run, trees, offsets):
+    Parameters
+    ----------
+    run : Run
+        The run.
+    trees : list of Tree
+        Its trees (as :func:`world_trees` built them for the frames' days).
+    offsets : list of (int, int)
+        Each tree's leaves in the run's leaf arrays.
+    first_day : int, optional
+        The first day (1-based) of this version of the trees (:func:`grown_trees`); 1 (the
+        default): the trees the run started with.
+    """
+
+    def __init__(self, run, trees, offsets, first_day: int = 1):
         self.run, self.trees, self.offsets = run, trees, offsets
+        self.first_day = int(first_day)
+        self._previous = None
 
     def apply(self, date) -> None:
         """Write the leaf state of the run's snapshot for ``date`` into the trees' leaves.
 
-        Sets ``autumn_tau`` [-], ``leaf_scale`` [-] and ``fallen`` (bool) in ``leaves.attrs`` from
+        Sets ``autumn_tau`` [-], ``leaf_scale`` [-], ``fallen`` (bool) and ``litter_age`` (days
+        from the leaf's last fall to ``date`` [days], NaN without one) in ``leaves.attrs`` from
         the latest snapshot on or before that day; without one (or with too few leaves in it) the
-        leaves are green, full-size and on the tree.
+        leaves are green, full-size and on the tree, with no litter. When this version of the
+        trees began (a year's end regrew them) less than a litter lifetime before ``date``,
+        each tree also gets the litter of its earlier version (:meth:`previous_litter`).
 
         Parameters
         ----------
@@ -34,16 +55,72 @@ class WorldLeaves:
         """
         day = (date - self.run.start).days + 1
         st = self.run.leaf_state(day)
+        today = date.toordinal()
         for t, (a, b) in zip(self.trees, self.offsets):
             lv = t.leaves
             if st is None or len(st["leaf_tau"]) < b:
                 lv.attrs["autumn_tau"] = np.zeros(len(lv))
                 lv.attrs["leaf_scale"] = np.ones(len(lv))
                 lv.attrs["fallen"] = np.zeros(len(lv), bool)
+                lv.attrs["litter_age"] = np.full(len(lv), np.nan)
                 continue
             lv.attrs["autumn_tau"] = st["leaf_tau"][a:b].astype(float)
             lv.attrs["leaf_scale"] = st["leaf_grown"][a:b].astype(float)
             lv.attrs["fallen"] = ~st["leaf_on"][a:b].astype(bool)
+            fd = st["leaf_fall_day"][a:b]
+            lv.attrs["litter_age"] = np.where(fd >= 0, today - fd, np.nan).astype(float)
+        extra = self.previous_litter(date)
+        for i, t in enumerate(self.trees):
+            t.attrs["litter_extra"] = extra.get(i)
+
+    def previous_litter(self, date) -> dict:
+        """The litter of the trees' earlier version on ``date``.
+
+        The trees as they stood on the day before this version began (:func:`world_trees`)
+        and their leaf state of that day's snapshot (a world writes one every 31 December,
+        before its trees regrow): a leaf that fell keeps its day, a leaf still on the tree
+        then fell when the trees regrew (this version's first day). Runs whose snapshots have
+        no fall days give none.
+
+        Parameters
+        ----------
+        date : datetime.date
+            The frame's date.
+
+        Returns
+        -------
+        dict
+            ``{tree index: LitterLeaves}`` (empty without an earlier version, when it began more
+            than a litter lifetime before ``date``, or without its leaf state).
+        """
+        if self.first_day <= 1:
+            return {}
+        start = self.run.date(self.first_day)
+        if (date - start).days >= LIFE_DAYS[1]:
+            return {}
+        if self._previous is None:
+            prev_day = self.first_day - 1
+            st = self.run.leaf_state(prev_day)
+            if st is None or not st.get("fall_day_known", False):
+                self._previous = {}
+            else:
+                trees, offsets = world_trees(self.run, prev_day)
+                self._previous = {"trees": trees, "offsets": offsets, "state": st}
+        if not self._previous:
+            return {}
+        st, out = self._previous["state"], {}
+        today, regrew = date.toordinal(), start.toordinal()
+        for i, (t, (a, b)) in enumerate(zip(self._previous["trees"], self._previous["offsets"])):
+            if i >= len(self.trees) or len(st["leaf_tau"]) < b or not len(t.leaves):
+                continue
+            fd = np.where(st["leaf_on"][a:b].astype(bool), regrew,
+                          st["leaf_fall_day"][a:b]).astype(float)
+            lv = t.leaves
+            age = np.where(fd >= 0, today - fd, np.nan)
+            out[i] = LitterLeaves(lv.position, lv.normal, lv.up, lv.size, age,
+                                  float(t.start[0][1]) if len(t) else 0.0, leaf_shape_of(t),
+                                  ("previous", self.first_day, i))
+        return out
 
 
 def grown_trees(run) -> list:
@@ -90,8 +167,14 @@ def world_trees(run, day: int | None = None):
     """
     if not (run.scenario.get("trees") or run.scenario.get("stand")):
         return [], []
-    base = run.scenario.load_scene(daylight=False)
-    built = world_scenario_trees(run.scenario, base)
+    # the trees the run started with, built once per loaded run (the litter of a tree's
+    # earlier version asks for them again); the list is copied, its trees are replaced, not
+    # changed
+    built = getattr(run, "_initial_trees", None)
+    if built is None:
+        built = world_scenario_trees(run.scenario, run.scenario.load_scene(daylight=False))
+        run._initial_trees = built
+    built = list(built)
     day = run.final_day if day is None else int(day)
     versions = [p for first, p in grown_trees(run) if first <= day]
     if versions:
@@ -162,7 +245,9 @@ def trees_for_run(run, trees, day: int | None = None):
     if trees is None:
         world, offsets = world_trees(run, day)
         if world:
-            seasons.append(WorldLeaves(run, world, offsets))
+            d = run.final_day if day is None else int(day)
+            first = max([f for f, _ in grown_trees(run) if f <= d], default=1)
+            seasons.append(WorldLeaves(run, world, offsets, first))
     tl = scenario_trees(run.scenario) if trees is None else list(trees)
     if tl:
         lat = float(run.scenario.get("site.latitude"))

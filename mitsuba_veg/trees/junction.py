@@ -320,7 +320,8 @@ def _tube_faces(oA, oB, S):
 def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_sides: int = 8,
               D_u=None, stretch=None, compress=None, gain=None, knot_gain=None,
               leaves: bool = True,
-              leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True):
+              leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True,
+              round_knots: bool = False):
     """``(bark, leaves)`` trimesh meshes of ``tree``.
 
     The bark carries UVs (u around the stem, v along it in units of the stem's base
@@ -360,6 +361,12 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
         Lower bound on the drawn radii [m] (default 0).
     caps : bool, optional
         Close branch tips and roots with triangle fans (default True).
+    round_knots : bool, optional
+        Draw knots (kind ``KNOT``, paper 004 §3.3) as swellings of the bark: the rings of a knot's
+        stem follow the half-ellipse r(s) = R sqrt(1 − (s / L)²) of its first radius R and its
+        drawn length L (s: distance from the knot's base) instead of the segments' linear taper
+        (a cone with a pointed tip); the knot keeps its length, base radius and junction.
+        Default False (the light scene's mesh, unchanged).
 
     Returns
     -------
@@ -404,6 +411,25 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
     Sg = _sides_of(tree, sides, knot_sides)
     r0 = np.maximum(tree.radius_start, min_radius)
     r1 = np.maximum(tree.radius_end, min_radius)
+    if round_knots:          # a knot's stem as a half-ellipse of its base radius and length
+        kn = tree.kind == 1                                 # KNOT (structure.KNOT)
+        heads = ~st["cont"]                                 # R: the knot stem's first radius
+        m = int(st["stem"].max()) + 1 if n else 0
+        base, L_k = np.zeros(m), np.zeros(m)
+        base[st["stem"][heads]] = tree.radius_start[heads]
+        np.add.at(L_k, st["stem"], st["length"])            # lengths of the drawn geometry
+        R_k, L_k = base[st["stem"]], np.maximum(L_k[st["stem"]], 1e-30)
+        # distance from the stem's base along the segments (the attrs' arc may be of the
+        # tree before a scaling)
+        arc = np.zeros(n)
+        for _ in range(int(kn.sum()) + 1):
+            new = np.where(st["cont"] & kn, arc[pp] + st["length"][pp], 0.0)
+            if np.array_equal(new, arc):
+                break
+            arc = new
+        prof = lambda s: R_k * np.sqrt(np.clip(1.0 - (s / L_k) ** 2, 0.0, 1.0))  # noqa: E731
+        r0 = np.where(kn, np.maximum(prof(arc), min_radius), r0)
+        r1 = np.where(kn, np.maximum(prof(arc + st["length"]), min_radius), r1)
     lobes = np.asarray(tree.attrs.get("lobes", np.zeros(n)), float)
     depth = np.asarray(tree.attrs.get("lobe_depth", np.zeros(n)), float)
     circ = 2 * np.pi * np.maximum(st["stem_radius"], 1e-6)

@@ -14,7 +14,11 @@ vectorised step a day):
   0, 1) and the Ishikura stage = 1 + 6 τ.
 - **leaf fall**: a leaf falls when τ_raw reaches its threshold φ_i (log-normal around
   ``fall_tau``); a fallen leaf no longer blocks light (hidden in the pass's tables, its blade
-  later taken out of the light scene) until it grows again next spring.
+  later taken out of the light scene) until it grows again next spring. The day it fell is kept
+  (``fall_day``, the date's proleptic Gregorian ordinal; −1 before its first fall) until it falls
+  again, through the next leaf-out: the render lays it on the ground as litter
+  (:mod:`mitsuba_veg.render.litter`). A leaf still hanging at the next leaf-out is shed that
+  day. The record is output only: nothing of the simulation reads it.
 
 Before the first leaf-out of a run that starts in winter or early spring the trees are bare.
 """
@@ -103,10 +107,13 @@ class Phenology:
     a day, nothing read back (:meth:`to_numpy` reads the state for checkpoints and maps).
 
     Attributes ``H`` [MJ m-2], ``t`` [days], ``tau_raw`` [-], ``grown`` [-] (blade size 0..1),
-    ``rate``, ``fall_threshold`` [-] are ``mi.Float64`` arrays, ``fallen`` a ``mi.Bool``.
+    ``rate``, ``fall_threshold`` [-], ``fall_day`` (the ordinal of the date the leaf last fell,
+    ``datetime.date.toordinal``; −1: not yet) are ``mi.Float64`` arrays, ``fallen`` a ``mi.Bool``.
     """
 
-    FIELDS = ("H", "t", "tau_raw", "fallen", "grown", "rate", "fall_threshold")
+    FIELDS = ("H", "t", "tau_raw", "fallen", "grown", "rate", "fall_threshold", "fall_day")
+    #: fields a checkpoint may lack (written before they existed) and their value then
+    OPTIONAL = {"fall_day": -1.0}
 
     def __init__(self, n: int, params: PhenologyParams = PhenologyParams(), seed: int = 0,
                  leaf_out_shift=None):
@@ -123,8 +130,9 @@ class Phenology:
         self.tau_raw = dr.zeros(mi.Float64, self.n)
         self.fallen = dr.zeros(mi.Bool, self.n)
         self.grown = dr.zeros(mi.Float64, self.n)      # blade size 0..1 (leaf-out)
+        self.fall_day = dr.full(mi.Float64, -1.0, self.n)   # date ordinal of the last fall
         dr.eval(self.rate, self.fall_threshold, self.shift, self.H, self.t, self.tau_raw,
-                self.fallen, self.grown)
+                self.fallen, self.grown, self.fall_day)
 
     # ---- one day ------------------------------------------------------------------------
     def start_of_day(self, date: _dt.date, evaluate: bool = True) -> None:
@@ -148,6 +156,12 @@ class Phenology:
         d = opaque(mi.Float64, float(doy))
         x = dr.clip((d - (p.leaf_out_doy + self.shift)) / float(p.leaf_out_days), 0.0, 1.0)
         if doy == p.leaf_out_doy:
+            # last year's leaves still hanging are shed today (the litter's record only): out
+            # and not fallen, on the tree through more of the autumn clock's days than a new
+            # leaf unfolding early this spring (at most -shift days) can have been
+            hanging = (self.grown > 0) & (self.t > 1.0 - self.shift) & ~self.fallen
+            self.fall_day = dr.select(hanging, opaque(mi.Float64, float(date.toordinal())),
+                                      self.fall_day)
             self.H = dr.zeros(mi.Float64, self.n)
             self.t = dr.zeros(mi.Float64, self.n)
             self.tau_raw = dr.zeros(mi.Float64, self.n)
@@ -186,6 +200,8 @@ class Phenology:
                                  self.tau_raw)
         fell = on & (self.tau_raw >= self.fall_threshold)
         self.fallen = self.fallen | fell
+        self.fall_day = dr.select(fell, opaque(mi.Float64, float(date.toordinal())),
+                                  self.fall_day)
         self.grown = dr.select(self.fallen, 0.0, self.grown)
         self.evaluate()                          # (see start_of_day)
 
@@ -195,9 +211,9 @@ class Phenology:
         Returns
         -------
         list
-            H, t, τ_raw, fallen, grown.
+            H, t, τ_raw, fallen, grown, fall_day.
         """
-        return [self.H, self.t, self.tau_raw, self.fallen, self.grown]
+        return [self.H, self.t, self.tau_raw, self.fallen, self.grown, self.fall_day]
 
     def evaluate(self) -> None:
         """Evaluate the state (one kernel for the day's updates)."""
@@ -232,7 +248,8 @@ class Phenology:
         -------
         dict
             ``{prefix + field: (n,) array}`` for :attr:`FIELDS`: H [MJ m-2], t [days], tau_raw [-],
-            fallen (bool), grown [-] (blade size 0..1), rate [-], fall_threshold [-].
+            fallen (bool), grown [-] (blade size 0..1), rate [-], fall_threshold [-], fall_day
+            (date ordinal of the last fall, −1: none).
         """
         return {prefix + k: np.array(getattr(self, k)) for k in self.FIELDS}
 
@@ -242,7 +259,8 @@ class Phenology:
         Parameters
         ----------
         d : dict
-            A checkpoint holding the keys of :meth:`to_numpy`.
+            A checkpoint holding the keys of :meth:`to_numpy` (a checkpoint written before
+            ``fall_day`` existed restores it as −1: no fall recorded).
         prefix : str
             Prefix of the keys (default ``"phen_"``).
 
@@ -254,6 +272,9 @@ class Phenology:
             When a field is missing.
         """
         for k in self.FIELDS:
+            if prefix + k not in d and k in self.OPTIONAL:
+                setattr(self, k, dr.full(mi.Float64, self.OPTIONAL[k], self.n))
+                continue
             v = np.asarray(d[prefix + k])
             if v.shape != (self.n,):
                 raise ValueError(f"{prefix + k}: {v.shape} != ({self.n},)")
