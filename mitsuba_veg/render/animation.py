@@ -25,6 +25,11 @@ from .scene import RenderOptions, Terrain, build_scene, render_time, sky_emitter
 from .still import check_image, render
 from .world import tree_version, trees_for_run
 
+__all__ = ["ANIMATE_DEFAULTS", "label_frame", "ffmpeg_path", "write_mp4", "default_light",
+           "prepare_animation", "run_animate"]
+
+#: defaults of ``animate`` (image size [px], samples per pixel, frames, frames per second,
+#: camera, GIF width [px])
 ANIMATE_DEFAULTS = {"width": 480, "height": 270, "spp": 8, "frames": 31, "fps": 6,
                     "camera": "overview", "gif_width": 360}
 

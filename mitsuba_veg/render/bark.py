@@ -34,6 +34,9 @@ import numpy as np
 from ..trees.junction import stem_structure
 from . import materials as mat
 
+__all__ = ["SIDES", "FURROWS", "RELIEF", "swept_tubes", "bark_texture", "bark_normals",
+           "bark_bsdf"]
+
 #: corners of a tube by the branch's base radius [m]: (radius >= r: S)
 SIDES = ((0.06, 14), (0.025, 10), (0.008, 7), (0.0, 5))
 #: furrows around a stem in the bark texture (one texture tile is one circumference square)

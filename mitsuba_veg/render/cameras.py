@@ -33,10 +33,15 @@ from scipy.spatial import cKDTree
 
 from ..errors import ParameterError
 
+__all__ = ["BUILTIN", "OVERVIEW_PITCH", "OVERVIEW_FOV", "EYE_HEIGHT", "moss_focus", "presets",
+           "sensor_dict"]
+
+#: the built-in camera presets (module docstring)
 BUILTIN = ("overview", "floor", "canopy", "shelter", "top", "scene")
-#: downward pitch [degrees] and horizontal field of view [degrees] of the overview: the pitch
-#: is 2.5 degrees less than the vertical half-angle of a 16:9 view, so the horizon is in the frame
+#: downward pitch of the overview [degrees]: 2.5 degrees less than the vertical half-angle of
+#: a 16:9 view at :data:`OVERVIEW_FOV`, so the horizon is in the frame
 OVERVIEW_PITCH = 16.0
+#: horizontal field of view of the overview [degrees]
 OVERVIEW_FOV = 62.0
 #: eye height of the floor view [m] (at most 0.35 of the ground's extent)
 EYE_HEIGHT = 1.6

@@ -30,6 +30,10 @@ from ..atomic import atomic_write
 from ..errors import ParameterError
 from ..plots import _mpl
 
+__all__ = ["BANDS", "BAND_WEIGHT", "band_response", "film_dict", "develop", "write_exr",
+           "read_exr", "auto_exposure", "tone_map", "to_srgb8", "write_png", "rfr_false_colour",
+           "write_gif"]
+
 #: extra spectral bands of every render: name -> (lo, hi) [nm]
 BANDS = {"red": (655.0, 665.0), "far_red": (725.0, 735.0)}
 #: sensitivity of the band channels (relative to the CMFs' peak ~1): sampling weight

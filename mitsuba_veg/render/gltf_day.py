@@ -24,6 +24,8 @@ from ..trees.structure import leaf_quads
 from .history import _read_snapshot, load_run
 from .world import WorldLeaves, world_trees
 
+__all__ = ["BARK_RGB", "export_day"]
+
 #: colour of the wood (linear sRGB)
 BARK_RGB = (0.12, 0.08, 0.05)
 

@@ -33,6 +33,8 @@ from ..outputs import SNAPSHOT_DIR
 from ..scenario import Scenario, load_scenario
 from .moss import MossSet, live_moss
 
+__all__ = ["Frame", "Run", "load_run", "run_with_snapshots"]
+
 
 # ---- reading a run ------------------------------------------------------------------------------
 def _read_snapshot(path) -> dict:
@@ -52,6 +54,9 @@ def _read_snapshot(path) -> dict:
 
 @dataclass
 class Frame:
+    """One day of a run as the render draws it: the day (1-based), its date, the living moss,
+    and whether the moss is exact (from a snapshot) or approximated (from the last checkpoint)."""
+
     day: int                 # 1-based simulated day (end of that day)
     date: _dt.date
     moss: MossSet
@@ -60,6 +65,9 @@ class Frame:
 
 @dataclass
 class Run:
+    """A run folder as the render reads it (:func:`load_run`): its summary, scenario, species,
+    moss size [m], start date, days, last checkpoint and snapshot days."""
+
     dir: Path
     summary: dict
     scenario: object                      # mitsuba_veg.scenario.Scenario

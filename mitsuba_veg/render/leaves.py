@@ -40,6 +40,9 @@ import numpy as np
 from ..errors import ParameterError
 from ..foliage.ifs import MAPLE_IFS, chaos_game, fixed_point
 
+__all__ = ["LEAF_AREA", "VARIANTS", "PRESET_OUTLINE", "half_outline", "SHAPES", "leaf_template",
+           "triangle_areas", "leaf_shape_of", "leaf_frames", "blade_mesh"]
+
 #: one-sided blade area per size² [-]: the light pass's quad (length x 0.6 length)
 LEAF_AREA = 0.6
 #: variants of each template (fold, cup, arch) spread over the leaves by index
@@ -155,6 +158,7 @@ def half_outline(shape: str) -> np.ndarray:
     raise ParameterError("leaf shape", shape, "one of " + ", ".join(SHAPES))
 
 
+#: the leaf outlines (:func:`leaf_template`)
 SHAPES = ("ovate", "deltoid", "elliptic", "lanceolate", "oak", "maple")
 
 

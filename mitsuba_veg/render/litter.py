@@ -53,6 +53,10 @@ from ..meshes import make_mesh
 from . import materials as mat
 from .leaves import blade_mesh, leaf_frames, leaf_shape_of
 
+__all__ = ["BINS", "DRIFT", "DRY_DAYS", "DARK_DAYS", "LIFE_DAYS", "SHRINK_DAYS", "CURL", "LIFT",
+           "TILT", "LitterLeaves", "stage", "lifetime", "size_factor", "stage_spectrum", "place",
+           "litter_arrays", "litter_bsdf", "litter_shapes"]
+
 #: stage bins (one mesh each)
 BINS = 6
 #: drift per metre of fall height [-] (times a Rayleigh variate of mean 1.25)

@@ -91,6 +91,7 @@ def _spectra() -> dict:
     return {k: np.clip(v, 0.0, 0.95) for k, v in s.items()}
 
 
+#: every material: name -> reflectance on :data:`WAVELENGTHS` [-]
 SPECTRA: dict[str, np.ndarray] = _spectra()
 #: geology class (mitsuba_veg.terrain.GEOLOGY order) -> material name
 GEOLOGY_MATERIAL = {"humus": "humus", "sand": "sand", "asphalt": "asphalt"}

@@ -32,6 +32,10 @@ from .carpet import cell_keys
 from .noise import pink_noise
 from .tufts import TUFT_SIZE, tuft_models
 
+__all__ = ["MOSS_STATE", "MossSet", "live_moss", "growth_scale", "cell_centres", "TuftMesh",
+           "place_tufts"]
+
+#: population state of a living moss (:mod:`mitsuba_veg.moss.population`)
 MOSS_STATE = 2  # mitsuba_veg.moss.population.MOSS
 
 

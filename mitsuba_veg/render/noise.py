@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ["value_noise", "pink_noise", "pink_noise_image"]
+
 _MASK = np.uint64(0xFFFFFFFF)
 
 

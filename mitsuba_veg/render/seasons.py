@@ -28,8 +28,14 @@ import numpy as np
 from ..climate import extraterrestrial_irradiation
 from ..foliage import AutumnParams, autumn_time
 
+__all__ = ["LEAF_OUT_DOY", "LEAF_OUT_DAYS", "AUTUMN_ONSET_DOY", "daily_extraterrestrial_mj",
+           "leaf_exposure", "TreeSeasons"]
+
+#: calendar phenology of decoration trees: the first day of leaf-out [day of year]
 LEAF_OUT_DOY = 95
+#: days from the first leaf to full leaf [d]
 LEAF_OUT_DAYS = 30
+#: day of year the autumn clock starts
 AUTUMN_ONSET_DOY = 258
 
 

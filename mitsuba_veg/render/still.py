@@ -19,6 +19,9 @@ from .denoise import timed_denoise
 from .scene import IMAGE_LIMITS, RenderOptions, Terrain, build_scene
 from .world import trees_for_run
 
+__all__ = ["render", "write_outputs", "RENDER_DEFAULTS", "YEARS_FPS", "run_render",
+           "year_end_days", "run_render_years", "check_image"]
+
 
 def render(rs, spp: int | None = None, seed: int | None = None,
            denoise: bool | None = None) -> dict:
@@ -96,6 +99,7 @@ def write_outputs(images: dict, out_dir, stem: str = "render", meta: dict | None
     return {"files": files, "exposure": exp}
 
 
+#: defaults of ``render`` (image size [px], samples per pixel, camera presets)
 RENDER_DEFAULTS = {"width": 800, "height": 450, "spp": 32, "cameras": ("overview", "floor")}
 #: frames per second of the years' animation (``render --years``)
 YEARS_FPS = 1

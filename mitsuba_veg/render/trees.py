@@ -44,6 +44,9 @@ from . import materials as mat
 from .bark import bark_bsdf, swept_tubes
 from .leaves import blade_mesh, leaf_shape_of
 
+__all__ = ["tree_geometry", "leaf_bin_arrays", "tree_shapes", "simple_tree", "make_tree",
+           "scenario_trees"]
+
 
 # ---- meshes -------------------------------------------------------------------------------------
 def _smooth_normals(v, f, vring):

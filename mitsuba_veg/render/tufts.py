@@ -28,11 +28,16 @@ import numpy as np
 from ..atomic import atomic_write
 from ..errors import ParameterError
 
+__all__ = ["TUFT_SIZE", "VARIANTS", "SPECIES_MODELS", "DATA_DIR", "Tuft", "model_key", "generate",
+           "write_ply", "read_ply", "tuft_models", "write_all"]
+
 #: footprint of a tuft model [m] (the moss model of paper 000 is 1 cm)
 TUFT_SIZE = 0.01
 #: variants per species
 VARIANTS = 4
+#: species with tuft models of their own (others use hypnum_plumaeforme's)
 SPECIES_MODELS = ("polytrichum", "bryum_argenteum", "hypnum_plumaeforme")
+#: folder of the shipped tuft PLY files
 DATA_DIR = Path(__file__).resolve().parents[1] / "data" / "tufts"
 
 

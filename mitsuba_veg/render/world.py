@@ -13,6 +13,8 @@ from .litter import LIFE_DAYS, LitterLeaves
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
+__all__ = ["WorldLeaves", "grown_trees", "world_trees", "tree_version", "trees_for_run"]
+
 
 class WorldLeaves:
     """The leaf state of a world run's trees on a frame's date (from the run's snapshots):
