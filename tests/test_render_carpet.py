@@ -56,7 +56,8 @@ def test_an_isolated_moss_covers_its_cell_area():
     # rounded corners and pushed edges keep the area: (1 + m)(1 - k) = 1; jitter is zero-mean
     assert a.mean() == pytest.approx(SIZE ** 2, rel=0.03)
     assert np.all(a > 0.6 * SIZE ** 2) and np.all(a < 1.5 * SIZE ** 2)
-    square = carpet.carpet_patches(m, SIZE, ORIGIN, jitter=0.0, rounding=0.0, lift=0.0,
+    square = carpet.carpet_patches(m, SIZE, ORIGIN, jitter=0.0, rounding=0.0, wobble_edges=0.0,
+                                   lift=0.0,
                                    cushion=0.0)
     assert np.allclose(carpet.patch_area(square[0]), SIZE ** 2, rtol=1e-4)
 

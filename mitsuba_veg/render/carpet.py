@@ -204,7 +204,8 @@ _ACROSS = {1: (0, -1), 3: (-1, 0), 5: (1, 0), 7: (0, 1)}        # the cell acros
 
 
 def carpet_patches(moss, size: float, origin, scene=None, seed: int = 0,
-                   jitter: float = 0.12, rounding: float = 0.3, lift: float = 0.05,
+                   jitter: float = 0.16, rounding: float = 0.3, wobble_edges: float = 0.25,
+                   lift: float = 0.05,
                    cushion: float = 0.04, noise_scale: float = 0.16) -> list:
     """One patch per moss over its cell, merged into one mesh per species (module docstring).
 
@@ -227,10 +228,13 @@ def carpet_patches(moss, size: float, origin, scene=None, seed: int = 0,
     seed : int, optional
         Seed of the jitter, relief and tone (default 0).
     jitter : float, optional
-        In-plane jitter of the lattice points as a fraction of ``size`` [-] (default 0.12).
+        In-plane jitter of the lattice points as a fraction of ``size`` [-] (default 0.16).
     rounding : float, optional
         How far a free corner is pulled in, as a fraction of its distance to the patch centre
         [-] (default 0.3; 0 gives square outlines).
+    wobble_edges : float, optional
+        Random bulge (or dent) of a free edge's midpoint, as a fraction of its distance to the
+        patch centre [-] (default 0.25; zero mean).
     lift : float, optional
         Mean height of the shared vertices above the surface as a fraction of ``size`` [-]
         (default 0.05, varied by +-50 % by noise).
@@ -276,12 +280,16 @@ def carpet_patches(moss, size: float, origin, scene=None, seed: int = 0,
         oa[:, c] = np.where(pulled[:, c], sa * (1.0 - rounding), sa)
         ob[:, c] = np.where(pulled[:, c], sb * (1.0 - rounding), sb)
     push = rounding / (1.0 - rounding)
+    cell_keys4 = np.stack([d, ia, ib, np.full(n, seed)], 1)
     for m_, (c0, c1) in _MIDS.items():
         da, db = _ACROSS[m_]
         free = ~has(d, ia + da, ib + db)
         f = np.where(free, 0.5 * (pulled[:, c0].astype(float) + pulled[:, c1]), 0.0)
-        oa[:, m_] *= 1.0 + push * f
-        ob[:, m_] *= 1.0 + push * f
+        # a free edge also bulges or dents at random (zero mean: the area is kept on average),
+        # so a carpet's outline does not follow the grid
+        wobble = np.where(free, wobble_edges * (2.0 * _hash01(cell_keys4, 20 + m_) - 1.0), 0.0)
+        oa[:, m_] *= 1.0 + push * f + wobble
+        ob[:, m_] *= 1.0 + push * f + wobble
     # lattice coordinates of the 9 points in half cells: shared by neighbouring cells' patches
     la = 2 * ia[:, None] + _LI[None, :]
     lb = 2 * ib[:, None] + _LJ[None, :]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["value_noise", "pink_noise", "pink_noise_image"]
+__all__ = ["value_noise", "pink_noise", "pink_noise_image", "periodic_pink_noise_image"]
 
 _MASK = np.uint64(0xFFFFFFFF)
 
@@ -116,3 +116,36 @@ def pink_noise_image(shape, scale_px: float = 64.0, octaves: int = 6, seed: int 
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
     p = np.stack([xx.ravel() / scale_px, yy.ravel() / scale_px, np.zeros(h * w)], 1)
     return pink_noise(p, scale=1.0, octaves=octaves, seed=seed).reshape(h, w)
+
+
+def periodic_pink_noise_image(shape, scale_px: float = 96.0, seed: int = 0) -> np.ndarray:
+    """A 2D 1/f noise image that tiles without seams (h, w), values mostly in [-1, 1].
+
+    White noise filtered in the Fourier domain: amplitude 1/f above the lowest wavelength
+    ``scale_px`` (flat below it), then scaled to a standard deviation of 1/3. The inverse
+    transform is periodic, so the image repeats seamlessly (a texture with ``wrap_mode`` repeat
+    over a large surface shows no tile edges).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(h, w)`` [px].
+    scale_px : float, optional
+        Longest wavelength with 1/f amplitude [px] (default 96).
+    seed : int, optional
+        Seed (default 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Noise image (h, w) [-], standard deviation 1/3, float64.
+    """
+    h, w = shape
+    rng = np.random.default_rng(seed)
+    spec = np.fft.rfft2(rng.standard_normal((h, w)))
+    fy = np.fft.fftfreq(h)[:, None]
+    fx = np.fft.rfftfreq(w)[None, :]
+    f = np.maximum(np.hypot(fx, fy), 1.0 / float(scale_px))
+    img = np.fft.irfft2(spec / f, s=(h, w))
+    img -= img.mean()
+    return img / (3.0 * img.std())

@@ -45,7 +45,7 @@ from .film import film_dict
 from .denoise import AUX_CAMERA, aux_sensor_dict
 from .carpet import BUMP_SCALE, carpet_patches, grid_origin, moss_texture
 from .moss import MossSet, place_tufts
-from .noise import pink_noise_image
+from .noise import periodic_pink_noise_image
 from .trees import leaf_bin_arrays, tree_shapes
 from .litter import litter_arrays, litter_shapes      # (litter: render/litter.py)
 
@@ -522,7 +522,8 @@ class Terrain:
                 img = load_texture_rgb(scn.file("terrain.geology_texture"))
                 codes = classify_geology(img)
                 masks = [(codes == k).astype(np.float32) for k in range(3)]
-        noise = pink_noise_image((512, 512), scale_px=96.0, octaves=6, seed=7)
+        # periodic: the ground's texture repeats over the surround without seams
+        noise = periodic_pink_noise_image((512, 512), scale_px=128.0, seed=7)
         noise = np.clip(0.5 + 1.1 * noise, 0.0, 1.0).astype(np.float32)
         if ground is not None and meshes[ground][2] is None:
             # a ground without texture coordinates: its plan (x, z) over its extent, so that
@@ -537,10 +538,10 @@ class Terrain:
         return Terrain(meshes, ground, masks, noise, base, uv_scale, materials)
 
     # materials -------------------------------------------------------------------------------
-    def _varied(self, name: str) -> dict:
-        """A material's diffuse BSDF, varied by the 1/f noise between it and its ``_light`` (or
-        ``_dark``) variant where one exists."""
-        noise = _bitmap(self.noise, wrap="repeat")
+    def _varied(self, name: str, noise: dict | None = None) -> dict:
+        """A material's diffuse BSDF, varied by the 1/f noise (or the texture ``noise``) between
+        it and its ``_light`` (or ``_dark``) variant where one exists."""
+        noise = noise if noise is not None else _bitmap(self.noise, wrap="repeat")
         for other, first in ((name + "_light", True), (name + "_dark", False)):
             if other in mat.SPECTRA:
                 a, b = (name, other) if first else (other, name)
@@ -641,8 +642,11 @@ class Terrain:
                     m = "humus" if self.geology_masks is not None or not isinstance(g, str) \
                         else g
                 (vn, fn), (vf, ff) = ring
+                # the ground's texture at half contrast: it meets the far part's even tone
+                # without a visible edge
+                soft = _bitmap(0.25 + 0.5 * self.noise, wrap="repeat")
                 out["surround"] = make_mesh("surround", vn, fn,
-                                            {"type": "twosided", "bsdf": self._varied(m)},
+                                            {"type": "twosided", "bsdf": self._varied(m, soft)},
                                             uv=_plan_uv(vn, self.uv_scale))
                 # the far ring without texture: a bitmap seen at grazing angles over kilometres
                 # would alias into stripes
@@ -655,8 +659,8 @@ class Terrain:
         ``radius``, in two parts.
 
         The ground mesh's outer boundary loop is joined to copies of it scaled about the ground's
-        centre (1.15, 1.4, 1.8 and 2.5 times its size) whose heights ease (smoothstep) from the
-        rim's own to the rim's median height: no gap at the rim, no ramp edges, flat beyond. The
+        centre (1.15 to 7 times its size) whose heights ease (smoothstep) from the rim's own to
+        the rim's median height at 2.5 times: no gap at the rim, no ramp edges, flat beyond. The
         far part joins the last copy to a loop at ``radius``: from a camera a few metres up its
         edge lies within a hundredth of a degree of the horizon (the sky is zero below it).
 
@@ -686,8 +690,8 @@ class Terrain:
         r = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
         R = max(R, 4.0 * float(r.max()))
         rings = [b]
-        for k in (1.15, 1.4, 1.8, 2.5):
-            t = (k - 1.0) / 1.5
+        for k in (1.15, 1.4, 1.8, 2.5, 4.0, 7.0):
+            t = min((k - 1.0) / 1.5, 1.0)
             ease = t * t * (3.0 - 2.0 * t)
             h = b[:, 1] + (y - b[:, 1]) * ease
             rings.append(np.c_[c[0] + k * d[:, 0], h, c[2] + k * d[:, 1]])
@@ -767,8 +771,9 @@ def _moss_bsdf(species: str, carpet: bool) -> dict:
 
     Tufts blend the species' dark and light spectra by their ``vertex_tone``. The carpet
     shows shoot tips (:func:`~mitsuba_veg.render.carpet.moss_texture`, over its texture
-    coordinates in metres / :data:`~mitsuba_veg.render.carpet.TEXTURE_TILE`): between the tips the
-    dark spectrum, on them the blend by ``vertex_tone``; the same texture bumps its shading.
+    coordinates in metres / :data:`~mitsuba_veg.render.carpet.TEXTURE_TILE`): on the tips the
+    light spectrum (young leaves), between them the blend by ``vertex_tone``; the same texture
+    bumps its shading.
     """
     key = species if species in mat.MOSS_MATERIAL else "hypnum_plumaeforme"
     dark = mat.diffuse(mat.MOSS_MATERIAL[key])
@@ -778,7 +783,7 @@ def _moss_bsdf(species: str, carpet: bool) -> dict:
         return {"type": "twosided", "bsdf": toned}
     tex = _bitmap(moss_texture(), wrap="repeat")
     return {"type": "twosided", "bsdf": {"type": "bumpmap", "arg": tex, "scale": BUMP_SCALE,
-                                         "bsdf": mat.blend(dark, toned, tex)}}
+                                         "bsdf": mat.blend(toned, light, tex)}}
 
 
 def moss_shapes(moss: MossSet | None, size: float, options: RenderOptions,
