@@ -9,7 +9,8 @@ the machine's 24 GB.
 
 RUN_DIR is a run of ``scenes/forest_stand/scenario.toml`` (or of the hectare) with snapshots, e.g.
 ``mitsuba-veg run scenes/forest_stand/scenario.toml --out out/stand --days 1095``. The default
-day is the snapshot day of the run's third summer with the most leaves on the trees. Kernel
+day is the snapshot day of the run's third summer (June to September) with the most leaves on
+the trees. Kernel
 compilation is measured by Dr.Jit's kernel history (the backend time of kernels that were not in
 its cache); run the script twice to see the render with warm caches.
 """
@@ -27,13 +28,14 @@ def _peak_gb() -> float:
 
 
 def leafiest_day(run, year_index: int = 2) -> int:
-    """The snapshot day of the run's ``year_index``-th year (0-based) with the most leaves on
-    the trees (the summary's records), else the last snapshot day."""
+    """The snapshot day of the run's ``year_index``-th summer (0-based; June to September) with
+    the most leaves on the trees (the summary's records), else the last snapshot day."""
     recs = {r["day"]: r for r in run.summary.get("days_record", [])}
     days = [d for d, _ in run.snapshots]
     years = sorted({run.date(d).year for d in days})
     if len(years) > year_index:
-        days = [d for d in days if run.date(d).year == years[year_index]]
+        days = [d for d in days if run.date(d).year == years[year_index]
+                and 6 <= run.date(d).month <= 9] or days
     best = max(days, key=lambda d: sum(t.get("leaves_on_tree", 0)
                                        for t in recs.get(d, {}).get("trees", {}).values()))
     return int(best)

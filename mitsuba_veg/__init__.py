@@ -8,7 +8,9 @@ Mitsuba (:mod:`mitsuba_veg.integrators`, the one folder of every plugin class):
 - emitter ``veg_sky`` (a Perez / CIE clear-sky environment),
 - emitters ``veg_sun_path`` (a day of sun directions) and ``veg_sun_steps`` (the sun over one
   step of a sensor study),
-- BSDF ``veg_leaf`` (a thin two-sided leaf, diffuse reflectance and transmittance).
+- BSDF ``veg_leaf`` (a thin two-sided leaf, diffuse reflectance and transmittance),
+- sensor ``veg_fisheye`` (an equidistant or equisolid fisheye camera: hemispherical canopy
+  photographs, :mod:`mitsuba_veg.canopy_photo`).
 """
 from __future__ import annotations
 

@@ -446,6 +446,9 @@ def generate_tables() -> None:
     results = _load_results()
     _write(GEN / "performance_headlines.md", headline_table(results, HEADLINES))
     _write(GEN / "performance.md", performance_tables(results))
+    # the render page's figures: its benchmarks (render_*) only
+    _write(GEN / "render_figures.md", performance_tables(
+        {k: v for k, v in results.items() if k.startswith("render_")}))
     if "validation" in results:
         _write(GEN / "validation.md", validation_table(results["validation"]))
     else:
