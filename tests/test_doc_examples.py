@@ -35,7 +35,6 @@ PAGES = [ROOT / "README.md"] + sorted(
                for part in p.relative_to(ROOT / "docs").parts))
 #: pages left out for now, with the reason
 NOT_YET = {
-    "docs/render.md": "being rewritten with the render (its examples are checked once it lands)",
     "docs/reliability.md": "its one block runs the reliability tests (about 8 minutes) and a "
                            "loop of 25 runs; the page is being extended",
     "docs/hemiphoto.md": "new: its Python block needs a scene defined first",

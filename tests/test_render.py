@@ -239,3 +239,23 @@ def test_surround_continues_the_ground_to_the_horizon(terrain):
     # all faces up (two-sided anyway, but the normals are consistent)
     p = vn[fn]
     assert (np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 1] >= 0).all()
+
+
+def test_distant_trees_are_drawn_at_their_level_of_detail():
+    """A tree whose leaves span a pixel or two is drawn with the light pass's quads (the same leaf
+    area, 2 triangles a leaf); near trees keep their shaped blades."""
+    from mitsuba_veg.render.trees import far_trees, tree_geometry
+    near = simple_tree(height=3.0, seed=1)
+    far = simple_tree(height=3.0, seed=1).translated([0.0, 0.0, -400.0])
+    cam = {"origin": [0.0, 1.5, 8.0], "fov": 50.0}
+    f = far_trees([near, far], cam, 1920, 3.0)
+    assert list(f) == [False, True]
+    assert not far_trees([near, far], cam, 1920, 0.0).any()
+    _, full = tree_geometry([far])
+    _, quads = tree_geometry([far], far=[True])
+    assert len(quads["f"]) == 2 * len(far.leaves) < len(full["f"])
+
+    def area(g):
+        p = g["v"].astype(float)[g["f"].astype(int)]
+        return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+    assert area(quads) == pytest.approx(area(full), rel=1e-3)

@@ -154,7 +154,7 @@ def _overview(c, W, top_y, yg):
     height = max(top_y - yg, 0.1 * W)
     target = np.array([c[0], yg + 0.25 * height, c[2]]) + 0.1 * W * horiz
     # the plot's diagonal and the tallest crowns within the view
-    D = 0.8 * W + 0.6 * height
+    D = 0.95 * W + 0.6 * height
     fwd = np.array([horiz[0] * np.cos(pitch), -np.sin(pitch), horiz[2] * np.cos(pitch)])
     origin = target - D * fwd
     return {"origin": origin.tolist(), "target": target.tolist(), "up": [0, 1, 0],

@@ -46,7 +46,8 @@ from .denoise import AUX_CAMERA, aux_sensor_dict
 from .carpet import BUMP_SCALE, carpet_patches, grid_origin, moss_texture
 from .moss import MossSet, place_tufts
 from .noise import periodic_pink_noise_image
-from .trees import leaf_bin_arrays, tree_shapes
+from .cameras import presets
+from .trees import far_trees, leaf_bin_arrays, tree_shapes
 from .litter import litter_arrays, litter_shapes      # (litter: render/litter.py)
 
 __all__ = ["RenderOptions", "RenderScene", "build_scene", "make_mesh", "render_time",
@@ -88,6 +89,9 @@ class RenderOptions:
     denoise_guides: bool = False
     #: draw the trees' fallen leaves on the ground (:mod:`mitsuba_veg.render.litter`)
     litter: bool = True
+    #: a tree whose median leaf spans fewer pixels than this is drawn at its distant level of
+    #: detail (leaf quads, Weber-Penn tubes; :func:`mitsuba_veg.render.trees.far_trees`); 0: none
+    lod_pixels: float = 3.0
 
     @property
     def samples(self) -> int:
@@ -129,6 +133,8 @@ class RenderOptions:
         check_range("hour", self.hour, 0.0, 24.0, fix="local time of day in hours, e.g. 10.5")
         check_range("moss_jitter", self.moss_jitter, 0.0, 2.0)
         check_range("leaf_bins", self.leaf_bins, 1, 64)
+        check_range("lod_pixels", self.lod_pixels, 0.0, 1000.0,
+                    fix="pixels a leaf must span to be drawn in full (0: every tree in full)")
         if self.surround not in (None, "auto", "ground", "none") and \
                 self.surround not in mat.SPECTRA:
             raise ParameterError("surround", self.surround, "'auto', 'ground', 'none', a material "
@@ -150,6 +156,8 @@ class RenderScene:
     moss_size: float = 0.01
     species: list = field(default_factory=list)
     tree_cache: dict | None = None
+    #: the trees drawn at their distant level of detail (:func:`~.trees.far_trees`)
+    tree_far: np.ndarray | None = None
     #: the albedo/normal camera of the denoiser (None when the scene does not denoise)
     aux_sensor: mi.Sensor | None = None
 
@@ -196,7 +204,8 @@ class RenderScene:
         info["tufts"] = int(sum(p["count"] for sid, p in parts.items()
                                 if not sid.startswith(CARPET_PREFIX)))
         if trees is not None:
-            for sid, (v, f) in leaf_bin_arrays(trees, self.options, self.tree_cache).items():
+            for sid, (v, f) in leaf_bin_arrays(trees, self.options, self.tree_cache,
+                                               self.tree_far).items():
                 if f"{sid}.faces" in keys:
                     params[f"{sid}.vertex_positions"] = mi.Float(np.ascontiguousarray(v).ravel())
                     params[f"{sid}.faces"] = mi.UInt32(np.ascontiguousarray(f).ravel())
@@ -997,9 +1006,12 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
             raise ParameterError("render.surround", surround, "'ground', 'none' or a material",
                                  "one of " + ", ".join(sorted(mat.SPECTRA)), str(scn.path))
     d.update(terrain.shapes(None if surround == "none" else surround))
+    tree_far = None
     if trees:
         tree_cache = {} if tree_cache is None else tree_cache
-        ts, t_info = tree_shapes(trees, options, cache=tree_cache)
+        cam = presets(scn, terrain, moss, trees).get(options.camera)
+        tree_far = far_trees(trees, cam, options.width, options.lod_pixels)
+        ts, t_info = tree_shapes(trees, options, cache=tree_cache, far=tree_far)
         d.update(ts)
         info.update(t_info)
         if options.litter:      # the fallen leaves on the ground (render/litter.py)
@@ -1023,4 +1035,4 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
                  "seconds": {"terrain": t1 - t0, "moss": t2 - t1, "trees": t3 - t2,
                              "load": t4 - t3, "total": t4 - t0}})
     return RenderScene(scene, sensor, options, info, terrain, float(moss_size),
-                       list(species or []), tree_cache, sensors.get(AUX_CAMERA))
+                       list(species or []), tree_cache, tree_far, sensors.get(AUX_CAMERA))

@@ -39,13 +39,13 @@ from ..trees import weber_penn
 from ..trees.entries import check_render_tree
 from ..trees.growth import GrowthParams, grow
 from ..trees.junction import tree_mesh
-from ..trees.structure import Leaves, Tree, scaled_tree
+from ..trees.structure import Leaves, Tree, leaf_quads, scaled_tree
 from . import materials as mat
 from .bark import bark_bsdf, swept_tubes
 from .leaves import blade_mesh, leaf_shape_of
 
-__all__ = ["tree_geometry", "leaf_bin_arrays", "tree_shapes", "simple_tree", "make_tree",
-           "scenario_trees"]
+__all__ = ["tree_geometry", "far_trees", "leaf_bin_arrays", "tree_shapes", "simple_tree",
+           "make_tree", "scenario_trees"]
 
 
 # ---- meshes -------------------------------------------------------------------------------------
@@ -64,33 +64,87 @@ def _smooth_normals(v, f, vring):
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
 
 
-def _bark_and_leaf_geometry(tree):
-    """(bark (v, f, uv, normals), leaves (v, f, k vertices per leaf) or None)."""
+def _bark_and_leaf_geometry(tree, far: bool = False):
+    """(bark (v, f, uv, normals), leaves (v, f, k vertices per leaf) or None).
+
+    ``far``: the tree's level of detail for a distant view (:func:`far_trees`): Weber-Penn bark
+    as the model's tubes and cones (no smooth junctions), each leaf the light pass's blade, a
+    quad of the same area (2 triangles instead of 12-14)."""
     if getattr(tree, "weber_penn", None) is not None:
-        b, _ = tree_mesh(tree, smooth=True, leaves=False, round_knots=True)
-        v, f = np.asarray(b.vertices), np.asarray(b.faces, np.int64)
-        bark = (v, f, np.asarray(b.visual.uv), _smooth_normals(v, f, b.metadata["vertex_ring"]))
+        b, _ = tree_mesh(tree, smooth=not far, leaves=False, round_knots=not far)
+        v, f = np.asarray(b.vertices, np.float32), np.asarray(b.faces, np.int64)
+        ring = b.metadata.get("vertex_ring")
+        uv = np.asarray(b.visual.uv, np.float32) if getattr(b.visual, "uv", None) is not None \
+            else np.zeros((len(v), 2), np.float32)
+        nrm = _smooth_normals(v, f, ring) if ring is not None else \
+            np.asarray(b.vertex_normals, np.float32)
+        bark = (v, f, uv, nrm)
     else:
         bark = swept_tubes(tree)
     leaves = None
     if len(tree.leaves):
         lv = tree.leaves
-        v, f = blade_mesh(lv.position, lv.normal, lv.up, lv.size, leaf_shape_of(tree))
+        if far:
+            v, f = leaf_quads(lv)
+            v, f = v.astype(np.float32), f.astype(np.uint32)
+        else:
+            v, f = blade_mesh(lv.position, lv.normal, lv.up, lv.size, leaf_shape_of(tree))
         leaves = (v, f, len(v) // len(lv))
     return bark, leaves
 
 
-def _geometry(t, cache):
+def _geometry(t, cache, far: bool = False):
     """(bark, leaves) of one tree (:func:`_bark_and_leaf_geometry`), from the cache."""
-    key = id(t)
+    key = (id(t), bool(far))
     if cache is not None and key in cache and cache[key][0] is t:
         return cache[key][1], cache[key][2]
-    bark, leaves = _bark_and_leaf_geometry(t)
+    bark, leaves = _bark_and_leaf_geometry(t, far)
     if cache is not None:
         # the tree itself is kept in the entry: while the cache lives, its id cannot be
         # reused by another object
         cache[key] = (t, bark, leaves)
     return bark, leaves
+
+
+def far_trees(trees, camera: dict | None, width: int, pixels: float) -> np.ndarray:
+    """Which trees a view sees so small that they are drawn at their distant level of detail.
+
+    A tree is far when its median leaf, seen from the camera at the distance of the tree's leaf
+    centroid, spans fewer than ``pixels`` pixels (its blade's side sqrt(0.6) size x the focal
+    length in pixels / the distance): its leaves are then quads of the same area and its
+    Weber-Penn bark the model's tubes, which cuts a hectare's triangles about five-fold where no
+    pixel can tell.
+
+    Parameters
+    ----------
+    trees : list of Tree
+        The trees.
+    camera : dict or None
+        The camera preset (``origin`` [m], ``fov`` [degrees], ``fov_axis``); None: no tree is
+        far.
+    width : int
+        Image width [px] (the field of view is taken along it).
+    pixels : float
+        Threshold [px]; 0 draws every tree in full.
+
+    Returns
+    -------
+    numpy.ndarray
+        (len(trees),) bool.
+    """
+    far = np.zeros(len(trees), bool)
+    if camera is None or pixels <= 0 or not trees:
+        return far
+    o = np.asarray(camera["origin"], float)
+    focal = 0.5 * float(width) / np.tan(np.radians(float(camera.get("fov", 45.0))) / 2.0)
+    for i, t in enumerate(trees):
+        if len(t.leaves) == 0:
+            continue
+        c = np.asarray(t.leaves.position, float).mean(0)
+        d = max(float(np.linalg.norm(c - o)), 1e-6)
+        side = np.sqrt(0.6) * float(np.median(t.leaves.size))
+        far[i] = side * focal / d < pixels
+    return far
 
 
 def _leaf_state(t):
@@ -102,7 +156,7 @@ def _leaf_state(t):
     return tau, keep, scale
 
 
-def tree_geometry(trees, cache=None):
+def tree_geometry(trees, cache=None, far=None):
     """Merged bark and per-leaf geometry of several trees (cached per tree object id).
 
     Parameters
@@ -110,8 +164,10 @@ def tree_geometry(trees, cache=None):
     trees : list of Tree
         The trees; leaves may carry ``autumn_tau``, ``fallen`` and ``leaf_scale`` attrs.
     cache : dict, optional
-        ``{id(tree): (tree, bark, leaves)}``, filled on first use and reused (the geometry of a tree
-        object is assumed not to change).
+        ``{(id(tree), far): (tree, bark, leaves)}``, filled on first use and reused (the geometry
+        of a tree object is assumed not to change).
+    far : array_like of bool, optional
+        Trees drawn at their distant level of detail (:func:`far_trees`); default none.
 
     Returns
     -------
@@ -127,8 +183,9 @@ def tree_geometry(trees, cache=None):
     """
     bark_parts, lv, lf, vleaf, ltau, lkeep, lscale, lcentre = ([] for _ in range(8))
     nb = nl = nleaf = 0
-    for t in trees:
-        bark, leaves = _geometry(t, cache)
+    far = np.zeros(len(trees), bool) if far is None else np.asarray(far, bool)
+    for t, ft in zip(trees, far):
+        bark, leaves = _geometry(t, cache, ft)
         bark_parts.append((bark[0], bark[1] + nb, bark[2], bark[3]))
         nb += len(bark[0])
         if leaves is not None:
@@ -158,7 +215,7 @@ _EMPTY_V = np.full((3, 3), -1e4, np.float32)
 _EMPTY_F = np.array([[0, 1, 2]], np.uint32)
 
 
-def leaf_bin_arrays(trees, options, cache=None) -> dict:
+def leaf_bin_arrays(trees, options, cache=None, far=None) -> dict:
     """The leaves binned by autumn logical time, one mesh per bin.
 
     Leaf-out scales each leaf about its centre; fallen leaves and leaves with ``leaf_scale``
@@ -174,6 +231,8 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
         Gives ``leaf_bins``, the number of bins over tau in [0, 1].
     cache : dict, optional
         Geometry cache of :func:`tree_geometry`.
+    far : array_like of bool, optional
+        Trees drawn at their distant level of detail (:func:`far_trees`); default none.
 
     Returns
     -------
@@ -183,8 +242,9 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
     """
     K = int(options.leaf_bins)
     parts = {b: [] for b in range(K)}
-    for t in trees:
-        leaves = _geometry(t, cache)[1]
+    far = np.zeros(len(trees), bool) if far is None else np.asarray(far, bool)
+    for t, ft in zip(trees, far):
+        leaves = _geometry(t, cache, ft)[1]
         if leaves is None:
             continue
         v, f, k = leaves
@@ -223,7 +283,7 @@ def leaf_bin_arrays(trees, options, cache=None) -> dict:
     return out
 
 
-def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
+def tree_shapes(trees, options, cache=None, far=None) -> tuple[dict, dict]:
     """Mitsuba meshes (bark + one leaf mesh per autumn bin) and counts.
 
     The bark is one mesh with the textured, bump-mapped bark BSDF
@@ -238,17 +298,20 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
         Gives ``leaf_bins``.
     cache : dict, optional
         Geometry cache of :func:`tree_geometry`.
+    far : array_like of bool, optional
+        Trees drawn at their distant level of detail (:func:`far_trees`); default none.
 
     Returns
     -------
     shapes : dict
         ``{id: mesh}`` for ``mi.load_dict``.
     info : dict
-        ``trees``, ``leaves`` (drawn) and ``tree_triangles`` counts.
+        ``trees``, ``far_trees``, ``leaves`` (drawn) and ``tree_triangles`` counts.
     """
     out = {}
-    info = {"trees": len(trees), "leaves": 0, "tree_triangles": 0}
-    parts = [_geometry(t, cache)[0] for t in trees]
+    far = np.zeros(len(trees), bool) if far is None else np.asarray(far, bool)
+    info = {"trees": len(trees), "far_trees": int(far.sum()), "leaves": 0, "tree_triangles": 0}
+    parts = [_geometry(t, cache, ft)[0] for t, ft in zip(trees, far)]
     if parts:
         bark, n = [], 0
         for p in parts:
@@ -262,7 +325,7 @@ def tree_shapes(trees, options, cache=None) -> tuple[dict, dict]:
         del bark
     info["leaves"] = int(sum(_leaf_state(t)[1].sum() for t in trees if len(t.leaves)))
     K = int(options.leaf_bins)
-    for sid, (v, f) in leaf_bin_arrays(trees, options, cache).items():
+    for sid, (v, f) in leaf_bin_arrays(trees, options, cache, far).items():
         b = int(sid.split("_")[1])
         out[sid] = make_mesh(sid, v, f, mat.leaf_bsdf((b + 0.5) / K if K > 1 else 0.0))
         if f is not _EMPTY_F:
