@@ -335,3 +335,18 @@ def test_denoise_removes_noise_and_keeps_scale_and_nans(tmp_path):
     ch = film.read_exr(p)
     assert {"R", "display.R", "display.G", "display.B"} <= set(ch)
     assert np.allclose(ch["display.G"], out[..., 1].astype(np.float32), equal_nan=True)
+
+
+def test_the_film_colour_science_is_colour_sciences():
+    """The shipped CMF table, XYZ -> sRGB matrix and sRGB encoding equal colour-science's (the
+    render does not import it: a second of start-up)."""
+    import colour
+    cmf = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    ref = np.stack([np.interp(film._WL, cmf.wavelengths, cmf.values[:, i]) for i in range(3)])
+    assert np.allclose(film._cmfs(), ref, rtol=1e-7, atol=1e-12)
+    xyz = np.random.default_rng(1).random((50, 3))
+    assert np.allclose(xyz @ film.XYZ_TO_SRGB.T,
+                       colour.XYZ_to_sRGB(xyz, apply_cctf_encoding=False), atol=1e-12)
+    x = np.linspace(0, 1, 101)
+    assert np.allclose(film.srgb_encode(x), colour.cctf_encoding(x, function="sRGB"),
+                       atol=1e-12)

@@ -10,14 +10,15 @@ a sixth of the wavelength samples instead of 3 %, and divided back afterwards.
 
 - ``XYZ`` (h, w, 3): CIE XYZ normalised so that Y is the ȳ-weighted mean spectral radiance
   [W m-2 sr-1 nm-1] (Y = 1 for a flat spectrum of 1 W m-2 sr-1 nm-1);
-- ``rgb`` (h, w, 3): linear sRGB (D65 white, colour-science's ``XYZ_to_sRGB``), same scale;
+- ``rgb`` (h, w, 3): linear sRGB (D65 white, :data:`XYZ_TO_SRGB`: colour-science's
+  ``XYZ_to_sRGB``, which a test checks), same scale;
 - ``bands`` {name: (h, w)}: band-mean spectral radiance [W m-2 sr-1 nm-1] over 655-665 and
   725-735 nm (each band is a 10-nm box with 1-nm linear edges, FWHM 10 nm);
 - ``r_fr`` (h, w): the red:far-red photon ratio (photon radiance 655-665 / 725-735 nm).
 
 Outputs: :func:`write_exr` (OpenEXR, float32: R, G, B linear sRGB + the bands + R:FR + X, Y, Z),
-:func:`to_srgb8` / :func:`write_png` (exposure, filmic shoulder, sRGB encoding through
-colour-science) and :func:`rfr_false_colour` (the ratio on a log colour scale with a legend).
+:func:`to_srgb8` / :func:`write_png` (exposure, filmic shoulder, the sRGB transfer function,
+:func:`srgb_encode`) and :func:`rfr_false_colour` (the ratio on a log colour scale with a legend).
 """
 from __future__ import annotations
 
@@ -30,9 +31,9 @@ from ..atomic import atomic_write
 from ..errors import ParameterError
 from ..plots import _mpl
 
-__all__ = ["BANDS", "BAND_WEIGHT", "band_response", "film_dict", "develop", "write_exr",
-           "read_exr", "auto_exposure", "tone_map", "to_srgb8", "write_png", "rfr_false_colour",
-           "write_gif"]
+__all__ = ["BANDS", "BAND_WEIGHT", "CMF_FILE", "XYZ_TO_SRGB", "srgb_encode", "band_response",
+           "film_dict", "develop", "write_exr", "read_exr", "auto_exposure", "tone_map",
+           "to_srgb8", "write_png", "rfr_false_colour", "write_gif"]
 
 #: extra spectral bands of every render: name -> (lo, hi) [nm]
 BANDS = {"red": (655.0, 665.0), "far_red": (725.0, 735.0)}
@@ -42,11 +43,42 @@ _WL = np.arange(360.0, 831.0, 1.0)
 _CMF_INTEGRAL_Y = None
 
 
+#: the CIE 1931 2-degree colour matching functions on 360-830 nm (1 nm), shipped as a table so
+#: that a render does not import colour-science (a second of start-up)
+CMF_FILE = Path(__file__).resolve().parents[1] / "data" / "cie1931_2deg_cmfs.csv"
+#: XYZ (D65 white) -> linear sRGB, IEC 61966-2-1 (colour-science's sRGB matrix)
+XYZ_TO_SRGB = np.array([[3.2406, -1.5372, -0.4986],
+                        [-0.9689, 1.8758, 0.0415],
+                        [0.0557, -0.2040, 1.0570]])
+_CMFS = None
+
+
 def _cmfs():
-    import colour
-    cmf = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
-    return np.stack([np.interp(_WL, cmf.wavelengths, cmf.values[:, i], left=0, right=0)
-                     for i in range(3)])
+    global _CMFS
+    if _CMFS is None:
+        a = np.loadtxt(CMF_FILE, delimiter=",", comments="#", skiprows=4)
+        if not np.allclose(a[:, 0], _WL):
+            raise ValueError(f"{CMF_FILE}: not 360-830 nm in 1-nm steps")
+        _CMFS = np.ascontiguousarray(a[:, 1:].T)
+    return _CMFS
+
+
+def srgb_encode(lin):
+    """The sRGB transfer function (IEC 61966-2-1) of linear values in [0, 1].
+
+    Parameters
+    ----------
+    lin : array_like
+        Linear values [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        Encoded values [-].
+    """
+    x = np.asarray(lin, np.float64)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(np.maximum(x, 0.0031308),
+                                                                   1.0 / 2.4) - 0.055)
 
 
 def band_response(lo: float, hi: float, height: float = BAND_WEIGHT) -> np.ndarray:
@@ -125,13 +157,12 @@ def develop(tensor) -> dict:
     ParameterError
         If the tensor does not have the shape (h, w, 3 + len(BANDS)).
     """
-    import colour
     a = np.asarray(tensor, np.float64)
     if a.ndim != 3 or a.shape[2] != 3 + len(BANDS):
         raise ParameterError("film tensor", a.shape, f"(h, w, {3 + len(BANDS)})")
     y_int = float(np.trapezoid(_cmfs()[1], _WL))
     XYZ = a[..., :3] / y_int
-    rgb = colour.XYZ_to_sRGB(XYZ, apply_cctf_encoding=False)
+    rgb = XYZ @ XYZ_TO_SRGB.T
     bands = {}
     for j, (name, (lo, hi)) in enumerate(BANDS.items()):
         bands[name] = a[..., 3 + j] / (BAND_WEIGHT * (hi - lo))
@@ -285,12 +316,11 @@ def to_srgb8(rgb, exposure: float | None = None) -> tuple[np.ndarray, float]:
     exposure : float
         The exposure factor used.
     """
-    import colour
     rgb = np.nan_to_num(np.asarray(rgb, np.float64), nan=0.0, posinf=0.0)
     if exposure is None:
         exposure = auto_exposure(rgb)
     lin = tone_map(rgb * exposure)
-    enc = colour.cctf_encoding(np.clip(lin, 0.0, 1.0), function="sRGB")
+    enc = srgb_encode(np.clip(lin, 0.0, 1.0))
     return (np.clip(enc, 0, 1) * 255 + 0.5).astype(np.uint8), float(exposure)
 
 
