@@ -85,8 +85,13 @@ def test_the_binary_courtyard_is_the_ascii_one_as_mitsuba_reads_it(tmp_path, cap
         old = _mesh_arrays(tmp_path / name)
         new = _mesh_arrays(ROOT / "scenes" / "courtyard" / name)
         for k in old:
-            assert old[k].dtype == new[k].dtype and old[k].tobytes() == new[k].tobytes(), \
-                (name, k)
+            assert old[k].dtype == new[k].dtype, (name, k)
+            if k == "vertex_normals":
+                # Mitsuba computes the normals itself (the files have none) with parallel
+                # atomic adds on the LLVM backend: their order, hence the last bit, varies
+                np.testing.assert_allclose(old[k], new[k], rtol=0, atol=1e-6, err_msg=name)
+            else:
+                assert old[k].tobytes() == new[k].tobytes(), (name, k)
         assert old["vertex_positions"].size > 0 and old["faces"].size > 0
     assert parts["ground.ply"][2] is not None
     capfd.readouterr()                # (the ASCII files' warnings)
