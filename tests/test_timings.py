@@ -81,7 +81,9 @@ def test_irradiance_command_prints_the_rate_of_the_pass(tmp_path, capsys, monkey
     wall = walls[-1]
     assert 0.8 * wall <= secs + 0.005 and secs <= wall + 0.005, (secs, wall)   # printed to 0.01
     # the rate is the photons over the pass's own time: at most the wall time's rate / 0.8
-    assert rate <= n / (0.8 * wall) and rate == pytest.approx(n / secs, rel=0.02)
+    # and the photons over the printed time (rounded to 0.01 s, the rate to 0.01 M/s)
+    assert rate <= n / (0.8 * wall)
+    assert n / (secs + 0.005) - 5e3 <= rate <= n / max(secs - 0.005, 1e-3) + 5e3, (rate, secs)
 
 
 def test_a_runs_stage_times_include_their_kernels(tmp_path, monkeypatch):
