@@ -1,11 +1,12 @@
-"""The render page's and README's lead image: a forest-stand run on an autumn afternoon, seen
-from the plot's east edge at eye height, looking west into the stand (the leaves backlit).
+"""The render page's and README's lead image: a forest-stand run in its tenth autumn on an
+afternoon, seen from the plot's north-east corner into the stand, under the crowns.
 
-    mitsuba-veg run scenes/forest_stand/scenario.toml --out out/stand --days 1095
-    python experiments/render_hero.py out/stand --day 1020 --out docs/images/render_hero_stand.jpg
+    mitsuba-veg run scenes/forest_stand/scenario.toml --out out/stand --days 3650   # ~40 min
+    python experiments/render_hero.py out/stand --day 3570 --out docs/images/render_hero_stand.jpg
 
-The view is given in the scenario as ``[render.cameras.edge]`` (so ``mitsuba-veg render
---camera edge`` shows the same); ``--origin``/``--target`` move it.
+The view is added to the loaded scenario as ``[render.cameras.edge]`` (the same table in a
+scenario file gives ``mitsuba-veg render --camera edge``); ``--origin``/``--target`` move it
+(heights above the ground there), ``--ev`` sets the exposure in stops about the automatic one.
 """
 from __future__ import annotations
 
@@ -18,14 +19,16 @@ def main(argv=None):
     ap.add_argument("run_dir")
     ap.add_argument("--day", type=int, help="default: the last")
     ap.add_argument("--hour", type=float, default=15.0, help="local hour of the light (15)")
-    ap.add_argument("--origin", default="14.5,0.0,-4.0", help="x,dy,z: dy above the ground [m]")
-    ap.add_argument("--target", default="4.0,0.0,-9.5", help="x,dy,z: dy above the ground [m]")
+    ap.add_argument("--origin", default="12.0,-0.6,-19.0", help="x,dy,z: dy above the ground [m]")
+    ap.add_argument("--target", default="9.0,0.0,-7.0", help="x,dy,z: dy above the ground [m]")
     ap.add_argument("--eye", type=float, default=1.7, help="eye height [m] (1.7)")
     ap.add_argument("--fov", type=float, default=58.0)
     ap.add_argument("--width", type=int, default=1600)
     ap.add_argument("--height", type=int, default=900)
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--scenario", default="scenes/forest_stand/scenario.toml")
+    ap.add_argument("--ev", type=float, default=-0.6,
+                    help="exposure in stops about the automatic one (-0.6)")
     ap.add_argument("--out", default="docs/images/render_hero_stand.jpg")
     a = ap.parse_args(argv)
     import numpy as np
@@ -56,7 +59,8 @@ def main(argv=None):
     rs = S.build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=trees,
                        date=fr.date, options=o, terrain=terrain)
     im = still.render(rs)
-    img8, _ = film.to_srgb8(im["display"])
+    img8, _ = film.to_srgb8(im["display"],
+                            film.auto_exposure(np.asarray(im["display"])) * 2.0 ** a.ev)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(np.asarray(img8)).save(a.out, quality=90)
     print(f"{a.out}: day {day} ({fr.date}) {rs.info['when']}, camera {origin} -> {target}; "
