@@ -224,7 +224,30 @@ def test_exr_round_trip_and_png(tmp_path):
     assert img8.dtype == np.uint8 and img8.shape == (6, 8, 3) and e > 0
     assert film.write_png(tmp_path / "a.png", img8).exists()
     fc = film.rfr_false_colour(im["r_fr"], luminance=im["XYZ"][..., 1], title="t")
-    assert fc.ndim == 3 and fc.shape[2] == 3
+    assert fc.shape == (6 + 45, 8 + 125, 3) and fc.dtype == np.uint8
+
+
+def test_rfr_picture_is_the_plasma_map_on_a_log_scale():
+    """The shipped colour table is matplotlib's plasma; each pixel is the table's entry at the
+    ratio's place on the log scale (lo, hi), NaN as lo, clipped outside; the bar runs lo..hi."""
+    import matplotlib
+    want = np.asarray(matplotlib.colormaps["plasma"](np.linspace(0, 1, 256)))[:, :3]
+    assert np.abs(film._plasma() - want).max() <= 0.5 / 255 + 1e-9
+    lo, hi = 0.05, 2.0
+    r = np.array([[lo, hi, np.sqrt(lo * hi), 0.01, 50.0, np.nan]] * 4)
+    fc = film.rfr_false_colour(r, lo, hi).astype(int)
+    lut = (film._plasma() * 255 + 0.5).astype(int)
+    img = fc[45:, :6]
+    for col, k in ((0, 0), (1, 255), (2, 128), (3, 0), (4, 255), (5, 0)):
+        assert np.abs(img[:, col] - lut[k]).max() <= 1, (col, img[0, col], lut[k])
+    # the colour bar beside the image: hi at its top, lo at its bottom
+    big = film.rfr_false_colour(np.full((200, 300), 1.0))
+    bar = big[45:, 300 + 12 + 6]
+    top, bottom = bar[int(0.1 * 200) + 1], bar[int(0.9 * 200) - 2]
+    assert np.abs(top.astype(int) - lut[255]).max() <= 12
+    assert np.abs(bottom.astype(int) - lut[0]).max() <= 12
+    with pytest.raises(ValueError, match="lo"):
+        film.rfr_false_colour(r, 2.0, 0.05)
 
 
 def test_tone_map_keeps_highlights_below_white():

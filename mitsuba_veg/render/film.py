@@ -22,6 +22,7 @@ Outputs: :func:`write_exr` (OpenEXR, float32: R, G, B linear sRGB + the bands + 
 """
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +30,11 @@ from PIL import Image
 
 from ..atomic import atomic_write
 from ..errors import ParameterError
-from ..plots import _mpl
 
 __all__ = ["BANDS", "BAND_WEIGHT", "CMF_FILE", "XYZ_TO_SRGB", "srgb_encode", "band_response",
            "film_dict", "develop", "write_exr", "read_exr", "auto_exposure", "tone_map",
-           "to_srgb8", "write_png", "rfr_false_colour", "write_gif"]
+           "to_srgb8", "write_png", "rfr_false_colour", "write_gif", "PLASMA_FILE",
+           "RFR_TICKS"]
 
 #: extra spectral bands of every render: name -> (lo, hi) [nm]
 BANDS = {"red": (655.0, 665.0), "far_red": (725.0, 735.0)}
@@ -345,13 +346,32 @@ def write_png(path, img8) -> Path:
     return path
 
 
+#: matplotlib's ``plasma`` colour map (CC0), 256 entries of 8-bit sRGB, for the R:FR pictures
+PLASMA_FILE = Path(__file__).resolve().parents[1] / "data" / "plasma_colormap.csv"
+
+#: the ratios labelled on the R:FR picture's colour bar (where inside its range)
+RFR_TICKS = (0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+
+
+@functools.lru_cache(maxsize=1)
+def _plasma() -> np.ndarray:
+    return np.loadtxt(PLASMA_FILE, delimiter=",", skiprows=3, dtype=np.float64) / 255.0
+
+
+@functools.lru_cache(maxsize=4)
+def _font(size: int):
+    from PIL import ImageFont
+    return ImageFont.load_default(size=size)
+
+
 def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None = None,
                      luminance=None):
     """An RGB uint8 image of the red:far-red ratio on a log scale with a colour bar.
 
     Low ratios (light filtered or reflected by vegetation) purple-blue, daylight's ~1.15
-    yellow-orange. NaN pixels show as ``lo``; the picture is 125 px wider and 45 px taller than
-    the ratio image (colour bar and title).
+    yellow-orange (matplotlib's ``plasma`` map, shipped as a table: drawing it needs neither
+    matplotlib nor a figure). NaN pixels show as ``lo``; the picture is 125 px wider and 45 px
+    taller than the ratio image (colour bar and title).
 
     Parameters
     ----------
@@ -367,38 +387,59 @@ def rfr_false_colour(r_fr, lo: float = 0.05, hi: float = 2.0, title: str | None 
     Returns
     -------
     numpy.ndarray
-        The picture (h + 45, w + 125, 3), uint8 (approximately those sizes: figure rounding).
+        The picture (h + 45, w + 125, 3), uint8.
     """
-    from matplotlib.colors import LogNorm
+    from PIL import ImageDraw
 
-    plt = _mpl()
-
+    if not (0 < lo < hi):
+        raise ValueError(f"rfr_false_colour: lo={lo}, hi={hi}: need 0 < lo < hi")
+    lut = _plasma()
     r = np.asarray(r_fr, np.float64)
     h, w = r.shape
-    norm = LogNorm(vmin=lo, vmax=hi)
-    cmap = plt.get_cmap("plasma")
-    rgba = cmap(norm(np.clip(np.nan_to_num(r, nan=lo), lo, hi)))
+
+    def to_unit(x):             # the log scale, 0 at lo, 1 at hi
+        return (np.log(x) - np.log(lo)) / (np.log(hi) - np.log(lo))
+
+    u = to_unit(np.clip(np.nan_to_num(r, nan=lo, posinf=hi, neginf=lo), lo, hi))
+    rgb = lut[np.clip(np.rint(u * 255), 0, 255).astype(np.int64)]
     if luminance is not None:
         L = np.asarray(luminance, np.float64)
         ref = np.percentile(L[np.isfinite(L)], 99) if np.isfinite(L).any() else 1.0
-        shade = np.clip(L / max(ref, 1e-12), 0, 1) ** 0.4
-        rgba[..., :3] *= (0.35 + 0.65 * shade)[..., None]
-    dpi = 100
-    fig = plt.figure(figsize=(w / dpi + 1.25, h / dpi + 0.45), dpi=dpi)
-    ax = fig.add_axes([0.0, 0.0, w / (w + 125.0), h / (h + 45.0)])
-    ax.imshow(rgba, interpolation="nearest")
-    ax.set_axis_off()
-    cax = fig.add_axes([w / (w + 125.0) + 0.02, 0.1, 0.025, 0.75])
-    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    cb = fig.colorbar(sm, cax=cax)
-    cb.set_label("red : far-red (photons 655-665 / 725-735 nm)", fontsize=8)
-    cb.ax.tick_params(labelsize=7)
+        shade = np.clip(np.nan_to_num(L) / max(ref, 1e-12), 0, 1) ** 0.4
+        rgb = rgb * (0.35 + 0.65 * shade)[..., None]
+    W, H, top = w + 125, h + 45, 45
+    canvas = Image.new("RGB", (W, H), (255, 255, 255))
+    canvas.paste(Image.fromarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)), (0, top))
+    draw = ImageDraw.Draw(canvas)
+    # the colour bar: 12 px wide beside the image, over 75 % of the picture's height
+    x0, bw = w + 12, 12
+    y0, y1 = top + int(0.1 * h), top + int(0.9 * h)
+    t = np.linspace(1.0, 0.0, max(y1 - y0, 2))
+    bar = lut[np.clip(np.rint(t * 255), 0, 255).astype(np.int64)]
+    canvas.paste(Image.fromarray((np.repeat(bar[:, None], bw, 1) * 255 + 0.5).astype(np.uint8)),
+                 (x0, y0))
+    draw.rectangle([x0 - 1, y0 - 1, x0 + bw, y0 + len(t)], outline=(0, 0, 0))
+    font = _font(10)
+    for v in RFR_TICKS:
+        if lo <= v <= hi:
+            y = y1 - 1 - to_unit(v) * (len(t) - 1)
+            draw.line([x0 + bw, y, x0 + bw + 3, y], fill=(0, 0, 0))
+            draw.text((x0 + bw + 7, y), f"{v:g}", fill=(0, 0, 0), font=font, anchor="lm")
+    # the bar's label, along it (drawn horizontally, turned a quarter)
+    label = "red : far-red (photons 655-665 / 725-735 nm)"
+    lf = _font(10)
+    box = draw.textbbox((0, 0), label, font=lf)
+    tw, th = box[2] - box[0] + 2, box[3] - box[1] + 4
+    strip = Image.new("RGB", (tw, th), (255, 255, 255))
+    ImageDraw.Draw(strip).text((1 - box[0], 2 - box[1]), label, fill=(0, 0, 0), font=lf)
+    strip = strip.rotate(90, expand=True)
+    if strip.height > H:                # a small picture: the label shrinks with it
+        strip = strip.resize((strip.width, H), Image.LANCZOS)
+    canvas.paste(strip, (min(W - strip.width - 2, x0 + bw + 38),
+                         max(0, (y0 + y1) // 2 - strip.height // 2)))
     if title:
-        fig.text(0.01, 1.0 - 0.3 * 45.0 / (h + 45.0), title, fontsize=9, va="center")
-    fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
-    return img
+        draw.text((6, top // 2), title, fill=(0, 0, 0), font=_font(13), anchor="lm")
+    return np.asarray(canvas)
 
 
 def write_gif(frames: list, path: Path, fps: int, width: int | None = None) -> Path:
