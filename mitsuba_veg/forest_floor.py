@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from .atomic import atomic_write
 from .errors import ParameterError, check_range
@@ -266,6 +265,8 @@ def write_ply(path, vertices, faces) -> str:
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
+    import trimesh              # imported where used: the package imports faster
+
     m = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False)
     with atomic_write(p) as tmp:
         m.export(str(tmp), file_type="ply")
@@ -495,6 +496,8 @@ def rock_mesh(centre, radius: float, roughness: float = 0.2, flatten: float = 0.
     check_range("radius", radius, 0.0, None, lo_open=True)
     check_range("roughness", roughness, 0.0, 0.5)
     check_range("flatten", flatten, 0.0, 1.0, lo_open=True)
+    import trimesh.creation
+
     sph = trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=1.0)
     q = np.asarray(sph.vertices, float)
     rng = np.random.default_rng(seed)

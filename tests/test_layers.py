@@ -57,6 +57,9 @@ LAZY_ALLOWED: dict[tuple[str, str], str] = {
     ("mitsuba_veg.cli.grow", "mitsuba_veg.trees.weber_penn"):
         "`model = \"weber_penn\"` without the module is a one-line error "
         "(tests/test_tree_cli.py::test_weber_penn_model)",
+    ("mitsuba_veg.render.gltf_day", "mitsuba_veg.export_gltf"):
+        "the glTF writer imports trimesh (a few tenths of a second): only an export pays for it, "
+        "not every render command",
 }
 
 

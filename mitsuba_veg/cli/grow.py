@@ -39,7 +39,6 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from ..errors import ParameterError, unknown_field
 from ..outputs import OutputFolder, atomic_write, write_json
@@ -204,6 +203,8 @@ def build_environment(cfg: dict, root: Path, source: str | None = None):
                 raise ParameterError(f"environment.meshes[{i}].file", m["file"],
                                      "an existing mesh file (relative to the TOML)",
                                      f"looked for {f}", source)
+            import trimesh      # here: importing it costs every command most of a second
+
             tm = trimesh.load(f, force="mesh")
             env.add(tm, name=m.get("name", f.stem), light_factor=m.get("light_factor", 1.0),
                     max_edge=m.get("max_edge"))
@@ -365,6 +366,8 @@ def _stand_mesh(trees, leaves=True):
         col = np.where(part[:, None] == 1, [[46, 139, 62, 255]], [[90, 58, 26, 255]])
         m.visual.face_colors = col.astype(np.uint8)
         parts.append(m)
+    import trimesh.util
+
     return trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
 
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import mitsuba as mi
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import ParameterError
 
@@ -172,6 +171,8 @@ def _floor_view(terrain, focus, c, W, yg, obstacles=None):
     eye = min(EYE_HEIGHT, 0.35 * W)
     dist0 = max(1.5 * eye, 0.1 * W)
     lo, hi = terrain.ground_bbox()
+    from scipy.spatial import cKDTree      # here: only the floor view needs it
+
     tree = cKDTree(obstacles) if obstacles is not None and len(obstacles) else None
     best = None
     for dist in (dist0, 1.4 * dist0, 1.9 * dist0):

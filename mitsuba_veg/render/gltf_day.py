@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError, check_range
-from ..export_gltf import GltfWorld
 from ..foliage.pigments import N_STAGES
 from ..outputs import OutputFolder
 from ..meshes import triangle_geometry
@@ -90,6 +89,8 @@ def export_day(run_dir, day: int | None = None, path=None, scenario=None) -> dic
     z = _read_snapshot(snap[-1])
     counts = np.asarray(z["moss_counts"], float) if "moss_counts" in z else None
     date = run.date(day)
+    from ..export_gltf import GltfWorld     # (trimesh: imported only for an export)
+
     w = GltfWorld()
     info = {"day": day, "date": date.isoformat(), "meshes": [], "moss_cover_m2": 0.0,
             "leaves_on_trees": 0}

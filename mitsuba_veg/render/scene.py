@@ -249,6 +249,9 @@ class RenderScene:
         params = mi.traverse(self.scene)
         keys = set(params.keys())
         sky_objs = {em.id(): em for em in self.scene.emitters() if isinstance(em, VegSky)}
+        # the sun's share of the light samples follows the new light, as in a scene built
+        # for it (build_scene), so that both render the same image from the same seed
+        emitters = weighted_sun(emitters)
         for name, d in emitters.items():
             kind = d.get("type")
             if kind == "directional":
@@ -256,6 +259,8 @@ class RenderScene:
                 if key not in keys:
                     raise SceneError(f"set_light(): the scene has no directional '{name}' "
                                      "with a spectrum: build it with daylight emitters")
+                if "sampling_weight" in d and f"{name}.sampling_weight" in keys:
+                    params[f"{name}.sampling_weight"] = float(d["sampling_weight"])
                 dv = np.asarray(d["direction"], dtype=float)
                 dv = [float(x) for x in dv / np.linalg.norm(dv)]
                 params[f"{name}.to_world"] = mi.AffineTransform4f().to_frame(

@@ -44,7 +44,6 @@ import zlib
 from dataclasses import dataclass, field, fields
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import ParameterError, unknown_field
 from .weber_penn import PRESETS
@@ -380,6 +379,8 @@ def clark_evans(points, area: float) -> float:
     p = np.asarray(points, float).reshape(-1, 2)
     if len(p) < 2 or not float(area) > 0:
         raise ParameterError("points, area", (len(p), area), "at least 2 points and area > 0")
+    from scipy.spatial import cKDTree      # here: the package imports faster without it
+
     d, _ = cKDTree(p).query(p, k=2)
     return float(d[:, 1].mean() / (0.5 / math.sqrt(len(p) / float(area))))
 

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import mitsuba as mi
 import numpy as np
-import trimesh
 
 from ..errors import ParameterError
 from ..integrators.scene_index import emitter_name
@@ -663,6 +662,8 @@ def _load_mesh(path: Path, field_: str, source):
     if not path.is_file():
         raise ParameterError(field_, str(path), "an existing PLY/OBJ/GLB file (relative to the "
                              "scenario)", "check the path", source)
+    import trimesh              # here: importing it costs every command most of a second
+
     try:
         m = trimesh.load(path, force="mesh")
     except Exception as e:  # trimesh raises many types for unreadable files
