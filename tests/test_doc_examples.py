@@ -34,11 +34,7 @@ PAGES = [ROOT / "README.md"] + sorted(
     if not any(part in {"_build", "_gen", "gallery", "api", "plugins"}
                for part in p.relative_to(ROOT / "docs").parts))
 #: pages left out for now, with the reason
-NOT_YET = {
-    "docs/reliability.md": "its one block runs the reliability tests (about 8 minutes) and a "
-                           "loop of 25 runs; the page is being extended",
-    "docs/hemiphoto.md": "new: its Python block needs a scene defined first",
-}
+NOT_YET: dict[str, str] = {}
 FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<info>[^`\n]*)$")
 SKIP = re.compile(r"^\s*(#|<!--)\s*\[skip:\s*(?P<why>[^\]]+)\]")
 RUN = {"python": "python", "py": "python", "sh": "sh", "bash": "sh", "console": "sh",
