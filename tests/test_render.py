@@ -146,9 +146,10 @@ def test_set_light_moves_the_daylight_in_place_without_a_recompile(scn, terrain)
     assert abs(a.mean() / b.mean() - 1) < 1e-4
     assert np.max(np.abs(a - b)) <= 1e-4 * b.max()
     summer = render(build_scene(scn, None, options=o, terrain=terrain), seed=1)
-    # a December morning is darker (the view holds the sky and the meadow to the horizon, which
-    # dim less than the courtyard's floor: 0.95 of midsummer noon over the whole image)
-    assert a.mean() < 0.97 * summer["XYZ"][..., 1].mean()
+    # a December morning lights the garden's floor less (the image's lower half: 0.66 of
+    # midsummer noon; its upper half holds the sky, brighter towards the low sun)
+    h = a.shape[0] // 2
+    assert a[h:].mean() < 0.8 * summer["XYZ"][h:, :, 1].mean()
     with pytest.raises(ParameterError, match="emitters"):
         rs.set_light({"lamp": {"type": "point"}})
 
