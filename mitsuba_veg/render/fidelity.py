@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import ParameterError
 
 __all__ = ["NDVI_MOSS", "simulated_cover", "pixel_rays", "pixel_triangles", "moss_pixels",
-           "cover_comparison"]
+           "cover_counts", "cover_summary", "cover_comparison", "triangle_areas"]
 
 #: NDVI above which a pixel shows moss [-]
 NDVI_MOSS = 0.45
@@ -39,8 +39,21 @@ def _hit_ids(scene, si_shape) -> np.ndarray:
     return np.where(reg[order][pos] == shp, order[pos], -1).astype(np.int64)
 
 
-def _areas(v, f) -> np.ndarray:
-    """Triangle areas [m²] of vertices (v, 3) and faces (f, 3)."""
+def triangle_areas(v, f) -> np.ndarray:
+    """Triangle areas of a mesh.
+
+    Parameters
+    ----------
+    v : array_like
+        Vertices (n, 3) [m].
+    f : array_like
+        Faces (m, 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        Areas (m,) [m²].
+    """
     p = np.asarray(v, np.float64)[np.asarray(f, np.int64)]
     return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
 
@@ -75,7 +88,7 @@ def simulated_cover(terrain, moss, size: float, shape: str = "ground") -> np.nda
     if shape not in terrain.meshes:
         raise ParameterError("shape", shape, "a terrain mesh: " + ", ".join(terrain.meshes))
     v, f = terrain.meshes[shape][0], terrain.meshes[shape][1]
-    area = _areas(v, f)
+    area = triangle_areas(v, f)
     n = np.zeros(len(f))
     if len(moss):
         o = moss.pos + moss.nrm * 2e-3
@@ -179,6 +192,74 @@ def moss_pixels(images: dict, threshold: float = NDVI_MOSS) -> np.ndarray:
     return np.nan_to_num(ndvi, nan=-1.0) > threshold
 
 
+def cover_counts(rs, images: dict, shape: str = "ground") -> dict:
+    """Per triangle of a terrain mesh, the pixels of one render that see it: in all, showing moss
+    by NDVI, and meeting moss geometrically (the counts :func:`cover_comparison` compares; sum
+    them over several views of the same scene to compare the views together).
+
+    Parameters
+    ----------
+    rs : RenderScene
+        The rendered scene (its camera).
+    images : dict
+        Its images (with the red and far-red bands).
+    shape : str, optional
+        The terrain mesh (default ``"ground"``).
+
+    Returns
+    -------
+    dict
+        ``pixels``, ``ndvi`` and ``geometric`` (triangles,) float64 counts.
+    """
+    tri, clear, on_moss = pixel_triangles(rs, shape)
+    moss_px = moss_pixels(images)
+    n = len(rs.terrain.meshes[shape][1])
+    sel = (tri >= 0) & clear
+    t = tri[sel]
+    return {"pixels": np.bincount(t, minlength=n).astype(np.float64),
+            "ndvi": np.bincount(t, weights=moss_px[sel].astype(np.float64), minlength=n),
+            "geometric": np.bincount(t, weights=on_moss[sel].astype(np.float64), minlength=n)}
+
+
+def cover_summary(counts: dict, simulated, area, min_pixels: int = 12) -> dict:
+    """Drawn against simulated cover from pixel counts (:func:`cover_counts`, summed over views).
+
+    Parameters
+    ----------
+    counts : dict
+        ``pixels``, ``ndvi``, ``geometric`` per triangle.
+    simulated : numpy.ndarray
+        The simulation's cover per triangle (:func:`simulated_cover`) [-].
+    area : numpy.ndarray
+        Triangle areas [m²].
+    min_pixels : int, optional
+        Triangles with fewer pixels are left out (default 12).
+
+    Returns
+    -------
+    dict
+        As :func:`cover_comparison`.
+    """
+    px, sim, area = counts["pixels"], np.asarray(simulated), np.asarray(area)
+    use = px >= min_pixels
+    rend = np.where(use, counts["ndvi"] / np.maximum(px, 1), np.nan)
+    geom = np.where(use, counts["geometric"] / np.maximum(px, 1), np.nan)
+    mossy = use & (sim > 0)
+    a_sim = float((sim * area)[use].sum())
+
+    def summary(c):
+        a = float((c * area)[use].sum())
+        return {"area_ratio": a / a_sim if a_sim > 0 else float("nan"), "m2": a,
+                "mad_mossy": float(np.abs(c - sim)[mossy].mean()) if mossy.any()
+                else float("nan")}
+    s_ndvi, s_geom = summary(rend), summary(geom)
+    return {"simulated": sim, "rendered": rend, "geometric": geom, "pixels": px, "area": area,
+            "area_ratio": s_ndvi["area_ratio"], "mad_mossy": s_ndvi["mad_mossy"],
+            "rendered_m2": s_ndvi["m2"], "geometric_area_ratio": s_geom["area_ratio"],
+            "geometric_mad_mossy": s_geom["mad_mossy"], "mossy": int(mossy.sum()),
+            "compared": int(use.sum()), "simulated_m2": a_sim}
+
+
 def cover_comparison(rs, images: dict, moss, size: float, shape: str = "ground",
                      min_pixels: int = 12) -> dict:
     """Drawn against simulated moss cover per triangle of a terrain mesh (module docstring).
@@ -209,30 +290,7 @@ def cover_comparison(rs, images: dict, moss, size: float, shape: str = "ground",
         ``geometric_mad_mossy``); ``simulated_m2``, ``rendered_m2``; ``mossy`` and ``compared``
         triangle counts.
     """
-    tri, clear, on_moss = pixel_triangles(rs, shape)
-    moss_px = moss_pixels(images)
     v, f = rs.terrain.meshes[shape][0], rs.terrain.meshes[shape][1]
-    area = _areas(v, f)
-    sel = (tri >= 0) & clear
-    t = tri[sel]
-    px = np.bincount(t, minlength=len(f)).astype(np.float64)
-    mp = np.bincount(t, weights=moss_px[sel].astype(np.float64), minlength=len(f))
-    mg = np.bincount(t, weights=on_moss[sel].astype(np.float64), minlength=len(f))
-    sim = simulated_cover(rs.terrain, moss, size, shape)
-    use = px >= min_pixels
-    rend = np.where(use, mp / np.maximum(px, 1), np.nan)
-    geom = np.where(use, mg / np.maximum(px, 1), np.nan)
-    mossy = use & (sim > 0)
-    a_sim = float((sim * area)[use].sum())
-
-    def summary(c):
-        a = float((c * area)[use].sum())
-        return {"area_ratio": a / a_sim if a_sim > 0 else float("nan"), "m2": a,
-                "mad_mossy": float(np.abs(c - sim)[mossy].mean()) if mossy.any()
-                else float("nan")}
-    s_ndvi, s_geom = summary(rend), summary(geom)
-    return {"simulated": sim, "rendered": rend, "geometric": geom, "pixels": px, "area": area,
-            "area_ratio": s_ndvi["area_ratio"], "mad_mossy": s_ndvi["mad_mossy"],
-            "rendered_m2": s_ndvi["m2"], "geometric_area_ratio": s_geom["area_ratio"],
-            "geometric_mad_mossy": s_geom["mad_mossy"], "mossy": int(mossy.sum()),
-            "compared": int(use.sum()), "simulated_m2": a_sim}
+    return cover_summary(cover_counts(rs, images, shape),
+                         simulated_cover(rs.terrain, moss, size, shape), triangle_areas(v, f),
+                         min_pixels)
