@@ -11,8 +11,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..render.history import load_run
-from ..render.world import grown_trees
-from ..world.trees import age_tree, ages, scenario_trees, tree_from_state, with_alive
+from ..render.world import grown_trees, initial_trees
+from ..world.trees import age_tree, ages, tree_from_state, with_alive
 from ..world.visible_canopy import LeafState, VisibleCanopy
 
 __all__ = ["RunWorld"]
@@ -116,7 +116,7 @@ class RunWorld:
         key = len(versions)
         if key not in self._canopies:
             if self._built is None:
-                self._built = scenario_trees(self.scenario, self.base_scene) \
+                self._built = initial_trees(self.run, self.base_scene) \
                     if self.has_trees else []
             built = list(self._built)
             if versions:

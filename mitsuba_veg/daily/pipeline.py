@@ -55,6 +55,7 @@ from ..light import sensors as sensors_mod
 from ..moss.population import MOSS, PROPAGULE
 from ..scenario import Scenario
 from ..world.phenology import Phenology
+from ..world.tree_record import RECORD, write_initial_trees
 from . import checkpoint as ckpt
 from ..outputs import atomic_write
 from ..parallel import map_on_cores
@@ -709,6 +710,7 @@ class Simulation:
         """
         self.out.mkdir(parents=True, exist_ok=True)
         self.setup()
+        initial = list(getattr(self.site, "trees", None) or [])
         resumed = resume and ckpt.load(self)
         # half-written files of a process killed while writing (the real files are replaced
         # atomically, so these are never read)
@@ -718,6 +720,10 @@ class Simulation:
                         ".floor_years.tmp.png"):
             for q in self.out.glob(pattern):
                 q.unlink()
+        # the trees the run starts with, for the commands that draw them later (render,
+        # animate, hemiphoto) instead of re-growing them; a resumed run keeps its record
+        if initial and not (resumed and (self.out / RECORD).is_file()):
+            write_initial_trees(self.out, initial)
         if not resumed:
             t0 = time.perf_counter()
             self.initialise()

@@ -7,13 +7,14 @@ import logging
 import numpy as np
 
 from ..world.trees import scenario_trees as world_scenario_trees
+from ..world.tree_record import read_initial_trees
 from ..world.trees import age_tree, ages, tree_from_state, with_alive
 from .leaves import leaf_shape_of
 from .litter import LIFE_DAYS, LitterLeaves
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
-__all__ = ["WorldLeaves", "grown_trees", "world_trees", "tree_version", "trees_for_run"]
+__all__ = ["WorldLeaves", "grown_trees", "initial_trees", "world_trees", "tree_version", "trees_for_run"]
 
 
 class WorldLeaves:
@@ -147,6 +148,31 @@ def grown_trees(run) -> list:
     return sorted(out)
 
 
+def initial_trees(run, base_scene=None) -> list:
+    """The trees a world run started with: its record (``trees/initial.npz``,
+    :mod:`mitsuba_veg.world.tree_record`), else re-grown from its scenario as the run built them
+    (same seeds; run folders without the record).
+
+    Parameters
+    ----------
+    run : Run
+        A loaded run.
+    base_scene : mi.Scene, optional
+        The run's light scene without daylight, to re-grow the trees in (default: loaded).
+
+    Returns
+    -------
+    list of WorldTree
+        The trees, before any year-end growth.
+    """
+    built = read_initial_trees(run.dir)
+    if built is None:
+        if base_scene is None:
+            base_scene = run.scenario.load_scene(daylight=False)
+        built = world_scenario_trees(run.scenario, base_scene)
+    return built
+
+
 def world_trees(run, day: int | None = None):
     """The trees of a world run (``[[trees]]`` and ``[stand]``) on a day: rebuilt from its
     scenario as the run built them (same seeds), with the trees that grew at a year's end as
@@ -174,7 +200,7 @@ def world_trees(run, day: int | None = None):
     # changed
     built = getattr(run, "_initial_trees", None)
     if built is None:
-        built = world_scenario_trees(run.scenario, run.scenario.load_scene(daylight=False))
+        built = initial_trees(run)
         run._initial_trees = built
     built = list(built)
     day = run.final_day if day is None else int(day)
