@@ -52,4 +52,8 @@ if [ "${1:-}" = "docs" ]; then
         touch "$docs_stamp"
     fi
 fi
+# the package's bytecode, as a regular install compiles it: an editable install leaves the
+# sources to be compiled by the first import, and where PYTHONDONTWRITEBYTECODE is set every
+# command would compile them again (about half a second a command)
+.venv/bin/python -m compileall -q mitsuba_veg integrators >/dev/null
 .venv/bin/python -c "import mitsuba_veg as mv; print('[setup] ready:', mv.__version__, mv.variant())"

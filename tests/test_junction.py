@@ -289,6 +289,16 @@ def test_bark_uvs_and_leaf_mesh():
     np.testing.assert_allclose(np.linalg.norm(v[:, 3] - v[:, 0], axis=1), t.leaves.size)
     _, quads = J.tree_mesh(t, leaf_shape="quad")
     assert len(quads.faces) == 2 * m
+    # the bark as plain arrays (what the render and the world's trees take): the same mesh
+    arr, none = J.tree_mesh(t, leaves=False, arrays=True, round_knots=True)
+    ref, _ = J.tree_mesh(t, leaves=False, round_knots=True)
+    assert none is None and isinstance(arr, J.BarkArrays)
+    np.testing.assert_array_equal(arr.vertices, ref.vertices)
+    np.testing.assert_array_equal(arr.faces, ref.faces)
+    np.testing.assert_array_equal(arr.uv, ref.visual.uv)
+    assert "vertex_ring" in arr.metadata and set(arr.metadata) <= set(ref.metadata)
+    for k, val in arr.metadata.items():
+        np.testing.assert_array_equal(val, ref.metadata[k])
 
 
 def test_mesh_of_trees_without_weber_penn_attributes():
@@ -311,3 +321,5 @@ def test_bad_mesh_options():
         J.tree_mesh(t, leaf_shape="star")
     with pytest.raises(ParameterError):
         J.tree_mesh(t, sides=(16, 2))
+    with pytest.raises(ParameterError, match="arrays"):
+        J.tree_mesh(t, arrays=True)              # the leaves have no arrays form

@@ -1,5 +1,6 @@
 """The assembled render scene: tiny renders (64x48, a few spp) of the moss garden with moss and
 a tree, film calibration against a flat environment, in-place updates, the CLI functions."""
+import json
 from pathlib import Path
 
 import numpy as np
@@ -181,6 +182,10 @@ def test_cameras_look_at_what_grew(scn, terrain):
     assert np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))) >= 49.0
     no = cameras.presets(scn, terrain)                     # nothing grown: the overview stands in
     assert no["floor"] == no["overview"] and no["canopy"] == no["overview"]
+    # a render computes only its own preset, the same as among all
+    for name in cameras.BUILTIN:
+        one = cameras.presets(scn, terrain, moss=moss, trees=[t], only=name)
+        assert json.dumps(one[name]) == json.dumps(p[name]), name
 
 
 class _Scn:

@@ -223,7 +223,7 @@ def _canopy_view(terrain, bases, crown, yg):
             "fov": 80.0, "fov_axis": "x"}
 
 
-def presets(scn, terrain, moss=None, trees=None) -> dict:
+def presets(scn, terrain, moss=None, trees=None, only: str | None = None) -> dict:
     """All camera presets of a scenario: the built-ins, overridden/extended by ``[render.cameras]``.
 
     Parameters
@@ -237,6 +237,9 @@ def presets(scn, terrain, moss=None, trees=None) -> dict:
         The living moss (the ``floor`` view looks at it).
     trees : list of Tree, optional
         The trees drawn (the ``overview`` frames them, the ``canopy`` view looks up into them).
+    only : str, optional
+        Compute this preset only (a render needs one; the floor view's search costs a
+        fraction of a second); default all.
 
     Returns
     -------
@@ -262,13 +265,16 @@ def presets(scn, terrain, moss=None, trees=None) -> dict:
     if crown is not None:
         top_y = max(top_y, float(crown[:, 1].max()))
     overview = _overview(c, W, top_y, yg)
-    focus = moss_focus(moss, lo, hi)
+
+    def want(name):
+        return only is None or only == name
+    focus = moss_focus(moss, lo, hi) if want("floor") else None
     out = {
         "overview": overview,
         "floor": _floor_view(terrain, focus, c, W, yg, obstacles) if focus is not None
         else dict(overview),
-        "canopy": _canopy_view(terrain, bases, crown, yg) if bases is not None
-        else dict(overview),
+        "canopy": _canopy_view(terrain, bases, crown, yg) if bases is not None and
+        want("canopy") else dict(overview),
         "shelter": {"origin": [c[0] + 0.1 * W, yg + 0.16 * W, c[2] + 0.12 * W],
                     "target": [c[0] - 0.02 * W, yg, c[2] - 0.36 * W],
                     "up": [0, 1, 0], "fov": 58.0, "fov_axis": "x"},
@@ -276,9 +282,11 @@ def presets(scn, terrain, moss=None, trees=None) -> dict:
                 "target": [c[0], yg, c[2]], "up": [0, 0, -1], "fov": 46.0,
                 "fov_axis": "smaller"},
     }
-    sc = _scene_camera(terrain)
+    sc = _scene_camera(terrain) if want("scene") else None
     out["scene"] = sc if sc is not None else dict(out["overview"])
     for name, cam in (scn.get("render.cameras", {}) or {}).items():
+        if not want(name):
+            continue
         base = dict(out.get(name, {"up": [0, 1, 0], "fov": 45.0, "fov_axis": "x"}))
         for k in ("origin", "target", "up"):
             if k in cam:
@@ -335,8 +343,9 @@ def sensor_dict(scn, terrain, options, film: dict, moss=None, trees=None) -> dic
     ParameterError
         If ``options.camera`` is not a preset of the scenario.
     """
-    cams = presets(scn, terrain, moss, trees)
+    cams = presets(scn, terrain, moss, trees, only=options.camera)
     if options.camera not in cams:
+        cams = presets(scn, terrain, moss, trees)           # the error lists them all
         raise ParameterError("camera", options.camera, "one of " + ", ".join(cams),
                              "add [render.cameras.NAME] to the scenario for your own view",
                              str(scn.path))

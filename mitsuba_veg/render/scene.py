@@ -1014,7 +1014,7 @@ def build_scene(scn, moss: MossSet | None = None, *, moss_size: float = 0.01,
     tree_far = None
     if trees:
         tree_cache = {} if tree_cache is None else tree_cache
-        cam = presets(scn, terrain, moss, trees).get(options.camera)
+        cam = presets(scn, terrain, moss, trees, only=options.camera).get(options.camera)
         tree_far = far_trees(trees, cam, options.width, options.lod_pixels)
         ts, t_info = tree_shapes(trees, options, cache=tree_cache, far=tree_far)
         d.update(ts)

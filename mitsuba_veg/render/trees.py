@@ -71,14 +71,10 @@ def _bark_and_leaf_geometry(tree, far: bool = False):
     as the model's tubes and cones (no smooth junctions), each leaf the light pass's blade, a
     quad of the same area (2 triangles instead of 12-14)."""
     if getattr(tree, "weber_penn", None) is not None:
-        b, _ = tree_mesh(tree, smooth=not far, leaves=False, round_knots=not far)
+        b, _ = tree_mesh(tree, smooth=not far, leaves=False, round_knots=not far, arrays=True)
         v, f = np.asarray(b.vertices, np.float32), np.asarray(b.faces, np.int64)
-        ring = b.metadata.get("vertex_ring")
-        uv = np.asarray(b.visual.uv, np.float32) if getattr(b.visual, "uv", None) is not None \
-            else np.zeros((len(v), 2), np.float32)
-        nrm = _smooth_normals(v, f, ring) if ring is not None else \
-            np.asarray(b.vertex_normals, np.float32)
-        bark = (v, f, uv, nrm)
+        uv = np.asarray(b.uv, np.float32)
+        bark = (v, f, uv, _smooth_normals(v, f, b.metadata["vertex_ring"]))
     else:
         bark = swept_tubes(tree)
     leaves = None

@@ -27,14 +27,16 @@ work too (stems are then inferred from the parent/level arrays).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from mitsuba_veg.errors import ParameterError, check_range
 
 from .structure import Tree
 
-__all__ = ["subdivisions", "eq42", "junction_rings", "contact_points", "tree_mesh",
-           "leaf_mesh", "stem_structure"]
+__all__ = ["subdivisions", "eq42", "junction_rings", "contact_points", "BarkArrays",
+           "tree_mesh", "leaf_mesh", "stem_structure"]
 
 LEAF_OUTLINE = np.array([[-0.5, 0.0], [-0.25, 0.433], [0.25, 0.433], [0.5, 0.0],
                          [0.25, -0.433], [-0.25, -0.433]])   # (along, across), ellipse samples
@@ -317,11 +319,22 @@ def _tube_faces(oA, oB, S):
     return out.reshape(-1, 3)
 
 
+@dataclass
+class BarkArrays:
+    """A bark mesh as plain arrays (:func:`tree_mesh` with ``arrays=True``): ``vertices``
+    (n, 3) [m], ``faces`` (f, 3), ``uv`` (n, 2) and ``metadata`` (as the trimesh's)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray
+    metadata: dict = field(default_factory=dict)
+
+
 def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_sides: int = 8,
               D_u=None, stretch=None, compress=None, gain=None, knot_gain=None,
               leaves: bool = True,
               leaf_shape: str = "oval", min_radius: float = 0.0, caps: bool = True,
-              round_knots: bool = False):
+              round_knots: bool = False, arrays: bool = False):
     """``(bark, leaves)`` trimesh meshes of ``tree``.
 
     The bark carries UVs (u around the stem, v along it in units of the stem's base
@@ -367,20 +380,27 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
         drawn length L (s: distance from the knot's base) instead of the segments' linear taper
         (a cone with a pointed tip); the knot keeps its length, base radius and junction.
         Default False (the light scene's mesh, unchanged).
+    arrays : bool, optional
+        Return the bark as :class:`BarkArrays` (the same vertices, faces, UVs and metadata)
+        without importing trimesh (about half a second a process: the render and the world's
+        trees need only the arrays); needs ``leaves=False``. Default False.
 
     Returns
     -------
-    bark : trimesh.Trimesh
+    bark : trimesh.Trimesh or BarkArrays
         The bark mesh [m], with UVs and the metadata above.
-    leaves : trimesh.Trimesh
-        The leaf mesh [m] (:func:`leaf_mesh`).
+    leaves : trimesh.Trimesh or None
+        The leaf mesh [m] (:func:`leaf_mesh`); None with ``arrays``.
 
     Raises
     ------
     ParameterError
-        For junction parameters out of range, an unknown ``leaf_shape`` or ``sides`` < 3.
+        For junction parameters out of range, an unknown ``leaf_shape``, ``sides`` < 3, or
+        ``arrays`` with ``leaves``.
     """
-    import trimesh
+    if arrays and leaves:
+        raise ParameterError("arrays", arrays, "False when leaves=True",
+                             "pass leaves=False for the bark's arrays")
 
     wp = getattr(tree, "weber_penn", None)
     jp = {"Du": 6, "Stretch": 1.3, "Compress": 2.0, "Gain": 1.0, "KnotGain": 1.0}
@@ -577,13 +597,18 @@ def tree_mesh(tree: Tree, *, smooth: bool = True, sides=(16, 8, 6, 4), knot_side
         uvs = np.concatenate([uvs] + extra_uv)
     faces = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
     fseg = np.concatenate(fseg) if fseg else np.zeros(0, np.int64)
-    bark = trimesh.Trimesh(verts, faces, process=False,
-                           visual=trimesh.visual.TextureVisuals(uv=uvs))
     vring = np.full(len(verts), -1)
     if len(ring_S):
         vring[:int(ring_off[-1] + ring_S[-1] + 1)] = np.repeat(np.arange(len(ring_S)), ring_S + 1)
-    bark.metadata.update({"junction_D": junction_D, "segment": fseg, "vertex_ring": vring,
-                          "ring_segment": ring_seg, "top_ring": top_id, "part": "bark"})
+    meta = {"junction_D": junction_D, "segment": fseg, "vertex_ring": vring,
+            "ring_segment": ring_seg, "top_ring": top_id, "part": "bark"}
+    if arrays:
+        return BarkArrays(verts, faces, uvs, meta), None
+    import trimesh              # here: a render does not pay for its import (arrays=True)
+
+    bark = trimesh.Trimesh(verts, faces, process=False,
+                           visual=trimesh.visual.TextureVisuals(uv=uvs))
+    bark.metadata.update(meta)
     leaf = leaf_mesh(tree, shape=leaf_shape) if leaves else _empty_mesh()
     return bark, leaf
 

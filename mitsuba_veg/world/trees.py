@@ -118,7 +118,7 @@ class WorldTree:
 def _tree_to_world(name, model, tree: Tree, position, info) -> WorldTree:
     a = tree.alive if tree.alive is not None else np.ones(len(tree), bool)
     if getattr(tree, "weber_penn", None) is not None and info.get("bark") != "tubes":
-        b, _ = tree_mesh(tree, smooth=True, leaves=False)
+        b, _ = tree_mesh(tree, smooth=True, leaves=False, arrays=True)
         bark = (np.asarray(b.vertices, float), np.asarray(b.faces, np.int64))
     elif info.get("bark") == "tubes" and len(tree):
         # a stand's Weber-Penn tree: the twigs (its deepest level, where the leaves hang, a
