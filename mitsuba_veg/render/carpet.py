@@ -49,7 +49,7 @@ TEXTURE_TILE = 0.08
 #: height of the carpet's bump map [m] at texture height 1: Mitsuba's ``bumpmap`` displaces
 #: the surface by ``scale x h`` in the units of its position over texture coordinates, here
 #: metres. Shoot tips ~1 mm high on ~1.1 mm radii tilt the shading normals by up to ~45 deg:
-#: the carpet shows relief and, seen from above under the sun, reflects 1.0-1.04 times its
+#: the carpet shows relief and, seen from above under the sun, reflects 0.97-1.04 times its
 #: smooth blend (tests/test_render_moss_carpet.py); a centimetre of relief would darken it to
 #: half, as sunlit moss is not
 BUMP_SCALE = 0.001
@@ -348,7 +348,14 @@ def carpet_patches(moss, size: float, origin, scene=None, seed: int = 0,
     for si in np.unique(moss.species):
         sel = np.nonzero(moss.species == si)[0]
         vi = (sel[:, None] * PATCH_VERTICES + np.arange(PATCH_VERTICES)[None, :]).ravel()
-        f = PATCH_FACES[None, :, :] + (PATCH_VERTICES * np.arange(len(sel)))[:, None, None]
+        # the lattice's winding faces +axis d; a patch whose moss faces -d (the west, north or
+        # under side of a rock or log) is wound the other way, so that its geometric normal
+        # agrees with its shading normals (a bump map turns its frame to the geometric normal:
+        # against the shading normals the patch rendered black)
+        back = nrm[sel, d[sel]] < 0
+        faces = np.where(back[:, None, None], PATCH_FACES[None][:, :, [0, 2, 1]],
+                         PATCH_FACES[None])
+        f = faces + (PATCH_VERTICES * np.arange(len(sel)))[:, None, None]
         name = names[si] if si < len(names) else f"species{si}"
         out.append(CarpetMesh(name, verts[vi].astype(np.float32),
                               f.reshape(-1, 3).astype(np.uint32), tone[vi].astype(np.float32),
