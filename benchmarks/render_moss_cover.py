@@ -14,15 +14,52 @@ The courtyard's run is ``make demo``'s (``out/demo/world``). Litter hides moss a
 real forest: ``--no-litter`` switches it off for the comparison. ``--spp`` sets the samples per
 pixel of the NDVI render (the bands get about a sixth of the wavelength samples each, so the
 per-pixel NDVI needs a few dozen).
+
+A forest floor's moss grows in scattered 5-cm cells: from straight above the whole 30-m stand
+at 2560 px a cell spans 4 pixels, and its edge pixels mix moss with soil (a pixel reads as moss
+by NDVI only above 55-80 % moss, by species and soil). ``--tiles N`` measures the floor where a
+cell is resolved instead: N squares of ``--tile-m`` metres, each seen straight down from the
+``top`` preset's height at ``--width`` pixels, centred on moss picked at random in proportion
+to the simulated moss area (so that every square metre of moss is as likely to be looked at,
+and the squares do not overlap); the pixel counts of the views are pooled per triangle.
+
+    python benchmarks/render_moss_cover.py RUN_DIR --scenario TOML --no-litter --tiles 6
 """
 from __future__ import annotations
 
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+
+
+def tile_views(scn, terrain, moss, trees, sim, area, v, f, n: int, side: float, seed: int):
+    """``n`` squares of the ground, ``side`` metres, centred on triangles picked at random in
+    proportion to their simulated moss area, none overlapping another (module docstring)."""
+    w = sim * area
+    if w.sum() <= 0:
+        raise SystemExit("no simulated moss on the ground: nothing to look at")
+    cen = np.asarray(v, float)[np.asarray(f, np.int64)].mean(1)
+    from mitsuba_veg.render.cameras import presets
+    rng = np.random.default_rng(seed)
+    top = presets(scn, terrain, moss, trees)["top"]
+    views = []
+    for i in rng.choice(len(w), size=min(50 * n, int((w > 0).sum()) * 4), p=w / w.sum()):
+        c = cen[i]
+        if all(max(abs(c[0] - u["centre"][0]), abs(c[2] - u["centre"][2])) >= side
+               for u in views):
+            h = float(top["origin"][1]) - float(c[1])
+            views.append({"centre": c, "origin": [float(c[0]), float(top["origin"][1]),
+                                                  float(c[2]) + 1e-4],
+                          "target": [float(c[0]), float(c[1]), float(c[2])],
+                          "up": [0.0, 0.0, -1.0], "fov_axis": "x",
+                          "fov": float(np.degrees(2 * np.arctan(0.5 * side / h)))})
+            if len(views) == n:
+                break
+    return views
 
 
 def main(argv=None):
@@ -33,6 +70,11 @@ def main(argv=None):
     ap.add_argument("--width", type=int, default=1024, help="image side [px] (default 1024)")
     ap.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
     ap.add_argument("--no-litter", action="store_true", help="no fallen leaves on the floor")
+    ap.add_argument("--tiles", type=int, default=0,
+                    help="views of N squares of the floor centred on moss, pooled (module "
+                    "docstring); 0: one view of the whole terrain (default)")
+    ap.add_argument("--tile-m", type=float, default=4.0, help="side of a square [m] (default 4)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the squares' choice")
     ap.add_argument("--png", help="write the render and the moss masks here (a PNG)")
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--record", help="suffix of the results file (default: the scenario's "
@@ -56,22 +98,51 @@ def main(argv=None):
         else {}
     opts = S.RenderOptions(width=a.width, height=a.width, spp=a.spp, camera="top",
                            denoise=False, **kw)
-    t0 = time.perf_counter()
-    rs = S.build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=trees,
-                       date=fr.date, options=opts, terrain=terrain)
-    t1 = time.perf_counter()
-    im = still.render(rs)
-    c = fidelity.cover_comparison(rs, im, fr.moss, run.moss_size)
+    v, f = terrain.meshes["ground"][:2]
+    area = fidelity.triangle_areas(v, f)
+    sim = fidelity.simulated_cover(terrain, fr.moss, run.moss_size)
+    views = [None] if a.tiles <= 0 else tile_views(run.scenario, terrain, fr.moss, trees, sim,
+                                                   area, v, f, a.tiles, a.tile_m, a.seed)
+    counts, rows, seconds, build = None, [], 0.0, 0.0
+    for k, view in enumerate(views):
+        o = opts
+        if view is not None:     # a camera of its own for the square (a scene built for it)
+            run.scenario.data.setdefault("render", {}).setdefault("cameras", {})["square"] = {
+                n: view[n] for n in ("origin", "target", "up", "fov", "fov_axis")}
+            o = replace(opts, camera="square")
+        t0 = time.perf_counter()
+        rv = S.build_scene(run.scenario, fr.moss, moss_size=run.moss_size, trees=trees,
+                           date=fr.date, options=o, terrain=terrain)
+        build += time.perf_counter() - t0
+        im = still.render(rv)
+        seconds += im["seconds"]
+        c = fidelity.cover_counts(rv, im)
+        counts = c if counts is None else {n: counts[n] + c[n] for n in counts}
+        if view is not None:
+            one = fidelity.cover_summary(c, sim, area)
+            print(f"  view {k + 1}/{len(views)} at x {view['centre'][0]:.2f} z "
+                  f"{view['centre'][2]:.2f}: NDVI {one['area_ratio']:.3f}, geometric "
+                  f"{one['geometric_area_ratio']:.3f} over {one['compared']} triangles "
+                  f"({im['seconds']:.0f} s)", flush=True)
+        if a.png:
+            tri, clear, on_moss = fidelity.pixel_triangles(rv)
+            img8, _ = film.to_srgb8(im["rgb"])
+            masks = [np.stack([m.astype(np.uint8) * 255] * 3, -1)
+                     for m in (fidelity.moss_pixels(im), on_moss)]
+            rows.append(np.concatenate([img8, *masks], 1))
+    c = fidelity.cover_summary(counts, sim, area)
+    what = "whole terrain" if a.tiles <= 0 else \
+        f"{len(views)} squares of {a.tile_m:g} m at {a.width} px"
     out = {"run": str(run.dir), "day": day, "date": fr.date.isoformat(), "moss": len(fr.moss),
-           "moss_size_m": run.moss_size, "width": a.width, "spp": a.spp,
-           "litter": not a.no_litter, "build_s": t1 - t0, "render_s": im["seconds"],
+           "moss_size_m": run.moss_size, "width": a.width, "spp": a.spp, "views": what,
+           "litter": not a.no_litter, "build_s": build, "render_s": seconds,
            "simulated_m2": c["simulated_m2"], "rendered_m2": c["rendered_m2"],
            "area_ratio_ndvi": c["area_ratio"], "mad_mossy_ndvi": c["mad_mossy"],
            "area_ratio_geometric": c["geometric_area_ratio"],
            "mad_mossy_geometric": c["geometric_mad_mossy"],
            "mossy_triangles": c["mossy"], "compared_triangles": c["compared"]}
-    print(f"{run.dir} day {day} ({fr.date}): {len(fr.moss):,d} moss, {a.width}x{a.width} at "
-          f"{a.spp} spp (build {t1 - t0:.1f} s, render {im['seconds']:.1f} s)")
+    print(f"{run.dir} day {day} ({fr.date}): {len(fr.moss):,d} moss, {what}, {a.width}x"
+          f"{a.width} at {a.spp} spp (build {build:.1f} s, render {seconds:.1f} s)")
     print(f"  simulated moss on the ground {c['simulated_m2']:.3f} m2 over "
           f"{c['mossy']} mossy of {c['compared']} triangles compared")
     for name, r, m in (("NDVI > 0.45", c["area_ratio"], c["mad_mossy"]),
@@ -80,19 +151,14 @@ def main(argv=None):
         print(f"  {name:12s} drawn / simulated area {r:5.3f} (target 0.8-1.25), mean |diff| "
               f"over mossy triangles {m:5.3f} (target <= 0.1)  {ok}")
     if a.png:
-        tri, clear, on_moss = fidelity.pixel_triangles(rs)
-        img8, _ = film.to_srgb8(im["rgb"])
-        ndvi = fidelity.moss_pixels(im)
-        masks = np.concatenate([np.stack([ndvi * 255] * 3, -1), np.stack([on_moss * 255] * 3,
-                                                                          -1)], 1)
-        film.write_png(a.png, np.concatenate([np.concatenate([img8, img8], 1),
-                                              masks.astype(np.uint8)], 0))
+        film.write_png(a.png, np.concatenate(rows, 0))
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=1))
     from _record import Recorder
     name = "render_moss_cover_" + (a.record or Path(run.scenario.path).parent.name)
     rec = Recorder(name, notes=f"{run.dir.name}, day {day} ({fr.date}), {len(fr.moss):,d} moss, "
-                   f"top view {a.width}x{a.width} at {a.spp} spp"
+                   f"top view{'s' if a.tiles > 0 else ''} ({what}) {a.width}x{a.width} at "
+                   f"{a.spp} spp"
                    + (", litter off" if a.no_litter else ""))
     rec.add("area_ratio_ndvi", c["area_ratio"], "ratio",
             "drawn / simulated moss area on the ground, pixels with NDVI > 0.45 (target 0.8-1.25)")
