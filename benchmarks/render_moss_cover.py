@@ -125,7 +125,7 @@ def main(argv=None):
                   f"{one['geometric_area_ratio']:.3f} over {one['compared']} triangles "
                   f"({im['seconds']:.0f} s)", flush=True)
         if a.png:
-            tri, clear, on_moss = fidelity.pixel_triangles(rv)
+            on_moss = fidelity.pixel_triangles(rv)[2]
             img8, _ = film.to_srgb8(im["rgb"])
             masks = [np.stack([m.astype(np.uint8) * 255] * 3, -1)
                      for m in (fidelity.moss_pixels(im), on_moss)]
