@@ -113,7 +113,8 @@ def main(argv=None):
     out = {"run": a.run_dir, "day": day, "camera": a.camera, "width": 480, "height": 270,
            "spp": spp, "ref_spp": a.ref_spp, "shipped_s": t_ship, "reference_s": t_ref,
            "fixed_s": t_fixed, "time_ratio": t_ship / t_ref,
-           "time_ratio_beyond_fixed": (t_ship - t_fixed) / max(t_ref - t_fixed, 1e-9), "error_denoised": err(ship), "error_raw": err(raw),
+           "time_ratio_beyond_fixed": (t_ship - t_fixed) / max(t_ref - t_fixed, 1e-9),
+           "error_denoised": err(ship), "error_raw": err(raw),
            **{f"flicker_{k}": v for k, v in flicker.items()},
            "animation_spp": ANIMATE_DEFAULTS["spp"], "runs_s": times}
     ok = "ok" if out["error_denoised"] <= 0.05 and out["time_ratio"] <= 1 / 8 else "MISSED"

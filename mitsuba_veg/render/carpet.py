@@ -50,7 +50,7 @@ TEXTURE_TILE = 0.08
 #: the surface by ``scale x h`` in the units of its position over texture coordinates, here
 #: metres. Shoot tips ~1 mm high on ~1.1 mm radii tilt the shading normals by up to ~45 deg:
 #: the carpet shows relief and, seen from above under the sun, reflects 0.97-1.04 times its
-#: smooth blend (tests/test_render_moss_carpet.py); a centimetre of relief would darken it to
+#: smooth blend (tests/test_render_carpet.py); a centimetre of relief would darken it to
 #: half, as sunlit moss is not
 BUMP_SCALE = 0.001
 _LI = np.array([0, 1, 2, 0, 1, 2, 0, 1, 2])     # lattice step along a (half cells)

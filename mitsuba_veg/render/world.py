@@ -6,15 +6,16 @@ import logging
 
 import numpy as np
 
-from ..world.trees import scenario_trees as world_scenario_trees
 from ..world.tree_record import read_initial_trees
 from ..world.trees import age_tree, ages, tree_from_state, with_alive
+from ..world.trees import scenario_trees as world_scenario_trees
 from .leaves import leaf_shape_of
 from .litter import LIFE_DAYS, LitterLeaves
 from .seasons import TreeSeasons
 from .trees import scenario_trees
 
-__all__ = ["WorldLeaves", "grown_trees", "initial_trees", "world_trees", "tree_version", "trees_for_run"]
+__all__ = ["WorldLeaves", "grown_trees", "initial_trees", "world_trees", "tree_version",
+           "trees_for_run"]
 
 
 class WorldLeaves:
@@ -174,10 +175,10 @@ def initial_trees(run, base_scene=None) -> list:
 
 
 def world_trees(run, day: int | None = None):
-    """The trees of a world run (``[[trees]]`` and ``[stand]``) on a day: rebuilt from its
-    scenario as the run built them (same seeds), with the trees that grew at a year's end as
-    they stood that day (``trees/<year>.npz``). Trees given as meshes are drawn by the light
-    scene only (not by the render).
+    """The trees of a world run (``[[trees]]`` and ``[stand]``) on a day: the trees it started
+    with (:func:`initial_trees`: its record, else re-grown with the same seeds), with the trees
+    that grew at a year's end as they stood that day (``trees/<year>.npz``). Trees given as
+    meshes are drawn by the light scene only (not by the render).
 
     Parameters
     ----------
